@@ -1,0 +1,1 @@
+//! The `griplink` protocol (under construction).

@@ -1,0 +1,1 @@
+//! The `smartgrasp` protocol (under construction).

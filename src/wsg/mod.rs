@@ -1,0 +1,1 @@
+//! The `wsg` protocol (under construction).
