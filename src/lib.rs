@@ -13,6 +13,9 @@
 #![warn(missing_docs)]
 #![forbid(unsafe_code)]
 
+/// A fault-injecting TCP proxy for tests: delay, split, merge, corrupt, drop, duplicate, stall, cut.
+#[cfg(feature = "sim")]
+pub mod fault;
 pub mod griplink;
 pub mod smartgrasp;
 pub mod wsg;
