@@ -13,7 +13,7 @@
 #![warn(missing_docs)]
 #![forbid(unsafe_code)]
 
-/// A fault-injecting TCP proxy for tests: delay, split, merge, corrupt, drop, duplicate, stall, cut.
+/// Fault-injecting TCP proxy for tests (feature `sim`).
 #[cfg(feature = "sim")]
 pub mod fault;
 pub mod griplink;

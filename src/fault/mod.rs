@@ -1,3 +1,5 @@
+// The links below name their targets in full: this module's docs are also rendered from the crate
+// root (through the doc line on `mod fault` there), where the short paths are not in scope.
 //! A fault-injecting TCP proxy, for tests: put it between a client and a server (a simulator or a
 //! real device) and make the wire misbehave on purpose.
 //!
@@ -6,11 +8,10 @@
 //! [`FaultProxy::server_to_client`]) has its own [`Faults`], which a test changes while traffic
 //! flows:
 //!
-//! - rules ([`Faults::add`]) that apply a [`Fault`] to frames: [`Delay`](Fault::Delay),
-//!   [`Split`](Fault::Split) into pieces flushed separately, [`Merge`](Fault::Merge) several frames
-//!   into one write, [`Corrupt`](Fault::Corrupt) a byte, [`Drop`](Fault::Drop) a frame or
-//!   [`DropBytes`](Fault::DropBytes) inside it, [`Duplicate`](Fault::Duplicate),
-//!   [`Stall`](Fault::Stall), [`Cut`](Fault::Cut) the connection after some bytes of a frame;
+//! - rules ([`Faults::add`]) that apply a [`Fault`] to frames: [`Delay`], [`Split`] into pieces
+//!   flushed separately, [`Merge`] several frames into one write, [`Corrupt`] a byte, [`Drop`] a
+//!   frame or [`DropBytes`] inside it, [`Duplicate`], [`Stall`], [`Cut`] the connection after
+//!   some bytes of a frame;
 //!   once ([`Fault::once`], [`Fault::nth`]) or persistently ([`Fault::always`], [`Fault::every`],
 //!   [`Fault::randomly`], limited with [`Rule::times`]);
 //! - a stall switch ([`Faults::stall`], [`Faults::release`], [`Faults::release_bytes`]);
@@ -24,11 +25,49 @@
 //! Frames are found by a [`Framing`]: [`Framing::Bytes`] (each read is a unit),
 //! [`Framing::Delimited`] (GRIPLINK lines end in LF), [`Framing::FixedLength`] (SmartGrasp V3
 //! frames are 80 bytes), or [`Framing::Custom`] with a function returning a [`FrameLen`]. Bytes
-//! that are not a frame (garbage between frames, a frame over
-//! [`ProxyConfig::max_frame_len`]) are forwarded untouched, so the proxy's memory stays bounded.
+//! that are not a frame (garbage between frames, a frame over [`ProxyConfig::max_frame_len`]) are
+//! forwarded untouched, so the proxy's memory stays bounded.
 //! Randomness comes from a seeded xorshift generator ([`ProxyConfig::seed`]): runs are reproducible.
 //!
 //! The fault decisions are pure code (`plan.rs`, `framing.rs`), the sockets are in `proxy.rs`.
+//!
+//! [`FaultProxy::start`]: crate::fault::FaultProxy::start
+//! [`FaultProxy::client_to_server`]: crate::fault::FaultProxy::client_to_server
+//! [`FaultProxy::server_to_client`]: crate::fault::FaultProxy::server_to_client
+//! [`Faults`]: crate::fault::Faults
+//! [`Faults::add`]: crate::fault::Faults::add
+//! [`Fault`]: crate::fault::Fault
+//! [`Delay`]: crate::fault::Fault::Delay
+//! [`Split`]: crate::fault::Fault::Split
+//! [`Merge`]: crate::fault::Fault::Merge
+//! [`Corrupt`]: crate::fault::Fault::Corrupt
+//! [`Drop`]: crate::fault::Fault::Drop
+//! [`DropBytes`]: crate::fault::Fault::DropBytes
+//! [`Duplicate`]: crate::fault::Fault::Duplicate
+//! [`Stall`]: crate::fault::Fault::Stall
+//! [`Cut`]: crate::fault::Fault::Cut
+//! [`Fault::once`]: crate::fault::Fault::once
+//! [`Fault::nth`]: crate::fault::Fault::nth
+//! [`Fault::always`]: crate::fault::Fault::always
+//! [`Fault::every`]: crate::fault::Fault::every
+//! [`Fault::randomly`]: crate::fault::Fault::randomly
+//! [`Rule::times`]: crate::fault::Rule::times
+//! [`Faults::stall`]: crate::fault::Faults::stall
+//! [`Faults::release`]: crate::fault::Faults::release
+//! [`Faults::release_bytes`]: crate::fault::Faults::release_bytes
+//! [`FaultProxy::cut_connections`]: crate::fault::FaultProxy::cut_connections
+//! [`FaultHandle`]: crate::fault::FaultHandle
+//! [`FaultHandle::wait_fired`]: crate::fault::FaultHandle::wait_fired
+//! [`FaultProxy::stats`]: crate::fault::FaultProxy::stats
+//! [`FaultProxy::wait_for_stats`]: crate::fault::FaultProxy::wait_for_stats
+//! [`Framing`]: crate::fault::Framing
+//! [`Framing::Bytes`]: crate::fault::Framing::Bytes
+//! [`Framing::Delimited`]: crate::fault::Framing::Delimited
+//! [`Framing::FixedLength`]: crate::fault::Framing::FixedLength
+//! [`Framing::Custom`]: crate::fault::Framing::Custom
+//! [`FrameLen`]: crate::fault::FrameLen
+//! [`ProxyConfig::max_frame_len`]: crate::fault::ProxyConfig::max_frame_len
+//! [`ProxyConfig::seed`]: crate::fault::ProxyConfig::seed
 //!
 //! # Example
 //!
