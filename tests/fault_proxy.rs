@@ -26,25 +26,16 @@ async fn within<F: Future>(what: &str, future: F) -> F::Output {
         .unwrap_or_else(|_| panic!("timed out: {what}"))
 }
 
-/// A proxy and both ends of one connection through it.
-struct Link {
-    proxy: FaultProxy,
-    client: TcpStream,
-    server: TcpStream,
-}
-
-async fn link(config: ProxyConfig) -> Link {
+/// A proxy, and both ends of one connection through it: the client's socket and the socket the
+/// upstream server accepted.
+async fn link(config: ProxyConfig) -> (FaultProxy, TcpStream, TcpStream) {
     let listener = TcpListener::bind("127.0.0.1:0").await.unwrap();
     let proxy = FaultProxy::start_with(listener.local_addr().unwrap(), config)
         .await
         .unwrap();
     let client = TcpStream::connect(proxy.local_addr()).await.unwrap();
     let (server, _) = within("upstream accept", listener.accept()).await.unwrap();
-    Link {
-        proxy,
-        client,
-        server,
-    }
+    (proxy, client, server)
 }
 
 fn lines() -> ProxyConfig {
@@ -97,11 +88,7 @@ async fn echo_server() -> SocketAddr {
 
 #[tokio::test]
 async fn forwards_both_ways_untouched_without_faults() {
-    let Link {
-        proxy,
-        mut client,
-        mut server,
-    } = link(ProxyConfig::new()).await;
+    let (proxy, mut client, mut server) = link(ProxyConfig::new()).await;
     let request: Vec<u8> = (0..200_000u32).map(|i| (i * 7 % 251) as u8).collect();
     let (sent, received) = tokio::join!(
         client.write_all(&request),
@@ -128,11 +115,7 @@ async fn forwards_both_ways_untouched_without_faults() {
 
 #[tokio::test]
 async fn half_close_is_forwarded_and_the_other_direction_keeps_flowing() {
-    let Link {
-        proxy: _proxy,
-        mut client,
-        mut server,
-    } = link(ProxyConfig::new()).await;
+    let (_proxy, mut client, mut server) = link(ProxyConfig::new()).await;
     client.write_all(b"last request").await.unwrap();
     client.shutdown().await.unwrap();
     assert_eq!(read_to_end(&mut server).await, b"last request");
@@ -143,11 +126,7 @@ async fn half_close_is_forwarded_and_the_other_direction_keeps_flowing() {
 
 #[tokio::test]
 async fn split_delivers_pieces_separately_until_the_faults_change() {
-    let Link {
-        proxy,
-        mut client,
-        server,
-    } = link(lines()).await;
+    let (proxy, mut client, mut server) = link(lines()).await;
     let faults = proxy.client_to_server();
     let split = faults.add(
         Fault::Split {
@@ -159,7 +138,6 @@ async fn split_delivers_pieces_separately_until_the_faults_change() {
     client.write_all(b"0123456789A\n").await.unwrap();
 
     // The first piece is written, then the proxy pauses: exactly 4 bytes are there.
-    let mut server = server;
     assert_eq!(read_exactly(&mut server, 4).await, b"0123");
     let stats = within(
         "first piece counted",
@@ -183,11 +161,8 @@ async fn split_delivers_pieces_separately_until_the_faults_change() {
 
 #[tokio::test]
 async fn merge_holds_frames_and_writes_them_together() {
-    let Link {
-        proxy,
-        client,
-        mut server,
-    } = link(ProxyConfig::new().framing(Framing::FixedLength(8))).await;
+    let (proxy, client, mut server) =
+        link(ProxyConfig::new().framing(Framing::FixedLength(8))).await;
     let faults = proxy.server_to_client();
     let merge = faults.add(
         Fault::Merge {
@@ -219,11 +194,8 @@ async fn merge_holds_frames_and_writes_them_together() {
 
 #[tokio::test]
 async fn merge_group_that_never_fills_is_written_after_max_wait() {
-    let Link {
-        proxy,
-        mut client,
-        mut server,
-    } = link(ProxyConfig::new().framing(Framing::FixedLength(8))).await;
+    let (proxy, mut client, mut server) =
+        link(ProxyConfig::new().framing(Framing::FixedLength(8))).await;
     let merge = proxy.server_to_client().add(
         Fault::Merge {
             frames: 5,
@@ -238,11 +210,7 @@ async fn merge_group_that_never_fills_is_written_after_max_wait() {
 
 #[tokio::test]
 async fn corrupt_flips_one_byte_of_the_next_frame_only() {
-    let Link {
-        proxy,
-        mut client,
-        mut server,
-    } = link(lines()).await;
+    let (proxy, mut client, mut server) = link(lines()).await;
     let corrupt = proxy.client_to_server().add(
         Fault::Corrupt {
             at: At::Start(1),
@@ -258,11 +226,8 @@ async fn corrupt_flips_one_byte_of_the_next_frame_only() {
 
 #[tokio::test]
 async fn drop_every_third_frame() {
-    let Link {
-        proxy,
-        mut client,
-        mut server,
-    } = link(ProxyConfig::new().framing(Framing::FixedLength(3))).await;
+    let (proxy, mut client, mut server) =
+        link(ProxyConfig::new().framing(Framing::FixedLength(3))).await;
     let dropping = proxy.client_to_server().add(Fault::Drop.every(3));
     for i in 1..=9 {
         client
@@ -281,11 +246,7 @@ async fn drop_every_third_frame() {
 
 #[tokio::test]
 async fn drop_bytes_removes_a_range_inside_a_frame() {
-    let Link {
-        proxy,
-        mut client,
-        mut server,
-    } = link(lines()).await;
+    let (proxy, mut client, mut server) = link(lines()).await;
     proxy.client_to_server().add(
         Fault::DropBytes {
             at: At::Start(2),
@@ -299,11 +260,7 @@ async fn drop_bytes_removes_a_range_inside_a_frame() {
 
 #[tokio::test]
 async fn duplicate_the_second_reply() {
-    let Link {
-        proxy,
-        mut client,
-        mut server,
-    } = link(lines()).await;
+    let (proxy, mut client, mut server) = link(lines()).await;
     let duplicate = proxy.server_to_client().add(Fault::Duplicate.nth(2));
     server.write_all(b"A\nB\nC\n").await.unwrap();
     assert_eq!(read_exactly(&mut client, 8).await, b"A\nB\nB\nC\n");
@@ -312,22 +269,17 @@ async fn duplicate_the_second_reply() {
 
 #[tokio::test]
 async fn stall_holds_bytes_without_closing_and_release_lets_them_through() {
-    let Link {
-        proxy,
-        mut client,
-        server,
-    } = link(lines()).await;
+    let (proxy, mut client, server) = link(lines()).await;
     let faults = proxy.client_to_server();
     faults.stall();
     client.write_all(b"hello\n").await.unwrap();
     let stats = within("held at the stall", faults.wait_for(|s| s.held_bytes == 6)).await;
     assert!(stats.stalled);
     assert_eq!(stats.bytes_written, 0);
-    let server = assert_nothing_arrived(server);
+    let mut server = assert_nothing_arrived(server);
 
     // Exactly two bytes through, then held again.
     faults.release_bytes(2);
-    let mut server = server;
     assert_eq!(read_exactly(&mut server, 2).await, b"he");
     within("two written", faults.wait_for(|s| s.held_bytes == 4)).await;
     let mut server = assert_nothing_arrived(server);
@@ -343,14 +295,9 @@ async fn stall_holds_bytes_without_closing_and_release_lets_them_through() {
 
 #[tokio::test]
 async fn stall_rule_holds_from_the_chosen_frame_on() {
-    let Link {
-        proxy,
-        mut client,
-        server,
-    } = link(lines()).await;
+    let (proxy, mut client, mut server) = link(lines()).await;
     let faults = proxy.server_to_client();
     let stall = faults.add(Fault::Stall.nth(2));
-    let mut server = server;
     server.write_all(b"one\ntwo\nthree\n").await.unwrap();
     assert_eq!(read_exactly(&mut client, 4).await, b"one\n");
     within(
@@ -366,11 +313,7 @@ async fn stall_rule_holds_from_the_chosen_frame_on() {
 
 #[tokio::test]
 async fn delay_holds_a_frame_until_the_rule_is_removed() {
-    let Link {
-        proxy,
-        client,
-        mut server,
-    } = link(lines()).await;
+    let (proxy, client, mut server) = link(lines()).await;
     let faults = proxy.server_to_client();
     let delay = faults.add(Fault::Delay(LONG).always());
     server.write_all(b"late\n").await.unwrap();
@@ -386,11 +329,7 @@ async fn delay_holds_a_frame_until_the_rule_is_removed() {
 
 #[tokio::test]
 async fn cut_mid_frame_delivers_the_first_bytes_then_closes_both_sides() {
-    let Link {
-        proxy,
-        mut client,
-        mut server,
-    } = link(lines()).await;
+    let (proxy, mut client, mut server) = link(lines()).await;
     let cut = proxy
         .server_to_client()
         .add(Fault::Cut { after_bytes: 3 }.nth(2));
@@ -428,11 +367,7 @@ async fn cut_connections_closes_now_and_new_connections_work() {
 
 #[tokio::test]
 async fn faults_change_at_run_time_in_both_directions() {
-    let Link {
-        proxy,
-        mut client,
-        mut server,
-    } = link(lines()).await;
+    let (proxy, mut client, mut server) = link(lines()).await;
     let requests = proxy.client_to_server();
     let replies = proxy.server_to_client();
 
@@ -486,11 +421,8 @@ fn wsg_frame_len(buf: &[u8]) -> FrameLen {
 
 #[tokio::test]
 async fn custom_framing_corrupts_a_checksum_and_passes_garbage_untouched() {
-    let Link {
-        proxy,
-        mut client,
-        mut server,
-    } = link(ProxyConfig::new().framing(Framing::Custom(wsg_frame_len))).await;
+    let (proxy, mut client, mut server) =
+        link(ProxyConfig::new().framing(Framing::Custom(wsg_frame_len))).await;
     let corrupt = proxy.server_to_client().add(
         Fault::Corrupt {
             at: At::End(0),
@@ -516,11 +448,7 @@ async fn custom_framing_corrupts_a_checksum_and_passes_garbage_untouched() {
 
 #[tokio::test]
 async fn frames_over_the_bound_pass_through_unbuffered() {
-    let Link {
-        proxy,
-        mut client,
-        mut server,
-    } = link(lines().max_frame_len(16)).await;
+    let (proxy, mut client, mut server) = link(lines().max_frame_len(16)).await;
     let corrupt = proxy.client_to_server().add(
         Fault::Corrupt {
             at: At::Start(0),
@@ -541,11 +469,7 @@ async fn frames_over_the_bound_pass_through_unbuffered() {
 #[tokio::test]
 async fn random_faults_are_reproducible_for_a_seed() {
     async fn survivors(seed: u64) -> Vec<u8> {
-        let Link {
-            proxy,
-            mut client,
-            mut server,
-        } = link(
+        let (proxy, mut client, mut server) = link(
             ProxyConfig::new()
                 .framing(Framing::FixedLength(1))
                 .seed(seed),
@@ -575,11 +499,7 @@ async fn random_faults_are_reproducible_for_a_seed() {
 
 #[tokio::test]
 async fn dropping_the_proxy_closes_the_listener_and_every_connection() {
-    let Link {
-        proxy,
-        mut client,
-        mut server,
-    } = link(lines()).await;
+    let (proxy, mut client, mut server) = link(lines()).await;
     let addr = proxy.local_addr();
     // Leave bytes held at a stall, so there is work in flight to abandon.
     let faults = proxy.client_to_server();
@@ -603,11 +523,7 @@ async fn dropping_the_proxy_closes_the_listener_and_every_connection() {
 
 #[tokio::test]
 async fn shutdown_waits_until_everything_is_closed() {
-    let Link {
-        proxy,
-        mut client,
-        mut server,
-    } = link(lines()).await;
+    let (proxy, mut client, mut server) = link(lines()).await;
     let faults = proxy.server_to_client();
     faults.add(Fault::Delay(LONG).always());
     server.write_all(b"never\n").await.unwrap();
