@@ -554,3 +554,30 @@ async fn unreachable_upstream_closes_the_client() {
     .await;
     assert_eq!(stats.connections_accepted, 1);
 }
+
+#[tokio::test]
+async fn a_stalled_direction_stops_reading_instead_of_buffering() {
+    let (proxy, mut client, mut server) = link(ProxyConfig::new().max_frame_len(1024)).await;
+    let faults = proxy.client_to_server();
+    faults.stall();
+    // Far more than the kernel's socket buffers on both sides can take.
+    let data: Vec<u8> = (0..32 * 1024 * 1024u32).map(|i| (i % 253) as u8).collect();
+    let expected = data.clone();
+    let writer = tokio::spawn(async move {
+        client.write_all(&data).await.unwrap();
+        client
+    });
+    let stats = within("held", faults.wait_for(|s| s.held_bytes > 0)).await;
+    // One read, held at the stall, and nothing read behind it.
+    assert!(
+        stats.bytes_read <= 1024,
+        "read {} bytes while stalled",
+        stats.bytes_read
+    );
+    assert_eq!(stats.bytes_read, stats.held_bytes);
+    assert!(!writer.is_finished());
+
+    faults.release();
+    assert!(read_exactly(&mut server, expected.len()).await == expected);
+    let _client = within("writer done", writer).await.unwrap();
+}

@@ -14,6 +14,7 @@ use bytes::{Bytes, BytesMut};
 
 /// A byte position inside a frame.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
 pub enum At {
     /// This many bytes from the first byte (0 = the first byte); past the end means the last byte.
     Start(usize),
@@ -26,6 +27,7 @@ pub enum At {
 
 /// What to do to a frame (or, with [`Framing::Bytes`](super::Framing::Bytes), to one read).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
 pub enum Fault {
     /// Hold the frame this long before forwarding it (later frames queue behind it). Ends early when
     /// the faults of this direction change.
@@ -109,6 +111,7 @@ impl Fault {
 
 /// Which frames a rule applies to, counted from when the rule was added.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
 pub enum When {
     /// The `n`-th frame (1 = the next one), then the rule is done. `Nth(0)` is treated as `Nth(1)`.
     Nth(u64),

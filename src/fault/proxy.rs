@@ -24,7 +24,8 @@ use tokio::time::Instant;
 use super::framing::{Framer, Framing, UnitKind};
 use super::plan::{Gate, Pipeline, Rule, RuleCounter, RuleSet, Step};
 
-/// Bytes read from a socket at a time. With [`Framing::Bytes`] this is also the largest unit.
+/// Bytes read from a socket at a time (at most `max_frame_len`). With [`Framing::Bytes`] a read is
+/// a unit, so this is also the largest unit.
 const READ_CHUNK: usize = 8 * 1024;
 
 /// One of the two directions of a proxied connection.
@@ -88,7 +89,12 @@ impl ProxyConfig {
 
     /// The longest frame the proxy holds (default 64 KiB). Longer frames, and bytes that do not
     /// make a frame within this many bytes, are forwarded as they are, with no fault applied. This
-    /// also bounds a merge group.
+    /// also bounds a merge group and the size of one read.
+    ///
+    /// Memory bound, per connection and direction: a partial frame and one read (each at most
+    /// this many bytes), a merge group (at most this many bytes plus one frame and its
+    /// duplicates), and the frame being written. While the proxy cannot write (a stall, a delay, a
+    /// slow receiver) it stops reading, so the sender's TCP window closes instead of memory growing.
     pub fn max_frame_len(mut self, len: usize) -> Self {
         self.max_frame_len = len.max(1);
         self
@@ -255,7 +261,16 @@ impl Shared {
 }
 
 /// Controls the faults of one direction of a [`FaultProxy`]; cheap to clone, usable from any task
-/// while traffic flows. Changes apply to the next frame of every connection.
+/// while traffic flows.
+///
+/// Rules, their counts and the stall switch are shared by all connections of the proxy: a change
+/// applies to the next frame of every connection, and a rule added with [`Fault::once`] fires once
+/// in total, on whichever connection sends the next frame.
+///
+/// Delays, pauses and merge waits run on tokio's clock: under a paused clock (`start_paused`)
+/// they pass as soon as the runtime is idle.
+///
+/// [`Fault::once`]: super::Fault::once
 #[derive(Clone)]
 pub struct Faults {
     shared: Arc<Shared>,
@@ -381,7 +396,8 @@ impl FaultHandle {
             .update(|s| s.dirs[i].rules.remove(&self.counter));
     }
 
-    /// Waits until the fault has fired at least `n` times; returns the count.
+    /// Waits until the fault has fired at least `n` times; returns the count. It waits as long as
+    /// it takes (also after the rule is done or removed): wrap it in a timeout.
     pub async fn wait_fired(&self, n: u64) -> u64 {
         self.shared
             .wait_until(|_| {
@@ -620,7 +636,14 @@ async fn serve(shared: &Shared, client: TcpStream, epoch: u64) {
         upstream_read,
         client_write,
     );
-    let cut = shared.wait_until(|s| (s.cut_epoch != epoch || s.closing).then_some(()));
+    // `Cut` when the test pulled the cable, `Eof` (not counted as a cut) when the proxy shuts down.
+    let cut = shared.wait_until(|s| {
+        if s.cut_epoch != epoch {
+            Some(End::Cut)
+        } else {
+            s.closing.then_some(End::Eof)
+        }
+    });
     tokio::pin!(requests, replies, cut);
     let (mut requests_done, mut replies_done) = (false, false);
     // One direction may end (half-close) while the other still flows; a cut or a failure ends both,
@@ -635,14 +658,14 @@ async fn serve(shared: &Shared, client: TcpStream, epoch: u64) {
                 End::Eof => replies_done = true,
                 end => break end,
             },
-            () = &mut cut => break End::Cut,
+            end = &mut cut => break end,
         }
         if requests_done && replies_done {
             break End::Eof;
         }
     };
     match end {
-        End::Eof => tracing::debug!("fault proxy: connection closed by its ends"),
+        End::Eof => tracing::debug!("fault proxy: connection closed"),
         End::Cut => {
             tracing::debug!("fault proxy: connection cut");
             shared.update(|s| s.cut += 1);
@@ -663,7 +686,7 @@ async fn pump(
     let mut pipeline = Pipeline::new(shared.config.max_frame_len);
     // While a merge group is held: how long it may wait, and the rules' generation it began under.
     let mut merge: Option<(Duration, Instant, u64)> = None;
-    let mut buf = vec![0u8; READ_CHUNK];
+    let mut buf = vec![0u8; READ_CHUNK.min(shared.config.max_frame_len)];
     loop {
         let read = match merge {
             Some((max_wait, since, generation)) => {
