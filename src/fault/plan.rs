@@ -34,7 +34,8 @@ pub enum Fault {
     Delay(Duration),
     /// Deliver the frame in pieces of at most `piece_len` bytes, each written and flushed on its
     /// own, with `pause` between pieces. Pauses end early when the faults of this direction change,
-    /// so a test can hold pieces apart with a long pause and then let the rest through.
+    /// so a test can hold pieces apart with a long pause and then let the rest through. (A receiver
+    /// slower than the pause may still get several pieces in one read: that is TCP.)
     Split {
         /// Bytes per piece (0 is treated as 1).
         piece_len: usize,

@@ -53,7 +53,7 @@ pub struct ProxyConfig {
     framing: Framing,
     max_frame_len: usize,
     seed: u64,
-    connect_timeout: Duration,
+    connect_timeout: Option<Duration>,
 }
 
 impl Default for ProxyConfig {
@@ -63,14 +63,14 @@ impl Default for ProxyConfig {
             framing: Framing::Bytes,
             max_frame_len: 64 * 1024,
             seed: 0x5EED_F00D,
-            connect_timeout: Duration::from_secs(5),
+            connect_timeout: None,
         }
     }
 }
 
 impl ProxyConfig {
-    /// Listen on `127.0.0.1:0`, no framing, frames up to 64 KiB, a fixed seed, 5 s upstream
-    /// connect timeout.
+    /// Listen on `127.0.0.1:0`, no framing, frames up to 64 KiB, a fixed seed, no upstream
+    /// connect timeout of its own.
     pub fn new() -> Self {
         Self::default()
     }
@@ -107,10 +107,14 @@ impl ProxyConfig {
         self
     }
 
-    /// How long the proxy tries to reach the upstream server for each client (default 5 s);
-    /// when it cannot, it closes the client's connection.
+    /// How long the proxy tries to reach the upstream server for each client; when it cannot, it
+    /// closes the client's connection.
+    ///
+    /// By default only the operating system's limit applies (a refused loopback port fails at
+    /// once): a tokio timer here would fire at once under a paused test clock, which advances
+    /// whenever the runtime waits on a socket.
     pub fn connect_timeout(mut self, timeout: Duration) -> Self {
-        self.connect_timeout = timeout;
+        self.connect_timeout = Some(timeout);
         self
     }
 }
@@ -353,7 +357,8 @@ impl Faults {
     }
 }
 
-/// One rule added with [`Faults::add`]: how often it fired, and a way to remove it.
+/// One rule added with [`Faults::add`]: how often it fired, and a way to remove it. Dropping the
+/// handle leaves the rule in force.
 pub struct FaultHandle {
     shared: Arc<Shared>,
     direction: Direction,
@@ -599,12 +604,12 @@ enum End {
 }
 
 async fn serve(shared: &Shared, client: TcpStream, epoch: u64) {
-    let upstream = match tokio::time::timeout(
-        shared.config.connect_timeout,
-        TcpStream::connect(shared.upstream),
-    )
-    .await
-    {
+    let connect = TcpStream::connect(shared.upstream);
+    let connected = match shared.config.connect_timeout {
+        Some(limit) => tokio::time::timeout(limit, connect).await,
+        None => Ok(connect.await),
+    };
+    let upstream = match connected {
         Ok(Ok(upstream)) => upstream,
         Ok(Err(error)) => {
             tracing::warn!(%error, upstream = %shared.upstream, "fault proxy: cannot reach upstream");
