@@ -101,7 +101,9 @@ impl ProxyConfig {
     }
 
     /// Seed of the generator behind [`Fault::randomly`](super::Fault::randomly) and
-    /// [`At::Random`](super::At::Random): the same seed and traffic give the same faults.
+    /// [`At::Random`](super::At::Random): the same seed and traffic give the same faults. Each
+    /// direction draws from its own stream, shared by that direction's connections (so with
+    /// several connections at once, which connection gets which draw depends on their timing).
     pub fn seed(mut self, seed: u64) -> Self {
         self.seed = seed;
         self
