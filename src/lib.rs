@@ -13,6 +13,9 @@
 #![warn(missing_docs)]
 #![forbid(unsafe_code)]
 
+/// Fault-injecting TCP proxy for tests (feature `sim`).
+#[cfg(feature = "sim")]
+pub mod fault;
 pub mod griplink;
 pub mod smartgrasp;
 pub mod wsg;
