@@ -120,6 +120,9 @@ pub enum Malformed {
         /// Its response counter.
         counter: u8,
     },
+    /// A SUCCESS response without the body its message type has.
+    #[error("a SUCCESS response without its body")]
+    MissingBody,
     /// A successful GET_GRASP response carried a pose that cannot be read.
     #[error("grasp pose: {0}")]
     Pose(PoseError),
