@@ -44,7 +44,7 @@ pub mod offset {
     pub const REQ_POSE_FORMAT: usize = 15;
     /// Request: grasp feedback, u8 (byte 17 is an unused offset byte).
     pub const REQ_GRASP_FEEDBACK: usize = 16;
-    /// Request: robot pose, i32[7] (bytes 18..46).
+    /// Request: robot pose, `i32[7]` (bytes 18..46).
     pub const REQ_ROBOT_POSE: usize = 18;
     /// Request: project index, u32 (bytes 50..80 are padding).
     pub const REQ_PROJECT_INDEX: usize = 46;
@@ -63,13 +63,13 @@ pub mod offset {
     pub const RESP_STROKE: usize = 18;
     /// Response: angle offset, i32 µdeg.
     pub const RESP_ANGLE_OFFSET: usize = 22;
-    /// Response: center offset, i32[3] µm (bytes 26..38).
+    /// Response: center offset, `i32[3]` µm (bytes 26..38).
     pub const RESP_CENTER_OFFSET: usize = 26;
     /// Response: tool, u8.
     pub const RESP_TOOL: usize = 38;
     /// Response: pose format, u8.
     pub const RESP_POSE_FORMAT: usize = 39;
-    /// Response: grasp pose, i32[7] (bytes 40..68).
+    /// Response: grasp pose, `i32[7]` (bytes 40..68).
     pub const RESP_GRASP_POSE: usize = 40;
     /// Response: object count, u16.
     pub const RESP_OBJECT_COUNT: usize = 68;
