@@ -56,6 +56,34 @@ pub fn peek_frame(bytes: &[u8]) -> Result<Peeked, Prefix> {
     }
 }
 
+/// What [`take`] cut off the front of a buffer.
+enum Taken {
+    Frame([u8; FRAME_LEN]),
+    Empty { version: u16 },
+}
+
+/// Consumes one frame or empty message from `src`, or reserves room for the rest of it (never
+/// more than one frame, whatever the prefix says). `Err`: a length that is neither 74 nor 0.
+fn take(src: &mut BytesMut) -> Result<Option<Taken>, Malformed> {
+    match peek_frame(src) {
+        Ok(Peeked::Incomplete { needed }) => {
+            src.reserve(needed);
+            Ok(None)
+        }
+        Ok(Peeked::Frame(bytes)) => {
+            src.advance(FRAME_LEN);
+            Ok(Some(Taken::Frame(bytes)))
+        }
+        Ok(Peeked::Empty { version }) => {
+            src.advance(PREFIX_LEN);
+            Ok(Some(Taken::Empty { version }))
+        }
+        Err(prefix) => Err(Malformed::FrameLength {
+            length: prefix.length,
+        }),
+    }
+}
+
 /// The client side: encodes [`RequestFrame`]s, decodes [`ResponseFrame`]s.
 ///
 /// Decoder errors: [`Error::ServerTooOld`] for an empty message, [`Malformed::FrameLength`] for
@@ -68,27 +96,13 @@ impl Decoder for ClientCodec {
     type Error = Error;
 
     fn decode(&mut self, src: &mut BytesMut) -> Result<Option<ResponseFrame>, Error> {
-        match peek_frame(src) {
-            Ok(Peeked::Incomplete { needed }) => {
-                // At most one frame: never more than 80 bytes reserved, whatever the prefix says.
-                src.reserve(needed);
-                Ok(None)
-            }
-            Ok(Peeked::Frame(bytes)) => {
-                src.advance(FRAME_LEN);
-                Ok(Some(ResponseFrame::decode(&bytes)))
-            }
-            Ok(Peeked::Empty { version }) => {
-                src.advance(PREFIX_LEN);
-                Err(Error::ServerTooOld {
-                    server_version: version,
-                    client_version: PROTOCOL_VERSION,
-                })
-            }
-            Err(prefix) => Err(Malformed::FrameLength {
-                length: prefix.length,
-            }
-            .into()),
+        match take(src)? {
+            None => Ok(None),
+            Some(Taken::Frame(bytes)) => Ok(Some(ResponseFrame::decode(&bytes))),
+            Some(Taken::Empty { version }) => Err(Error::ServerTooOld {
+                server_version: version,
+                client_version: PROTOCOL_VERSION,
+            }),
         }
     }
 }
@@ -114,21 +128,11 @@ impl Decoder for ServerCodec {
     type Error = Error;
 
     fn decode(&mut self, src: &mut BytesMut) -> Result<Option<RequestFrame>, Error> {
-        match peek_frame(src) {
-            Ok(Peeked::Incomplete { needed }) => {
-                src.reserve(needed);
-                Ok(None)
-            }
-            Ok(Peeked::Frame(bytes)) => {
-                src.advance(FRAME_LEN);
-                Ok(Some(RequestFrame::decode(&bytes)))
-            }
+        match take(src)? {
+            None => Ok(None),
+            Some(Taken::Frame(bytes)) => Ok(Some(RequestFrame::decode(&bytes))),
             // A request with no body has no meaning in any version.
-            Ok(Peeked::Empty { .. }) => Err(Malformed::FrameLength { length: 0 }.into()),
-            Err(prefix) => Err(Malformed::FrameLength {
-                length: prefix.length,
-            }
-            .into()),
+            Some(Taken::Empty { .. }) => Err(Malformed::FrameLength { length: 0 }.into()),
         }
     }
 }

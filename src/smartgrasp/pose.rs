@@ -156,8 +156,14 @@ impl UnitQuaternion {
     /// The angle in radians of the rotation that takes `self` to `other` (0 when they are the
     /// same rotation, whatever the quaternions' signs).
     pub fn angle_to(&self, other: &UnitQuaternion) -> f64 {
-        let dot = self.x * other.x + self.y * other.y + self.z * other.z + self.w * other.w;
-        2.0 * dot.abs().min(1.0).acos()
+        // The relative rotation conj(self)·other; atan2 keeps precision near 0, where acos of
+        // the dot product would not.
+        let (a, b) = (self, other);
+        let w = a.w * b.w + a.x * b.x + a.y * b.y + a.z * b.z;
+        let x = a.w * b.x - a.x * b.w - a.y * b.z + a.z * b.y;
+        let y = a.w * b.y + a.x * b.z - a.y * b.w - a.z * b.x;
+        let z = a.w * b.z - a.x * b.y + a.y * b.x - a.z * b.w;
+        2.0 * (x * x + y * y + z * z).sqrt().atan2(w.abs())
     }
 
     /// The rotation matrix, rows first.
@@ -684,5 +690,51 @@ mod tests {
             far.to_pose(PoseFormat::Wpr),
             Err(PoseError::OutOfRange { .. })
         ));
+    }
+
+    proptest::proptest! {
+        /// Euler angles → rotation → Euler angles gives the same rotation (the angles may differ
+        /// at the wrap and the gimbal lock), and the same angles away from those edges.
+        #[test]
+        fn euler_round_trips(
+            a in -179_999_999i32..=180_000_000,
+            b in -89_000_000i32..=89_000_000,
+            c in -179_999_999i32..=180_000_000,
+        ) {
+            let pose = Pose::Abc(AbcPose { position_um: [a, b, c], abc_udeg: [a, b, c] });
+            let back = pose.to_si().unwrap().to_pose(PoseFormat::Abc).unwrap();
+            // Away from the lock (|B| ≤ 89°), the angles are unique: exact to the µdeg.
+            let Pose::Abc(p) = back else { unreachable!() };
+            for (x, y) in p.abc_udeg.iter().zip([a, b, c]) {
+                proptest::prop_assert!((x - y).abs() <= 1, "{:?} vs {:?}", p.abc_udeg, [a, b, c]);
+            }
+            let wpr = pose.to_format(PoseFormat::Wpr).unwrap();
+            // Rounded to the µdeg: at most half a µdeg about each of three axes.
+            proptest::prop_assert!(orientation(wpr).angle_to(&orientation(pose)) < 2.0 * UDEG);
+        }
+
+        /// Any non-degenerate quaternion survives a trip through every other format.
+        #[test]
+        fn quaternion_round_trips(q in proptest::array::uniform4(-1_000_000i32..=1_000_000)) {
+            proptest::prop_assume!(q.iter().map(|&v| i64::from(v).pow(2)).sum::<i64>() > 10_000_000_000);
+            let pose = Pose::Quaternion(QuaternionPose { position_um: [1, 2, 3], quaternion_e6: q });
+            for format in [PoseFormat::AxisAngle, PoseFormat::Wpr, PoseFormat::Abc] {
+                let there = pose.to_format(format).unwrap();
+                let err = orientation(there).angle_to(&orientation(pose));
+                proptest::prop_assert!(err < 1e-5, "{format}: {err}");
+            }
+        }
+    }
+
+    #[test]
+    fn angle_to_measures_the_relative_rotation() {
+        let a = UnitQuaternion::from_rpy(0.3, -0.2, 1.0);
+        let turn = UnitQuaternion::from_axis_angle([1.0, 2.0, -0.5], 1e-7);
+        assert!((a.angle_to(&turn.then_after(a)) - 1e-7).abs() < 1e-12);
+        let big = UnitQuaternion::from_axis_angle([0.0, 1.0, 0.0], 2.5);
+        assert!((a.angle_to(&a.then_after(big)) - 2.5).abs() < 1e-12);
+        // -q is the same rotation.
+        let [x, y, z, w] = a.xyzw();
+        assert!(a.angle_to(&UnitQuaternion::new(-x, -y, -z, -w).unwrap()) < 1e-15);
     }
 }
