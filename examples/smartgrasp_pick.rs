@@ -5,7 +5,7 @@
 //!
 //! ```text
 //! cargo run --example smartgrasp_pick                          # against the in-process simulator
-//! cargo run --example smartgrasp_pick -- --addr 10.0.0.5:42001 # against a server
+//! cargo run --example smartgrasp_pick -- --addr 10.0.0.5:42001 # against a server (port optional)
 //! cargo run --example smartgrasp_pick -- --format wpr          # FANUC's W, P, R instead of ABC
 //! ```
 
@@ -139,7 +139,15 @@ fn parse_args(mut args: impl Iterator<Item = String>) -> Result<Args, String> {
     };
     while let Some(arg) = args.next() {
         match arg.as_str() {
-            "--addr" => parsed.addr = Some(args.next().ok_or("--addr needs HOST:PORT")?),
+            "--addr" => {
+                let addr = args.next().ok_or("--addr needs HOST:PORT")?;
+                // A bare host name or IPv4 address gets the server's port (manual 1.1).
+                parsed.addr = Some(if addr.contains(':') {
+                    addr
+                } else {
+                    format!("{addr}:{}", gripper::smartgrasp::DEFAULT_PORT)
+                });
+            }
             "--format" => {
                 parsed.format = match args.next().as_deref() {
                     Some("abc") => PoseFormat::Abc,

@@ -446,7 +446,7 @@ fn answer(request: &RequestFrame, counter: u8) -> ResponseFrame {
 }
 
 async fn bare(addr: SocketAddr) -> Client {
-    Client::connect_without_opening(addr, &ClientConfig::default())
+    Client::connect_without_opening(addr, ClientConfig::default())
         .await
         .unwrap()
 }

@@ -90,7 +90,7 @@ impl Client {
     /// SET_PROJECT when configured. After it, the robot program is one call away from
     /// [`get_grasp`](Self::get_grasp).
     pub async fn connect(addr: impl ToSocketAddrs, config: ClientConfig) -> Result<Client> {
-        let client = Client::connect_without_opening(addr, &config).await?;
+        let client = Client::connect_without_opening(addr, config.clone()).await?;
         let server_version = client.get_protocol_version().await?;
         if server_version < PROTOCOL_VERSION {
             return Err(Error::ServerTooOld {
@@ -112,10 +112,10 @@ impl Client {
         Ok(client)
     }
 
-    /// Connects without sending anything.
+    /// Connects without sending anything (`config`'s opening-sequence fields are not used).
     pub async fn connect_without_opening(
         addr: impl ToSocketAddrs,
-        config: &ClientConfig,
+        config: ClientConfig,
     ) -> Result<Client> {
         let stream = tokio::time::timeout(config.connect_timeout, TcpStream::connect(addr))
             .await
