@@ -487,7 +487,13 @@ async fn wrong_message_type_or_communication_type_breaks_the_connection() {
     })
     .await;
     let client = bare(addr).await;
-    let err = client.get_object_count(0).await.unwrap_err();
+    let (err, other) = tokio::join!(client.get_object_count(0), client.get_state());
+    let err = err.unwrap_err();
+    // The call that received the wrong type learns why; the other only lost the connection.
+    assert!(
+        matches!(other, Err(Error::ConnectionClosed { .. })),
+        "{other:?}"
+    );
     assert!(
         matches!(
             err,

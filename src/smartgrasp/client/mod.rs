@@ -272,19 +272,7 @@ impl Client {
 
     /// The error of a call on a connection that is gone.
     fn closed(&self) -> Error {
-        match self.closed.get() {
-            Some(Error::ConnectionClosed { reason }) => Error::ConnectionClosed {
-                reason: Arc::clone(reason),
-            },
-            // Still the answer to every later call, and typed so a program can tell the user.
-            Some(e @ Error::ServerTooOld { .. }) => e.clone(),
-            Some(reason) => Error::ConnectionClosed {
-                reason: reason.to_string().into(),
-            },
-            None => Error::ConnectionClosed {
-                reason: "the connection task has ended".into(),
-            },
-        }
+        task::closed_error(self.closed.get())
     }
 }
 

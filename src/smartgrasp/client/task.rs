@@ -16,7 +16,7 @@ use tokio_util::codec::FramedRead;
 
 use super::pairing::{check_header, Pairing};
 use crate::smartgrasp::codec::ClientCodec;
-use crate::smartgrasp::error::{Error, Result};
+use crate::smartgrasp::error::{Error, Malformed, Result};
 use crate::smartgrasp::frame::{RequestFrame, ResponseFrame};
 use crate::smartgrasp::types::MessageType;
 
@@ -86,10 +86,42 @@ pub(crate) async fn run(
     let _ = closed.set(reason.clone());
     calls.close();
     for w in waiting.drain(..) {
-        let _ = w.reply.send(Err(reason.clone()));
+        let _ = w.reply.send(Err(waiting_error(&reason)));
     }
     while let Ok(call) = calls.try_recv() {
-        let _ = call.reply.send(Err(reason.clone()));
+        let _ = call.reply.send(Err(closed_error(Some(&reason))));
+    }
+}
+
+/// What a call that was sent and still waits gets when the connection breaks. A header error
+/// was already given to the call whose response carried it; the others only lost the connection.
+fn waiting_error(reason: &Error) -> Error {
+    match reason {
+        Error::Malformed(
+            Malformed::MessageType { .. }
+            | Malformed::CommunicationType(_)
+            | Malformed::Version { .. }
+            | Malformed::Unsolicited { .. },
+        ) => closed_error(Some(reason)),
+        // Stream-level reasons (I/O, bad length, too old, lost responses) concern every call.
+        other => other.clone(),
+    }
+}
+
+/// What a call gets on a connection that is already gone (or never got to send its request).
+pub(crate) fn closed_error(reason: Option<&Error>) -> Error {
+    match reason {
+        Some(Error::ConnectionClosed { reason }) => Error::ConnectionClosed {
+            reason: Arc::clone(reason),
+        },
+        // Still the answer to every later call, and typed so a program can tell the user.
+        Some(e @ Error::ServerTooOld { .. }) => e.clone(),
+        Some(reason) => Error::ConnectionClosed {
+            reason: reason.to_string().into(),
+        },
+        None => Error::ConnectionClosed {
+            reason: "the connection task has ended".into(),
+        },
     }
 }
 
@@ -112,7 +144,7 @@ fn on_response(
     }
     let Some(w) = waiting.pop_front() else {
         // `counter` guarantees one is left; treat it as unsolicited all the same.
-        return Err(crate::smartgrasp::Malformed::Unsolicited { counter: received }.into());
+        return Err(Malformed::Unsolicited { counter: received }.into());
     };
     if let Err(e) = check_header(w.message_type, frame) {
         let e = Error::from(e);
