@@ -41,6 +41,13 @@ fn expect_grasp(outcome: GetGraspOutcome) -> gripper::smartgrasp::Grasp {
     }
 }
 
+#[test]
+fn the_handle_is_clone_send_sync() {
+    fn shareable<T: Clone + Send + Sync + 'static>() {}
+    shareable::<Client>();
+    shareable::<Error>();
+}
+
 #[tokio::test]
 async fn opening_sequence_registers_and_sets_the_project() {
     let server = sim(SimConfig::default()).await;

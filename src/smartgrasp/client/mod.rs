@@ -71,7 +71,8 @@ pub enum GetGraspOutcome {
 }
 
 /// Handle to a Smart Grasping server connection. `Clone + Send + Sync`: clone it into as many
-/// tasks as needed; calls are sent in order and each gets its own response.
+/// tasks as needed; calls are sent in order (pipelined, at most 16 unanswered) and each gets its
+/// own response. Dropping the last handle closes the connection.
 ///
 /// Every call has a timeout ([`ClientConfig`], or [`Client::with_timeout`] per call). A call that
 /// times out or is dropped keeps its place in the pairing: its late reply is discarded, never

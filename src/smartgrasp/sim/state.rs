@@ -622,4 +622,29 @@ mod tests {
         bad[2..6].copy_from_slice(&u32::MAX.to_be_bytes());
         assert!(parse_request(&bad).is_err());
     }
+
+    proptest::proptest! {
+        /// Whatever arrives, the simulator answers (or refuses the length) without panicking,
+        /// and a response always carries the request's message type.
+        #[test]
+        fn arbitrary_requests_never_panic(
+            head in proptest::array::uniform32(proptest::prelude::any::<u8>()),
+            tail in proptest::array::uniform32(proptest::prelude::any::<u8>()),
+            rest in proptest::array::uniform16(proptest::prelude::any::<u8>()),
+            keep_prefix in proptest::prelude::any::<bool>(),
+        ) {
+            let mut bytes: Vec<u8> = head.iter().chain(&tail).chain(&rest).copied().collect();
+            if keep_prefix {
+                bytes[..6].copy_from_slice(&Prefix::V3.encode());
+            }
+            let mut s = SimState::new(SimConfig::default());
+            let mut c = s.connect();
+            if let Ok(Some((frame, used))) = parse_request(&bytes) {
+                proptest::prop_assert_eq!(used, FRAME_LEN);
+                if let Action::Respond(r) = s.handle(&mut c, &frame) {
+                    proptest::prop_assert_eq!(r.header.message_type, frame.header.message_type);
+                }
+            }
+        }
+    }
 }
