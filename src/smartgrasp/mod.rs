@@ -12,6 +12,9 @@
 //! - `sim` (feature `sim`): a simulated server.
 //!
 //! ```
+//! # #[cfg(not(feature = "sim"))]
+//! # fn main() {}
+//! # #[cfg(feature = "sim")]
 //! # #[tokio::main(flavor = "current_thread")]
 //! # async fn main() -> gripper::smartgrasp::Result<()> {
 //! use gripper::smartgrasp::sim::{SimConfig, SimServer};
