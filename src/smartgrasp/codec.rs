@@ -1,0 +1,262 @@
+//! tokio-util codecs: [`ClientCodec`] (requests out, responses in) and [`ServerCodec`] (requests
+//! in, responses out), over the pure [`peek_frame`].
+//!
+//! The prefix is read first (manual 1.3: a client must not assume 80 bytes). Length 74 is a V3
+//! frame; length 0 is the "server too old" empty message; any other length is refused before a
+//! byte of it is buffered: the field is a u32, and a hostile 4 GB length must not allocate 4 GB.
+//! Frames carry no start marker, so after a bad length the stream cannot be resynchronised: the
+//! decoder returns `Err`, which ends the stream, and the connection is reported broken.
+
+use bytes::{Buf, BytesMut};
+use tokio_util::codec::{Decoder, Encoder};
+
+use super::error::{Error, Malformed};
+use super::frame::{
+    Prefix, RequestFrame, ResponseFrame, FRAME_LEN, PREFIX_LEN, PROTOCOL_VERSION, V3_LENGTH,
+};
+
+/// What the bytes at the front of a buffer hold.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Peeked {
+    /// Not enough bytes yet; `needed` more would complete the prefix or the frame.
+    Incomplete {
+        /// Bytes still missing.
+        needed: usize,
+    },
+    /// A complete V3 frame (the first 80 bytes).
+    Frame([u8; FRAME_LEN]),
+    /// An empty message: a prefix with length 0 (the first 6 bytes). From a server, it means
+    /// "too old" and `version` is its highest version (manual 1.3).
+    Empty {
+        /// The prefix's version.
+        version: u16,
+    },
+}
+
+/// Looks at the front of `bytes` without consuming anything. `Err` carries a prefix whose length
+/// is neither 74 nor 0.
+pub fn peek_frame(bytes: &[u8]) -> Result<Peeked, Prefix> {
+    let Some(head) = bytes.first_chunk::<PREFIX_LEN>() else {
+        return Ok(Peeked::Incomplete {
+            needed: PREFIX_LEN - bytes.len(),
+        });
+    };
+    let prefix = Prefix::decode(head);
+    match prefix.length {
+        0 => Ok(Peeked::Empty {
+            version: prefix.version,
+        }),
+        V3_LENGTH => match bytes.first_chunk::<FRAME_LEN>() {
+            Some(frame) => Ok(Peeked::Frame(*frame)),
+            None => Ok(Peeked::Incomplete {
+                needed: FRAME_LEN - bytes.len(),
+            }),
+        },
+        _ => Err(prefix),
+    }
+}
+
+/// What [`take`] cut off the front of a buffer.
+enum Taken {
+    Frame([u8; FRAME_LEN]),
+    Empty { version: u16 },
+}
+
+/// Consumes one frame or empty message from `src`, or reserves room for the rest of it (never
+/// more than one frame, whatever the prefix says). `Err`: a length that is neither 74 nor 0.
+fn take(src: &mut BytesMut) -> Result<Option<Taken>, Malformed> {
+    match peek_frame(src) {
+        Ok(Peeked::Incomplete { needed }) => {
+            src.reserve(needed);
+            Ok(None)
+        }
+        Ok(Peeked::Frame(bytes)) => {
+            src.advance(FRAME_LEN);
+            Ok(Some(Taken::Frame(bytes)))
+        }
+        Ok(Peeked::Empty { version }) => {
+            src.advance(PREFIX_LEN);
+            Ok(Some(Taken::Empty { version }))
+        }
+        Err(prefix) => Err(Malformed::FrameLength {
+            length: prefix.length,
+        }),
+    }
+}
+
+/// The client side: encodes [`RequestFrame`]s, decodes [`ResponseFrame`]s.
+///
+/// Decoder errors: [`Error::ServerTooOld`] for an empty message, [`Malformed::FrameLength`] for
+/// any length but 74 and 0. Both end the stream.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct ClientCodec;
+
+impl Decoder for ClientCodec {
+    type Item = ResponseFrame;
+    type Error = Error;
+
+    fn decode(&mut self, src: &mut BytesMut) -> Result<Option<ResponseFrame>, Error> {
+        match take(src)? {
+            None => Ok(None),
+            Some(Taken::Frame(bytes)) => Ok(Some(ResponseFrame::decode(&bytes))),
+            Some(Taken::Empty { version }) => Err(Error::ServerTooOld {
+                server_version: version,
+                client_version: PROTOCOL_VERSION,
+            }),
+        }
+    }
+}
+
+impl Encoder<RequestFrame> for ClientCodec {
+    type Error = Error;
+
+    fn encode(&mut self, item: RequestFrame, dst: &mut BytesMut) -> Result<(), Error> {
+        dst.extend_from_slice(&item.encode());
+        Ok(())
+    }
+}
+
+/// The server side: decodes [`RequestFrame`]s of any version whose length is 74, encodes
+/// [`ResponseFrame`]s and bare [`Prefix`]es (the "too old" empty message).
+///
+/// Any other length is an `Err` ([`Malformed::FrameLength`]) that ends the stream.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct ServerCodec;
+
+impl Decoder for ServerCodec {
+    type Item = RequestFrame;
+    type Error = Error;
+
+    fn decode(&mut self, src: &mut BytesMut) -> Result<Option<RequestFrame>, Error> {
+        match take(src)? {
+            None => Ok(None),
+            Some(Taken::Frame(bytes)) => Ok(Some(RequestFrame::decode(&bytes))),
+            // A request with no body has no meaning in any version.
+            Some(Taken::Empty { .. }) => Err(Malformed::FrameLength { length: 0 }.into()),
+        }
+    }
+}
+
+impl Encoder<ResponseFrame> for ServerCodec {
+    type Error = Error;
+
+    fn encode(&mut self, item: ResponseFrame, dst: &mut BytesMut) -> Result<(), Error> {
+        dst.extend_from_slice(&item.encode());
+        Ok(())
+    }
+}
+
+impl Encoder<Prefix> for ServerCodec {
+    type Error = Error;
+
+    fn encode(&mut self, item: Prefix, dst: &mut BytesMut) -> Result<(), Error> {
+        dst.extend_from_slice(&item.encode());
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::smartgrasp::types::{MessageType, ResponseCode};
+    use proptest::prelude::*;
+
+    fn response(counter: u8) -> ResponseFrame {
+        let mut f = ResponseFrame::new(MessageType::GetState, ResponseCode::Success, counter);
+        f.server_state = crate::smartgrasp::ServerState::Operational;
+        f
+    }
+
+    #[test]
+    fn partial_frames_wait_and_reserve_at_most_one_frame() {
+        let bytes = response(1).encode();
+        let mut buf = BytesMut::from(&bytes[..3]);
+        assert!(ClientCodec.decode(&mut buf).unwrap().is_none());
+        buf.extend_from_slice(&bytes[3..50]);
+        assert!(ClientCodec.decode(&mut buf).unwrap().is_none());
+        assert!(buf.capacity() < 4096);
+        buf.extend_from_slice(&bytes[50..]);
+        assert_eq!(ClientCodec.decode(&mut buf).unwrap(), Some(response(1)));
+        assert!(buf.is_empty());
+    }
+
+    #[test]
+    fn empty_message_is_server_too_old() {
+        let mut buf = BytesMut::from(
+            &Prefix {
+                version: 2,
+                length: 0,
+            }
+            .encode()[..],
+        );
+        let err = ClientCodec.decode(&mut buf).unwrap_err();
+        assert!(matches!(
+            err,
+            Error::ServerTooOld {
+                server_version: 2,
+                client_version: 3
+            }
+        ));
+    }
+
+    #[test]
+    fn hostile_length_is_refused_without_allocating() {
+        let mut buf = BytesMut::from(
+            &Prefix {
+                version: 3,
+                length: u32::MAX,
+            }
+            .encode()[..],
+        );
+        let err = ClientCodec.decode(&mut buf).unwrap_err();
+        assert!(matches!(
+            err,
+            Error::Malformed(Malformed::FrameLength { length: u32::MAX })
+        ));
+        assert!(buf.capacity() < 4096);
+        let mut buf = BytesMut::from(
+            &Prefix {
+                version: 3,
+                length: 75,
+            }
+            .encode()[..],
+        );
+        assert!(ServerCodec.decode(&mut buf).is_err());
+    }
+
+    proptest! {
+        /// Any split of a valid stream decodes to the same frames.
+        #[test]
+        fn any_split_decodes_to_the_same_frames(
+            counters in proptest::collection::vec(any::<u8>(), 1..6),
+            cuts in proptest::collection::vec(0usize..480, 0..8),
+        ) {
+            let frames: Vec<ResponseFrame> = counters.iter().map(|&c| response(c)).collect();
+            let stream: Vec<u8> = frames.iter().flat_map(|f| f.encode()).collect();
+            let mut cuts: Vec<usize> = cuts.into_iter().map(|c| c % (stream.len() + 1)).collect();
+            cuts.push(stream.len());
+            cuts.sort_unstable();
+            let mut buf = BytesMut::new();
+            let mut out = Vec::new();
+            let mut start = 0;
+            for cut in cuts {
+                buf.extend_from_slice(&stream[start..cut]);
+                start = cut;
+                while let Some(f) = ClientCodec.decode(&mut buf).unwrap() {
+                    out.push(f);
+                }
+            }
+            prop_assert_eq!(out, frames);
+            prop_assert!(buf.is_empty());
+        }
+
+        /// Whatever the bytes, decoding never panics and never holds more than one frame.
+        #[test]
+        fn arbitrary_bytes_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..300)) {
+            let mut buf = BytesMut::from(&bytes[..]);
+            while let Ok(Some(_)) = ClientCodec.decode(&mut buf) {}
+            let mut buf = BytesMut::from(&bytes[..]);
+            while let Ok(Some(_)) = ServerCodec.decode(&mut buf) {}
+        }
+    }
+}

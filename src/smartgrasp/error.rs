@@ -1,0 +1,129 @@
+//! The one error type of `smartgrasp`, keeping apart: the server said no, the server is too old,
+//! a response was lost, a malformed reply, I/O, timeout, and arguments refused before sending.
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use super::pose::PoseError;
+use super::types::{CommunicationType, MessageType, ResponseCode, ServerState};
+
+/// Result of this module.
+pub type Result<T> = std::result::Result<T, Error>;
+
+/// Everything that can go wrong talking to a Smart Grasping server.
+///
+/// `Clone`, so the reason a connection broke can be handed to every call that was waiting on it.
+#[derive(Debug, Clone, thiserror::Error)]
+pub enum Error {
+    /// The server answered with a response code other than SUCCESS where the call has no typed
+    /// outcome for it (see [`GetGraspOutcome`](super::GetGraspOutcome) for the grasp call's).
+    #[error("the server refused {message_type}: {code}")]
+    Refused {
+        /// The request's message type.
+        message_type: MessageType,
+        /// The response code the server sent.
+        code: ResponseCode,
+    },
+    /// The server speaks an older protocol version: it answered with an empty message (manual
+    /// 1.3), or GET_PROTOCOL_VERSION reported a version below 3. The connection is closed.
+    #[error("the server is too old: it speaks protocol v{server_version}, this client needs v{client_version}")]
+    ServerTooOld {
+        /// The highest version the server supports.
+        server_version: u16,
+        /// The version this client speaks.
+        client_version: u16,
+    },
+    /// The opening sequence found the server in a state other than OPERATIONAL.
+    #[error("the server is not operational: {state}")]
+    NotOperational {
+        /// The state GET_STATE reported.
+        state: ServerState,
+    },
+    /// The response counter skipped a number: a response was lost (manual 3.2.2.3). The call
+    /// that was waiting for it gets this error instead of someone else's answer.
+    #[error(
+        "a response was lost: expected response counter {expected}, the server sent {received}"
+    )]
+    ResponseLost {
+        /// The counter the next response should have carried.
+        expected: u8,
+        /// The counter it carried.
+        received: u8,
+    },
+    /// No response within the call's timeout. The request's slot is kept: its late reply will be
+    /// consumed and discarded.
+    #[error("no response to {message_type} within {timeout:?}")]
+    Timeout {
+        /// The request's message type.
+        message_type: MessageType,
+        /// The timeout that ran out.
+        timeout: Duration,
+    },
+    /// The server sent something the protocol does not allow.
+    #[error("malformed reply: {0}")]
+    Malformed(#[from] Malformed),
+    /// Reading from or writing to the socket failed, or connecting failed.
+    #[error("I/O error: {0}")]
+    Io(Arc<std::io::Error>),
+    /// The connection is closed (by the server, or after an earlier error broke it).
+    #[error("the connection is closed: {reason}")]
+    ConnectionClosed {
+        /// Why, as far as known.
+        reason: Arc<str>,
+    },
+    /// An argument was refused before anything was sent.
+    #[error("invalid argument: {0}")]
+    InvalidArgument(&'static str),
+    /// A pose could not be converted.
+    #[error("pose: {0}")]
+    Pose(#[from] PoseError),
+}
+
+impl From<std::io::Error> for Error {
+    fn from(e: std::io::Error) -> Self {
+        Error::Io(Arc::new(e))
+    }
+}
+
+/// A reply that breaks the protocol's rules.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum Malformed {
+    /// The prefix's length field is neither 74 (a V3 frame) nor 0 (the "too old" answer). The
+    /// stream cannot be resynchronised, so the connection is reported broken; the length is not
+    /// allocated.
+    #[error("frame length {length} (a V3 frame has 74 bytes after the prefix)")]
+    FrameLength {
+        /// The length field as received.
+        length: u32,
+    },
+    /// A V3 frame carried another version in its prefix.
+    #[error("protocol version {version} in a V3 frame")]
+    Version {
+        /// The version as received.
+        version: u16,
+    },
+    /// The header's communication type is not "response".
+    #[error("communication type {0} where a response was expected")]
+    CommunicationType(CommunicationType),
+    /// The response's message type differs from the request's: the pairing of requests and
+    /// responses cannot be trusted any more, so the connection is closed.
+    #[error("response of type {received} to a {expected} request")]
+    MessageType {
+        /// The request's message type.
+        expected: MessageType,
+        /// The response's message type.
+        received: MessageType,
+    },
+    /// A response arrived while no request was waiting.
+    #[error("unsolicited response (counter {counter})")]
+    Unsolicited {
+        /// Its response counter.
+        counter: u8,
+    },
+    /// A SUCCESS response without the body its message type has.
+    #[error("a SUCCESS response without its body")]
+    MissingBody,
+    /// A successful GET_GRASP response carried a pose that cannot be read.
+    #[error("grasp pose: {0}")]
+    Pose(PoseError),
+}

@@ -1,0 +1,18 @@
+//! A simulated Smart Grasping server, for tests without hardware (feature `sim`).
+//!
+//! [`SimServer`] serves the V3 protocol over TCP from a pure state machine ([`SimState`]):
+//! projects, each a scene of objects with class ids and grasp definitions; GET_GRASP in any pose
+//! format with NO_OBJECT / NO_GRASP / INVALID_OBJECT_CLASS when they apply; objects leave the
+//! scene on GRASP_FEEDBACK OK; REGISTER_CLIENT and ROBOT_POSE recorded; a response counter per
+//! connection that wraps (configurable start); a configurable protocol version (below 3 it
+//! answers "too old"); and [`Fault`]s to inject. Nothing in it moves, so it costs no wall time,
+//! except a [`Fault::Delay`] a test asks for.
+
+mod server;
+pub mod state;
+
+pub use server::SimServer;
+pub use state::{
+    parse_request, Action, Fault, SimConfig, SimConnection, SimGrasp, SimObject, SimProject,
+    SimState,
+};
