@@ -153,7 +153,7 @@ pub fn check_text(text: &str, max: usize) -> Result<(), TextError> {
     Ok(())
 }
 
-/// A syntax error found by [`Cursor`]: what was expected and where.
+/// A syntax error found while parsing a line: what was expected and where.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct SyntaxError {
     /// Byte offset in the line.
