@@ -312,9 +312,14 @@ impl<'a> Cursor<'a> {
                 .map(Value::Float)
                 .or_else(|_| self.fail("a number"))
         } else {
-            text.parse::<i64>()
-                .map(Value::Int)
-                .or_else(|_| self.fail("an integer in range"))
+            // Floats may omit the fraction (manual 2.1.1): digits beyond i64 are a float.
+            match text.parse::<i64>() {
+                Ok(v) => Ok(Value::Int(v)),
+                Err(_) => text
+                    .parse::<f64>()
+                    .map(Value::Float)
+                    .or_else(|_| self.fail("a number")),
+            }
         }
     }
 
@@ -398,7 +403,7 @@ mod tests {
         assert!(value("0x10").is_err());
         assert!(value("-").is_err());
         assert!(value(".").is_err());
-        assert!(value("99999999999999999999").is_err());
+        assert_eq!(value("99999999999999999999"), Ok(Value::Float(1e20)));
     }
 
     #[test]

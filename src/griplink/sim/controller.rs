@@ -409,6 +409,17 @@ impl Controller {
         self.ports.get(port).map(|p| p.position_um)
     }
 
+    /// Whether the device on `port` is moving at `now`.
+    pub fn is_moving(&mut self, port: usize, now: Duration) -> bool {
+        self.advance(now);
+        self.ports.get(port).is_some_and(|p| p.motion.is_some())
+    }
+
+    /// Changes the time scale for motions started from now on (see [`SimConfig::time_scale`]).
+    pub fn set_time_scale(&mut self, scale: f64) {
+        self.config.time_scale = scale;
+    }
+
     /// Puts a part of `width_mm` between the fingers of the device on `port` (`None`: no part).
     pub fn set_part(&mut self, port: usize, width_mm: Option<f64>) {
         if let Some(d) = self.ports.get_mut(port).and_then(|p| p.device.as_mut()) {

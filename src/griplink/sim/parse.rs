@@ -150,7 +150,12 @@ fn index(v: i64) -> Result<u32, Status> {
 }
 
 fn int(v: &Value) -> Result<i64, Status> {
-    v.as_int().ok_or(Status::CmdSyntax)
+    match v {
+        Value::Int(i) => Ok(*i),
+        // Digits too many for any integer: a value out of range, not a syntax error.
+        Value::Float(f) if f.fract() == 0.0 && f.abs() >= 9.0e18 => Err(Status::RangeError),
+        _ => Err(Status::CmdSyntax),
+    }
 }
 
 fn int32(v: &Value) -> Result<i32, Status> {
