@@ -21,6 +21,14 @@ async fn sim() -> SimServer {
     SimServer::start("127.0.0.1:0", config).await.unwrap()
 }
 
+#[test]
+fn handles_are_clone_send_sync() {
+    fn check<T: Clone + Send + Sync + 'static>() {}
+    check::<Client>();
+    check::<gripper::griplink::Port>();
+    check::<Error>();
+}
+
 async fn connect(server: &SimServer) -> Client {
     Client::connect(server.local_addr()).await.unwrap()
 }
@@ -369,11 +377,24 @@ async fn errors_with_and_without_verbose_text() {
     }
     assert_eq!(
         err.to_string(),
-        "GRIP(0,0) refused: ERR 4 Device not initialized (Device not initialized)"
+        "GRIP(0,0) refused: ERR 04 E_NOT_INITIALIZED: Device not initialized"
+    );
+    server.inject(Fault::RawReply(
+        b"ERR 04 The device is not initialized\n".to_vec(),
+    ));
+    assert_eq!(
+        client.id().await.unwrap_err().to_string(),
+        "ID? refused: ERR 04 E_NOT_INITIALIZED: Device not initialized \
+         (controller: The device is not initialized)"
     );
     // Unknown codes are kept.
     server.inject(Fault::Error(Status::Unknown(42)));
-    assert_eq!(device_status(client.id().await), Status::Unknown(42));
+    let err = client.id().await.unwrap_err();
+    assert_eq!(err.status(), Some(Status::Unknown(42)));
+    assert_eq!(
+        err.to_string(),
+        "ID? refused: ERR 42: unknown status code 42"
+    );
 }
 
 #[tokio::test]
@@ -618,6 +639,11 @@ async fn many_concurrent_callers_each_get_their_own_reply() {
 async fn reply_for_another_key_port_or_garbage_is_an_error() {
     let server = sim().await;
     let client = connect(&server).await;
+    server.inject(Fault::RawReply(b"DEVVID[0]=-2\n".to_vec()));
+    assert!(matches!(
+        client.port(0).vendor_id().await,
+        Err(Error::UnexpectedReply { .. })
+    ));
     server.inject(Fault::RawReply(b"DEVSTATE[1]=3\n".to_vec()));
     assert!(matches!(
         client.port(0).state().await,

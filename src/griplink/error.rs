@@ -19,7 +19,7 @@ pub type Result<T> = std::result::Result<T, Error>;
 #[non_exhaustive]
 pub enum Error {
     /// The controller answered `ERR <code>[ <text>]` (manual 2.4).
-    #[error("{command} refused: ERR {} {status}{}", status.code(), text.as_deref().map(|t| format!(" ({t})")).unwrap_or_default())]
+    #[error("{command} refused: {}", device_message(*status, text.as_deref()))]
     Device {
         /// The command line that was refused (without LF).
         command: String,
@@ -77,6 +77,21 @@ pub enum Error {
     /// the in-order pairing of replies can no longer be trusted.
     #[error("connection broken: {0}")]
     Broken(String),
+}
+
+/// `ERR 19 E_STATE_CONFLICT: Invalid state`, plus the controller's own text when verbose mode
+/// sent one that says more than the manual's description.
+fn device_message(status: Status, text: Option<&str>) -> String {
+    let mut s = format!("ERR {:02}", status.code());
+    if let Some(ident) = status.identifier() {
+        s.push(' ');
+        s.push_str(ident);
+    }
+    s.push_str(&format!(": {status}"));
+    if let Some(text) = text.filter(|t| !t.eq_ignore_ascii_case(&status.to_string())) {
+        s.push_str(&format!(" (controller: {text})"));
+    }
+    s
 }
 
 impl Error {

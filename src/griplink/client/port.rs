@@ -7,7 +7,7 @@ use crate::griplink::command::{
     Blocking, Command, FlexGrip, FlexGripScaled, FlexRelease, FlexReleaseScaled, GripConfig,
     GripConfigF, PortNumber,
 };
-use crate::griplink::error::Result;
+use crate::griplink::error::{Error, Result};
 use crate::griplink::state::DeviceState;
 
 /// The device on one port of the controller (`client.port(2)`). Cheap to clone; shares the
@@ -42,7 +42,16 @@ impl Port {
     /// answers -1) (manual 3.2.1). Weiss Robotics is 815.
     pub async fn vendor_id(&self) -> Result<Option<u32>> {
         let vid: i64 = self.client.read_int(Command::DevVid(self.port)).await?;
-        Ok(u32::try_from(vid).ok())
+        match vid {
+            -1 => Ok(None),
+            vid => u32::try_from(vid)
+                .map(Some)
+                .map_err(|_| Error::UnexpectedReply {
+                    command: format!("DEVVID[{}]?", self.port),
+                    line: format!("DEVVID[{}]={vid}", self.port),
+                    expected: "a vendor id, or -1 for no device".into(),
+                }),
+        }
     }
 
     /// `DEVPID[p]?`: the product id (manual 3.2.2, chapter 7).
