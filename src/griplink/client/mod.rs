@@ -16,6 +16,11 @@
 //! when it comes, is consumed and discarded, so the next caller gets its own. A command still
 //! queued when its caller gives up is never sent.
 //!
+//! While a blocking command holds the connection, the controller reads nothing else from it
+//! (manual 2.1): other calls wait behind it and may time out. To watch a gripper during a long
+//! blocking motion, start the motion with [`Blocking::Immediate`] and wait with
+//! [`WaitBy::Polling`], or open a second [`Client`].
+//!
 //! If a reply stays away [`ClientConfig::give_up_after`] beyond its call's timeout, the
 //! controller is not answering the way the protocol promises, and no later reply could be
 //! paired with confidence: the client then reports [`Error::Broken`] to every pending and
@@ -45,7 +50,7 @@ use super::reply::{Answer, Data};
 use super::state::DeviceState;
 use super::value::Value;
 #[cfg(doc)]
-use super::Blocking;
+use super::command::Blocking;
 
 /// The controller's default TCP port (manual 2.5.1).
 pub const DEFAULT_PORT: u16 = 10001;
@@ -395,8 +400,9 @@ impl Client {
         Ok(self.read_int::<i64>(Command::SetVerbose(on)).await? != 0)
     }
 
-    /// `BYE()`: ends the session gracefully; waits for the `ACK` (manual 3.3.1). Calls made
-    /// afterwards, on any clone, fail with [`Error::Closed`].
+    /// `BYE()`: ends the session gracefully; waits for the `ACK` (manual 3.3.1). The connection
+    /// is closed once the reply is in, whatever it says; calls made afterwards, on any clone,
+    /// fail with [`Error::Closed`].
     pub async fn close(&self) -> Result<()> {
         self.ack(Command::Bye).await
     }
