@@ -870,3 +870,37 @@ async fn server_shutdown_closes_connections() {
     drop(server);
     assert!(matches!(client.id().await, Err(Error::Io(_))));
 }
+
+#[tokio::test]
+async fn simulator_reads_split_and_oversized_lines_over_tcp() {
+    let server = sim().await;
+    let stream = TcpStream::connect(server.local_addr()).await.unwrap();
+    stream.set_nodelay(true).unwrap();
+    let (read, mut write) = stream.into_split();
+    let mut reader = BufReader::new(read).lines();
+    // One command, one byte per write.
+    for b in b"DEVSTATE[0]?\r\n" {
+        write.write_all(&[*b]).await.unwrap();
+    }
+    assert_eq!(
+        reader.next_line().await.unwrap().as_deref(),
+        Some("DEVSTATE[0]=1")
+    );
+    // An over-long line in many chunks without LF, then its end and a good command.
+    for _ in 0..64 {
+        write.write_all(&[b'X'; 500]).await.unwrap();
+    }
+    write.write_all(b"\nID?\n").await.unwrap();
+    assert_eq!(reader.next_line().await.unwrap().as_deref(), Some("ERR 01"));
+    assert_eq!(
+        reader.next_line().await.unwrap().as_deref(),
+        Some("ID=\"GRIPLINK-ET4\"")
+    );
+    // Non-ASCII is a syntax error; the next command is still understood.
+    write.write_all("ÏD?\nSN?\n".as_bytes()).await.unwrap();
+    assert_eq!(reader.next_line().await.unwrap().as_deref(), Some("ERR 22"));
+    assert_eq!(
+        reader.next_line().await.unwrap().as_deref(),
+        Some("SN=\"123456\"")
+    );
+}

@@ -44,13 +44,13 @@ pub use watch::{GripOutcome, ReleaseOutcome, WaitBy, Watch};
 
 use self::task::{Request, Shared, TaskConfig};
 use super::codec::DEFAULT_MAX_LINE_LEN;
+#[cfg(doc)]
+use super::command::Blocking;
 use super::command::{check_raw_line, Command, Duty, Expect, GripConfig, GripConfigF, PortNumber};
 use super::error::{Error, Result};
 use super::reply::{Answer, Data};
 use super::state::DeviceState;
 use super::value::Value;
-#[cfg(doc)]
-use super::command::Blocking;
 
 /// The controller's default TCP port (manual 2.5.1).
 pub const DEFAULT_PORT: u16 = 10001;
