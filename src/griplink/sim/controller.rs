@@ -1095,6 +1095,50 @@ mod tests {
     }
 
     #[test]
+    fn waitval_and_wstr_in_simulated_time() {
+        let mut c = Controller::new(SimConfig {
+            wstr_timeout: Duration::from_millis(100),
+            ..SimConfig::et4()
+        });
+        let mut s = Session::default();
+        let ms = Duration::from_millis;
+        let Outcome::Wait(home) = run(&mut c, &mut s, "HOME(0)", ms(0)) else {
+            panic!("HOME must block")
+        };
+        assert_eq!(c.poll(&s, &home, ms(400)).as_deref(), Some("ACK"));
+        // Pre-position from 20 mm to 0 mm at 50 mm/s: 400 ms of motion.
+        assert_eq!(text(run(&mut c, &mut s, "SETVALF(0,0,0)", ms(400))), "ACK");
+        let Outcome::Wait(wait) = run(&mut c, &mut s, "WAITVAL(0,0,10000,1000,1000)", ms(400))
+        else {
+            panic!("WAITVAL must wait")
+        };
+        assert_eq!(c.poll(&s, &wait, ms(500)), None); // 15 mm
+        assert_eq!(c.next_wake(&wait, ms(500)), ms(505));
+        assert_eq!(c.poll(&s, &wait, ms(600)).as_deref(), Some("ACK")); // 10 mm
+                                                                        // A window the fingers never reach: E_TIMEOUT at the WAITVAL's own timeout.
+        let Outcome::Wait(wait) = run(&mut c, &mut s, "WAITVAL(0,0,30000,10,1000)", ms(600)) else {
+            panic!("WAITVAL must wait")
+        };
+        assert_eq!(c.poll(&s, &wait, ms(1599)), None);
+        assert_eq!(c.poll(&s, &wait, ms(1600)).as_deref(), Some("ERR 05"));
+        // WSTR answers at once when nothing moves, and times out when a motion outlasts it.
+        assert_eq!(text(run(&mut c, &mut s, "WSTR[0]?", ms(1600))), "WSTR[0]=2");
+        c.set_time_scale(100.0);
+        assert_eq!(
+            text(run(&mut c, &mut s, "SETVAL(0,0,20000)", ms(1600))),
+            "ACK"
+        );
+        let Outcome::Wait(wstr) = run(&mut c, &mut s, "WSTR[0]?", ms(1600)) else {
+            panic!("WSTR must wait while moving")
+        };
+        // The motion takes 0.4 s x 100; WSTR gives up after 0.1 s x 100.
+        let deadline = ms(1600) + Duration::from_secs(10);
+        assert_eq!(c.next_wake(&wstr, ms(1600)), deadline);
+        assert_eq!(c.poll(&s, &wstr, deadline - ms(1)), None);
+        assert_eq!(c.poll(&s, &wstr, deadline).as_deref(), Some("ERR 05"));
+    }
+
+    #[test]
     fn ports_and_devices() {
         let mut c = Controller::new(SimConfig::et4().time_scale(0.0));
         let mut s = Session::default();
