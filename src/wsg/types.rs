@@ -614,7 +614,8 @@ mod tests {
         // 000Ah = 1.0) fix the encoding as two's complement tenths: FFF5h is -1.1 and -1.0 is
         // FFF6h. We follow the consistent reading.
         for (raw, c) in [
-            (0xFFF5u16, -1.0f32),
+            (0xFFF6u16, -1.0f32),
+            (0xFFF5, -1.1),
             (0xFFFF, -0.1),
             (0, 0.0),
             (0x0A, 1.0),
