@@ -17,3 +17,10 @@ pub use types::{
     DeviceType, Finger, FingerFlags, FingerInfo, FingerType, FirmwareVersion, GraspingStatistics,
     GripState, SoftLimits, SystemInfo, SystemLimits, SystemState,
 };
+pub mod client;
+pub mod subscription;
+pub mod transport;
+
+pub use client::{Client, ClientBuilder};
+pub use subscription::{Subscription, UpdateOptions};
+pub use transport::TransportKind;
