@@ -10,6 +10,11 @@
 //! byte after that frame's start (so a corrupted length field cannot swallow the frames behind
 //! it).
 //!
+//! The flip side of byte-wise resynchronisation: when a frame whose payload carries a whole,
+//! valid frame (a loop reply echoing one, say) is itself corrupted, the inner frame is found and
+//! delivered. Skipping the whole rejected frame instead would let one corrupted length field
+//! swallow the good frames behind it, which happens far more often.
+//!
 //! Runs of more than three `AA` bytes are resolved by taking the **last three** as the preamble:
 //! the byte after the preamble is the command id, and no WSG command has id `0xAA`. This keeps
 //! `AA` noise before a frame from being read as the header of a long bogus frame (which would
