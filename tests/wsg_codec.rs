@@ -18,7 +18,10 @@ fn vectors() -> Vec<Frame> {
         Frame::new(0x25, vec![0x00, 0x00, 0xA0, 0x41, 0x00, 0x00, 0x48, 0x42]),
         Frame::new(0x43, vec![0x00, 0x00, 0x00, 0x00, 0x48, 0x41]),
         Frame::new(0x06, vec![0xAA; 40]),
-        Frame::new(0x06, vec![0xAA, 0xAA, 0xAA, 0x20, 0x02, 0x00, 0x00, 0x00, 0xB3, 0xFD]),
+        Frame::new(
+            0x06,
+            vec![0xAA, 0xAA, 0xAA, 0x20, 0x02, 0x00, 0x00, 0x00, 0xB3, 0xFD],
+        ),
     ]
 }
 
@@ -50,9 +53,18 @@ fn decode_chunks<'a>(chunks: impl IntoIterator<Item = &'a [u8]>) -> (Vec<Frame>,
 
 #[test]
 fn the_manuals_bytes_decode() {
-    let bytes = [0xAA, 0xAA, 0xAA, 0x21, 0x02, 0x00, 0x1A, 0x00, 0x67, 0xCB, 0xAA, 0xAA, 0xAA, 0x21, 0x02, 0x00, 0x00, 0x00, 0x28, 0x04];
+    let bytes = [
+        0xAA, 0xAA, 0xAA, 0x21, 0x02, 0x00, 0x1A, 0x00, 0x67, 0xCB, 0xAA, 0xAA, 0xAA, 0x21, 0x02,
+        0x00, 0x00, 0x00, 0x28, 0x04,
+    ];
     let (frames, corrupt) = decode_chunks([&bytes[..]]);
-    assert_eq!(frames, [Frame::new(0x21, vec![0x1A, 0]), Frame::new(0x21, vec![0, 0])]);
+    assert_eq!(
+        frames,
+        [
+            Frame::new(0x21, vec![0x1A, 0]),
+            Frame::new(0x21, vec![0, 0])
+        ]
+    );
     assert_eq!(corrupt, 0);
 }
 
@@ -141,14 +153,20 @@ fn the_decoder_never_errors_on_noise() {
 
 fn garbage() -> impl Strategy<Value = Vec<u8>> {
     prop::collection::vec(
-        prop_oneof![any::<u8>().prop_map(|b| vec![b]), (1usize..6).prop_map(|n| vec![0xAA; n])],
+        prop_oneof![
+            any::<u8>().prop_map(|b| vec![b]),
+            (1usize..6).prop_map(|n| vec![0xAA; n])
+        ],
         0..6,
     )
     .prop_map(|parts| parts.concat())
 }
 
 fn frame_strategy() -> impl Strategy<Value = Frame> {
-    (any::<u8>().prop_filter("0xAA cannot be an id", |id| *id != 0xAA), prop::collection::vec(any::<u8>(), 0..40))
+    (
+        any::<u8>().prop_filter("0xAA cannot be an id", |id| *id != 0xAA),
+        prop::collection::vec(any::<u8>(), 0..40),
+    )
         .prop_map(|(id, payload)| Frame::new(id, payload))
 }
 

@@ -1,4 +1,4 @@
-//! The tokio-util codec: [`frame`](super::frame) encoding and decoding over a byte stream.
+//! The tokio-util codec: [`super::frame`] encoding and decoding over a byte stream.
 
 use bytes::BytesMut;
 use tokio_util::codec::{Decoder, Encoder};

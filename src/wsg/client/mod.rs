@@ -44,6 +44,7 @@ pub struct ClientBuilder {
     request_queue: usize,
     max_payload_len: usize,
     announce_disconnect: Option<bool>,
+    serial_exclusive: bool,
 }
 
 impl Default for ClientBuilder {
@@ -56,6 +57,7 @@ impl Default for ClientBuilder {
             request_queue: 64,
             max_payload_len: super::frame::DEFAULT_MAX_PAYLOAD_LEN,
             announce_disconnect: None,
+            serial_exclusive: true,
         }
     }
 }
@@ -109,6 +111,13 @@ impl ClientBuilder {
         self
     }
 
+    /// Whether [`ClientBuilder::open_serial`] takes the port exclusively (default true; the
+    /// simulator's pseudo-terminal, `sim::SimServer::serial_pty`, needs false).
+    pub fn serial_exclusive(mut self, exclusive: bool) -> Self {
+        self.serial_exclusive = exclusive;
+        self
+    }
+
     /// Connects over TCP (the WSG listens on port 1000 by default).
     pub async fn connect_tcp(self, addr: impl ToSocketAddrs) -> Result<Client> {
         let stream = TcpStream::connect(addr).await?;
@@ -147,6 +156,7 @@ impl ClientBuilder {
             .parity(tokio_serial::Parity::None)
             .stop_bits(tokio_serial::StopBits::One)
             .flow_control(tokio_serial::FlowControl::None)
+            .exclusive(self.serial_exclusive)
             .open_native_async()
             .map_err(|e| Error::Io(std::io::Error::other(e)))?;
         Ok(self.start(Box::new(port), TransportKind::Serial))

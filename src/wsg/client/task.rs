@@ -1,5 +1,5 @@
 //! The background task that owns the transport (the model of rodbus's channel task): it sends
-//! requests, pairs replies (see [`pairing`](super::pairing)), fans auto-updates out to
+//! requests, pairs replies (see [`super::pairing`]), fans auto-updates out to
 //! subscribers, and is the one place where requests fail when the connection goes.
 
 use std::collections::HashMap;

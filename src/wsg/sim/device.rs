@@ -788,6 +788,11 @@ impl Device {
         }
     }
 
+    /// How many auto-update streams are on (all sessions).
+    pub fn active_streams(&self) -> usize {
+        self.streams.len()
+    }
+
     /// When the next auto-update is due (wall seconds).
     pub fn next_update_due(&self) -> Option<f64> {
         self.streams.values().map(|s| s.next_due).reduce(f64::min)

@@ -86,6 +86,8 @@ pub struct SimSnapshot {
     pub width_mm: f32,
     /// Connections open now.
     pub sessions: usize,
+    /// Auto-update streams running now (all sessions).
+    pub streams: usize,
 }
 
 #[derive(Debug)]
@@ -192,6 +194,7 @@ impl Actor {
             system_state: self.device.system_state(),
             width_mm: self.device.width_mm(),
             sessions: self.sessions.len(),
+            streams: self.device.active_streams(),
         };
         lock(&self.shared).snapshot = snapshot;
     }
@@ -316,6 +319,7 @@ impl SimServer {
                 system_state: device.system_state(),
                 width_mm: 0.0,
                 sessions: 0,
+                streams: 0,
             },
         }));
         let now = Instant::now();
@@ -373,7 +377,9 @@ impl SimServer {
     }
 
     /// Serves the simulator on a new pseudo-terminal; open [`SimServer::serial_path`] with a
-    /// serial client (any baud rate).
+    /// serial client (any baud rate). The simulator keeps the terminal open with a shared lock
+    /// (so it survives the client closing it): open it non-exclusively, e.g. with
+    /// [`ClientBuilder::serial_exclusive(false)`](crate::wsg::ClientBuilder::serial_exclusive).
     #[cfg(all(unix, feature = "serial"))]
     pub fn serial_pty(config: SimConfig) -> io::Result<SimServer> {
         use tokio_serial::SerialPort;

@@ -1,0 +1,463 @@
+//! The WSG client against the in-process simulator over real loopback sockets and a pty.
+
+use std::time::Duration;
+
+use futures_util::StreamExt;
+use gripper::wsg::command::id;
+use gripper::wsg::sim::{Model, SimConfig, SimServer};
+use gripper::wsg::{
+    Client, DeviceType, Error, GripState, HomingDirection, SoftLimits, Status, SystemState,
+    UpdateOptions,
+};
+use tokio::io::{AsyncReadExt, AsyncWriteExt};
+
+fn with_part() -> SimConfig {
+    SimConfig::new(Model::Wsg50).with_part(40.0, 2.0)
+}
+
+async fn tcp(config: SimConfig) -> (SimServer, Client) {
+    let sim = SimServer::tcp(config, "127.0.0.1:0").await.unwrap();
+    let client = Client::connect_tcp(sim.local_addr().unwrap())
+        .await
+        .unwrap();
+    (sim, client)
+}
+
+/// The pick sequence of the example, asserting each answer.
+async fn pick(client: &Client) {
+    let info = client.system_info().await.unwrap();
+    assert_eq!(info.device_type, DeviceType::Wsg50);
+    let limits = client.system_limits().await.unwrap();
+    assert_eq!(limits.stroke_mm, 110.0);
+    let err = client.pre_position(50.0, 100.0).await.unwrap_err();
+    assert_eq!(err.status(), Some(Status::NotInitialized), "{err}");
+    client.home(HomingDirection::Default).await.unwrap();
+    assert!(client
+        .system_state()
+        .await
+        .unwrap()
+        .contains(SystemState::REFERENCED));
+    client.pre_position(60.0, 100.0).await.unwrap();
+    assert_eq!(client.width_mm().await.unwrap(), 60.0);
+    client.grasp(40.0, 50.0).await.unwrap();
+    assert_eq!(client.grip_state().await.unwrap(), GripState::Holding);
+    assert_eq!(client.width_mm().await.unwrap(), 40.0);
+    assert!(client.force_n().await.unwrap() > 0.0);
+    client.release(70.0, 100.0).await.unwrap();
+    assert_eq!(client.grip_state().await.unwrap(), GripState::Idle);
+    // No part at 10 mm: the grasp fails with E_CMD_FAILED and the state says so.
+    let err = client.grasp(10.0, 50.0).await.unwrap_err();
+    assert_eq!(err.status(), Some(Status::CmdFailed), "{err}");
+    assert_eq!(client.grip_state().await.unwrap(), GripState::NoPartFound);
+    let stats = client.grasping_statistics(true).await.unwrap();
+    assert_eq!((stats.total, stats.no_part), (2, 1));
+}
+
+#[tokio::test]
+async fn pick_over_tcp_and_close_gracefully() {
+    let (sim, client) = tcp(with_part()).await;
+    pick(&client).await;
+    client.close().await.unwrap();
+    assert_eq!(sim.received_ids().last(), Some(&id::ANNOUNCE_DISCONNECT));
+    // Once the simulator has seen the close, it did not go into FAST STOP.
+    let client2 = Client::connect_tcp(sim.local_addr().unwrap())
+        .await
+        .unwrap();
+    let state = client2.system_state().await.unwrap();
+    assert!(!state.contains(SystemState::FAST_STOP), "{state:?}");
+    assert!(matches!(client.width_mm().await, Err(Error::Closed)));
+}
+
+#[tokio::test]
+async fn an_unannounced_tcp_close_puts_the_simulator_into_fast_stop() {
+    let sim = SimServer::tcp(with_part(), "127.0.0.1:0").await.unwrap();
+    let addr = sim.local_addr().unwrap();
+    let mut raw = tokio::net::TcpStream::connect(addr).await.unwrap();
+    raw.write_all(&[0xAA, 0xAA, 0xAA, 0x46, 0x00, 0x00, 0x4B, 0x98][..0])
+        .await
+        .unwrap();
+    drop(raw);
+    let client = Client::connect_tcp(addr).await.unwrap();
+    // The disconnect is processed before any later frame of the new connection only
+    // eventually: ask until the simulator has counted the first connection out.
+    let mut state = client.system_state().await.unwrap();
+    for _ in 0..100 {
+        if state.contains(SystemState::FAST_STOP) {
+            break;
+        }
+        tokio::task::yield_now().await;
+        state = client.system_state().await.unwrap();
+    }
+    assert!(state.contains(SystemState::FAST_STOP), "{state:?}");
+    let err = client.home(HomingDirection::Default).await.unwrap_err();
+    assert_eq!(err.status(), Some(Status::AccessDenied));
+    client.acknowledge_fast_stop().await.unwrap();
+    client.home(HomingDirection::Default).await.unwrap();
+}
+
+#[tokio::test]
+async fn close_sends_the_disconnect_announcement_to_a_raw_peer() {
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let addr = listener.local_addr().unwrap();
+    let client = Client::connect_tcp(addr).await.unwrap();
+    let (mut peer, _) = listener.accept().await.unwrap();
+    let closing = tokio::spawn(async move { client.close().await });
+    let mut got = [0u8; 8];
+    peer.read_exact(&mut got).await.unwrap();
+    assert_eq!(got, [0xAA, 0xAA, 0xAA, 0x07, 0x00, 0x00, 0x35, 0x4C]);
+    // E_SUCCESS for 0x07.
+    let mut ok = bytes::BytesMut::new();
+    let reply = gripper::wsg::Reply::new(id::ANNOUNCE_DISCONNECT, Status::Success, vec![]);
+    gripper::wsg::frame::encode(&reply.to_frame(), &mut ok).unwrap();
+    peer.write_all(&ok).await.unwrap();
+    let mut rest = Vec::new();
+    peer.read_to_end(&mut rest).await.unwrap();
+    assert!(
+        rest.is_empty(),
+        "nothing after the announcement: {rest:02X?}"
+    );
+    let result = closing.await.unwrap();
+    assert!(result.is_ok(), "{result:?}");
+}
+
+#[tokio::test]
+async fn pick_over_udp() {
+    let sim = SimServer::udp(with_part(), "127.0.0.1:0").await.unwrap();
+    let client = Client::builder()
+        .connect_udp(sim.local_addr().unwrap())
+        .await
+        .unwrap();
+    pick(&client).await;
+    // 0x07 is TCP-only: UDP answers E_NOT_AVAILABLE.
+    let err = client
+        .command(gripper::wsg::Command::AnnounceDisconnect)
+        .await
+        .unwrap_err();
+    assert_eq!(err.status(), Some(Status::NotAvailable));
+    client.close().await.unwrap();
+}
+
+#[cfg(all(unix, feature = "serial"))]
+#[tokio::test]
+async fn pick_over_a_serial_pseudo_terminal() {
+    let sim = SimServer::serial_pty(with_part()).unwrap();
+    let path = sim.serial_path().unwrap().to_owned();
+    let client = Client::builder()
+        .serial_exclusive(false)
+        .open_serial(&path, 115_200)
+        .unwrap();
+    pick(&client).await;
+    client.close().await.unwrap();
+}
+
+#[tokio::test]
+async fn unknown_commands_and_raw_requests() {
+    let (_sim, client) = tcp(with_part()).await;
+    let reply = client.request(0x90, vec![]).await.unwrap();
+    assert_eq!(reply.status, Status::CmdUnknown);
+    let echo = client.loop_back(vec![1u8, 2, 3]).await.unwrap();
+    assert_eq!(&echo[..], &[1, 2, 3]);
+    assert!(matches!(
+        client.loop_back(vec![0u8; 257]).await,
+        Err(Error::InvalidArgument(_))
+    ));
+    assert!(matches!(
+        client.request(0xAA, vec![]).await,
+        Err(Error::InvalidArgument(_))
+    ));
+    assert_eq!(client.temperature_c().await.unwrap(), 23.4);
+    assert_eq!(client.device_tag().await.unwrap(), None);
+    client.set_device_tag("cell 4").await.unwrap();
+    assert_eq!(
+        client.device_tag().await.unwrap().as_deref(),
+        Some("cell 4")
+    );
+    let err = client.set_device_tag("semi;colon").await.unwrap_err();
+    assert_eq!(err.status(), Some(Status::InvalidParameter));
+    assert_eq!(client.soft_limits().await.unwrap(), None);
+    let limits = SoftLimits {
+        minus_mm: 5.0,
+        plus_mm: 100.0,
+    };
+    client.set_soft_limits(limits).await.unwrap();
+    assert_eq!(client.soft_limits().await.unwrap(), Some(limits));
+    client.home(HomingDirection::Default).await.unwrap();
+    let err = client.pre_position(2.0, 50.0).await.unwrap_err();
+    assert_eq!(err.status(), Some(Status::RangeError));
+    client.clear_soft_limits().await.unwrap();
+    client.set_grasping_force(1000.0).await.unwrap();
+    assert_eq!(client.grasping_force_n().await.unwrap(), 80.0);
+    client.set_acceleration(1.0).await.unwrap();
+    assert_eq!(client.acceleration_mm_per_s2().await.unwrap(), 100.0);
+}
+
+#[tokio::test]
+async fn many_concurrent_callers_with_mixed_ids_get_their_own_replies() {
+    let (_sim, client) = tcp(with_part()).await;
+    client.home(HomingDirection::Default).await.unwrap();
+    let mut tasks = Vec::new();
+    for i in 0..60u32 {
+        let c = client.clone();
+        tasks.push(tokio::spawn(async move {
+            match i % 4 {
+                // The loop payload identifies the caller: a reply handed to the wrong caller
+                // would show.
+                0 | 1 => {
+                    let payload = i.to_le_bytes().to_vec();
+                    let echo = c.loop_back(payload.clone()).await.unwrap();
+                    assert_eq!(&echo[..], &payload[..], "caller {i}");
+                }
+                2 => assert_eq!(c.width_mm().await.unwrap(), 110.0),
+                _ => assert_eq!(c.system_info().await.unwrap().serial_number, 4711),
+            }
+        }));
+    }
+    for t in tasks {
+        t.await.unwrap();
+    }
+}
+
+#[tokio::test]
+async fn stop_during_a_move_aborts_it() {
+    // 1000 wall seconds per simulated second: the move is still running when the stop comes.
+    let (sim, client) = tcp(with_part().with_time_scale(1000.0)).await;
+    let fast = client.with_timeouts(Duration::from_secs(5), Duration::from_secs(5));
+    // Homing would take ages at this scale: acknowledge it from a faster twin simulator?
+    // No: reference by homing with instant motion first, then slow down is not possible, so
+    // the homing move itself is the one we stop.
+    let mover = {
+        let c = client.clone();
+        tokio::spawn(async move { c.home(HomingDirection::Default).await })
+    };
+    let mut moving = false;
+    for _ in 0..1000 {
+        if fast
+            .system_state()
+            .await
+            .unwrap()
+            .contains(SystemState::MOVING)
+        {
+            moving = true;
+            break;
+        }
+    }
+    assert!(moving, "the homing move never started");
+    // The stop is not queued behind the pending move.
+    fast.stop().await.unwrap();
+    let err = mover.await.unwrap().unwrap_err();
+    assert_eq!(err.status(), Some(Status::CmdAborted), "{err}");
+    let state = fast.system_state().await.unwrap();
+    assert!(state.contains(SystemState::AXIS_STOPPED) && !state.contains(SystemState::MOVING));
+    drop(sim);
+}
+
+#[tokio::test]
+async fn fast_stop_during_a_move_aborts_it_and_locks_motion() {
+    let (_sim, client) = tcp(with_part().with_time_scale(1000.0)).await;
+    let mover = {
+        let c = client.clone();
+        tokio::spawn(async move { c.home(HomingDirection::Default).await })
+    };
+    while !client
+        .system_state()
+        .await
+        .unwrap()
+        .contains(SystemState::MOVING)
+    {}
+    client.fast_stop().await.unwrap();
+    assert_eq!(
+        mover.await.unwrap().unwrap_err().status(),
+        Some(Status::CmdAborted)
+    );
+    assert_eq!(client.grip_state().await.unwrap(), GripState::Error);
+    let err = client.home(HomingDirection::Default).await.unwrap_err();
+    assert_eq!(err.status(), Some(Status::AccessDenied));
+    client.acknowledge_fast_stop().await.unwrap();
+    assert_eq!(client.grip_state().await.unwrap(), GripState::Idle);
+}
+
+#[tokio::test]
+async fn a_late_reply_never_reaches_the_next_caller() {
+    let (sim, client) = tcp(with_part()).await;
+    let impatient = client.with_timeouts(Duration::from_millis(50), Duration::from_millis(50));
+    sim.delay_next_reply(id::LOOP, Duration::from_millis(300));
+    let err = impatient.loop_back(b"first".to_vec()).await.unwrap_err();
+    assert!(
+        matches!(
+            err,
+            Error::Timeout {
+                command: id::LOOP,
+                ..
+            }
+        ),
+        "{err}"
+    );
+    // The next loop waits for the late "first" reply to be consumed, then gets its own.
+    let echo = client.loop_back(b"second".to_vec()).await.unwrap();
+    assert_eq!(&echo[..], b"second");
+}
+
+#[tokio::test]
+async fn a_dropped_call_does_not_desync_the_connection() {
+    let (sim, client) = tcp(with_part()).await;
+    sim.delay_next_reply(id::LOOP, Duration::from_millis(200));
+    let c = client.clone();
+    let dropped = tokio::spawn(async move { c.loop_back(b"dropped".to_vec()).await });
+    // Make sure the request went out before cancelling it.
+    while !sim.received_ids().contains(&id::LOOP) {
+        tokio::task::yield_now().await;
+    }
+    dropped.abort();
+    let echo = client.loop_back(b"mine".to_vec()).await.unwrap();
+    assert_eq!(&echo[..], b"mine");
+}
+
+#[tokio::test]
+async fn a_lost_reply_releases_its_id_after_the_grace_period() {
+    let sim = SimServer::tcp(with_part(), "127.0.0.1:0").await.unwrap();
+    let client = Client::builder()
+        .query_timeout(Duration::from_millis(50))
+        .late_reply_grace(Duration::from_millis(50))
+        .connect_tcp(sim.local_addr().unwrap())
+        .await
+        .unwrap();
+    sim.drop_next_reply(id::LOOP);
+    let err = client.loop_back(b"lost".to_vec()).await.unwrap_err();
+    assert!(matches!(err, Error::Timeout { .. }), "{err}");
+    let patient = client.with_timeouts(Duration::from_secs(5), Duration::from_secs(5));
+    assert_eq!(
+        &patient.loop_back(b"next".to_vec()).await.unwrap()[..],
+        b"next"
+    );
+}
+
+#[tokio::test]
+async fn a_corrupted_reply_is_dropped_not_misread() {
+    let (sim, client) = tcp(with_part()).await;
+    let impatient = client.with_timeouts(Duration::from_millis(100), Duration::from_millis(100));
+    sim.corrupt_next_reply(id::SYSTEM_INFO);
+    assert!(matches!(
+        impatient.system_info().await,
+        Err(Error::Timeout { .. })
+    ));
+    let patient = client.with_timeouts(Duration::from_secs(5), Duration::from_secs(5));
+    assert_eq!(patient.system_info().await.unwrap().serial_number, 4711);
+}
+
+#[tokio::test]
+async fn a_forced_status_is_reported_as_a_device_error() {
+    let (sim, client) = tcp(with_part()).await;
+    sim.force_status(id::TEMPERATURE, Status::Unknown(77));
+    let err = client.temperature_c().await.unwrap_err();
+    assert!(
+        matches!(
+            err,
+            Error::Device {
+                command: 0x46,
+                status: Status::Unknown(77)
+            }
+        ),
+        "{err}"
+    );
+    assert_eq!(client.temperature_c().await.unwrap(), 23.4);
+}
+
+#[tokio::test]
+async fn connection_loss_fails_calls_and_later_calls() {
+    let (sim, client) = tcp(with_part().with_time_scale(1000.0)).await;
+    let c = client.clone();
+    let mover = tokio::spawn(async move { c.home(HomingDirection::Default).await });
+    while !client
+        .system_state()
+        .await
+        .unwrap()
+        .contains(SystemState::MOVING)
+    {}
+    sim.unplug();
+    let err = mover.await.unwrap().unwrap_err();
+    assert!(matches!(err, Error::ConnectionLost(_)), "{err}");
+    assert!(matches!(client.width_mm().await, Err(Error::Closed)));
+}
+
+#[tokio::test]
+async fn auto_update_stream_one_off_query_and_unsubscribe() {
+    let (sim, client) = tcp(with_part()).await;
+    let mut widths = client
+        .subscribe_width_mm(UpdateOptions::periodic(Duration::from_millis(10)))
+        .await
+        .unwrap();
+    assert_eq!(
+        widths.next().await,
+        Some(0.0),
+        "not referenced yet: width 0 (3.4.4)"
+    );
+    client.home(HomingDirection::Default).await.unwrap();
+    // Updates keep coming; eventually one shows the homed width.
+    let mut seen = Vec::new();
+    while let Some(w) = widths.next().await {
+        seen.push(w);
+        if w == 110.0 {
+            break;
+        }
+    }
+    assert_eq!(seen.last(), Some(&110.0));
+    // A one-off query of the streamed value works and does not end the stream.
+    client.pre_position(30.0, 100.0).await.unwrap();
+    assert_eq!(client.width_mm().await.unwrap(), 30.0);
+    let mut after = None;
+    for _ in 0..1000 {
+        match widths.next().await {
+            Some(w) if w == 30.0 => {
+                after = Some(w);
+                break;
+            }
+            Some(_) => {}
+            None => break,
+        }
+    }
+    assert_eq!(
+        after,
+        Some(30.0),
+        "the stream went on after the one-off query"
+    );
+    assert_eq!(sim.snapshot().sessions, 1);
+    // Dropping the last subscriber turns the device's updates off.
+    drop(widths);
+    let mut off = false;
+    for _ in 0..100 {
+        client.width_mm().await.unwrap();
+        if sim.snapshot().streams == 0 {
+            off = true;
+            break;
+        }
+    }
+    assert!(off, "updates still on after the last subscriber went");
+}
+
+#[tokio::test]
+async fn grip_state_stream_follows_a_grasp() {
+    let (_sim, client) = tcp(with_part()).await;
+    client.home(HomingDirection::Default).await.unwrap();
+    let mut states = client
+        .subscribe_grip_state(UpdateOptions::on_change(Duration::from_millis(10)))
+        .await
+        .unwrap();
+    assert_eq!(states.next().await, Some(GripState::Idle));
+    client.grasp(40.0, 50.0).await.unwrap();
+    // On-change updates: the next value differs from Idle and the stream reaches Holding.
+    let mut last = None;
+    while let Some(s) = states.next().await {
+        assert_ne!(Some(s), last, "on-change stream repeated a value");
+        last = Some(s);
+        if s == GripState::Holding {
+            break;
+        }
+    }
+    assert_eq!(last, Some(GripState::Holding));
+    assert!(matches!(
+        client
+            .subscribe_width_mm(UpdateOptions::periodic(Duration::from_millis(5)))
+            .await,
+        Err(Error::InvalidArgument(_))
+    ));
+}
