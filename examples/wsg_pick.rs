@@ -43,7 +43,14 @@ fn parse() -> Result<Args, String> {
     while let Some(a) = it.next() {
         let mut value = |name: &str| it.next().ok_or_else(|| format!("{name} needs a value"));
         match a.as_str() {
-            "--addr" => target = Target::Tcp(value("--addr")?),
+            "--addr" => {
+                let mut addr = value("--addr")?;
+                if !addr.contains(':') {
+                    // The WSG's default TCP port.
+                    addr = format!("{addr}:{}", gripper::wsg::transport::DEFAULT_TCP_PORT);
+                }
+                target = Target::Tcp(addr);
+            }
             "--udp" => {
                 let v = value("--udp")?;
                 target = Target::Udp(v.parse().map_err(|e| format!("--udp {v}: {e}"))?);
@@ -107,7 +114,7 @@ fn serial(_: &str, _: u32, _: bool) -> Result<Client, String> {
     Err("built without the `serial` feature".into())
 }
 
-async fn pick(gripper: &Client, width_mm: f32) -> Result<(), gripper::wsg::Error> {
+async fn pick(gripper: &Client, width_mm: f32) -> Result<(), Box<dyn std::error::Error>> {
     let info = gripper.system_info().await?;
     println!(
         "gripper: {:?}, hardware rev {}, firmware {}, serial {}",
@@ -127,8 +134,12 @@ async fn pick(gripper: &Client, width_mm: f32) -> Result<(), gripper::wsg::Error
         .await?
         .contains(SystemState::FAST_STOP)
     {
-        println!("gripper is in FAST STOP: acknowledging");
-        gripper.acknowledge_fast_stop().await?;
+        // Never acknowledged blindly: a FAST STOP has a cause (an earlier program closed TCP
+        // without announcing it, a fault, an emergency) someone has to look at.
+        return Err(
+            "the gripper is in FAST STOP: find the cause, then acknowledge it (command 0x24)"
+                .into(),
+        );
     }
     println!("homing");
     gripper.home(HomingDirection::Default).await?;
@@ -137,7 +148,12 @@ async fn pick(gripper: &Client, width_mm: f32) -> Result<(), gripper::wsg::Error
     println!("pre-positioning to {open_mm} mm");
     gripper.pre_position(open_mm, speed).await?;
     println!("grasping a {width_mm} mm part");
-    gripper.grasp(width_mm, speed).await?;
+    match gripper.grasp(width_mm, speed).await {
+        Err(e) if e.status() == Some(gripper::wsg::Status::CmdFailed) => {
+            return Err(format!("no part found at {width_mm} mm (E_CMD_FAILED)").into());
+        }
+        other => other?,
+    }
 
     let every = UpdateOptions::periodic(Duration::from_millis(50));
     let mut state = gripper.subscribe_grip_state(every).await?;

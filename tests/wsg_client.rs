@@ -72,10 +72,7 @@ async fn pick_over_tcp_and_close_gracefully() {
 async fn an_unannounced_tcp_close_puts_the_simulator_into_fast_stop() {
     let sim = SimServer::tcp(with_part(), "127.0.0.1:0").await.unwrap();
     let addr = sim.local_addr().unwrap();
-    let mut raw = tokio::net::TcpStream::connect(addr).await.unwrap();
-    raw.write_all(&[0xAA, 0xAA, 0xAA, 0x46, 0x00, 0x00, 0x4B, 0x98][..0])
-        .await
-        .unwrap();
+    let raw = tokio::net::TcpStream::connect(addr).await.unwrap();
     drop(raw);
     let client = Client::connect_tcp(addr).await.unwrap();
     // The disconnect is processed before any later frame of the new connection only
@@ -376,7 +373,8 @@ async fn connection_loss_fails_calls_and_later_calls() {
     sim.unplug();
     let err = mover.await.unwrap().unwrap_err();
     assert!(matches!(err, Error::ConnectionLost(_)), "{err}");
-    assert!(matches!(client.width_mm().await, Err(Error::Closed)));
+    let later = client.width_mm().await.unwrap_err();
+    assert!(matches!(later, Error::ConnectionLost(_)), "{later}");
 }
 
 #[tokio::test]
@@ -460,4 +458,197 @@ async fn grip_state_stream_follows_a_grasp() {
             .await,
         Err(Error::InvalidArgument(_))
     ));
+}
+
+#[tokio::test]
+async fn the_simulator_answers_a_bad_checksum_with_e_checksum_error() {
+    let sim = SimServer::tcp(with_part(), "127.0.0.1:0").await.unwrap();
+    let mut raw = tokio::net::TcpStream::connect(sim.local_addr().unwrap())
+        .await
+        .unwrap();
+    // Homing with a broken checksum (the right one is 8F 83).
+    raw.write_all(&[0xAA, 0xAA, 0xAA, 0x20, 0x01, 0x00, 0x00, 0x8F, 0x84])
+        .await
+        .unwrap();
+    let mut got = [0u8; 10];
+    raw.read_exact(&mut got).await.unwrap();
+    let mut buf = bytes::BytesMut::from(&got[..]);
+    let frame = match gripper::wsg::frame::decode(&mut buf, 64) {
+        Some(gripper::wsg::frame::Decoded::Frame(f)) => f,
+        other => panic!("{other:?}"),
+    };
+    let reply = gripper::wsg::Reply::from_frame(frame).unwrap();
+    assert_eq!((reply.id, reply.status), (0x20, Status::ChecksumError));
+    // The unknown-command reply of the manual (1.2.2 Beispiel 2), byte for byte.
+    let mut unknown = bytes::BytesMut::new();
+    gripper::wsg::frame::encode(&gripper::wsg::Frame::new(0x90, vec![]), &mut unknown).unwrap();
+    raw.write_all(&unknown).await.unwrap();
+    raw.read_exact(&mut got).await.unwrap();
+    assert_eq!(
+        got,
+        [0xAA, 0xAA, 0xAA, 0x90, 0x02, 0x00, 0x0E, 0x00, 0xFD, 0x02]
+    );
+}
+
+/// A scripted device on an in-memory pipe: frames nobody asked for are dropped, and the
+/// answer to the question asked still arrives.
+#[tokio::test]
+async fn unsolicited_frames_are_dropped_not_misattributed() {
+    let (ours, mut device) = tokio::io::duplex(4096);
+    let client = Client::builder().attach(ours);
+    let encode = |r: gripper::wsg::Reply| {
+        let mut b = bytes::BytesMut::new();
+        gripper::wsg::frame::encode(&r.to_frame(), &mut b).unwrap();
+        b
+    };
+    // An auto-update left running by an earlier program, and a stray system-info reply.
+    device
+        .write_all(&encode(gripper::wsg::Reply::new(
+            0x43,
+            Status::Success,
+            1.5f32.to_le_bytes().to_vec(),
+        )))
+        .await
+        .unwrap();
+    device
+        .write_all(&encode(gripper::wsg::Reply::new(
+            0x50,
+            Status::Success,
+            vec![2, 0, 0, 0, 1, 0, 0, 0],
+        )))
+        .await
+        .unwrap();
+    // Let the client read them before it asks (a round trip on another id orders it).
+    let echo = {
+        let c = client.clone();
+        tokio::spawn(async move { c.loop_back(vec![9u8]).await })
+    };
+    let mut req = [0u8; 9];
+    device.read_exact(&mut req).await.unwrap();
+    assert_eq!(req[3], 0x06);
+    device
+        .write_all(&encode(gripper::wsg::Reply::new(
+            0x06,
+            Status::Success,
+            vec![9],
+        )))
+        .await
+        .unwrap();
+    assert_eq!(&echo.await.unwrap().unwrap()[..], &[9]);
+    // Now ask for the system info: the stray 0x50 reply above must not be the answer.
+    let info = {
+        let c = client.clone();
+        tokio::spawn(async move { c.system_info().await })
+    };
+    let mut req = [0u8; 8];
+    device.read_exact(&mut req).await.unwrap();
+    assert_eq!(req[3], 0x50);
+    device
+        .write_all(&encode(gripper::wsg::Reply::new(
+            0x50,
+            Status::Success,
+            vec![1, 3, 0x20, 0x41, 0x39, 0x30, 0, 0],
+        )))
+        .await
+        .unwrap();
+    let info = info.await.unwrap().unwrap();
+    assert_eq!(info.device_type, DeviceType::Wsg50);
+    assert_eq!(info.hardware_revision, 3);
+    assert_eq!(info.firmware.to_string(), "4.1.2");
+    assert_eq!(info.serial_number, 0x3039);
+}
+
+#[tokio::test]
+async fn finger_interface_overdrive_and_tare() {
+    use gripper::wsg::{Finger, FingerFlags, FingerType};
+    let mut config = with_part();
+    config.force_sensor = true;
+    config.fingers[1].finger_type = FingerType::Fmf;
+    config.fingers[1].data = vec![1, 2, 3, 4];
+    let (_sim, client) = tcp(config).await;
+    let one = client.finger_info(Finger::One).await.unwrap();
+    assert_eq!((one.finger_type, one.data_size), (FingerType::Generic, 0));
+    let two = client.finger_info(Finger::Two).await.unwrap();
+    assert_eq!((two.finger_type, two.data_size), (FingerType::Fmf, 4));
+    assert_eq!(
+        &client.finger_data(Finger::Two).await.unwrap()[..],
+        &[1, 2, 3, 4]
+    );
+    assert_eq!(
+        client.finger_data(Finger::One).await.unwrap_err().status(),
+        Some(Status::NotAvailable)
+    );
+    client.set_finger_power(Finger::One, false).await.unwrap();
+    assert!(!client
+        .finger_flags(Finger::One)
+        .await
+        .unwrap()
+        .contains(FingerFlags::POWER_ON));
+    // Power on is asynchronous: E_CMD_PENDING, then E_SUCCESS.
+    client.set_finger_power(Finger::One, true).await.unwrap();
+    assert!(client
+        .finger_flags(Finger::One)
+        .await
+        .unwrap()
+        .contains(FingerFlags::POWER_ON));
+    assert!(client
+        .finger_flags(Finger::Two)
+        .await
+        .unwrap()
+        .contains(FingerFlags::CONFIG_AVAIL));
+
+    client.set_grasping_force(200.0).await.unwrap();
+    assert_eq!(
+        client.grasping_force_n().await.unwrap(),
+        80.0,
+        "nominal limit"
+    );
+    client.set_overdrive(true).await.unwrap();
+    assert!(client
+        .system_state()
+        .await
+        .unwrap()
+        .contains(SystemState::OVERDRIVE_MODE));
+    client.tare_force_sensor().await.unwrap();
+    client.home(HomingDirection::Default).await.unwrap();
+    client.grasp(40.0, 50.0).await.unwrap();
+    assert_eq!(
+        client.tare_force_sensor().await.unwrap_err().status(),
+        Some(Status::AccessDenied)
+    );
+}
+
+#[tokio::test]
+async fn streams_end_when_the_connection_is_lost() {
+    let (sim, client) = tcp(with_part()).await;
+    let mut states = client
+        .subscribe_system_state(UpdateOptions::on_change(Duration::from_millis(10)))
+        .await
+        .unwrap();
+    assert!(states.next().await.is_some());
+    sim.unplug();
+    // Updates may still be buffered; the stream then ends.
+    while states.next().await.is_some() {}
+    assert_eq!(states.missed(), 0);
+}
+
+#[tokio::test]
+async fn a_lost_part_shows_in_the_grip_state() {
+    let (sim, client) = tcp(with_part()).await;
+    client.home(HomingDirection::Default).await.unwrap();
+    client.grasp(41.0, 50.0).await.unwrap();
+    assert_eq!(client.width_mm().await.unwrap(), 40.0);
+    sim.lose_part();
+    let mut state = client.grip_state().await.unwrap();
+    for _ in 0..100 {
+        if state == GripState::PartLost {
+            break;
+        }
+        state = client.grip_state().await.unwrap();
+    }
+    assert_eq!(state, GripState::PartLost);
+    assert_eq!(
+        client.grasping_statistics(false).await.unwrap().lost_part,
+        1
+    );
 }

@@ -24,7 +24,8 @@ pub enum Error {
     /// Opening or configuring the transport failed.
     #[error("I/O error: {0}")]
     Io(#[from] std::io::Error),
-    /// The connection broke while the call was in progress (or before it was sent).
+    /// The connection broke: the call was in progress, or the client had already lost its
+    /// connection (every later call gets this too).
     #[error("connection to the gripper lost: {0}")]
     ConnectionLost(String),
     /// The client was closed with [`Client::close`](super::Client::close).

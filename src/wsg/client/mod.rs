@@ -5,7 +5,7 @@ mod task;
 
 use std::net::SocketAddr;
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 use std::time::Duration;
 
 use bytes::Bytes;
@@ -179,6 +179,7 @@ impl ClientBuilder {
         let announce = self
             .announce_disconnect
             .unwrap_or(kind == TransportKind::Tcp);
+        let lost = Arc::new(OnceLock::new());
         let task = Task::new(
             link,
             rx,
@@ -186,6 +187,7 @@ impl ClientBuilder {
             self.late_reply_grace,
             self.query_timeout,
             announce,
+            lost.clone(),
         );
         tokio::spawn(task.run());
         Client {
@@ -195,6 +197,7 @@ impl ClientBuilder {
                 subscription_buffer: self.subscription_buffer,
                 next_key: AtomicU64::new(0),
                 kind,
+                lost,
             }),
             query_timeout: self.query_timeout,
             motion_timeout: self.motion_timeout,
@@ -216,6 +219,18 @@ struct Shared {
     subscription_buffer: usize,
     next_key: AtomicU64,
     kind: TransportKind,
+    /// Why the connection broke, once it did.
+    lost: Arc<OnceLock<String>>,
+}
+
+impl Shared {
+    /// The error for a call that finds the task gone: lost connection or closed client.
+    fn gone(&self) -> Error {
+        match self.lost.get() {
+            Some(reason) => Error::ConnectionLost(reason.clone()),
+            None => Error::Closed,
+        }
+    }
 }
 
 /// A handle to a WSG gripper: `Clone + Send + Sync`, any number of tasks may call it at once.
@@ -283,8 +298,8 @@ impl Client {
                     reply,
                 })
                 .await
-                .map_err(|_| Error::Closed)?;
-            rx.await.map_err(|_| Error::Closed)?
+                .map_err(|_| self.shared.gone())?;
+            rx.await.map_err(|_| self.shared.gone())?
         };
         timeout_at(deadline, work)
             .await
@@ -591,8 +606,8 @@ impl Client {
                     reply,
                 })
                 .await
-                .map_err(|_| Error::Closed)?;
-            reply_rx.await.map_err(|_| Error::Closed)?
+                .map_err(|_| self.shared.gone())?;
+            reply_rx.await.map_err(|_| self.shared.gone())?
         };
         let reply = timeout_at(deadline, work)
             .await
@@ -643,15 +658,15 @@ impl Client {
     /// Closes the connection: on TCP, announces the disconnect (0x07) and waits for its reply
     /// first, so the gripper does not go into FAST STOP. Calls still waiting fail with
     /// [`Error::Closed`], streams end, and every other handle's calls fail with
-    /// [`Error::Closed`].
+    /// [`Error::Closed`] (or [`Error::ConnectionLost`] if the connection had broken).
     pub async fn close(&self) -> Result<()> {
         let (done, rx) = oneshot::channel();
         self.shared
             .tx
             .send(Msg::Close { done })
             .await
-            .map_err(|_| Error::Closed)?;
-        rx.await.map_err(|_| Error::Closed)?
+            .map_err(|_| self.shared.gone())?;
+        rx.await.map_err(|_| self.shared.gone())?
     }
 }
 

@@ -4,6 +4,7 @@
 
 use std::collections::HashMap;
 use std::io;
+use std::sync::{Arc, OnceLock};
 use std::time::Duration;
 
 use bytes::Bytes;
@@ -54,6 +55,8 @@ pub(crate) struct Task {
     pub(crate) pairing: Pairing,
     pub(crate) query_timeout: Duration,
     pub(crate) announce_on_close: bool,
+    /// Set to the reason when the connection breaks, so later calls can say why.
+    lost: Arc<OnceLock<String>>,
     waiters: HashMap<Token, Waiter>,
     streams: HashMap<u8, StreamState>,
     next_token: Token,
@@ -78,8 +81,10 @@ impl Task {
         grace: Duration,
         query_timeout: Duration,
         announce_on_close: bool,
+        lost: Arc<OnceLock<String>>,
     ) -> Self {
         Self {
+            lost,
             link,
             rx,
             unsubscribe,
@@ -97,6 +102,7 @@ impl Task {
             Ok(done) => (None, done),
             Err(reason) => {
                 tracing::warn!(%reason, "WSG connection lost");
+                let _ = self.lost.set(reason.clone());
                 (Some(reason), None)
             }
         };
@@ -127,6 +133,8 @@ impl Task {
             let release = self.pairing.next_release();
             tokio::select! {
                 msg = self.rx.recv() => match msg {
+                    // A caller that gave up while its request waited in the channel: never sent.
+                    Some(Msg::Call { reply, .. }) if reply.is_closed() => {}
                     Some(Msg::Call { frame, deadline, reply }) => {
                         let token = self.waiter(Waiter::Caller(reply));
                         self.submit(Request { token, frame, deadline }).await.map_err(io_reason)?;
