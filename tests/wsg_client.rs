@@ -330,7 +330,13 @@ async fn a_lost_reply_releases_its_id_after_the_grace_period() {
 
 #[tokio::test]
 async fn a_corrupted_reply_is_dropped_not_misread() {
-    let (sim, client) = tcp(with_part()).await;
+    let sim = SimServer::tcp(with_part(), "127.0.0.1:0").await.unwrap();
+    // The dropped reply never comes: the id is released after timeout + grace.
+    let client = Client::builder()
+        .late_reply_grace(Duration::from_millis(100))
+        .connect_tcp(sim.local_addr().unwrap())
+        .await
+        .unwrap();
     let impatient = client.with_timeouts(Duration::from_millis(100), Duration::from_millis(100));
     sim.corrupt_next_reply(id::SYSTEM_INFO);
     assert!(matches!(

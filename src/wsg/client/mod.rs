@@ -289,14 +289,29 @@ impl Client {
         let command = frame.id;
         let deadline = Instant::now() + timeout;
         let (reply, rx) = oneshot::channel();
+        let msg = Msg::Call {
+            frame,
+            deadline,
+            reply,
+        };
+        self.send_and_wait(msg, rx, deadline, command, timeout)
+            .await
+    }
+
+    /// Hands `msg` to the task and waits for its reply, all within the deadline (a full request
+    /// channel counts against it too).
+    async fn send_and_wait(
+        &self,
+        msg: Msg,
+        rx: oneshot::Receiver<Result<Reply>>,
+        deadline: Instant,
+        command: u8,
+        timeout: Duration,
+    ) -> Result<Reply> {
         let work = async {
             self.shared
                 .tx
-                .send(Msg::Call {
-                    frame,
-                    deadline,
-                    reply,
-                })
+                .send(msg)
                 .await
                 .map_err(|_| self.shared.gone())?;
             rx.await.map_err(|_| self.shared.gone())?
@@ -593,28 +608,16 @@ impl Client {
         };
         let timeout = self.query_timeout;
         let deadline = Instant::now() + timeout;
-        let (reply, reply_rx) = oneshot::channel();
+        let (reply, rx) = oneshot::channel();
         let subscriber = Subscriber { key, tx, missed };
-        let work = async {
-            self.shared
-                .tx
-                .send(Msg::Subscribe {
-                    id,
-                    mode,
-                    subscriber,
-                    deadline,
-                    reply,
-                })
-                .await
-                .map_err(|_| self.shared.gone())?;
-            reply_rx.await.map_err(|_| self.shared.gone())?
+        let msg = Msg::Subscribe {
+            id,
+            mode,
+            subscriber,
+            deadline,
+            reply,
         };
-        let reply = timeout_at(deadline, work)
-            .await
-            .map_err(|_| Error::Timeout {
-                command: id,
-                timeout,
-            })??;
+        let reply = self.send_and_wait(msg, rx, deadline, id, timeout).await?;
         success(reply)?;
         Ok(subscription)
     }

@@ -410,6 +410,16 @@ impl Device {
         }
     }
 
+    /// The immediate checks of a referenced motion to `target` (3.2.2, 3.2.6, 3.2.7).
+    fn check_motion_to(&self, session: SessionId, id: u8, target: f32) -> Result<(), Out> {
+        self.motion_allowed(session, id, true)?;
+        if self.within_soft_limits(target) {
+            Ok(())
+        } else {
+            Err(status(session, id, Status::RangeError))
+        }
+    }
+
     fn within_soft_limits(&self, w: f32) -> bool {
         self.soft_limits
             .is_none_or(|l| w >= l.minus_mm && w <= l.plus_mm)
@@ -509,36 +519,26 @@ impl Device {
                 width_mm,
                 speed_mm_per_s,
                 ..
-            } => match self.motion_allowed(session, id, true) {
-                Err(e) => out.push(e),
-                Ok(()) => {
-                    let target = if relative {
-                        self.width_mm() + width_mm
-                    } else {
-                        width_mm
-                    };
-                    if !self.within_soft_limits(target) {
-                        out.push(status(session, id, Status::RangeError));
-                    } else {
+            } => {
+                let target = if relative {
+                    self.width_mm() + width_mm
+                } else {
+                    width_mm
+                };
+                match self.check_motion_to(session, id, target) {
+                    Err(e) => out.push(e),
+                    Ok(()) => {
                         self.grip = GripState::Positioning;
-                        out.push(self.start(
-                            session,
-                            id,
-                            MotionKind::PrePosition,
-                            target,
-                            speed_mm_per_s,
-                        ));
+                        let kind = MotionKind::PrePosition;
+                        out.push(self.start(session, id, kind, target, speed_mm_per_s));
                     }
                 }
-            },
+            }
             Command::Grasp {
                 width_mm,
                 speed_mm_per_s,
-            } => match self.motion_allowed(session, id, true) {
+            } => match self.check_motion_to(session, id, width_mm) {
                 Err(e) => out.push(e),
-                Ok(()) if !self.within_soft_limits(width_mm) => {
-                    out.push(status(session, id, Status::RangeError));
-                }
                 Ok(()) => {
                     self.stats.total = self.stats.total.saturating_add(1);
                     let here = self.width_mm();
@@ -564,11 +564,8 @@ impl Device {
             Command::Release {
                 width_mm,
                 speed_mm_per_s,
-            } => match self.motion_allowed(session, id, true) {
+            } => match self.check_motion_to(session, id, width_mm) {
                 Err(e) => out.push(e),
-                Ok(()) if !self.within_soft_limits(width_mm) => {
-                    out.push(status(session, id, Status::RangeError));
-                }
                 Ok(()) => {
                     self.grip = GripState::Releasing;
                     out.push(self.start(
