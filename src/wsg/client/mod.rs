@@ -111,7 +111,7 @@ impl ClientBuilder {
         self
     }
 
-    /// Whether [`ClientBuilder::open_serial`] takes the port exclusively (default true; the
+    /// Whether `open_serial` (feature `serial`) takes the port exclusively (default true; the
     /// simulator's pseudo-terminal, `sim::SimServer::serial_pty`, needs false).
     pub fn serial_exclusive(mut self, exclusive: bool) -> Self {
         self.serial_exclusive = exclusive;
@@ -249,8 +249,14 @@ impl Shared {
 /// be taken for the next request of the same id. Acknowledged motion commands hold their id until
 /// their final reply.
 ///
+/// While a value is streamed ([`Client::subscribe_width_mm`] and friends), a one-off query of
+/// it is sent with the stream's flags, so it does not switch the device's updates off (FLAGS bit0
+/// clear would); it is answered by the next frame of that value, the reply or an update, which
+/// is at most one period older than the query.
+///
 /// The connection closes when [`Client::close`] is called or the last handle is dropped (with the
-/// disconnect announcement on TCP either way).
+/// disconnect announcement on TCP either way). Call [`Client::close`] before the runtime shuts
+/// down: a task cancelled with its runtime cannot announce anything.
 #[derive(Clone, Debug)]
 pub struct Client {
     shared: Arc<Shared>,

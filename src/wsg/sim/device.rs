@@ -241,6 +241,11 @@ impl Device {
         }
     }
 
+    /// The transport of a session, if it is connected.
+    pub fn session_kind(&self, session: SessionId) -> Option<SessionKind> {
+        self.sessions.get(&session).copied()
+    }
+
     /// Whether a session has announced its disconnect.
     pub fn announced(&self, session: SessionId) -> bool {
         self.announced.contains(&session)

@@ -167,7 +167,11 @@ impl Actor {
                 Some(c) = self.control.recv() => match c {
                     Control::LosePart => self.device.lose_part(),
                     // Dropping the senders ends the connection tasks, which close their sockets.
-                    Control::Unplug => self.sessions.clear(),
+                    // UDP has no connection to pull.
+                    Control::Unplug => {
+                        let device = &self.device;
+                        self.sessions.retain(|s, _| device.session_kind(*s) == Some(SessionKind::Udp));
+                    }
                 },
                 _ = sleep_until(wake.unwrap_or_else(Instant::now)), if wake.is_some() => {}
                 _ = self.shutdown.changed() => return,
@@ -461,7 +465,7 @@ impl SimServer {
     }
 
     /// Drops every stream connection (TCP, serial) without warning, like a pulled cable; an
-    /// unannounced TCP close puts the gripper into FAST STOP.
+    /// unannounced TCP close puts the gripper into FAST STOP. UDP peers are not affected.
     pub fn unplug(&self) {
         let _ = self.control.send(Control::Unplug);
     }
