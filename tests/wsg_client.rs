@@ -658,3 +658,55 @@ async fn a_lost_part_shows_in_the_grip_state() {
         1
     );
 }
+
+#[tokio::test]
+async fn same_id_motion_calls_queue_behind_the_pending_one() {
+    let (sim, client) = tcp(with_part()).await;
+    client.home(HomingDirection::Default).await.unwrap();
+    // From now on a move takes 1000 wall seconds per simulated second.
+    sim.set_time_scale(1000.0);
+    let first = {
+        let c = client.clone();
+        tokio::spawn(async move { c.pre_position(10.0, 10.0).await })
+    };
+    while !client
+        .system_state()
+        .await
+        .unwrap()
+        .contains(SystemState::MOVING)
+    {}
+    let second = {
+        let c = client.clone();
+        tokio::spawn(async move { c.pre_position(90.0, 10.0).await })
+    };
+    // Another id goes through while both pre-positions wait; the second one was not sent.
+    let count = |ids: Vec<u8>| ids.iter().filter(|i| **i == id::PRE_POSITION).count();
+    client.temperature_c().await.unwrap();
+    assert_eq!(
+        count(sim.received_ids()),
+        1,
+        "the second pre-position must wait"
+    );
+    client.stop().await.unwrap();
+    assert_eq!(
+        first.await.unwrap().unwrap_err().status(),
+        Some(Status::CmdAborted)
+    );
+    // Now the queued one is sent and runs: stop it too.
+    loop {
+        // The round trip comes first: it is what lets the client task run.
+        let moving = client
+            .system_state()
+            .await
+            .unwrap()
+            .contains(SystemState::MOVING);
+        if moving && count(sim.received_ids()) == 2 {
+            break;
+        }
+    }
+    client.stop().await.unwrap();
+    assert_eq!(
+        second.await.unwrap().unwrap_err().status(),
+        Some(Status::CmdAborted)
+    );
+}

@@ -60,6 +60,7 @@ enum Event {
 enum Control {
     LosePart,
     Unplug,
+    TimeScale(f64),
 }
 
 #[derive(Debug, Default)]
@@ -166,6 +167,12 @@ impl Actor {
                 },
                 Some(c) = self.control.recv() => match c {
                     Control::LosePart => self.device.lose_part(),
+                    Control::TimeScale(scale) => {
+                        // Rebase so simulated time stays continuous across the change.
+                        self.clock.base_sim = self.clock.now();
+                        self.clock.base_wall = Instant::now();
+                        self.clock.scale = scale;
+                    }
                     // Dropping the senders ends the connection tasks, which close their sockets.
                     // UDP has no connection to pull.
                     Control::Unplug => {
@@ -462,6 +469,12 @@ impl SimServer {
     /// The held part slips out: HOLDING → PART LOST.
     pub fn lose_part(&self) {
         let _ = self.control.send(Control::LosePart);
+    }
+
+    /// Changes the time scale (see [`SimConfig::time_scale`]) from now on, e.g. home instantly,
+    /// then make moves slow enough to be stopped.
+    pub fn set_time_scale(&self, time_scale: f64) {
+        let _ = self.control.send(Control::TimeScale(time_scale));
     }
 
     /// Drops every stream connection (TCP, serial) without warning, like a pulled cable; an
