@@ -219,9 +219,7 @@ async fn stop_during_a_move_aborts_it() {
     // 1000 wall seconds per simulated second: the move is still running when the stop comes.
     let (sim, client) = tcp(with_part().with_time_scale(1000.0)).await;
     let fast = client.with_timeouts(Duration::from_secs(5), Duration::from_secs(5));
-    // Homing would take ages at this scale: acknowledge it from a faster twin simulator?
-    // No: reference by homing with instant motion first, then slow down is not possible, so
-    // the homing move itself is the one we stop.
+    // The homing move itself (about 1 simulated second, so 1000 wall seconds) is stopped.
     let mover = {
         let c = client.clone();
         tokio::spawn(async move { c.home(HomingDirection::Default).await })
