@@ -59,7 +59,7 @@ impl Link {
             } => {
                 let mut buf = vec![0u8; frame::HEADER_LEN + *max_payload_len + 2];
                 loop {
-                    let (n, from) = match socket.recv_from(&mut buf).await {
+                    let (n, from) = match socket.recv_from(&mut buf[..]).await {
                         Ok(x) => x,
                         Err(e) => return Some(Err(e)),
                     };

@@ -136,7 +136,8 @@ impl ClientBuilder {
     }
 
     /// Talks over UDP to `remote` from the local address `local` (use the port the gripper is
-    /// configured to send its replies to).
+    /// configured to send its replies to). Datagrams are accepted from `remote`'s IP address,
+    /// whatever their source port; others are dropped with a trace.
     pub async fn connect_udp_from(self, local: SocketAddr, remote: SocketAddr) -> Result<Client> {
         let socket = UdpSocket::bind(local).await?;
         let link = Link::Udp {
