@@ -37,6 +37,9 @@ pub(crate) enum Msg {
     Close { done: oneshot::Sender<Result<()>> },
 }
 
+/// Who asked to close (nobody when the last handle went away), and how closing went.
+type Closing = Option<(oneshot::Sender<Result<()>>, Result<()>)>;
+
 enum Waiter {
     Caller(oneshot::Sender<Result<Reply>>),
     /// A request the task made itself (turning updates off): its reply is discarded.
@@ -125,10 +128,7 @@ impl Task {
 
     /// Runs until closed (returns who to tell and how it went) or the connection breaks
     /// (returns the reason).
-    #[allow(clippy::type_complexity)]
-    async fn serve(
-        &mut self,
-    ) -> std::result::Result<Option<(oneshot::Sender<Result<()>>, Result<()>)>, String> {
+    async fn serve(&mut self) -> std::result::Result<Closing, String> {
         loop {
             let release = self.pairing.next_release();
             tokio::select! {
