@@ -1,4 +1,5 @@
 //! The WSG client against the in-process simulator over real loopback sockets and a pty.
+#![cfg(feature = "sim")]
 
 use std::time::Duration;
 

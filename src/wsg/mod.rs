@@ -10,10 +10,11 @@
 //!
 //! # Example
 //! ```
-//! use gripper::wsg::{sim, Client, GripState, HomingDirection};
-//!
+//! # #[cfg(feature = "sim")]
 //! # #[tokio::main(flavor = "current_thread")]
 //! # async fn main() -> Result<(), Box<dyn std::error::Error>> {
+//! use gripper::wsg::{sim, Client, GripState, HomingDirection};
+//!
 //! // A simulated WSG 50 with a 40 mm part between the fingers; motion takes no wall time.
 //! let config = sim::SimConfig::new(sim::Model::Wsg50).with_part(40.0, 2.0);
 //! let simulator = sim::SimServer::tcp(config, "127.0.0.1:0").await?;
@@ -29,6 +30,8 @@
 //! gripper.close().await?; // announces the disconnect (0x07): no FAST STOP
 //! # Ok(())
 //! # }
+//! # #[cfg(not(feature = "sim"))]
+//! # fn main() {}
 //! ```
 
 pub mod checksum;
