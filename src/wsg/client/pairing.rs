@@ -291,4 +291,65 @@ mod tests {
         ));
         assert_eq!(p.drain(), vec![2]);
     }
+
+    proptest::proptest! {
+        /// Any interleaving of calls (three ids, some asynchronous) and device replies: every
+        /// final reply reaches the request it answers, one request per id is on the wire, and
+        /// every call is sent once.
+        #[test]
+        fn replies_always_reach_their_own_request(
+            ops in proptest::collection::vec((0u8..3, proptest::bool::ANY, proptest::bool::ANY), 1..200)
+        ) {
+            use std::collections::{HashMap, VecDeque};
+            let deadline = Instant::now() + Duration::from_secs(60);
+            let mut p = Pairing::new(Duration::from_secs(1));
+            // What the device has received and not finally answered, per id: (token, async, acked).
+            let mut wire: HashMap<u8, VecDeque<(Token, bool, bool)>> = HashMap::new();
+            let mut is_async: HashMap<Token, bool> = HashMap::new();
+            let mut sent = 0u64;
+            let mut resolved = 0u64;
+            let mut next_token = 0;
+            for (id, submit, asynchronous) in ops {
+                if submit {
+                    next_token += 1;
+                    is_async.insert(next_token, asynchronous);
+                    let r = Request { token: next_token, frame: Frame::new(id, Bytes::new()), deadline };
+                    if let Some(r) = p.submit(r) {
+                        wire.entry(id).or_default().push_back((r.token, asynchronous, false));
+                        sent += 1;
+                    }
+                } else if let Some(front) = wire.get_mut(&id).and_then(|q| q.front_mut()) {
+                    let (token, asynchronous, acked) = *front;
+                    if asynchronous && !acked {
+                        front.2 = true;
+                        proptest::prop_assert_eq!(p.on_reply(reply(id, Status::CmdPending)), Event::Accepted(token));
+                        continue;
+                    }
+                    wire.get_mut(&id).map(VecDeque::pop_front);
+                    // The reply carries the token it answers, so a mix-up shows.
+                    let r = Reply::new(id, Status::Success, Bytes::copy_from_slice(&token.to_le_bytes()));
+                    match p.on_reply(r) {
+                        Event::Resolved(t, r) => {
+                            proptest::prop_assert_eq!(&t.to_le_bytes()[..], &r.data[..]);
+                            resolved += 1;
+                        }
+                        other => proptest::prop_assert!(false, "{:?}", other),
+                    }
+                    let (next, skipped) = p.next(id, |_| true);
+                    proptest::prop_assert!(skipped.is_empty());
+                    if let Some(r) = next {
+                        let asynchronous = is_async[&r.token];
+                        wire.entry(id).or_default().push_back((r.token, asynchronous, false));
+                        sent += 1;
+                    }
+                }
+                for q in wire.values() {
+                    proptest::prop_assert!(q.len() <= 1, "two requests of one id on the wire");
+                }
+            }
+            let waiting = p.drain().len() as u64;
+            proptest::prop_assert_eq!(resolved + waiting, next_token);
+            proptest::prop_assert!(sent >= resolved);
+        }
+    }
 }
