@@ -56,6 +56,17 @@ pub fn peek_frame(bytes: &[u8]) -> Result<Peeked, Prefix> {
     }
 }
 
+/// How long the frame at the front of `bytes` is, in any protocol version: the 6-byte prefix plus
+/// its `length` field (manual 1.3). `None` until the prefix is complete. Unlike [`peek_frame`] it
+/// does not judge the length; use it to cut a stream into frames, e.g. for the fault proxy:
+/// `Framing::Custom(|b| match frame_len(b) { Some(n) => FrameLen::Complete(n), None =>
+/// FrameLen::NeedMore })` (a length over the proxy's bound is forwarded unframed).
+pub fn frame_len(bytes: &[u8]) -> Option<usize> {
+    let prefix = Prefix::decode(bytes.first_chunk::<PREFIX_LEN>()?);
+    // Saturating: on a 32-bit target a hostile u32 length must not wrap to a small frame.
+    Some(PREFIX_LEN.saturating_add(usize::try_from(prefix.length).unwrap_or(usize::MAX)))
+}
+
 /// What [`take`] cut off the front of a buffer.
 enum Taken {
     Frame([u8; FRAME_LEN]),
@@ -197,6 +208,26 @@ mod tests {
                 client_version: 3
             }
         ));
+    }
+
+    #[test]
+    fn frame_len_is_prefix_plus_length_field() {
+        let frame = response(7).encode();
+        assert_eq!(frame_len(&frame[..5]), None);
+        assert_eq!(frame_len(&frame[..6]), Some(FRAME_LEN));
+        assert_eq!(frame_len(&frame), Some(FRAME_LEN));
+        let empty = Prefix {
+            version: 2,
+            length: 0,
+        }
+        .encode();
+        assert_eq!(frame_len(&empty), Some(PREFIX_LEN));
+        let hostile = Prefix {
+            version: 3,
+            length: u32::MAX,
+        }
+        .encode();
+        assert_eq!(frame_len(&hostile), Some(PREFIX_LEN + u32::MAX as usize));
     }
 
     #[test]

@@ -1,0 +1,238 @@
+//! One TCP connection to the server: sends requests in arrival order, reads responses, pairs them
+//! (see [`pairing`](super::pairing)) and answers each waiting call. A call whose caller timed out
+//! or went away keeps its place; its reply is consumed and discarded.
+
+use std::collections::VecDeque;
+use std::future::poll_fn;
+use std::net::SocketAddr;
+use std::pin::Pin;
+use std::sync::Arc;
+use std::time::Duration;
+
+use futures_core::Stream;
+use tokio::io::AsyncWriteExt;
+use tokio::net::tcp::{OwnedReadHalf, OwnedWriteHalf};
+use tokio::net::TcpStream;
+use tokio::sync::{mpsc, oneshot};
+use tokio_util::codec::FramedRead;
+
+use super::pairing::{check_response, Pairing};
+use super::session::Session;
+use super::ClientConfig;
+use crate::smartgrasp::codec::ClientCodec;
+use crate::smartgrasp::error::{Error, Malformed, Result};
+use crate::smartgrasp::frame::{RequestFrame, ResponseFrame};
+use crate::smartgrasp::message::Response;
+
+/// Requests sent and not yet answered, at most. Bounds the waiting queue when a server stops
+/// answering; further calls wait in the channel and run into their timeouts.
+pub(crate) const MAX_IN_FLIGHT: usize = 16;
+
+/// One call from a handle to the task.
+pub(crate) struct Call {
+    pub frame: RequestFrame,
+    pub reply: oneshot::Sender<Result<ResponseFrame>>,
+}
+
+/// A request on the wire, waiting for its response.
+struct Waiting {
+    request: RequestFrame,
+    reply: oneshot::Sender<Result<ResponseFrame>>,
+}
+
+/// A connection and its pairing state.
+pub(crate) struct Link {
+    responses: FramedRead<OwnedReadHalf, ClientCodec>,
+    write: OwnedWriteHalf,
+    /// At most [`MAX_IN_FLIGHT`].
+    waiting: VecDeque<Waiting>,
+    pairing: Pairing,
+}
+
+impl Link {
+    /// Connects within `timeout`.
+    pub(crate) async fn connect(addrs: &[SocketAddr], timeout: Duration) -> Result<Link> {
+        let stream = tokio::time::timeout(timeout, TcpStream::connect(addrs))
+            .await
+            .map_err(|_| {
+                Error::from(std::io::Error::new(
+                    std::io::ErrorKind::TimedOut,
+                    "connecting to the Smart Grasping server timed out",
+                ))
+            })??;
+        // Requests are single 80-byte writes waiting for an answer: do not let Nagle hold them.
+        stream.set_nodelay(true)?;
+        let (read, write) = stream.into_split();
+        Ok(Link {
+            responses: FramedRead::new(read, ClientCodec),
+            write,
+            waiting: VecDeque::with_capacity(MAX_IN_FLIGHT),
+            pairing: Pairing::default(),
+        })
+    }
+
+    /// One request with nothing else in flight (the opening sequence), answered within the
+    /// configured timeout of its type. After an error the link must be dropped.
+    pub(crate) async fn exchange(
+        &mut self,
+        request: RequestFrame,
+        config: &ClientConfig,
+    ) -> Result<Response> {
+        let message_type = request.header.message_type;
+        let timeout = config.timeout_for(message_type);
+        let answer = async {
+            self.write.write_all(&request.encode()).await?;
+            let frame = match self.next_response().await {
+                None => return Err(server_closed()),
+                Some(frame) => frame?,
+            };
+            self.pairing.counter(frame.header.response_counter, 1)?;
+            check_response(&request, &frame)?;
+            Ok(frame)
+        };
+        let frame = tokio::time::timeout(timeout, answer)
+            .await
+            .map_err(|_| Error::Timeout {
+                message_type,
+                timeout,
+            })??;
+        Ok(Response::from_frame(&frame)?)
+    }
+
+    async fn next_response(&mut self) -> Option<Result<ResponseFrame>> {
+        poll_fn(|cx| Pin::new(&mut self.responses).poll_next(cx)).await
+    }
+
+    /// Serves calls until the connection breaks (`Some(reason)`; every call that was waiting on
+    /// it has been answered with an error) or every handle is gone (`None`). Records the set-up
+    /// requests the server accepts in `session`.
+    pub(crate) async fn serve(
+        &mut self,
+        calls: &mut mpsc::Receiver<Call>,
+        session: &mut Session,
+    ) -> Option<Error> {
+        let reason = loop {
+            tokio::select! {
+                // Responses first: each frees a slot.
+                biased;
+                item = self.next_response() => match item {
+                    None => break server_closed(),
+                    Some(Err(e)) => break e,
+                    Some(Ok(frame)) => {
+                        if let Err(e) = self.on_response(session, &frame) {
+                            break e;
+                        }
+                    }
+                },
+                call = calls.recv(), if self.waiting.len() < MAX_IN_FLIGHT => match call {
+                    // Every handle is gone, so no call can be waiting: nothing left to do.
+                    None => return None,
+                    Some(call) => {
+                        if call.reply.is_closed() {
+                            // Its caller gave up before it was sent: sending it would only
+                            // create a reply to discard.
+                            continue;
+                        }
+                        if let Err(e) = self.write.write_all(&call.frame.encode()).await {
+                            let e = Error::from(e);
+                            let _ = call.reply.send(Err(e.clone()));
+                            break e;
+                        }
+                        self.waiting.push_back(Waiting { request: call.frame, reply: call.reply });
+                    }
+                },
+            }
+        };
+        for w in self.waiting.drain(..) {
+            let _ = w.reply.send(Err(waiting_error(&reason)));
+        }
+        Some(reason)
+    }
+
+    /// Pairs one response; `Err` breaks the connection (the paired call, if any, gets the error
+    /// too).
+    fn on_response(&mut self, session: &mut Session, frame: &ResponseFrame) -> Result<()> {
+        let received = frame.header.response_counter;
+        let lost = self.pairing.counter(received, self.waiting.len())?;
+        for i in 0..lost.count {
+            if let Some(w) = self.waiting.pop_front() {
+                let expected = lost.first_expected.wrapping_add(i as u8);
+                tracing::warn!(expected, received, request = %w.request.header.message_type, "response lost");
+                let _ = w
+                    .reply
+                    .send(Err(Error::ResponseLost { expected, received }));
+            }
+        }
+        let Some(mut w) = self.waiting.pop_front() else {
+            // `counter` guarantees one is left; treat it as unsolicited all the same.
+            return Err(Malformed::Unsolicited { counter: received }.into());
+        };
+        if let Err(e) = check_response(&w.request, frame) {
+            // The server answers in order, so a response that does not fit the oldest request
+            // but fits the next one means the oldest was never answered (it was lost before it
+            // reached the server: no counter gap). If its caller has already given up, nobody
+            // is owed anything: drop its slot and go on. A caller still waiting gets the error,
+            // and the connection is closed.
+            let skip = lost.count == 0
+                && w.reply.is_closed()
+                && self
+                    .waiting
+                    .front()
+                    .is_some_and(|next| check_response(&next.request, frame).is_ok());
+            if !skip {
+                let e = Error::from(e);
+                let _ = w.reply.send(Err(e.clone()));
+                return Err(e);
+            }
+            tracing::warn!(request = %w.request.header.message_type, "an abandoned request was never answered; its slot is dropped");
+            match self.waiting.pop_front() {
+                Some(next) => w = next,
+                None => return Err(Malformed::Unsolicited { counter: received }.into()),
+            }
+        }
+        session.record(&w.request, frame);
+        if w.reply.send(Ok(*frame)).is_err() {
+            tracing::debug!(request = %w.request.header.message_type, counter = received, "late reply discarded");
+        }
+        Ok(())
+    }
+}
+
+fn server_closed() -> Error {
+    Error::ConnectionClosed {
+        reason: "the server closed the connection".into(),
+    }
+}
+
+/// What a call that was sent and still waits gets when the connection breaks. A header error
+/// was already given to the call whose response carried it; the others only lost the connection.
+fn waiting_error(reason: &Error) -> Error {
+    match reason {
+        Error::Malformed(
+            Malformed::MessageType { .. }
+            | Malformed::CommunicationType(_)
+            | Malformed::Version { .. }
+            | Malformed::Echo { .. }
+            | Malformed::Unsolicited { .. },
+        ) => closed_error(Some(reason)),
+        // Stream-level reasons (I/O, bad length, too old, lost responses) concern every call.
+        other => other.clone(),
+    }
+}
+
+/// What a call gets on a connection that is already gone (or never got to send its request).
+pub(crate) fn closed_error(reason: Option<&Error>) -> Error {
+    match reason {
+        Some(Error::ConnectionClosed { reason }) => Error::ConnectionClosed {
+            reason: Arc::clone(reason),
+        },
+        // Still the answer to every later call, and typed so a program can tell the user.
+        Some(e @ Error::ServerTooOld { .. }) => e.clone(),
+        Some(reason) => Error::ConnectionClosed {
+            reason: reason.to_string().into(),
+        },
+        None => Error::ConnectionClosed {
+            reason: "the connection task has ended".into(),
+        },
+    }
+}
