@@ -110,9 +110,29 @@ impl Decoder for ClientCodec {
         match take(src)? {
             None => Ok(None),
             Some(Taken::Frame(bytes)) => Ok(Some(ResponseFrame::decode(&bytes))),
-            Some(Taken::Empty { version }) => Err(Error::ServerTooOld {
-                server_version: version,
-                client_version: PROTOCOL_VERSION,
+            // Only a server older than this client answers with an empty message (manual 1.3);
+            // one that claims v3 or newer is a damaged frame, not a version answer.
+            Some(Taken::Empty { version }) if version < PROTOCOL_VERSION => {
+                Err(Error::ServerTooOld {
+                    server_version: version,
+                    client_version: PROTOCOL_VERSION,
+                })
+            }
+            Some(Taken::Empty { .. }) => Err(Malformed::FrameLength { length: 0 }.into()),
+        }
+    }
+
+    fn decode_eof(&mut self, src: &mut BytesMut) -> Result<Option<ResponseFrame>, Error> {
+        match self.decode(src)? {
+            Some(frame) => Ok(Some(frame)),
+            None if src.is_empty() => Ok(None),
+            // Say what happened rather than the default "bytes remaining on stream".
+            None => Err(Error::ConnectionClosed {
+                reason: format!(
+                    "the server closed the connection in the middle of a frame ({} bytes of it)",
+                    src.len()
+                )
+                .into(),
             }),
         }
     }
@@ -228,6 +248,34 @@ mod tests {
         }
         .encode();
         assert_eq!(frame_len(&hostile), Some(PREFIX_LEN + u32::MAX as usize));
+    }
+
+    #[test]
+    fn an_empty_message_from_a_server_as_new_as_this_client_is_malformed() {
+        let mut buf = BytesMut::from(
+            &Prefix {
+                version: 3,
+                length: 0,
+            }
+            .encode()[..],
+        );
+        assert!(matches!(
+            ClientCodec.decode(&mut buf),
+            Err(Error::Malformed(Malformed::FrameLength { length: 0 }))
+        ));
+    }
+
+    #[test]
+    fn end_of_stream_inside_a_frame_is_a_closed_connection() {
+        let bytes = response(1).encode();
+        let mut buf = BytesMut::from(&bytes[..30]);
+        assert!(matches!(
+            ClientCodec.decode_eof(&mut buf),
+            Err(Error::ConnectionClosed { reason }) if reason.contains("30 bytes")
+        ));
+        let mut buf = BytesMut::from(&bytes[..]);
+        assert_eq!(ClientCodec.decode_eof(&mut buf).unwrap(), Some(response(1)));
+        assert_eq!(ClientCodec.decode_eof(&mut buf).unwrap(), None);
     }
 
     #[test]

@@ -47,6 +47,8 @@ pub(crate) struct Link {
     /// At most [`MAX_IN_FLIGHT`].
     waiting: VecDeque<Waiting>,
     pairing: Pairing,
+    /// The last response paired, to recognise an exact repeat of it (see `on_response`).
+    last_response: Option<ResponseFrame>,
 }
 
 impl Link {
@@ -68,6 +70,7 @@ impl Link {
             write,
             waiting: VecDeque::with_capacity(MAX_IN_FLIGHT),
             pairing: Pairing::default(),
+            last_response: None,
         })
     }
 
@@ -88,6 +91,7 @@ impl Link {
             };
             self.pairing.counter(frame.header.response_counter, 1)?;
             check_response(&request, &frame)?;
+            self.last_response = Some(frame);
             Ok(frame)
         };
         let frame = tokio::time::timeout(timeout, answer)
@@ -152,6 +156,15 @@ impl Link {
     /// Pairs one response; `Err` breaks the connection (the paired call, if any, gets the error
     /// too).
     fn on_response(&mut self, session: &mut Session, frame: &ResponseFrame) -> Result<()> {
+        if self.last_response.as_ref() == Some(frame) {
+            // The same bytes again, counter included: the server counts every response, so this
+            // is a copy (a network device repeating a segment), not a new answer. Noise, skipped.
+            tracing::warn!(
+                counter = frame.header.response_counter,
+                "repeated response skipped"
+            );
+            return Ok(());
+        }
         let received = frame.header.response_counter;
         let lost = self.pairing.counter(received, self.waiting.len())?;
         for i in 0..lost.count {
@@ -190,6 +203,7 @@ impl Link {
                 None => return Err(Malformed::Unsolicited { counter: received }.into()),
             }
         }
+        self.last_response = Some(*frame);
         session.record(&w.request, frame);
         if w.reply.send(Ok(*frame)).is_err() {
             tracing::debug!(request = %w.request.header.message_type, counter = received, "late reply discarded");
