@@ -722,3 +722,61 @@ async fn cut_before_the_reply_fails_the_call_as_a_lost_connection() {
     // The simulator is untouched by all of it.
     assert_eq!(rig.server.state().active_project(), Some(0));
 }
+
+// ---- bounds ----------------------------------------------------------------------------------
+
+#[tokio::test]
+async fn many_more_callers_than_the_queue_and_in_flight_limits_all_get_their_answers() {
+    // 16 requests in flight and 32 queued at most: 300 callers at once wait their turn.
+    let rig = rig().await;
+    let client = rig.client().await.with_timeout(LIMIT / 2);
+    let mut calls = tokio::task::JoinSet::new();
+    for i in 0..300u16 {
+        let client = client.clone();
+        calls.spawn(async move {
+            let class = i % 3;
+            let answer = client.get_object_count(class).await.unwrap();
+            assert_eq!(answer.object_class, class);
+            assert_eq!(answer.candidate_count, [3, 2, 1][usize::from(class)]);
+        });
+    }
+    while let Some(done) = within("300 callers", calls.join_next()).await {
+        done.unwrap();
+    }
+    assert_healthy(&client).await;
+}
+
+#[tokio::test]
+async fn a_server_that_stops_answering_gets_at_most_16_requests_and_every_caller_times_out() {
+    let rig = rig().await;
+    let client = rig.client().await;
+    let requests_before = rig.proxy.stats().client_to_server.frames;
+    let replies = rig.proxy.server_to_client();
+    replies.stall();
+    let mut calls = tokio::task::JoinSet::new();
+    for i in 0..100u16 {
+        let client = client.clone();
+        calls.spawn(async move { client.get_object_count(i % 3).await });
+    }
+    let requests = rig.proxy.client_to_server();
+    within(
+        "16 requests on the wire",
+        requests.wait_for(|s| s.frames >= requests_before + 16),
+    )
+    .await;
+    while let Some(done) = within("100 callers", calls.join_next()).await {
+        let result = done.unwrap();
+        assert!(
+            is_timeout(&result, MessageType::GetObjectCount),
+            "{result:?}"
+        );
+    }
+    // The documented in-flight bound (`Client`: at most 16 unanswered), seen on the wire.
+    let sent = rig.proxy.stats().client_to_server.frames - requests_before;
+    assert_eq!(sent, 16);
+    // The held replies reach nobody; the callers that gave up while queued are never sent.
+    replies.release();
+    assert_healthy(&client).await;
+    let sent = rig.proxy.stats().client_to_server.frames - requests_before;
+    assert_eq!(sent, 16 + 3, "the 3 calls of assert_healthy, nothing else");
+}
