@@ -12,7 +12,7 @@ use std::pin::pin;
 use std::task::Poll;
 use std::time::Duration;
 
-use gripper::fault::{Fault, FaultProxy, FrameLen, Framing, ProxyConfig};
+use gripper::fault::{Fault, FaultProxy, Framing, ProxyConfig};
 use gripper::smartgrasp::codec;
 use gripper::smartgrasp::sim::{SimConfig, SimGrasp, SimObject, SimProject, SimServer};
 use gripper::smartgrasp::{
@@ -199,13 +199,12 @@ async fn dropped_calls_never_hand_a_reply_to_another_caller() {
 async fn dropped_calls_through_a_wire_that_splits_and_delays() {
     // More await points: frames arrive in pieces and some late, so calls are dropped with
     // part of their reply read.
-    fn frames(bytes: &[u8]) -> FrameLen {
-        codec::frame_len(bytes).map_or(FrameLen::NeedMore, FrameLen::Complete)
-    }
     let server = SimServer::bind("127.0.0.1:0", scene()).await.unwrap();
     let proxy = FaultProxy::start_with(
         server.local_addr(),
-        ProxyConfig::new().framing(Framing::Custom(frames)).seed(7),
+        ProxyConfig::new()
+            .framing(Framing::Custom(codec::proxy_frame_len))
+            .seed(7),
     )
     .await
     .unwrap();

@@ -15,7 +15,7 @@ use std::future::Future;
 use std::time::Duration;
 
 use futures_util::StreamExt;
-use gripper::fault::{At, Fault, FaultProxy, FrameLen, Framing, ProxyConfig};
+use gripper::fault::{At, Fault, FaultHandle, FaultProxy, Faults, Framing, ProxyConfig, Rule};
 use gripper::reconnect::ConnectionEvent;
 use gripper::smartgrasp::codec;
 use gripper::smartgrasp::sim::{SimConfig, SimServer};
@@ -55,16 +55,9 @@ async fn within<F: Future>(what: &str, future: F) -> F::Output {
         .unwrap_or_else(|_| panic!("hung: {what}"))
 }
 
-/// The protocol's framing for the proxy: the prefix plus its length field.
-fn frames(bytes: &[u8]) -> FrameLen {
-    match codec::frame_len(bytes) {
-        Some(n) => FrameLen::Complete(n),
-        None => FrameLen::NeedMore,
-    }
-}
-
 struct Rig {
-    server: SimServer,
+    /// Kept alive for the proxy.
+    _server: SimServer,
     proxy: FaultProxy,
 }
 
@@ -72,11 +65,14 @@ async fn rig() -> Rig {
     let server = SimServer::bind("127.0.0.1:0", SimConfig::default())
         .await
         .unwrap();
-    let config = ProxyConfig::new().framing(Framing::Custom(frames));
+    let config = ProxyConfig::new().framing(Framing::Custom(codec::proxy_frame_len));
     let proxy = FaultProxy::start_with(server.local_addr(), config)
         .await
         .unwrap();
-    Rig { server, proxy }
+    Rig {
+        _server: server,
+        proxy,
+    }
 }
 
 fn config() -> ClientConfig {
@@ -140,6 +136,43 @@ async fn assert_broken_then_fresh_works(rig: &Rig, client: &Client) {
     assert_healthy(&rig.client().await).await;
 }
 
+/// Where a fault case starts: a rig, a client whose opening sequence is done, and `rule` added
+/// to the faults `direction` picks.
+async fn with_fault(
+    direction: fn(&FaultProxy) -> Faults,
+    rule: Rule,
+) -> (Rig, Client, FaultHandle) {
+    let rig = rig().await;
+    let client = rig.client().await;
+    let handle = direction(&rig.proxy).add(rule);
+    (rig, client, handle)
+}
+
+/// GET_OBJECT_COUNT(1) under `rule` fails; the fault fired, the connection is broken for good,
+/// a fresh one works. Returns the call's error.
+async fn count_breaks(direction: fn(&FaultProxy) -> Faults, rule: Rule) -> Error {
+    let (rig, client, handle) = with_fault(direction, rule).await;
+    let err = count(&client, 1).await.unwrap_err();
+    assert_eq!(handle.fired(), 1);
+    assert_broken_then_fresh_works(&rig, &client).await;
+    err
+}
+
+/// GET_OBJECT_COUNT(1) under `rule` times out, and the fault fired.
+async fn count_times_out(
+    direction: fn(&FaultProxy) -> Faults,
+    rule: Rule,
+) -> (Rig, Client, FaultHandle) {
+    let (rig, client, handle) = with_fault(direction, rule).await;
+    let first = count(&client, 1).await;
+    assert!(is_timeout(&first, MessageType::GetObjectCount), "{first:?}");
+    assert_eq!(handle.fired(), 1);
+    (rig, client, handle)
+}
+
+const REPLIES: fn(&FaultProxy) -> Faults = FaultProxy::server_to_client;
+const REQUESTS: fn(&FaultProxy) -> Faults = FaultProxy::client_to_server;
+
 fn is_timeout(result: &Result<ObjectCount, Error>, message_type: MessageType) -> bool {
     matches!(result, Err(Error::Timeout { message_type: m, .. }) if *m == message_type)
 }
@@ -160,27 +193,17 @@ async fn delay_within_the_timeout_gives_the_right_answer() {
 
 #[tokio::test]
 async fn reply_delayed_beyond_the_timeout_times_out_and_the_late_reply_is_discarded() {
-    let rig = rig().await;
-    let client = rig.client().await;
-    let faults = rig.proxy.server_to_client();
-    faults.add(Fault::Delay(LONG).once());
-    let first = count(&client, 1).await;
-    assert!(is_timeout(&first, MessageType::GetObjectCount), "{first:?}");
-    // Let the held reply go: it arrives after its caller gave up, and must reach nobody.
-    faults.clear();
+    let (_rig, client, delay) = count_times_out(REPLIES, Fault::Delay(LONG).once()).await;
+    // End the delay: the held reply arrives after its caller gave up, and must reach nobody.
+    delay.remove();
     assert_eq!(count(&client, 2).await.unwrap().object_class, 2);
     assert_healthy(&client).await;
 }
 
 #[tokio::test]
 async fn request_delayed_beyond_the_timeout_times_out_and_its_late_reply_is_discarded() {
-    let rig = rig().await;
-    let client = rig.client().await;
-    let faults = rig.proxy.client_to_server();
-    faults.add(Fault::Delay(LONG).once());
-    let first = count(&client, 1).await;
-    assert!(is_timeout(&first, MessageType::GetObjectCount), "{first:?}");
-    faults.clear();
+    let (_rig, client, delay) = count_times_out(REQUESTS, Fault::Delay(LONG).once()).await;
+    delay.remove();
     assert_eq!(count(&client, 2).await.unwrap().object_class, 2);
     assert_healthy(&client).await;
 }
@@ -228,101 +251,68 @@ async fn merged_frames_in_both_directions_give_each_call_its_own_answer() {
 
 // ---- corrupt: prefix -------------------------------------------------------------------------
 
-fn corrupt(byte: usize, xor: u8) -> Fault {
+/// Flip the bits `xor` of byte `byte` of the next frame.
+fn corrupt(byte: usize, xor: u8) -> Rule {
     Fault::Corrupt {
         at: At::Start(byte),
         xor,
     }
+    .once()
 }
 
 #[tokio::test]
 async fn corrupt_length_byte_is_malformed_and_breaks_the_connection() {
-    let rig = rig().await;
-    let client = rig.client().await;
-    rig.proxy
-        .server_to_client()
-        .add(corrupt(at::LENGTH_LOW, 0x01).once());
-    let err = count(&client, 1).await.unwrap_err();
+    let err = count_breaks(REPLIES, corrupt(at::LENGTH_LOW, 0x01)).await;
     assert!(
         matches!(err, Error::Malformed(Malformed::FrameLength { length: 75 })),
         "{err}"
     );
-    assert_broken_then_fresh_works(&rig, &client).await;
 }
 
 #[tokio::test]
 async fn corrupt_length_to_a_hostile_size_is_refused_without_reading_it() {
-    let rig = rig().await;
-    let client = rig.client().await;
-    rig.proxy
-        .server_to_client()
-        .add(corrupt(at::LENGTH_HIGH, 0x80).once());
-    let err = count(&client, 1).await.unwrap_err();
+    let err = count_breaks(REPLIES, corrupt(at::LENGTH_HIGH, 0x80)).await;
     assert!(
         matches!(err, Error::Malformed(Malformed::FrameLength { length }) if length == 0x8000_004A),
         "{err}"
     );
-    assert_broken_then_fresh_works(&rig, &client).await;
 }
 
 #[tokio::test]
 async fn corrupt_length_to_zero_is_malformed_not_server_too_old() {
     // Found by this matrix: an empty message from a server that claims v3 was reported as
     // "server too old (speaks v3)". Only an older server sends one (manual 1.3).
-    let rig = rig().await;
-    let client = rig.client().await;
-    rig.proxy
-        .server_to_client()
-        .add(corrupt(at::LENGTH_LOW, 74).once());
-    let err = count(&client, 1).await.unwrap_err();
+    let err = count_breaks(REPLIES, corrupt(at::LENGTH_LOW, 74)).await;
     assert!(
         matches!(err, Error::Malformed(Malformed::FrameLength { length: 0 })),
         "{err}"
     );
-    assert_broken_then_fresh_works(&rig, &client).await;
 }
 
 #[tokio::test]
 async fn corrupt_version_byte_is_malformed() {
-    let rig = rig().await;
-    let client = rig.client().await;
-    rig.proxy
-        .server_to_client()
-        .add(corrupt(at::VERSION_LOW, 0x04).once());
-    let err = count(&client, 1).await.unwrap_err();
+    let err = count_breaks(REPLIES, corrupt(at::VERSION_LOW, 0x04)).await;
     assert!(
         matches!(err, Error::Malformed(Malformed::Version { version: 7 })),
         "{err}"
     );
-    assert_broken_then_fresh_works(&rig, &client).await;
 }
 
 // ---- corrupt: header -------------------------------------------------------------------------
 
 #[tokio::test]
 async fn corrupt_communication_type_is_malformed() {
-    let rig = rig().await;
-    let client = rig.client().await;
-    rig.proxy
-        .server_to_client()
-        .add(corrupt(at::COMMUNICATION_TYPE, 0x03).once());
-    let err = count(&client, 1).await.unwrap_err();
+    let err = count_breaks(REPLIES, corrupt(at::COMMUNICATION_TYPE, 0x03)).await;
     assert!(
         matches!(err, Error::Malformed(Malformed::CommunicationType(_))),
         "{err}"
     );
-    assert_broken_then_fresh_works(&rig, &client).await;
 }
 
 #[tokio::test]
 async fn corrupt_message_type_is_malformed() {
-    let rig = rig().await;
-    let client = rig.client().await;
     // 32 (GET_OBJECT_COUNT) ^ 0x10 = 48 (ROBOT_POSE).
-    rig.proxy
-        .server_to_client()
-        .add(corrupt(at::MESSAGE_TYPE, 0x10).once());
-    let err = count(&client, 1).await.unwrap_err();
+    let err = count_breaks(REPLIES, corrupt(at::MESSAGE_TYPE, 0x10)).await;
     assert!(
         matches!(
             err,
@@ -333,19 +323,13 @@ async fn corrupt_message_type_is_malformed() {
         ),
         "{err}"
     );
-    assert_broken_then_fresh_works(&rig, &client).await;
 }
 
 #[tokio::test]
 async fn corrupt_response_counter_is_a_lost_response() {
-    let rig = rig().await;
-    let client = rig.client().await;
     // Four responses in the opening sequence: the next counter is 4; 4 ^ 1 = 5 is a gap that
     // the one waiting call cannot explain.
-    rig.proxy
-        .server_to_client()
-        .add(corrupt(at::RESPONSE_COUNTER, 0x01).once());
-    let err = count(&client, 1).await.unwrap_err();
+    let err = count_breaks(REPLIES, corrupt(at::RESPONSE_COUNTER, 0x01)).await;
     assert!(
         matches!(
             err,
@@ -356,17 +340,12 @@ async fn corrupt_response_counter_is_a_lost_response() {
         ),
         "{err}"
     );
-    assert_broken_then_fresh_works(&rig, &client).await;
 }
 
 #[tokio::test]
 async fn corrupt_response_code_is_a_refusal_where_the_call_expects_success() {
-    let rig = rig().await;
-    let client = rig.client().await;
     // SUCCESS (1) ^ 2 = NO_OBJECT (3).
-    rig.proxy
-        .server_to_client()
-        .add(corrupt(at::RESPONSE_CODE, 0x02).once());
+    let (_rig, client, _) = with_fault(REPLIES, corrupt(at::RESPONSE_CODE, 0x02)).await;
     let err = count(&client, 1).await.unwrap_err();
     assert!(
         matches!(
@@ -387,11 +366,7 @@ async fn undetectable_corrupt_response_code_turns_a_grasp_into_no_object() {
     // LIMIT OF THE PROTOCOL (documented in the smartgrasp module docs): the response code is one
     // byte with no checksum, and NO_OBJECT is a normal GET_GRASP outcome. The client cannot tell
     // this from an empty bin. A picking loop should confirm "empty" with GET_OBJECT_COUNT.
-    let rig = rig().await;
-    let client = rig.client().await;
-    rig.proxy
-        .server_to_client()
-        .add(corrupt(at::RESPONSE_CODE, 0x02).once());
+    let (_rig, client, _) = with_fault(REPLIES, corrupt(at::RESPONSE_CODE, 0x02)).await;
     let outcome = within("get_grasp", client.get_grasp(any_grasp(0)))
         .await
         .unwrap();
@@ -412,12 +387,7 @@ async fn undetectable_corrupt_response_code_turns_a_grasp_into_no_object() {
 
 #[tokio::test]
 async fn corrupt_echoed_object_class_is_caught() {
-    let rig = rig().await;
-    let client = rig.client().await;
-    rig.proxy
-        .server_to_client()
-        .add(corrupt(at::OBJECT_CLASS_LOW, 0x01).once());
-    let err = count(&client, 1).await.unwrap_err();
+    let err = count_breaks(REPLIES, corrupt(at::OBJECT_CLASS_LOW, 0x01)).await;
     assert!(
         matches!(
             err,
@@ -428,17 +398,23 @@ async fn corrupt_echoed_object_class_is_caught() {
         ),
         "{err}"
     );
-    assert_broken_then_fresh_works(&rig, &client).await;
+}
+
+#[tokio::test]
+async fn corrupt_request_object_class_is_caught_by_the_echo() {
+    // The server reads class 1 ^ 3 = 2, answers for it and repeats it in the response: the
+    // client sees that the answer is not for its request.
+    let err = count_breaks(REQUESTS, corrupt(at::REQ_OBJECT_CLASS_LOW, 0x03)).await;
+    assert!(
+        matches!(err, Error::Malformed(Malformed::Echo { .. })),
+        "{err}"
+    );
 }
 
 #[tokio::test]
 async fn corrupt_grasp_pose_format_is_caught() {
-    let rig = rig().await;
-    let client = rig.client().await;
     // ABC (17) ^ 1 = WPR (16): a valid format, but not the one asked for.
-    rig.proxy
-        .server_to_client()
-        .add(corrupt(at::POSE_FORMAT, 0x01).once());
+    let (rig, client, _) = with_fault(REPLIES, corrupt(at::POSE_FORMAT, 0x01)).await;
     let err = within("get_grasp", client.get_grasp(any_grasp(0)))
         .await
         .unwrap_err();
@@ -456,30 +432,10 @@ async fn corrupt_grasp_pose_format_is_caught() {
 }
 
 #[tokio::test]
-async fn corrupt_request_object_class_is_caught_by_the_echo() {
-    // The server reads class 1 ^ 3 = 2, answers for it and repeats it in the response: the
-    // client sees that the answer is not for its request.
-    let rig = rig().await;
-    let client = rig.client().await;
-    rig.proxy
-        .client_to_server()
-        .add(corrupt(at::REQ_OBJECT_CLASS_LOW, 0x03).once());
-    let err = count(&client, 1).await.unwrap_err();
-    assert!(
-        matches!(err, Error::Malformed(Malformed::Echo { .. })),
-        "{err}"
-    );
-    assert_broken_then_fresh_works(&rig, &client).await;
-}
-
-#[tokio::test]
 async fn corrupt_padding_is_ignored() {
-    let rig = rig().await;
-    let client = rig.client().await;
-    rig.proxy
-        .server_to_client()
-        .add(corrupt(at::PADDING, 0xFF).once());
+    let (_rig, client, padding) = with_fault(REPLIES, corrupt(at::PADDING, 0xFF)).await;
     assert_eq!(count(&client, 1).await.unwrap(), CLASS_1);
+    assert_eq!(padding.fired(), 1);
     assert_healthy(&client).await;
 }
 
@@ -489,30 +445,23 @@ async fn undetectable_corrupt_counts_and_poses_reach_the_caller() {
     // flipped bit in a count or a pose coordinate is a different valid value. Over TCP this only
     // happens through faulty equipment (TCP's own checksum guards the wire); a cell that must
     // rule it out needs a plausibility check of its own (e.g. the pose inside the bin).
-    let rig = rig().await;
-    let client = rig.client().await;
-    let faults = rig.proxy.server_to_client();
-    faults.add(corrupt(at::OBJECT_COUNT_LOW, 0x04).once());
+    let (rig, client, _) = with_fault(REPLIES, corrupt(at::OBJECT_COUNT_LOW, 0x04)).await;
     assert_eq!(count(&client, 1).await.unwrap().object_count, 3 ^ 0x04);
 
-    let clean = match within("grasp", client.get_grasp(any_grasp(1)))
-        .await
-        .unwrap()
-    {
-        GetGraspOutcome::Grasp(g) => g,
-        other => panic!("{other:?}"),
+    let grasp = || async {
+        match within("grasp", client.get_grasp(any_grasp(1)))
+            .await
+            .unwrap()
+        {
+            GetGraspOutcome::Grasp(g) => g.pose.position_um()[0],
+            other => panic!("{other:?}"),
+        }
     };
-    faults.add(corrupt(at::GRASP_POSE_X_LOW, 0x01).once());
-    let corrupted = match within("grasp", client.get_grasp(any_grasp(1)))
-        .await
-        .unwrap()
-    {
-        GetGraspOutcome::Grasp(g) => g,
-        other => panic!("{other:?}"),
-    };
+    let clean_x = grasp().await;
+    REPLIES(&rig.proxy).add(corrupt(at::GRASP_POSE_X_LOW, 0x01));
     assert_eq!(
-        corrupted.pose.position_um()[0],
-        clean.pose.position_um()[0] ^ 0x01,
+        grasp().await,
+        clean_x ^ 0x01,
         "one micrometre off, undetectably"
     );
     assert_healthy(&client).await;
@@ -522,12 +471,7 @@ async fn undetectable_corrupt_counts_and_poses_reach_the_caller() {
 
 #[tokio::test]
 async fn dropped_reply_times_out_then_the_gap_is_charged_to_it() {
-    let rig = rig().await;
-    let client = rig.client().await;
-    let drop = rig.proxy.server_to_client().add(Fault::Drop.once());
-    let first = count(&client, 1).await;
-    assert!(is_timeout(&first, MessageType::GetObjectCount), "{first:?}");
-    assert_eq!(drop.fired(), 1);
+    let (_rig, client, _) = count_times_out(REPLIES, Fault::Drop.once()).await;
     // The next reply shows a counter gap: the abandoned call's slot takes the loss.
     assert_eq!(count(&client, 2).await.unwrap().object_class, 2);
     assert_healthy(&client).await;
@@ -562,14 +506,10 @@ async fn dropped_request_times_out_and_the_next_different_request_resynchronises
     // reply was paired with the abandoned call and every later call was one reply off (timing
     // out, or breaking the connection on the type mismatch). Now a reply that fits the next
     // request but not the abandoned one drops the abandoned slot.
-    let rig = rig().await;
-    let client = rig.client().await;
-    rig.proxy.client_to_server().add(Fault::Drop.once());
-    let first = count(&client, 1).await;
-    assert!(is_timeout(&first, MessageType::GetObjectCount), "{first:?}");
+    let (rig, client, _) = count_times_out(REQUESTS, Fault::Drop.once()).await;
     // Another message type, and the same type for another class, both tell the slots apart.
     assert_eq!(state(&client).await.unwrap(), ServerState::Operational);
-    rig.proxy.client_to_server().add(Fault::Drop.once());
+    REQUESTS(&rig.proxy).add(Fault::Drop.once());
     let first = count(&client, 1).await;
     assert!(is_timeout(&first, MessageType::GetObjectCount), "{first:?}");
     assert_eq!(count(&client, 2).await.unwrap().object_class, 2);
@@ -582,11 +522,7 @@ async fn dropped_request_then_the_identical_request_times_out_rather_than_answer
     // an identical request cannot be told from the lost one's late reply, so the client keeps
     // treating it as late: the identical call times out (it never gets another call's answer).
     // The first request that differs resynchronises the pairing.
-    let rig = rig().await;
-    let client = rig.client().await;
-    rig.proxy.client_to_server().add(Fault::Drop.once());
-    let first = count(&client, 1).await;
-    assert!(is_timeout(&first, MessageType::GetObjectCount), "{first:?}");
+    let (_rig, client, _) = count_times_out(REQUESTS, Fault::Drop.once()).await;
     let second = count(&client, 1).await;
     assert!(
         is_timeout(&second, MessageType::GetObjectCount),
@@ -603,9 +539,7 @@ async fn duplicated_reply_is_skipped() {
     // Found by this matrix: the copy arrived with nobody waiting (unsolicited) or paired with
     // the next call (a counter gap of 255), and broke the connection. A byte-identical repeat of
     // the last response (same counter, which a server never repeats) is now skipped.
-    let rig = rig().await;
-    let client = rig.client().await;
-    let dup = rig.proxy.server_to_client().add(Fault::Duplicate.once());
+    let (_rig, client, dup) = with_fault(REPLIES, Fault::Duplicate.once()).await;
     assert_eq!(count(&client, 1).await.unwrap(), CLASS_1);
     assert_eq!(dup.fired(), 1);
     assert_healthy(&client).await;
@@ -666,61 +600,40 @@ async fn stall_past_the_timeout_times_out_then_release_recovers() {
 
 // ---- cut -------------------------------------------------------------------------------------
 
+fn cut(after_bytes: usize) -> Rule {
+    Fault::Cut { after_bytes }.once()
+}
+
 fn is_lost_connection(err: &Error) -> bool {
     matches!(err, Error::ConnectionClosed { .. } | Error::Io(_))
 }
 
 #[tokio::test]
 async fn cut_before_the_request_fails_the_call_as_a_lost_connection() {
-    let rig = rig().await;
-    let client = rig.client().await;
-    rig.proxy
-        .client_to_server()
-        .add(Fault::Cut { after_bytes: 0 }.once());
-    let err = count(&client, 1).await.unwrap_err();
+    let err = count_breaks(REQUESTS, cut(0)).await;
     assert!(is_lost_connection(&err), "{err}");
-    assert_broken_then_fresh_works(&rig, &client).await;
 }
 
 #[tokio::test]
 async fn cut_inside_the_request_fails_the_call_as_a_lost_connection() {
-    let rig = rig().await;
-    let client = rig.client().await;
-    rig.proxy
-        .client_to_server()
-        .add(Fault::Cut { after_bytes: 40 }.once());
-    let err = count(&client, 1).await.unwrap_err();
+    let err = count_breaks(REQUESTS, cut(40)).await;
     assert!(is_lost_connection(&err), "{err}");
-    assert_broken_then_fresh_works(&rig, &client).await;
-}
-
-#[tokio::test]
-async fn cut_inside_the_reply_says_the_connection_closed_mid_frame() {
-    let rig = rig().await;
-    let client = rig.client().await;
-    rig.proxy
-        .server_to_client()
-        .add(Fault::Cut { after_bytes: 40 }.once());
-    let err = count(&client, 1).await.unwrap_err();
-    assert!(
-        matches!(&err, Error::ConnectionClosed { reason } if reason.contains("middle of a frame")),
-        "{err}"
-    );
-    assert_broken_then_fresh_works(&rig, &client).await;
 }
 
 #[tokio::test]
 async fn cut_before_the_reply_fails_the_call_as_a_lost_connection() {
-    let rig = rig().await;
-    let client = rig.client().await;
-    rig.proxy
-        .server_to_client()
-        .add(Fault::Cut { after_bytes: 0 }.once());
-    let err = count(&client, 1).await.unwrap_err();
+    let err = count_breaks(REPLIES, cut(0)).await;
     assert!(is_lost_connection(&err), "{err}");
-    assert_broken_then_fresh_works(&rig, &client).await;
-    // The simulator is untouched by all of it.
-    assert_eq!(rig.server.state().active_project(), Some(0));
+}
+
+#[tokio::test]
+async fn cut_inside_the_reply_says_the_connection_closed_mid_frame() {
+    // Found by this matrix: this was tokio-util's opaque "bytes remaining on stream" I/O error.
+    let err = count_breaks(REPLIES, cut(40)).await;
+    assert!(
+        matches!(&err, Error::ConnectionClosed { reason } if reason.contains("middle of a frame")),
+        "{err}"
+    );
 }
 
 // ---- bounds ----------------------------------------------------------------------------------

@@ -8,7 +8,7 @@ use std::future::Future;
 use std::time::Duration;
 
 use futures_util::StreamExt;
-use gripper::fault::{FaultProxy, FrameLen, Framing, ProxyConfig};
+use gripper::fault::{FaultProxy, Framing, ProxyConfig};
 use gripper::reconnect::{ConnectionEvent, ConnectionEvents, ReconnectPolicy};
 use gripper::smartgrasp::codec;
 use gripper::smartgrasp::sim::{SimConfig, SimProject, SimServer};
@@ -23,10 +23,6 @@ async fn within<F: Future>(what: &str, future: F) -> F::Output {
     tokio::time::timeout(LIMIT, future)
         .await
         .unwrap_or_else(|_| panic!("hung: {what}"))
-}
-
-fn frames(bytes: &[u8]) -> FrameLen {
-    codec::frame_len(bytes).map_or(FrameLen::NeedMore, FrameLen::Complete)
 }
 
 const POLICY: ReconnectPolicy = ReconnectPolicy {
@@ -49,7 +45,7 @@ async fn sim() -> SimServer {
 }
 
 async fn proxy(server: &SimServer) -> FaultProxy {
-    let config = ProxyConfig::new().framing(Framing::Custom(frames));
+    let config = ProxyConfig::new().framing(Framing::Custom(codec::proxy_frame_len));
     FaultProxy::start_with(server.local_addr(), config)
         .await
         .unwrap()
@@ -64,6 +60,19 @@ fn config(reconnect: Option<ReconnectPolicy>) -> ClientConfig {
         reconnect,
         ..ClientConfig::default()
     }
+}
+
+/// The simulator, the proxy to it, a client through the proxy and its event stream.
+async fn setup(
+    reconnect: Option<ReconnectPolicy>,
+) -> (SimServer, FaultProxy, Client, ConnectionEvents) {
+    let server = sim().await;
+    let proxy = proxy(&server).await;
+    let client = Client::connect(proxy.local_addr(), config(reconnect))
+        .await
+        .unwrap();
+    let events = client.connection_events();
+    (server, proxy, client, events)
 }
 
 async fn next(events: &mut ConnectionEvents) -> Option<ConnectionEvent> {
@@ -106,12 +115,7 @@ async fn assert_grasp_works(client: &Client) {
 
 #[tokio::test]
 async fn a_cut_is_reported_and_the_session_restored() {
-    let server = sim().await;
-    let proxy = proxy(&server).await;
-    let client = Client::connect(proxy.local_addr(), config(Some(POLICY)))
-        .await
-        .unwrap();
-    let mut events = client.connection_events();
+    let (server, proxy, client, mut events) = setup(Some(POLICY)).await;
     // The program switches project and registers as another robot itself: a reconnect must
     // restore that, not the configuration's.
     client.set_project(1).await.unwrap();
@@ -172,12 +176,7 @@ async fn a_cut_is_reported_and_the_session_restored() {
 
 #[tokio::test]
 async fn calls_in_flight_fail_and_are_never_sent_again() {
-    let server = sim().await;
-    let proxy = proxy(&server).await;
-    let client = Client::connect(proxy.local_addr(), config(Some(POLICY)))
-        .await
-        .unwrap();
-    let mut events = client.connection_events();
+    let (server, proxy, client, mut events) = setup(Some(POLICY)).await;
     let replies = proxy.server_to_client();
     replies.stall();
     let pose = Pose::Abc(AbcPose {
@@ -205,12 +204,7 @@ async fn calls_in_flight_fail_and_are_never_sent_again() {
 
 #[tokio::test]
 async fn calls_made_while_reconnecting_wait_for_the_restored_session() {
-    let server = sim().await;
-    let proxy = proxy(&server).await;
-    let client = Client::connect(proxy.local_addr(), config(Some(POLICY)))
-        .await
-        .unwrap();
-    let mut events = client.connection_events();
+    let (_server, proxy, client, mut events) = setup(Some(POLICY)).await;
     let requests = proxy.client_to_server();
     requests.stall();
     proxy.cut_connections();
@@ -245,16 +239,11 @@ async fn calls_made_while_reconnecting_wait_for_the_restored_session() {
 
 #[tokio::test]
 async fn gives_up_after_max_attempts_and_closes() {
-    let server = sim().await;
-    let proxy = proxy(&server).await;
     let policy = ReconnectPolicy {
         max_attempts: Some(2),
         ..POLICY
     };
-    let client = Client::connect(proxy.local_addr(), config(Some(policy)))
-        .await
-        .unwrap();
-    let mut events = client.connection_events();
+    let (server, _proxy, client, mut events) = setup(Some(policy)).await;
     // The server goes away for good: the proxy still accepts, but closes each connection.
     drop(server);
     let mut seen = Vec::new();
@@ -288,12 +277,7 @@ async fn gives_up_after_max_attempts_and_closes() {
 
 #[tokio::test]
 async fn without_a_policy_the_loss_is_reported_and_the_client_closes() {
-    let server = sim().await;
-    let proxy = proxy(&server).await;
-    let client = Client::connect(proxy.local_addr(), config(None))
-        .await
-        .unwrap();
-    let mut events = client.connection_events();
+    let (_server, proxy, client, mut events) = setup(None).await;
     proxy.cut_connections();
     assert!(matches!(
         next(&mut events).await,

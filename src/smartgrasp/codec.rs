@@ -58,13 +58,21 @@ pub fn peek_frame(bytes: &[u8]) -> Result<Peeked, Prefix> {
 
 /// How long the frame at the front of `bytes` is, in any protocol version: the 6-byte prefix plus
 /// its `length` field (manual 1.3). `None` until the prefix is complete. Unlike [`peek_frame`] it
-/// does not judge the length; use it to cut a stream into frames, e.g. for the fault proxy:
-/// `Framing::Custom(|b| match frame_len(b) { Some(n) => FrameLen::Complete(n), None =>
-/// FrameLen::NeedMore })` (a length over the proxy's bound is forwarded unframed).
+/// does not judge the length: it cuts a stream into frames (`proxy_frame_len`, feature `sim`,
+/// does it for the fault proxy).
 pub fn frame_len(bytes: &[u8]) -> Option<usize> {
     let prefix = Prefix::decode(bytes.first_chunk::<PREFIX_LEN>()?);
     // Saturating: on a 32-bit target a hostile u32 length must not wrap to a small frame.
     Some(PREFIX_LEN.saturating_add(usize::try_from(prefix.length).unwrap_or(usize::MAX)))
+}
+
+/// [`frame_len`] in the fault proxy's terms, so that its faults hit whole SmartGrasp frames:
+/// `ProxyConfig::new().framing(Framing::Custom(codec::proxy_frame_len))` (see
+/// [`crate::fault`]). A length over the proxy's `max_frame_len` is forwarded unframed.
+#[cfg(feature = "sim")]
+pub fn proxy_frame_len(bytes: &[u8]) -> crate::fault::FrameLen {
+    use crate::fault::FrameLen;
+    frame_len(bytes).map_or(FrameLen::NeedMore, FrameLen::Complete)
 }
 
 /// What [`take`] cut off the front of a buffer.

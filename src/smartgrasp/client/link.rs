@@ -81,8 +81,6 @@ impl Link {
         request: RequestFrame,
         config: &ClientConfig,
     ) -> Result<Response> {
-        let message_type = request.header.message_type;
-        let timeout = config.timeout_for(message_type);
         let answer = async {
             self.write.write_all(&request.encode()).await?;
             let frame = match self.next_response().await {
@@ -94,13 +92,10 @@ impl Link {
             self.last_response = Some(frame);
             Ok(frame)
         };
-        let frame = tokio::time::timeout(timeout, answer)
+        config
+            .timeouts()
+            .run(request.header.message_type, answer)
             .await
-            .map_err(|_| Error::Timeout {
-                message_type,
-                timeout,
-            })??;
-        Ok(Response::from_frame(&frame)?)
     }
 
     async fn next_response(&mut self) -> Option<Result<ResponseFrame>> {

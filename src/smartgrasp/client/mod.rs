@@ -13,6 +13,7 @@ use tokio::net::ToSocketAddrs;
 use tokio::sync::{mpsc, oneshot};
 
 use super::error::{Error, Result};
+use super::frame::ResponseFrame;
 use super::message::{Grasp, GraspRequest, ObjectCount, Request, Response, ResponseBody};
 use super::pose::Pose;
 use super::types::{
@@ -80,14 +81,46 @@ impl Default for ClientConfig {
 }
 
 impl ClientConfig {
-    /// The timeout of a request of this type.
-    fn timeout_for(&self, message_type: MessageType) -> Duration {
+    fn timeouts(&self) -> Timeouts {
+        Timeouts {
+            query: self.query_timeout,
+            detection: self.detection_timeout,
+        }
+    }
+}
+
+/// The two call timeouts, and the one place a call is bounded by its timeout.
+#[derive(Debug, Clone, Copy)]
+struct Timeouts {
+    query: Duration,
+    detection: Duration,
+}
+
+impl Timeouts {
+    fn for_type(self, message_type: MessageType) -> Duration {
         match message_type {
             MessageType::GetGrasp | MessageType::GetObjectCount | MessageType::SetProject => {
-                self.detection_timeout
+                self.detection
             }
-            _ => self.query_timeout,
+            _ => self.query,
         }
+    }
+
+    /// Runs `exchange` (send `message_type`'s request, get its checked response frame) within
+    /// its timeout, and reads the typed response.
+    async fn run(
+        self,
+        message_type: MessageType,
+        exchange: impl std::future::Future<Output = Result<ResponseFrame>>,
+    ) -> Result<Response> {
+        let timeout = self.for_type(message_type);
+        let frame = tokio::time::timeout(timeout, exchange)
+            .await
+            .map_err(|_| Error::Timeout {
+                message_type,
+                timeout,
+            })??;
+        Ok(Response::from_frame(&frame)?)
     }
 }
 
@@ -133,8 +166,7 @@ pub struct Client {
     calls: mpsc::Sender<Call>,
     closed: Arc<OnceLock<Error>>,
     events: EventSubscriber,
-    query_timeout: Duration,
-    detection_timeout: Duration,
+    timeouts: Timeouts,
 }
 
 impl Client {
@@ -174,8 +206,7 @@ impl Client {
             calls,
             closed: Arc::clone(&closed),
             events: events.subscriber(),
-            query_timeout: config.query_timeout,
-            detection_timeout: config.detection_timeout,
+            timeouts: config.timeouts(),
         };
         let task = task::Task {
             calls: rx,
@@ -192,8 +223,10 @@ impl Client {
     /// A handle to the same connection whose calls all use `timeout`.
     pub fn with_timeout(&self, timeout: Duration) -> Client {
         Client {
-            query_timeout: timeout,
-            detection_timeout: timeout,
+            timeouts: Timeouts {
+                query: timeout,
+                detection: timeout,
+            },
             ..self.clone()
         }
     }
@@ -310,13 +343,6 @@ impl Client {
     /// checked; the response code is left to the caller.
     /// Cancel-safe (see [`Client`]): a cancelled request may have been acted on.
     pub async fn call(&self, request: Request) -> Result<Response> {
-        let message_type = request.message_type();
-        let timeout = match message_type {
-            MessageType::GetGrasp | MessageType::GetObjectCount | MessageType::SetProject => {
-                self.detection_timeout
-            }
-            _ => self.query_timeout,
-        };
         let (reply, answer) = oneshot::channel();
         let exchange = async {
             let call = Call {
@@ -326,13 +352,7 @@ impl Client {
             self.calls.send(call).await.map_err(|_| self.closed())?;
             answer.await.map_err(|_| self.closed())?
         };
-        let frame = tokio::time::timeout(timeout, exchange)
-            .await
-            .map_err(|_| Error::Timeout {
-                message_type,
-                timeout,
-            })??;
-        Ok(Response::from_frame(&frame)?)
+        self.timeouts.run(request.message_type(), exchange).await
     }
 
     async fn expect_success(&self, request: Request) -> Result<ResponseBody> {
