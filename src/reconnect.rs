@@ -153,9 +153,9 @@ impl EventSender {
         let protocol = self.protocol;
         match &event {
             ConnectionEvent::Lost { .. } | ConnectionEvent::GaveUp { .. } => {
-                tracing::warn!(protocol, %event)
+                tracing::warn!(protocol, %event, "connection event")
             }
-            _ => tracing::info!(protocol, %event),
+            _ => tracing::info!(protocol, %event, "connection event"),
         }
         let _ = self.tx.send(event);
     }

@@ -54,14 +54,8 @@ pub(crate) struct Link {
 impl Link {
     /// Connects within `timeout`.
     pub(crate) async fn connect(addrs: &[SocketAddr], timeout: Duration) -> Result<Link> {
-        let stream = tokio::time::timeout(timeout, TcpStream::connect(addrs))
-            .await
-            .map_err(|_| {
-                Error::from(std::io::Error::new(
-                    std::io::ErrorKind::TimedOut,
-                    "connecting to the Smart Grasping server timed out",
-                ))
-            })??;
+        let stream =
+            within_connect_timeout(timeout, async { Ok(TcpStream::connect(addrs).await?) }).await?;
         // Requests are single 80-byte writes waiting for an answer: do not let Nagle hold them.
         stream.set_nodelay(true)?;
         let (read, write) = stream.into_split();
@@ -205,6 +199,19 @@ impl Link {
         }
         Ok(())
     }
+}
+
+/// Runs a step of connecting (resolving the address, the TCP connect) within `timeout`.
+pub(crate) async fn within_connect_timeout<T>(
+    timeout: Duration,
+    step: impl std::future::Future<Output = Result<T>>,
+) -> Result<T> {
+    tokio::time::timeout(timeout, step).await.map_err(|_| {
+        Error::from(std::io::Error::new(
+            std::io::ErrorKind::TimedOut,
+            "connecting to the Smart Grasping server timed out",
+        ))
+    })?
 }
 
 fn server_closed() -> Error {

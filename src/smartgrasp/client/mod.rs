@@ -59,8 +59,9 @@ pub struct ClientConfig {
     /// - the client reconnects with the policy's backoff and runs the opening sequence again:
     ///   GET_PROTOCOL_VERSION, GET_STATE, and the last REGISTER_CLIENT and SET_PROJECT the server
     ///   accepted (from this configuration or from the program's own calls);
-    /// - calls made meanwhile **wait** in the queue, within their own timeouts, and go out once
-    ///   the session is restored; a call that times out while waiting was never sent;
+    /// - calls that were still queued (not yet sent) and calls made meanwhile **wait** in the
+    ///   queue, within their own timeouts, and go out once the session is restored; a call that
+    ///   times out while waiting was never sent;
     /// - each step is reported through [`Client::connection_events`] and `tracing`.
     ///
     /// When the policy gives up, the client is closed like one without a policy.
@@ -178,7 +179,7 @@ impl Client {
     /// A failure here is returned, whatever [`ClientConfig::reconnect`] says: reconnecting is for
     /// a session that was open. Cancel-safe: dropping the future closes the new connection.
     pub async fn connect(addr: impl ToSocketAddrs, config: ClientConfig) -> Result<Client> {
-        let addrs = resolve(addr).await?;
+        let addrs = link::within_connect_timeout(config.connect_timeout, resolve(addr)).await?;
         let mut link = Link::connect(&addrs, config.connect_timeout).await?;
         let session = Session::from_config(&config);
         let server_version = session.open(&mut link, &config).await?;
@@ -193,7 +194,7 @@ impl Client {
         addr: impl ToSocketAddrs,
         config: ClientConfig,
     ) -> Result<Client> {
-        let addrs = resolve(addr).await?;
+        let addrs = link::within_connect_timeout(config.connect_timeout, resolve(addr)).await?;
         let link = Link::connect(&addrs, config.connect_timeout).await?;
         Ok(Client::spawn(link, addrs, Session::default(), config))
     }
@@ -242,6 +243,44 @@ impl Client {
     /// when the connection is closed for good. It buffers at most 32 events: a reader that falls
     /// further behind loses the oldest and gets a
     /// [`ConnectionEvent::Missed`](crate::reconnect::ConnectionEvent::Missed) instead.
+    ///
+    /// ```
+    /// # #[cfg(not(feature = "sim"))]
+    /// # fn main() {}
+    /// # #[cfg(feature = "sim")]
+    /// # #[tokio::main(flavor = "current_thread")]
+    /// # async fn main() -> Result<(), Box<dyn std::error::Error>> {
+    /// use futures_util::StreamExt;
+    /// use gripper::fault::{FaultProxy, Framing, ProxyConfig};
+    /// use gripper::reconnect::{ConnectionEvent, ReconnectPolicy};
+    /// use gripper::smartgrasp::sim::{SimConfig, SimServer};
+    /// use gripper::smartgrasp::{codec, Client, ClientConfig, RobotSystem};
+    ///
+    /// let server = SimServer::bind("127.0.0.1:0", SimConfig::default()).await?;
+    /// // A proxy to pull the cable with.
+    /// let framing = Framing::Custom(codec::proxy_frame_len);
+    /// let proxy = FaultProxy::start_with(server.local_addr(), ProxyConfig::new().framing(framing)).await?;
+    /// let config = ClientConfig {
+    ///     robot_system: Some(RobotSystem::Ur),
+    ///     reconnect: Some(ReconnectPolicy::default()),
+    ///     ..ClientConfig::default()
+    /// };
+    /// let client = Client::connect(proxy.local_addr(), config).await?;
+    /// let mut events = client.connection_events();
+    ///
+    /// proxy.cut_connections();
+    /// while let Some(event) = events.next().await {
+    ///     println!("{event}");
+    ///     if let ConnectionEvent::Restored { .. } = event {
+    ///         break;
+    ///     }
+    /// }
+    /// // Registered again on the new connection.
+    /// assert_eq!(server.registered_clients(), [RobotSystem::Ur, RobotSystem::Ur]);
+    /// client.get_state().await?;
+    /// # Ok(())
+    /// # }
+    /// ```
     pub fn connection_events(&self) -> ConnectionEvents {
         self.events.subscribe()
     }
