@@ -517,18 +517,42 @@ async fn dropped_request_times_out_and_the_next_different_request_resynchronises
 }
 
 #[tokio::test]
-async fn dropped_request_then_the_identical_request_times_out_rather_than_answer_wrongly() {
-    // LIMIT OF THE PROTOCOL: responses carry no request id. After a lost request, the reply to
-    // an identical request cannot be told from the lost one's late reply, so the client keeps
-    // treating it as late: the identical call times out (it never gets another call's answer).
-    // The first request that differs resynchronises the pairing.
-    let (_rig, client, _) = count_times_out(REQUESTS, Fault::Drop.once()).await;
-    let second = count(&client, 1).await;
-    assert!(
-        is_timeout(&second, MessageType::GetObjectCount),
-        "{second:?}"
+async fn dropped_request_then_the_identical_request_gets_its_own_answer() {
+    // Found by this matrix: responses carry no request id, so after a lost request the reply to
+    // an identical request could not be told from the lost one's late reply: the identical call
+    // timed out, and so did every identical call after it. Now a marker query of another type
+    // goes out between an abandoned request and the next one of its type, and settles the
+    // abandoned slot before the new request's reply arrives.
+    let (rig, client, _) = count_times_out(REQUESTS, Fault::Drop.once()).await;
+    let requests_before = rig.proxy.stats().client_to_server.frames;
+    assert_eq!(count(&client, 1).await.unwrap(), CLASS_1);
+    let sent = rig.proxy.stats().client_to_server.frames - requests_before;
+    assert_eq!(sent, 2, "the marker and the request");
+    assert_healthy(&client).await;
+}
+
+#[tokio::test]
+async fn a_reply_delayed_past_its_timeout_then_the_identical_request_gets_its_own_answer() {
+    // The other way the abandoned request can go: answered, late. The marker keeps the late
+    // answer from reaching the identical request that follows it.
+    let (rig, client, delay) = count_times_out(REPLIES, Fault::Delay(LONG).once()).await;
+    let requests = REQUESTS(&rig.proxy);
+    let before = requests.stats().frames;
+    let second = tokio::spawn({
+        let client = client.clone();
+        async move { client.get_object_count(1).await }
+    });
+    // Both on the wire behind the abandoned request before its late reply is let go.
+    within(
+        "marker and request sent",
+        requests.wait_for(|s| s.frames == before + 2),
+    )
+    .await;
+    delay.remove();
+    assert_eq!(
+        within("second call", second).await.unwrap().unwrap(),
+        CLASS_1
     );
-    assert_eq!(count(&client, 2).await.unwrap().object_class, 2);
     assert_healthy(&client).await;
 }
 
@@ -691,5 +715,8 @@ async fn a_server_that_stops_answering_gets_at_most_16_requests_and_every_caller
     replies.release();
     assert_healthy(&client).await;
     let sent = rig.proxy.stats().client_to_server.frames - requests_before;
-    assert_eq!(sent, 16 + 3, "the 3 calls of assert_healthy, nothing else");
+    assert!(
+        sent <= 16 + 3 + 1,
+        "{sent}: the 3 calls of assert_healthy and at most one marker, nothing else"
+    );
 }

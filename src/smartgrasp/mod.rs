@@ -27,9 +27,10 @@
 //! version, communication and message type, the response counter, and the fields a response
 //! repeats from its request — and closes the connection when they disagree. Over TCP such
 //! corruption needs faulty equipment; a cell that must rule it out checks plausibility itself.
-//! After a request is lost on the wire (again, not something TCP does), a later identical
-//! request cannot be told from its late reply and times out; the next different request puts the
-//! pairing back in step.
+//! Without a request id, the reply to a request right behind one whose caller gave up could be
+//! either's; the client sends a side-effect-free query of another type between them (only then),
+//! so that a request lost on the wire (not something TCP does) or a late reply never shifts the
+//! pairing.
 //!
 //! # Memory bounds
 //!
@@ -38,7 +39,7 @@
 //!   buffer; it refuses any prefix length but 74 (and 0) before buffering a byte of it, so a
 //!   hostile 4 GB length allocates nothing;
 //! - requests in flight: at most 16 sent and unanswered (one 80-byte request and a reply slot
-//!   each); a server that stops answering gets no 17th request;
+//!   each), plus the one marker query above; a server that stops answering gets no more;
 //! - request channel: at most 32 calls queued towards the connection task; further callers wait
 //!   for room, each within its own timeout, and a call given up while queued is never sent;
 //! - connection events: each [`Client::connection_events`] stream buffers at most 32 events; a

@@ -22,10 +22,12 @@ use super::ClientConfig;
 use crate::smartgrasp::codec::ClientCodec;
 use crate::smartgrasp::error::{Error, Malformed, Result};
 use crate::smartgrasp::frame::{RequestFrame, ResponseFrame};
-use crate::smartgrasp::message::Response;
+use crate::smartgrasp::message::{Request, Response};
+use crate::smartgrasp::types::MessageType;
 
-/// Requests sent and not yet answered, at most. Bounds the waiting queue when a server stops
-/// answering; further calls wait in the channel and run into their timeouts.
+/// Requests sent and not yet answered, at most (plus one marker, see `marker_before`). Bounds the
+/// waiting queue when a server stops answering; further calls wait in the channel and run into
+/// their timeouts.
 pub(crate) const MAX_IN_FLIGHT: usize = 16;
 
 /// One call from a handle to the task.
@@ -126,12 +128,17 @@ impl Link {
                             // create a reply to discard.
                             continue;
                         }
-                        if let Err(e) = self.write.write_all(&call.frame.encode()).await {
-                            let e = Error::from(e);
-                            let _ = call.reply.send(Err(e.clone()));
+                        if let Some(marker) = self.marker_before(&call.frame) {
+                            // Its reply goes to nobody: the receiver is dropped at once.
+                            let (reply, _) = oneshot::channel();
+                            if let Err(e) = self.send(marker, reply).await {
+                                let _ = call.reply.send(Err(e.clone()));
+                                break e;
+                            }
+                        }
+                        if let Err(e) = self.send(call.frame, call.reply).await {
                             break e;
                         }
-                        self.waiting.push_back(Waiting { request: call.frame, reply: call.reply });
                     }
                 },
             }
@@ -140,6 +147,40 @@ impl Link {
             let _ = w.reply.send(Err(waiting_error(&reason)));
         }
         Some(reason)
+    }
+
+    /// Writes a request and queues its reply slot. On a write error the call gets it too.
+    async fn send(
+        &mut self,
+        request: RequestFrame,
+        reply: oneshot::Sender<Result<ResponseFrame>>,
+    ) -> Result<()> {
+        if let Err(e) = self.write.write_all(&request.encode()).await {
+            let e = Error::from(e);
+            let _ = reply.send(Err(e.clone()));
+            return Err(e);
+        }
+        self.waiting.push_back(Waiting { request, reply });
+        Ok(())
+    }
+
+    /// Responses carry no request id. Right behind a request whose caller gave up, the response
+    /// to a request of the same type could be either's: the abandoned one's, late, or this one's
+    /// if the abandoned request never reached the server. A request of another type in between
+    /// (a side-effect-free query) tells them apart: whichever way the abandoned request went, its
+    /// slot is settled by the time the marker's response arrives (see `on_response`), and the
+    /// next response is this request's. Costs one query, only after a call was given up.
+    fn marker_before(&self, next: &RequestFrame) -> Option<RequestFrame> {
+        let back = self.waiting.back()?;
+        let same_type = back.request.header.message_type == next.header.message_type;
+        if !same_type || !back.reply.is_closed() {
+            return None;
+        }
+        let marker = match next.header.message_type {
+            MessageType::GetProtocolVersion => Request::GetState,
+            _ => Request::GetProtocolVersion,
+        };
+        Some(marker.to_frame())
     }
 
     /// Pairs one response; `Err` breaks the connection (the paired call, if any, gets the error
