@@ -27,10 +27,10 @@ use session::{success, unexpected_body, Session};
 pub const DEFAULT_PORT: u16 = 42001;
 
 /// Calls queued towards the task, at most; more callers wait (within their timeouts).
-pub(crate) const CALL_QUEUE: usize = 32;
+const CALL_QUEUE: usize = 32;
 
 /// Connection events each [`Client::connection_events`] stream buffers, at most.
-pub(crate) const EVENT_BUFFER: usize = 32;
+const EVENT_BUFFER: usize = 32;
 
 /// How to connect and what the opening sequence of [`Client::connect`] does.
 #[derive(Debug, Clone)]
