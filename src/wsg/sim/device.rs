@@ -186,6 +186,30 @@ fn data(session: SessionId, id: u8, d: Bytes) -> Out {
     }
 }
 
+/// Whether a command carries a float that is NaN or infinite (widths, speeds, acceleration,
+/// force, soft limits: the float parameters of 3.2 and 3.3).
+fn has_non_finite_argument(cmd: &Command) -> bool {
+    let floats: &[f32] = match cmd {
+        Command::PrePosition {
+            width_mm,
+            speed_mm_per_s,
+            ..
+        }
+        | Command::Grasp {
+            width_mm,
+            speed_mm_per_s,
+        }
+        | Command::Release {
+            width_mm,
+            speed_mm_per_s,
+        } => &[*width_mm, *speed_mm_per_s],
+        Command::SetAcceleration(v) | Command::SetForce(v) => &[*v],
+        Command::SetSoftLimits(l) => &[l.minus_mm, l.plus_mm],
+        _ => &[],
+    };
+    floats.iter().any(|v| !v.is_finite())
+}
+
 fn f32_bytes(v: f32) -> Bytes {
     Bytes::copy_from_slice(&v.to_le_bytes())
 }
@@ -397,6 +421,12 @@ impl Device {
             return out;
         }
         match Command::parse(frame) {
+            // A NaN or infinite float is never in range. Found by fuzzing (fuzz/wsg_sim): a NaN
+            // width, speed or acceleration gave the motion a NaN end time, which the server's
+            // settle loop never reached (a hang at time scale 0, a panic in its clock otherwise).
+            Ok(cmd) if has_non_finite_argument(&cmd) => {
+                out.push(status(session, frame.id, Status::RangeError));
+            }
             Ok(cmd) => self.execute(session, wall, cmd, &mut out),
             Err(s) => out.push(status(session, frame.id, s)),
         }
@@ -904,6 +934,50 @@ mod tests {
         let w = d.width_mm();
         assert!(w < 110.0 && w > 50.0, "{w}");
         assert!(d.system_state().contains(SystemState::MOVING));
+    }
+
+    /// Regression (fuzz/wsg_sim): GRASP with a NaN width and speed after homing started a motion
+    /// whose end time was NaN, so it never ended and the server's settle loop spun forever.
+    #[test]
+    fn non_finite_float_arguments_are_range_errors() {
+        let mut d = dev();
+        cmd(&mut d, 0.0, Command::Homing(HomingDirection::Default));
+        let t = d.next_event().unwrap();
+        d.advance(t);
+        for bad in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
+            for c in [
+                Command::Grasp {
+                    width_mm: bad,
+                    speed_mm_per_s: 50.0,
+                },
+                Command::Release {
+                    width_mm: 60.0,
+                    speed_mm_per_s: bad,
+                },
+                Command::PrePosition {
+                    relative: true,
+                    stop_on_block: false,
+                    width_mm: bad,
+                    speed_mm_per_s: 50.0,
+                },
+                Command::SetAcceleration(bad),
+                Command::SetForce(bad),
+                Command::SetSoftLimits(SoftLimits {
+                    minus_mm: bad,
+                    plus_mm: 100.0,
+                }),
+            ] {
+                assert_eq!(cmd(&mut d, t, c.clone()), [Status::RangeError], "{c:?}");
+            }
+            assert_eq!(d.next_event(), None, "no motion started");
+        }
+        // The settings are unchanged: a normal move still has a finite end.
+        let grasp = Command::Grasp {
+            width_mm: 40.0,
+            speed_mm_per_s: 50.0,
+        };
+        assert_eq!(cmd(&mut d, t, grasp), [Status::CmdPending]);
+        assert!(d.next_event().is_some_and(f64::is_finite));
     }
 
     #[test]
