@@ -8,7 +8,9 @@
 //! printed values and against CRC-16/XMODEM of the single byte) and its update rule.
 //!
 //! Running the computation over a whole frame *including* its two checksum bytes (little endian)
-//! yields 0 (manual 1.2.1), which is how a received frame is verified.
+//! yields 0 (manual 1.2.1), but because of the hybrid, so do about three other checksum values per
+//! frame: a received frame is verified by comparing its checksum field with the checksum of the
+//! bytes before it ([`super::frame::decode`]).
 
 /// Initial value of the checksum register (Anhang D: "The start value ... should be set to
 /// 0xFFFF").

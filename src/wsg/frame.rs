@@ -141,7 +141,12 @@ pub fn decode(src: &mut BytesMut, max_payload_len: usize) -> Option<Decoded> {
         if src.len() < total {
             return None;
         }
-        if checksum::checksum(&src[..total]) != 0 {
+        // Compare with the checksum field itself. Running the checksum over the frame *with* its
+        // checksum gives 0 for the right value, but this hybrid (see `checksum`) is not a true
+        // CRC: about three other values give 0 too, so that test let frames with a wrong checksum
+        // through (found by fuzz/wsg_codec). `src` holds `total` bytes, so the indices are in range.
+        let received = u16::from_le_bytes([src[total - 2], src[total - 1]]);
+        if checksum::checksum(&src[..total - CHECKSUM_LEN]) != received {
             tracing::warn!(id, len, "WSG frame with a bad checksum: skipping");
             src.advance(1);
             return Some(Decoded::Corrupt { id, len });
@@ -209,6 +214,34 @@ mod tests {
         let mut b = BytesMut::new();
         encode(&Frame::new(id, payload.to_vec()), &mut b).unwrap();
         b.to_vec()
+    }
+
+    /// Regression (fuzz/wsg_codec): the manual's example frame `AA AA AA 01 02 00 12 34` has
+    /// checksum `6D 66`, but the running checksum over the frame also ends at 0 with `EE 04`,
+    /// `67 A5` or `E4 C7` in its place. Only the real checksum may pass.
+    #[test]
+    fn only_the_exact_checksum_is_accepted() {
+        let good = enc(0x01, &[0x12, 0x34]);
+        let (body, crc) = good.split_at(good.len() - CHECKSUM_LEN);
+        let mut residue_zero = 0;
+        for wrong in (0..=u16::MAX).filter(|&v| v.to_le_bytes() != crc) {
+            let mut frame = body.to_vec();
+            frame.extend_from_slice(&wrong.to_le_bytes());
+            residue_zero += usize::from(checksum::checksum(&frame) == 0);
+            let mut src = BytesMut::from(&frame[..]);
+            assert_eq!(
+                decode(&mut src, DEFAULT_MAX_PAYLOAD_LEN),
+                Some(Decoded::Corrupt { id: 0x01, len: 2 }),
+                "checksum {wrong:#06x}"
+            );
+        }
+        // The old test (residue 0) would have passed these three.
+        assert_eq!(residue_zero, 3);
+        let mut src = BytesMut::from(&good[..]);
+        assert_eq!(
+            decode(&mut src, DEFAULT_MAX_PAYLOAD_LEN),
+            Some(Decoded::Frame(Frame::new(0x01, vec![0x12, 0x34])))
+        );
     }
 
     #[test]
