@@ -1,0 +1,69 @@
+//! `gripctl`: commission WSG grippers, GRIPLINK controllers and the SCHUNK 2D Grasping-Kit from a
+//! terminal, and serve their simulators, with the `gripper` crate.
+//!
+//! Every command prints text by default and one JSON object per line with `--json` (accepted
+//! anywhere on the line). On failure it prints one line, `gripctl: <what failed>`, to stderr
+//! (with `--json`, also `{"error": {...}}` on stdout) and exits with status 1; a command line
+//! clap cannot parse exits with 2.
+
+mod common;
+mod error;
+mod output;
+mod sim;
+mod smartgrasp;
+
+use std::process::ExitCode;
+use std::time::Duration;
+
+use clap::{Parser, Subcommand};
+
+use crate::error::CliError;
+use crate::output::Out;
+
+/// Commission grippers and grasp planners, and serve their simulators.
+#[derive(Debug, Parser)]
+#[command(name = "gripctl", version, about, propagate_version = true)]
+struct Cli {
+    /// Print JSON, one object per line, instead of text.
+    #[arg(long, global = true)]
+    json: bool,
+    /// Timeout of connecting and of each request, e.g. 500ms, 2s, 1.5 [default: the library's,
+    /// short for queries, long for motion and detection].
+    #[arg(long, global = true, value_parser = common::parse_duration)]
+    timeout: Option<Duration>,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// SCHUNK 2D Grasping-Kit (native protocol V3, TCP port 42001).
+    Smartgrasp(smartgrasp::Args),
+    /// Serve a simulator.
+    Sim(sim::Args),
+}
+
+#[tokio::main(flavor = "current_thread")]
+async fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let out = Out::new(cli.json);
+    let result = match cli.command {
+        Command::Smartgrasp(args) => smartgrasp::run(args, cli.timeout, out).await,
+        Command::Sim(args) => sim::run(args, out).await,
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            report(&e, out);
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn report(e: &CliError, out: Out) {
+    if out.is_json() {
+        // Best effort: the error line on stderr is the one that must get out.
+        let _ = out.emit("", e.to_json());
+    }
+    eprintln!("gripctl: {e}");
+}

@@ -1,0 +1,140 @@
+//! `gripctl sim …`: serves a protocol's simulator until Ctrl-C (or until killed).
+//!
+//! The first line of standard output is always `listening on <bound address>`, flushed, in text
+//! and JSON mode alike: scripts and tests start the simulator on port 0 and read the address from
+//! it, as they do with the `*_simulator` examples.
+
+use std::io::Write;
+use std::net::SocketAddr;
+
+use clap::{Args as ClapArgs, Subcommand, ValueEnum};
+use gripper::smartgrasp::sim::{SimConfig, SimServer};
+use gripper::smartgrasp::ServerState;
+use serde_json::json;
+
+use crate::error::{CliError, Kind};
+use crate::output::Out;
+
+/// Options of `gripctl sim`.
+#[derive(Debug, ClapArgs)]
+pub struct Args {
+    #[command(subcommand)]
+    device: Device,
+}
+
+#[derive(Debug, Subcommand)]
+enum Device {
+    /// A SCHUNK 2D Grasping-Kit server (protocol V3) with a scene of parts.
+    Smartgrasp(SmartgraspSim),
+}
+
+#[derive(Debug, ClapArgs)]
+struct SmartgraspSim {
+    /// Address to serve on; port 0 picks a free port.
+    #[arg(long, default_value = "127.0.0.1:42001")]
+    listen: String,
+    /// The scene of project 0: the demo bin (two parts of class 1, one of class 2) or empty.
+    #[arg(long, value_enum, default_value_t = Scene::Demo)]
+    scene: Scene,
+    /// How many copies of the scene's parts are in the bin.
+    #[arg(long, default_value_t = 1)]
+    copies: u16,
+    /// What GET_STATE reports; detection calls fail with ERROR unless operational.
+    #[arg(long, value_enum, default_value_t = StateArg::Operational)]
+    state: StateArg,
+    /// The highest protocol version the server speaks (below 3 it answers "too old").
+    #[arg(long, default_value_t = gripper::smartgrasp::frame::PROTOCOL_VERSION)]
+    protocol_version: u16,
+}
+
+#[derive(Debug, Clone, Copy, ValueEnum)]
+enum Scene {
+    Demo,
+    Empty,
+}
+
+#[derive(Debug, Clone, Copy, ValueEnum)]
+enum StateArg {
+    Init,
+    Operational,
+    Stopped,
+    Error,
+}
+
+/// Runs `gripctl sim …` until Ctrl-C.
+pub async fn run(args: Args, out: Out) -> Result<(), CliError> {
+    match args.device {
+        Device::Smartgrasp(sim) => smartgrasp(sim, out).await,
+    }
+}
+
+async fn smartgrasp(args: SmartgraspSim, out: Out) -> Result<(), CliError> {
+    let config = smartgrasp_config(&args);
+    let parts = config.projects.first().map_or(0, |p| p.scene.len());
+    let state = config.server_state;
+    let server = SimServer::bind(args.listen.as_str(), config)
+        .await
+        .map_err(|e| cannot_listen(&args.listen, &e))?;
+    announce(server.local_addr())?;
+    out.emit(
+        format!("smartgrasp simulator: {parts} parts in project 0, {state}"),
+        json!({ "device": "smartgrasp", "parts": parts, "state": state.to_string() }),
+    )?;
+    wait_for_ctrl_c().await?;
+    server.shutdown();
+    Ok(())
+}
+
+fn smartgrasp_config(args: &SmartgraspSim) -> SimConfig {
+    let mut config = SimConfig {
+        protocol_version: args.protocol_version,
+        server_state: match args.state {
+            StateArg::Init => ServerState::Init,
+            StateArg::Operational => ServerState::Operational,
+            StateArg::Stopped => ServerState::Stopped,
+            StateArg::Error => ServerState::Error,
+        },
+        ..SimConfig::default()
+    };
+    let demo = SimConfig::demo_project();
+    let scene = match args.scene {
+        Scene::Demo => &demo.scene[..],
+        Scene::Empty => &[],
+    };
+    if let Some(project) = config.projects.first_mut() {
+        project.scene.clear();
+        for copy in 0..args.copies {
+            for object in scene {
+                // Instance ids stay unique within a class: each copy takes the next block of them.
+                let stride = scene
+                    .iter()
+                    .filter(|o| o.class_id == object.class_id)
+                    .map(|o| o.instance + 1)
+                    .max()
+                    .unwrap_or(1);
+                let mut part = object.clone();
+                part.instance = object.instance.saturating_add(copy.saturating_mul(stride));
+                project.scene.push(part);
+            }
+        }
+    }
+    config
+}
+
+/// The contract with scripts: exactly this first line, flushed at once.
+fn announce(addr: SocketAddr) -> Result<(), CliError> {
+    let mut stdout = std::io::stdout().lock();
+    writeln!(stdout, "listening on {addr}")
+        .and_then(|()| stdout.flush())
+        .map_err(|e| CliError::output(&e))
+}
+
+fn cannot_listen(listen: &str, e: &std::io::Error) -> CliError {
+    CliError::new(Kind::Simulator, format!("cannot listen on {listen}: {e}"))
+}
+
+async fn wait_for_ctrl_c() -> Result<(), CliError> {
+    tokio::signal::ctrl_c()
+        .await
+        .map_err(|e| CliError::new(Kind::Simulator, format!("cannot wait for Ctrl-C: {e}")))
+}
