@@ -1,1 +1,66 @@
-//! The `griplink` protocol (under construction).
+//! Weiss GRIPLINK Unified Command Set (protocol version 3): ASCII lines over TCP, for
+//! GRIPLINK-ET4 controllers, WPG and INTRAPAL grippers and the IO-Link devices behind them.
+//!
+//! Layers, each usable alone:
+//! - [`command`]: every command of the manual as a typed [`Command`], encoded to one line with
+//!   every argument checked first (no scientific notation, no NaN, no quote or newline inside a
+//!   string: nothing can inject a second command);
+//! - [`reply`]: reply lines parsed and checked against the command they answer;
+//! - [`codec`]: the LF line codec;
+//! - [`client`]: the async [`Client`] (a background task owns the connection; replies are paired
+//!   with commands strictly in order; every call has a timeout) and the per-port [`Port`] handle;
+//! - [`sim`] (feature `sim`): a simulated controller serving TCP.
+//!
+//! Status codes ([`Status`], manual chapter 4) are not the WSG codes.
+//!
+//! # Example
+//! ```
+//! use std::time::Duration;
+//! use gripper::griplink::client::{GripOutcome, WaitBy};
+//! use gripper::griplink::command::GripConfigF;
+//! use gripper::griplink::sim::{SimConfig, SimDevice, SimServer};
+//! use gripper::griplink::{Client, DeviceState};
+//!
+//! # #[tokio::main(flavor = "current_thread")]
+//! # async fn main() -> Result<(), Box<dyn std::error::Error>> {
+//! // A GRIPLINK-ET4 whose IEG 55-020 on port 0 has a 12 mm part between its fingers;
+//! // time scale 0: motion takes no time.
+//! let config = SimConfig::et4()
+//!     .device(0, Some(SimDevice::ieg_55_020().with_part(12.0)))
+//!     .time_scale(0.0);
+//! let server = SimServer::start("127.0.0.1:0", config).await?;
+//!
+//! let client = Client::connect(server.local_addr()).await?;
+//! assert_eq!(client.id().await?, "GRIPLINK-ET4");
+//! client.protocol_assert("GRIPLINK", 3).await?;
+//!
+//! let gripper = client.port(0);
+//! assert_eq!(gripper.vendor_id().await?, Some(815));
+//! gripper.home().await?;
+//! // Recipe 1: no-part limit 5 mm, release limit 18 mm, 50 % force.
+//! gripper.set_grip_config_f(1, &GripConfigF::gripper("part", 5.0, 18.0, 50.0)).await?;
+//! let outcome = gripper.grip_and_wait(1, WaitBy::Polling(Duration::from_millis(10))).await?;
+//! assert_eq!(outcome, GripOutcome::Holding);
+//! assert_eq!(gripper.position_mm().await?, 12.0);
+//! gripper.release_and_wait(1, WaitBy::Transition).await?;
+//! assert_eq!(gripper.state().await?, DeviceState::Released);
+//! client.close().await?;
+//! # Ok(()) }
+//! ```
+pub mod client;
+pub mod codec;
+pub mod command;
+pub mod error;
+pub mod reply;
+#[cfg(feature = "sim")]
+pub mod sim;
+pub mod state;
+pub mod status;
+pub mod value;
+
+pub use client::{Client, ClientConfig, Port, DEFAULT_PORT};
+pub use command::{Blocking, Command, PortNumber};
+pub use error::{Error, Result};
+pub use reply::Answer;
+pub use state::DeviceState;
+pub use status::Status;

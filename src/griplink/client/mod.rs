@@ -1,0 +1,409 @@
+//! The async GRIPLINK client.
+//!
+//! One background task owns the TCP connection (`task.rs`); [`Client`] is a cheap handle to it
+//! (`Clone + Send + Sync`) that any number of tasks use at once. Replies are paired with
+//! commands strictly in order (`pipeline.rs`), as the controller answers every line exactly once,
+//! in order (manual 2.1).
+//!
+//! # Timeouts and late replies
+//! Every call has a timeout: [`ClientConfig::query_timeout`] for commands answered at once,
+//! [`ClientConfig::motion_timeout`] for commands that hold their reply until a motion is done
+//! (HOME, GRIP/RELEASE/FLEX… with [`Blocking::UntilDone`], WSTR), and a WAITVAL's own timeout
+//! plus [`ClientConfig::wait_margin`]. [`Client::with_timeout`] overrides it for the calls made
+//! through the returned handle.
+//!
+//! A call that times out (or whose future is dropped) keeps its place in the FIFO: its reply,
+//! when it comes, is consumed and discarded, so the next caller gets its own. A command still
+//! queued when its caller gives up is never sent.
+//!
+//! While a blocking command holds the connection, the controller reads nothing else from it
+//! (manual 2.1): other calls wait behind it and may time out. To watch a gripper during a long
+//! blocking motion, start the motion with [`Blocking::Immediate`] and wait with
+//! [`WaitBy::Polling`], or open a second [`Client`].
+//!
+//! If a reply stays away [`ClientConfig::give_up_after`] beyond its call's timeout, the
+//! controller is not answering the way the protocol promises, and no later reply could be
+//! paired with confidence: the client then reports [`Error::Broken`] to every pending and
+//! future call and closes the connection. Reconnecting is left to the caller (connect a new
+//! [`Client`]).
+
+mod pipeline;
+mod port;
+mod task;
+mod watch;
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use tokio::net::{TcpStream, ToSocketAddrs};
+use tokio::sync::{mpsc, oneshot};
+use tokio::time::Instant;
+
+pub use port::Port;
+pub use watch::{GripOutcome, ReleaseOutcome, WaitBy, Watch};
+
+use self::task::{Request, Shared, TaskConfig};
+use super::codec::DEFAULT_MAX_LINE_LEN;
+#[cfg(doc)]
+use super::command::Blocking;
+use super::command::{check_raw_line, Command, Duty, Expect, GripConfig, GripConfigF, PortNumber};
+use super::error::{Error, Result};
+use super::reply::{Answer, Data};
+use super::state::DeviceState;
+use super::value::Value;
+
+/// The controller's default TCP port (manual 2.5.1).
+pub const DEFAULT_PORT: u16 = 10001;
+
+/// Client settings. `ClientConfig::default()` suits a controller on a local network.
+#[derive(Debug, Clone)]
+pub struct ClientConfig {
+    /// Timeout of commands the controller answers at once. Default 2 s.
+    pub query_timeout: Duration,
+    /// Timeout of commands that hold their reply until a motion or state transition is done,
+    /// and the overall limit of the grip/release-and-wait helpers. Default 30 s.
+    pub motion_timeout: Duration,
+    /// Added to a WAITVAL's own timeout to get the call's timeout. Default 2 s.
+    pub wait_margin: Duration,
+    /// How long past a call's timeout a missing reply is tolerated before the connection is
+    /// declared broken (see the module docs). Default 30 s.
+    pub give_up_after: Duration,
+    /// Timeout of the TCP connect. Default 5 s.
+    pub connect_timeout: Duration,
+    /// Longest reply line accepted; longer ones are discarded. Default 1024 bytes.
+    pub max_line_len: usize,
+    /// How many calls may wait to be sent. Default 64.
+    pub queue_len: usize,
+    /// How many commands may be on the wire unanswered. Default 1: the controller's input
+    /// buffer is not documented, and a command still in our queue can be withdrawn when its
+    /// caller gives up, one already sent cannot.
+    pub pipeline_depth: usize,
+}
+
+impl Default for ClientConfig {
+    fn default() -> Self {
+        ClientConfig {
+            query_timeout: Duration::from_secs(2),
+            motion_timeout: Duration::from_secs(30),
+            wait_margin: Duration::from_secs(2),
+            give_up_after: Duration::from_secs(30),
+            connect_timeout: Duration::from_secs(5),
+            max_line_len: DEFAULT_MAX_LINE_LEN,
+            queue_len: 64,
+            pipeline_depth: 1,
+        }
+    }
+}
+
+impl ClientConfig {
+    fn timeout_for(&self, duty: Duty) -> Duration {
+        match duty {
+            Duty::Query => self.query_timeout,
+            Duty::Motion => self.motion_timeout,
+            Duty::Wait(t) => t.saturating_add(self.wait_margin),
+        }
+    }
+}
+
+/// A handle to a GRIPLINK controller connection. Cheap to clone; every clone talks over the
+/// same connection, which closes when the last handle is dropped or [`Client::close`] is called.
+///
+/// Controller-wide commands are methods here; device commands are on [`Port`]
+/// (`client.port(2).home()`).
+#[derive(Debug, Clone)]
+pub struct Client {
+    requests: mpsc::Sender<Request>,
+    shared: Arc<Shared>,
+    config: Arc<ClientConfig>,
+    timeout: Option<Duration>,
+}
+
+/// A `KEY[…]=value` reply together with the command it answers, for typed extraction.
+struct Reading {
+    command: String,
+    data: Data,
+}
+
+impl Reading {
+    fn wrong(&self, expected: &str) -> Error {
+        Error::UnexpectedReply {
+            command: self.command.clone(),
+            line: self.data.to_string(),
+            expected: expected.to_owned(),
+        }
+    }
+
+    fn string(self) -> Result<String> {
+        match self.data.value {
+            Value::Str(s) => Ok(s),
+            _ => Err(self.wrong("a string")),
+        }
+    }
+
+    fn int<T: TryFrom<i64>>(&self) -> Result<T> {
+        self.data
+            .value
+            .as_int()
+            .and_then(|v| T::try_from(v).ok())
+            .ok_or_else(|| self.wrong("an integer in range"))
+    }
+
+    fn float(&self) -> Result<f64> {
+        self.data
+            .value
+            .as_f64()
+            .ok_or_else(|| self.wrong("a number"))
+    }
+
+    fn state(&self) -> Result<DeviceState> {
+        Ok(DeviceState::from_code(self.int::<i64>()?))
+    }
+
+    /// `[<tag>,<p0>,…,<p7>]` (manual 3.6.1).
+    fn recipe(&self) -> Result<(String, Vec<Value>)> {
+        match &self.data.value {
+            Value::List(items) if items.len() == 9 => match items.split_first() {
+                Some((Value::Str(tag), params)) => Ok((tag.clone(), params.to_vec())),
+                _ => Err(self.wrong("a recipe [\"tag\",p0,…,p7]")),
+            },
+            _ => Err(self.wrong("a recipe [\"tag\",p0,…,p7]")),
+        }
+    }
+
+    fn grip_config(&self) -> Result<GripConfig> {
+        let (tag, values) = self.recipe()?;
+        let mut params = [0i32; 8];
+        for (slot, v) in params.iter_mut().zip(&values) {
+            *slot = v
+                .as_int()
+                .and_then(|v| i32::try_from(v).ok())
+                .ok_or_else(|| self.wrong("32-bit integer recipe parameters"))?;
+        }
+        Ok(GripConfig { tag, params })
+    }
+
+    fn grip_config_f(&self) -> Result<GripConfigF> {
+        let (tag, values) = self.recipe()?;
+        let mut params = [0f64; 8];
+        for (slot, v) in params.iter_mut().zip(&values) {
+            *slot = v
+                .as_f64()
+                .ok_or_else(|| self.wrong("numeric recipe parameters"))?;
+        }
+        Ok(GripConfigF { tag, params })
+    }
+}
+
+impl Client {
+    /// Connects to a controller (`"192.168.1.40:10001"`) with the default configuration.
+    pub async fn connect(addr: impl ToSocketAddrs) -> Result<Client> {
+        Client::connect_with(addr, ClientConfig::default()).await
+    }
+
+    /// Connects with the given configuration.
+    pub async fn connect_with(addr: impl ToSocketAddrs, config: ClientConfig) -> Result<Client> {
+        let stream = tokio::time::timeout(config.connect_timeout, TcpStream::connect(addr))
+            .await
+            .map_err(|_| {
+                Error::from(std::io::Error::new(
+                    std::io::ErrorKind::TimedOut,
+                    "connecting to the controller timed out",
+                ))
+            })??;
+        // Lines are small and each waits for an answer: send them at once.
+        stream.set_nodelay(true)?;
+        Ok(Client::from_stream(stream, config))
+    }
+
+    /// Runs the client over an already connected stream. Must be called inside a tokio runtime.
+    pub fn from_stream(stream: TcpStream, config: ClientConfig) -> Client {
+        let (requests, rx) = mpsc::channel(config.queue_len.max(1));
+        let shared = Arc::new(Shared::default());
+        let task_config = TaskConfig {
+            pipeline_depth: config.pipeline_depth,
+            give_up_after: config.give_up_after,
+            max_line_len: config.max_line_len,
+        };
+        tokio::spawn(task::run(stream, rx, task_config, Arc::clone(&shared)));
+        Client {
+            requests,
+            shared,
+            config: Arc::new(config),
+            timeout: None,
+        }
+    }
+
+    /// A handle whose calls all use `timeout` instead of the defaults. Shares the connection.
+    pub fn with_timeout(&self, timeout: Duration) -> Client {
+        Client {
+            timeout: Some(timeout),
+            ..self.clone()
+        }
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &ClientConfig {
+        &self.config
+    }
+
+    /// A handle for the device on `port`, so port code does not repeat the number.
+    pub fn port(&self, port: PortNumber) -> Port {
+        Port::new(self.clone(), port)
+    }
+
+    fn timeout_for(&self, duty: Duty) -> Duration {
+        self.timeout
+            .unwrap_or_else(|| self.config.timeout_for(duty))
+    }
+
+    async fn submit(&self, line: String, expect: Expect, duty: Duty, bye: bool) -> Result<Answer> {
+        let timeout = self.timeout_for(duty);
+        let deadline = Instant::now() + timeout;
+        let (waiter, answer) = oneshot::channel();
+        let request = Request {
+            line: line.clone(),
+            expect,
+            deadline,
+            timeout,
+            waiter,
+            bye,
+        };
+        let exchange = async {
+            self.requests
+                .send(request)
+                .await
+                .map_err(|_| self.shared.failure())?;
+            answer.await.map_err(|_| self.shared.failure())?
+        };
+        match tokio::time::timeout_at(deadline, exchange).await {
+            Ok(result) => result,
+            Err(_) => Err(Error::Timeout {
+                command: line,
+                timeout,
+            }),
+        }
+    }
+
+    /// Sends a typed command and returns its checked reply.
+    pub async fn execute(&self, command: &Command) -> Result<Answer> {
+        let line = command.encode()?;
+        let bye = matches!(command, Command::Bye);
+        self.submit(line, command.expect(), command.duty(), bye)
+            .await
+    }
+
+    /// Sends a raw command line (without LF) the crate has no type for, and returns its reply:
+    /// `ACK` or `KEY[…]=value`; `ERR` becomes [`Error::Device`]. The line must be printable
+    /// ASCII without control characters. Uses the query timeout unless overridden with
+    /// [`Client::with_timeout`]; do not send `BYE()` this way, use [`Client::close`].
+    pub async fn command(&self, line: &str) -> Result<Answer> {
+        check_raw_line(line)?;
+        self.submit(line.to_owned(), Expect::Any, Duty::Query, false)
+            .await
+    }
+
+    pub(crate) async fn ack(&self, command: Command) -> Result<()> {
+        match self.execute(&command).await? {
+            Answer::Ack => Ok(()),
+            // `execute` checked the reply against `Expect::Ack` already.
+            Answer::Data(data) => Err(Error::UnexpectedReply {
+                command: command.encode().unwrap_or_default(),
+                line: data.to_string(),
+                expected: "ACK".into(),
+            }),
+        }
+    }
+
+    async fn read(&self, command: Command) -> Result<Reading> {
+        let line = command.encode()?;
+        match self.execute(&command).await? {
+            Answer::Data(data) => Ok(Reading {
+                command: line,
+                data,
+            }),
+            Answer::Ack => Err(Error::UnexpectedReply {
+                command: line,
+                line: "ACK".into(),
+                expected: "a value".into(),
+            }),
+        }
+    }
+
+    pub(crate) async fn read_string(&self, command: Command) -> Result<String> {
+        self.read(command).await?.string()
+    }
+
+    pub(crate) async fn read_int<T: TryFrom<i64>>(&self, command: Command) -> Result<T> {
+        self.read(command).await?.int()
+    }
+
+    pub(crate) async fn read_float(&self, command: Command) -> Result<f64> {
+        self.read(command).await?.float()
+    }
+
+    pub(crate) async fn read_state(&self, command: Command) -> Result<DeviceState> {
+        self.read(command).await?.state()
+    }
+
+    pub(crate) async fn read_grip_config(&self, command: Command) -> Result<GripConfig> {
+        self.read(command).await?.grip_config()
+    }
+
+    pub(crate) async fn read_grip_config_f(&self, command: Command) -> Result<GripConfigF> {
+        self.read(command).await?.grip_config_f()
+    }
+
+    /// `ID?`: the controller's identification, e.g. `GRIPLINK-ET4` (manual 3.1.1).
+    pub async fn id(&self) -> Result<String> {
+        self.read_string(Command::Id).await
+    }
+
+    /// `PROTOCOL?`: the protocol version string, e.g. `GRIPLINK-V3` (manual 3.1.2).
+    pub async fn protocol(&self) -> Result<String> {
+        self.read_string(Command::Protocol).await
+    }
+
+    /// `PROTASSERT`: fails with [`Status::NotSupported`](super::Status::NotSupported) unless the
+    /// controller runs `identifier` in at least `min_version` (manual 3.1.3).
+    pub async fn protocol_assert(&self, identifier: &str, min_version: u32) -> Result<()> {
+        self.ack(Command::ProtAssert {
+            identifier: identifier.to_owned(),
+            min_version,
+        })
+        .await
+    }
+
+    /// `SN?`: the controller's serial number (manual 3.1.4).
+    pub async fn serial_number(&self) -> Result<String> {
+        self.read_string(Command::SerialNumber).await
+    }
+
+    /// `LABEL?` (manual 3.1.5).
+    pub async fn label(&self) -> Result<String> {
+        self.read_string(Command::Label).await
+    }
+
+    /// `LABEL="…"`: at most 32 printable ASCII characters without `'` `"` `\` (checked before
+    /// sending). Returns the label the controller reports back (manual 3.1.5).
+    pub async fn set_label(&self, label: &str) -> Result<String> {
+        self.read_string(Command::SetLabel(label.to_owned())).await
+    }
+
+    /// `VER?`: the controller's firmware version (manual 3.1.6).
+    pub async fn version(&self) -> Result<String> {
+        self.read_string(Command::Version).await
+    }
+
+    /// `VERBOSE=0|1`: whether `ERR` replies carry a description (manual 3.1.7). Returns the
+    /// mode the controller reports back.
+    pub async fn set_verbose(&self, on: bool) -> Result<bool> {
+        Ok(self.read_int::<i64>(Command::SetVerbose(on)).await? != 0)
+    }
+
+    /// `BYE()`: ends the session gracefully; waits for the `ACK` (manual 3.3.1). The connection
+    /// is closed once the reply is in, whatever it says; calls made afterwards, on any clone,
+    /// fail with [`Error::Closed`].
+    pub async fn close(&self) -> Result<()> {
+        self.ack(Command::Bye).await
+    }
+}

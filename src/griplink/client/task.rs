@@ -1,0 +1,167 @@
+//! The background task that owns the connection: it writes commands in the order callers
+//! submit them and pairs each reply line with the oldest outstanding command.
+
+use std::future::poll_fn;
+use std::pin::Pin;
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use bytes::BytesMut;
+use futures_core::Stream;
+use tokio::io::AsyncWriteExt;
+use tokio::net::tcp::OwnedReadHalf;
+use tokio::net::TcpStream;
+use tokio::sync::mpsc;
+use tokio::time::Instant;
+use tokio_util::codec::{Encoder, FramedRead};
+
+use super::pipeline::{Pipeline, Slot, Waiter};
+use crate::griplink::codec::{Line, LineCodec};
+use crate::griplink::command::Expect;
+use crate::griplink::error::Error;
+
+/// A caller's command, on its way to the task.
+#[derive(Debug)]
+pub(crate) struct Request {
+    pub line: String,
+    pub expect: Expect,
+    /// The caller stops waiting here; a request still queued at that point is never sent.
+    pub deadline: Instant,
+    /// The timeout the caller chose (for the error message).
+    pub timeout: Duration,
+    pub waiter: Waiter,
+    /// `BYE()`: after it, accept nothing more and end when its reply is in.
+    pub bye: bool,
+}
+
+/// What the handles and the task share: why the connection ended.
+#[derive(Debug, Default)]
+pub(crate) struct Shared {
+    failure: Mutex<Option<Error>>,
+}
+
+impl Shared {
+    /// The reason the connection is gone ([`Error::Closed`] if none was recorded).
+    pub(crate) fn failure(&self) -> Error {
+        self.failure
+            .lock()
+            .ok()
+            .and_then(|f| f.clone())
+            .unwrap_or(Error::Closed)
+    }
+
+    fn record(&self, error: &Error) {
+        if let Ok(mut f) = self.failure.lock() {
+            f.get_or_insert_with(|| error.clone());
+        }
+    }
+}
+
+/// Task settings taken from the client configuration.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct TaskConfig {
+    pub pipeline_depth: usize,
+    pub give_up_after: Duration,
+    pub max_line_len: usize,
+}
+
+async fn next_line(
+    reader: &mut FramedRead<OwnedReadHalf, LineCodec>,
+) -> Option<std::io::Result<Line>> {
+    poll_fn(|cx| Pin::new(&mut *reader).poll_next(cx)).await
+}
+
+/// Runs the connection until it closes, fails or every handle is dropped.
+pub(crate) async fn run(
+    stream: TcpStream,
+    mut requests: mpsc::Receiver<Request>,
+    config: TaskConfig,
+    shared: Arc<Shared>,
+) {
+    let (read, mut write) = stream.into_split();
+    let mut reader = FramedRead::new(read, LineCodec::new(config.max_line_len));
+    let mut encoder = LineCodec::new(config.max_line_len);
+    let mut pipeline = Pipeline::new(config.pipeline_depth);
+    let mut out = BytesMut::new();
+    let mut closing = false;
+
+    let end: Error = loop {
+        let give_up = pipeline.give_up_at();
+        tokio::select! {
+            // Replies first: they free slots and callers.
+            biased;
+            line = next_line(&mut reader) => match line {
+                Some(Ok(line)) => {
+                    pipeline.on_line(line);
+                    if closing && pipeline.is_empty() {
+                        break Error::Closed;
+                    }
+                }
+                Some(Err(e)) => break Error::from(e),
+                None if closing => break Error::Closed,
+                None => break Error::from(std::io::Error::new(
+                    std::io::ErrorKind::UnexpectedEof,
+                    "the controller closed the connection",
+                )),
+            },
+            () = tokio::time::sleep_until(give_up.unwrap_or_else(Instant::now)), if give_up.is_some() => {
+                let command = pipeline.oldest().unwrap_or_default().to_owned();
+                tracing::error!(%command, "griplink: reply overdue, giving up on the connection");
+                break Error::Broken(format!(
+                    "no reply to {command} long after its timeout; replies can no longer be paired"
+                ));
+            },
+            request = requests.recv(), if !closing && pipeline.has_room() => {
+                let Some(request) = request else { break Error::Closed };
+                // A command whose caller has gone is never sent: a GRIP nobody waits for any
+                // more must not move the fingers later.
+                if request.waiter.is_closed() {
+                    tracing::debug!(command = %request.line, "griplink: caller gone before sending, dropped");
+                    continue;
+                }
+                if Instant::now() >= request.deadline {
+                    let _ = request.waiter.send(Err(Error::Timeout {
+                        command: request.line,
+                        timeout: request.timeout,
+                    }));
+                    continue;
+                }
+                out.clear();
+                if let Err(e) = encoder.encode(request.line.as_str(), &mut out) {
+                    let _ = request.waiter.send(Err(Error::invalid("command line", e.to_string())));
+                    continue;
+                }
+                let write_limit = request.deadline + config.give_up_after;
+                match tokio::time::timeout_at(write_limit, write.write_all(&out)).await {
+                    Ok(Ok(())) => {}
+                    Ok(Err(e)) => {
+                        let err = Error::from(e);
+                        let _ = request.waiter.send(Err(err.clone()));
+                        break err;
+                    }
+                    Err(_) => {
+                        let err = Error::Broken("the controller stopped reading commands".into());
+                        let _ = request.waiter.send(Err(err.clone()));
+                        break err;
+                    }
+                }
+                tracing::trace!(command = %request.line, "griplink: sent");
+                closing |= request.bye;
+                pipeline.push(Slot {
+                    line: request.line,
+                    expect: request.expect,
+                    waiter: request.waiter,
+                    give_up_at: request.deadline + config.give_up_after,
+                });
+            }
+        }
+    };
+
+    shared.record(&end);
+    pipeline.fail_all(&end);
+    requests.close();
+    while let Ok(request) = requests.try_recv() {
+        let _ = request.waiter.send(Err(end.clone()));
+    }
+    let _ = write.shutdown().await;
+}

@@ -1,0 +1,330 @@
+//! Reply lines (manual 2.1, 2.4 and the response message of every command in chapter 3). Pure:
+//! no I/O.
+//!
+//! A reply is `ACK`, `ERR <code>[ <description>]`, or `KEY[p][i]=value`. [`interpret`] checks a
+//! reply against the command it answers: a key, port or index that does not match is an error,
+//! never a silent success.
+
+use std::fmt;
+
+use super::command::Expect;
+use super::error::{Error, Result};
+use super::status::Status;
+use super::value::{Cursor, SyntaxError, Value};
+
+/// One reply line, parsed.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Reply {
+    /// `ACK`.
+    Ack,
+    /// `ERR <code>` or, in verbose mode, `ERR <code> <description>` (manual 2.4).
+    Err {
+        /// The status code (printed with two digits by the manual: `ERR 04`).
+        status: Status,
+        /// The verbose description, if any.
+        text: Option<String>,
+    },
+    /// `KEY=value`, `KEY[p]=value` or `KEY[p][i]=value`.
+    Data(Data),
+}
+
+/// A successful reply, as [`interpret`] hands it on: `ERR` has become [`Error::Device`].
+#[derive(Debug, Clone, PartialEq)]
+pub enum Answer {
+    /// `ACK`.
+    Ack,
+    /// `KEY[…]=value`.
+    Data(Data),
+}
+
+/// The parts of a `KEY[p][i]=value` reply.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Data {
+    /// The key, as received (`VALUEF`).
+    pub key: String,
+    /// The indices in brackets, in order (port, then value/recipe index).
+    pub indices: Vec<i64>,
+    /// The value after `=`.
+    pub value: Value,
+}
+
+impl fmt::Display for Data {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.key)?;
+        for i in &self.indices {
+            write!(f, "[{i}]")?;
+        }
+        write!(f, "={}", self.value)
+    }
+}
+
+/// Most bracketed indices a key carries (`VALUE[p][i]`).
+const MAX_INDICES: usize = 2;
+
+/// Parses one reply line (without its LF).
+pub fn parse_reply(line: &str) -> std::result::Result<Reply, SyntaxError> {
+    let mut c = Cursor::new(line);
+    let key = c.name()?;
+    if key == "ACK" {
+        c.skip_spaces();
+        if !c.at_end() {
+            return c.fail("end of line after ACK");
+        }
+        return Ok(Reply::Ack);
+    }
+    if key == "ERR" {
+        return parse_err(&mut c);
+    }
+    let mut indices = Vec::new();
+    while c.peek() == Some(b'[') {
+        if indices.len() == MAX_INDICES {
+            return c.fail("'=' (at most two indices)");
+        }
+        indices.push(c.index()?);
+    }
+    c.expect(b'=', "'='")?;
+    let value = c.value()?;
+    c.skip_spaces();
+    if !c.at_end() {
+        return c.fail("end of line");
+    }
+    Ok(Reply::Data(Data {
+        key: key.to_owned(),
+        indices,
+        value,
+    }))
+}
+
+fn parse_err(c: &mut Cursor<'_>) -> std::result::Result<Reply, SyntaxError> {
+    if !c.eat(b' ') {
+        return c.fail("' ' and an error code after ERR");
+    }
+    c.skip_spaces();
+    let start = c.pos();
+    let mut code: u32 = 0;
+    while let Some(b) = c.peek().filter(u8::is_ascii_digit) {
+        code = match code
+            .checked_mul(10)
+            .and_then(|v| v.checked_add(u32::from(b - b'0')))
+        {
+            Some(v) => v,
+            None => return c.fail("an error code in range"),
+        };
+        c.eat(b);
+    }
+    if c.pos() == start {
+        return c.fail("a decimal error code");
+    }
+    let status = Status::from_code(code);
+    if c.at_end() {
+        return Ok(Reply::Err { status, text: None });
+    }
+    if !c.eat(b' ') {
+        return c.fail("' ' before the error description");
+    }
+    // The description is free text to the end of the line (the codec only lets ASCII through).
+    let text = String::from_utf8_lossy(c.rest()).trim().to_owned();
+    Ok(Reply::Err {
+        status,
+        text: (!text.is_empty()).then_some(text),
+    })
+}
+
+/// Whether a reply key answers the expected one. Errata (seed 004): the manual's VALUEF example
+/// answers `VALUE[0][0]=42.456`, so `VALUE` is accepted for `VALUEF`.
+fn key_matches(expected: &str, got: &str) -> bool {
+    got.eq_ignore_ascii_case(expected)
+        || (expected == "VALUEF" && got.eq_ignore_ascii_case("VALUE"))
+}
+
+fn describe(expect: Expect) -> String {
+    match expect {
+        Expect::Ack => "ACK".to_owned(),
+        Expect::Any => "a reply".to_owned(),
+        Expect::Data { key, port, index } => {
+            let mut s = key.to_owned();
+            if let Some(p) = port {
+                s.push_str(&format!("[{p}]"));
+            }
+            if let Some(i) = index {
+                s.push_str(&format!("[{i}]"));
+            }
+            s.push_str("=…");
+            s
+        }
+    }
+}
+
+/// Checks `line`, the reply to `command` (its line, for error messages), against what the
+/// command expects. `ERR` becomes [`Error::Device`]; anything else that does not answer the
+/// command becomes [`Error::MalformedReply`] or [`Error::UnexpectedReply`].
+pub fn interpret(command: &str, expect: Expect, line: &str) -> Result<Answer> {
+    let reply = parse_reply(line).map_err(|e| Error::MalformedReply {
+        command: command.to_owned(),
+        line: line.to_owned(),
+        reason: e.to_string(),
+    })?;
+    let unexpected = || Error::UnexpectedReply {
+        command: command.to_owned(),
+        line: line.to_owned(),
+        expected: describe(expect),
+    };
+    match (reply, expect) {
+        (Reply::Err { status, text }, _) => Err(Error::Device {
+            command: command.to_owned(),
+            status,
+            text,
+        }),
+        (Reply::Ack, Expect::Ack | Expect::Any) => Ok(Answer::Ack),
+        (Reply::Data(data), Expect::Any) => Ok(Answer::Data(data)),
+        (Reply::Data(data), Expect::Data { key, port, index }) => {
+            let want: Vec<i64> = port
+                .map(i64::from)
+                .into_iter()
+                .chain(index.map(i64::from))
+                .collect();
+            if key_matches(key, &data.key) && data.indices == want {
+                Ok(Answer::Data(data))
+            } else {
+                Err(unexpected())
+            }
+        }
+        (Reply::Ack, Expect::Data { .. }) | (Reply::Data(_), Expect::Ack) => Err(unexpected()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn data(key: &str, indices: &[i64], value: Value) -> Reply {
+        Reply::Data(Data {
+            key: key.into(),
+            indices: indices.to_vec(),
+            value,
+        })
+    }
+
+    #[test]
+    fn manual_replies_parse() {
+        assert_eq!(parse_reply("ACK"), Ok(Reply::Ack));
+        assert_eq!(
+            parse_reply("ID=\"GRIPLINK-ET4\""),
+            Ok(data("ID", &[], Value::Str("GRIPLINK-ET4".into())))
+        );
+        assert_eq!(
+            parse_reply("DEVVID[2]=-1"),
+            Ok(data("DEVVID", &[2], Value::Int(-1)))
+        );
+        assert_eq!(
+            parse_reply("VALUEF[0][0]=42.456"),
+            Ok(data("VALUEF", &[0, 0], Value::Float(42.456)))
+        );
+        assert_eq!(
+            parse_reply("VALUEF[0][1]=-INF"),
+            Ok(data("VALUEF", &[0, 1], Value::Float(f64::NEG_INFINITY)))
+        );
+        assert_eq!(
+            parse_reply("GRIPCFG[1][0]=[\"tube\",3500,10800,50000,0,0,0,0,0]"),
+            Ok(data(
+                "GRIPCFG",
+                &[1, 0],
+                Value::List(
+                    std::iter::once(Value::Str("tube".into()))
+                        .chain(
+                            [3500, 10800, 50000, 0, 0, 0, 0, 0]
+                                .into_iter()
+                                .map(Value::Int)
+                        )
+                        .collect()
+                )
+            ))
+        );
+    }
+
+    #[test]
+    fn errors_parse_with_and_without_text() {
+        assert_eq!(
+            parse_reply("ERR 04"),
+            Ok(Reply::Err {
+                status: Status::NotInitialized,
+                text: None
+            })
+        );
+        assert_eq!(
+            parse_reply("ERR 4 The device is not initialized"),
+            Ok(Reply::Err {
+                status: Status::NotInitialized,
+                text: Some("The device is not initialized".into())
+            })
+        );
+        assert_eq!(
+            parse_reply("ERR 99"),
+            Ok(Reply::Err {
+                status: Status::Unknown(99),
+                text: None
+            })
+        );
+        assert!(parse_reply("ERR").is_err());
+        assert!(parse_reply("ERR x").is_err());
+        assert!(parse_reply("ERR 99999999999").is_err());
+    }
+
+    #[test]
+    fn garbage_is_refused() {
+        for bad in [
+            "",
+            "ACK!",
+            "ACKX",
+            "=1",
+            "ID=",
+            "ID=\"x",
+            "VALUE[0][0][0]=1",
+            "VALUE[a]=1",
+            "DEVSTATE[0]=1e3",
+            "X=[1,[2]]",
+            "ID=\"a\" b",
+        ] {
+            assert!(parse_reply(bad).is_err(), "{bad:?}");
+        }
+    }
+
+    #[test]
+    fn interpret_checks_key_port_and_index() {
+        let exp = Expect::Data {
+            key: "VALUEF",
+            port: Some(0),
+            index: Some(0),
+        };
+        assert!(interpret("VALUEF[0][0]?", exp, "VALUEF[0][0]=1.5").is_ok());
+        // Errata: the manual's example answers VALUE for VALUEF.
+        assert!(interpret("VALUEF[0][0]?", exp, "VALUE[0][0]=42.456").is_ok());
+        assert!(matches!(
+            interpret("VALUEF[0][0]?", exp, "VALUEF[1][0]=1.5"),
+            Err(Error::UnexpectedReply { .. })
+        ));
+        assert!(matches!(
+            interpret("VALUEF[0][0]?", exp, "DEVSTATE[0]=3"),
+            Err(Error::UnexpectedReply { .. })
+        ));
+        assert!(matches!(
+            interpret("VALUEF[0][0]?", exp, "ACK"),
+            Err(Error::UnexpectedReply { .. })
+        ));
+        assert!(matches!(
+            interpret("HOME(0)", Expect::Ack, "DEVSTATE[0]=3"),
+            Err(Error::UnexpectedReply { .. })
+        ));
+        assert!(matches!(
+            interpret("HOME(0)", Expect::Ack, "ERR 04"),
+            Err(Error::Device {
+                status: Status::NotInitialized,
+                ..
+            })
+        ));
+        assert!(matches!(
+            interpret("HOME(0)", Expect::Ack, "huh"),
+            Err(Error::MalformedReply { .. })
+        ));
+    }
+}

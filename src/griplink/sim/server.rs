@@ -1,0 +1,309 @@
+//! Serves the simulated controller over TCP. Each connection reads its lines in order and
+//! answers each before reading the next, so a blocking command (HOME, GRIP with do_block=1,
+//! WSTR, WAITVAL) holds back only that connection's later commands, as on the device
+//! (manual 2.1); all connections share one [`Controller`].
+
+use std::collections::VecDeque;
+use std::future::poll_fn;
+use std::io;
+use std::net::SocketAddr;
+use std::pin::Pin;
+use std::sync::{Arc, Mutex, MutexGuard};
+use std::time::Duration;
+
+use futures_core::Stream;
+use tokio::io::AsyncWriteExt;
+use tokio::net::{TcpListener, TcpStream, ToSocketAddrs};
+use tokio::sync::{watch, Notify, Semaphore};
+use tokio::task::JoinSet;
+use tokio::time::Instant;
+use tokio_util::codec::FramedRead;
+
+use super::controller::{error_line, Controller, Outcome, Session, SimConfig, Wait};
+use super::parse::{clean_line, parse_command};
+use crate::griplink::codec::{Discarded, Line, LineCodec, DEFAULT_MAX_LINE_LEN};
+use crate::griplink::command::Command;
+use crate::griplink::state::DeviceState;
+use crate::griplink::status::Status;
+
+/// A fault injected into the handling of the next command line the server receives (on any
+/// connection), for testing how a client copes.
+#[derive(Debug, Clone)]
+#[non_exhaustive]
+pub enum Fault {
+    /// Execute the command but send no reply.
+    DropReply,
+    /// Execute the command, then wait this long (wall time) before replying.
+    DelayReply(Duration),
+    /// Hold the reply until [`ReplyGate::release`] is called.
+    HoldReply(ReplyGate),
+    /// Do not execute the command; answer `ERR <status>`.
+    Error(Status),
+    /// Execute the command, but send these bytes instead of its reply (include the LF).
+    RawReply(Vec<u8>),
+    /// Close the connection instead of executing the command.
+    Close,
+}
+
+/// Releases a reply held by [`Fault::HoldReply`].
+#[derive(Debug, Clone)]
+pub struct ReplyGate(Arc<Semaphore>);
+
+impl ReplyGate {
+    /// A closed gate.
+    pub fn new() -> Self {
+        ReplyGate(Arc::new(Semaphore::new(0)))
+    }
+
+    /// Lets the held reply go (also if it is not held yet: it will pass at once).
+    pub fn release(&self) {
+        self.0.add_permits(1);
+    }
+
+    async fn pass(&self) {
+        if let Ok(permit) = self.0.acquire().await {
+            permit.forget();
+        }
+    }
+}
+
+impl Default for ReplyGate {
+    fn default() -> Self {
+        ReplyGate::new()
+    }
+}
+
+struct Shared {
+    controller: Mutex<Controller>,
+    /// Woken after every command, so held replies (WSTR, blocking motion) re-check at once when
+    /// another connection changed something.
+    changed: Notify,
+    faults: Mutex<VecDeque<Fault>>,
+    epoch: Instant,
+    max_line_len: usize,
+}
+
+fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    // A panic while holding the lock cannot leave the state half-updated in a way that matters
+    // more than stopping the simulator; keep serving.
+    m.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+impl Shared {
+    fn now(&self) -> Duration {
+        Instant::now().duration_since(self.epoch)
+    }
+}
+
+/// A running simulated GRIPLINK controller. Shuts down when dropped.
+///
+/// ```
+/// # #[tokio::main(flavor = "current_thread")]
+/// # async fn main() -> std::io::Result<()> {
+/// use gripper::griplink::sim::{SimConfig, SimServer};
+/// let server = SimServer::start("127.0.0.1:0", SimConfig::et4().time_scale(0.0)).await?;
+/// println!("controller at {}", server.local_addr());
+/// # Ok(()) }
+/// ```
+pub struct SimServer {
+    addr: SocketAddr,
+    shared: Arc<Shared>,
+    shutdown: watch::Sender<bool>,
+}
+
+impl std::fmt::Debug for SimServer {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SimServer")
+            .field("addr", &self.addr)
+            .finish()
+    }
+}
+
+impl SimServer {
+    /// Binds `addr` (port 0 picks a free port) and serves `config` until shut down.
+    pub async fn start(addr: impl ToSocketAddrs, config: SimConfig) -> io::Result<SimServer> {
+        let listener = TcpListener::bind(addr).await?;
+        let addr = listener.local_addr()?;
+        let shared = Arc::new(Shared {
+            controller: Mutex::new(Controller::new(config)),
+            changed: Notify::new(),
+            faults: Mutex::new(VecDeque::new()),
+            epoch: Instant::now(),
+            max_line_len: DEFAULT_MAX_LINE_LEN,
+        });
+        let (shutdown, stop) = watch::channel(false);
+        tokio::spawn(accept_loop(listener, Arc::clone(&shared), stop));
+        Ok(SimServer {
+            addr,
+            shared,
+            shutdown,
+        })
+    }
+
+    /// The bound address.
+    pub fn local_addr(&self) -> SocketAddr {
+        self.addr
+    }
+
+    /// Stops accepting and closes every connection.
+    pub fn shutdown(&self) {
+        let _ = self.shutdown.send(true);
+    }
+
+    /// Queues a fault for the next command line received (faults apply in queue order, one
+    /// per line).
+    pub fn inject(&self, fault: Fault) {
+        lock(&self.shared.faults).push_back(fault);
+    }
+
+    /// Holds the reply to the next command until the returned gate is released.
+    pub fn hold_next_reply(&self) -> ReplyGate {
+        let gate = ReplyGate::new();
+        self.inject(Fault::HoldReply(gate.clone()));
+        gate
+    }
+
+    /// Runs `f` on the controller state at the current simulated time (inspect or change it).
+    pub fn with_controller<R>(&self, f: impl FnOnce(&mut Controller, Duration) -> R) -> R {
+        let now = self.shared.now();
+        let result = f(&mut lock(&self.shared.controller), now);
+        self.shared.changed.notify_waiters();
+        result
+    }
+
+    /// The device state on `port` (`None` if the port does not exist).
+    pub fn device_state(&self, port: usize) -> Option<DeviceState> {
+        self.with_controller(|c, now| c.state(port, now))
+    }
+
+    /// Puts a part of `width_mm` between the fingers on `port` (`None`: take it away).
+    pub fn set_part(&self, port: usize, width_mm: Option<f64>) {
+        self.with_controller(|c, _| c.set_part(port, width_mm));
+    }
+
+    /// Faults the device on `port` now.
+    pub fn inject_device_fault(&self, port: usize) {
+        self.with_controller(|c, now| c.inject_fault(port, now));
+    }
+
+    /// Makes the next motion on `port` end in `DS_FAULT`.
+    pub fn fault_next_motion(&self, port: usize) {
+        self.with_controller(|c, _| c.fault_next_motion(port));
+    }
+}
+
+impl Drop for SimServer {
+    fn drop(&mut self) {
+        self.shutdown();
+    }
+}
+
+async fn accept_loop(listener: TcpListener, shared: Arc<Shared>, mut stop: watch::Receiver<bool>) {
+    // Dropping the set when the loop ends aborts every connection.
+    let mut connections = JoinSet::new();
+    loop {
+        tokio::select! {
+            _ = stop.changed() => break,
+            accepted = listener.accept() => match accepted {
+                Ok((stream, peer)) => {
+                    tracing::debug!(%peer, "griplink sim: connection");
+                    let _ = stream.set_nodelay(true);
+                    connections.spawn(serve(stream, Arc::clone(&shared)));
+                }
+                Err(e) => {
+                    // E.g. out of file descriptors: back off instead of spinning.
+                    tracing::warn!(error = %e, "griplink sim: accept failed");
+                    tokio::time::sleep(Duration::from_millis(10)).await;
+                }
+            },
+            Some(_) = connections.join_next(), if !connections.is_empty() => {}
+        }
+    }
+}
+
+async fn serve(stream: TcpStream, shared: Arc<Shared>) {
+    if let Err(e) = serve_lines(stream, &shared).await {
+        tracing::debug!(error = %e, "griplink sim: connection ended");
+    }
+}
+
+async fn serve_lines(stream: TcpStream, shared: &Shared) -> io::Result<()> {
+    let (read, mut write) = stream.into_split();
+    let mut reader = FramedRead::new(read, LineCodec::new(shared.max_line_len));
+    let mut session = Session::default();
+    while let Some(line) = poll_fn(|cx| Pin::new(&mut reader).poll_next(cx)).await {
+        let command = match line? {
+            Line::Text(text) => {
+                let clean = clean_line(&text);
+                if clean.is_empty() {
+                    continue; // an empty line is no command and gets no reply
+                }
+                Ok(clean)
+            }
+            Line::Discarded(Discarded::TooLong) => Err(Status::Overrun),
+            Line::Discarded(Discarded::NotAscii) => Err(Status::CmdSyntax),
+        };
+        let fault = lock(&shared.faults).pop_front();
+        let (reply, close) = match (&fault, command) {
+            (Some(Fault::Close), _) => return Ok(()),
+            (Some(Fault::Error(status)), _) => (error_line(*status, session.verbose), false),
+            (_, Err(status)) => (error_line(status, session.verbose), false),
+            (_, Ok(line)) => match parse_command(&line) {
+                Err(status) => (error_line(status, session.verbose), false),
+                Ok(cmd) => execute(shared, &mut session, &cmd).await,
+            },
+        };
+        let mut bytes = reply.into_bytes();
+        bytes.push(b'\n');
+        match fault {
+            Some(Fault::DropReply) => continue,
+            Some(Fault::DelayReply(d)) => tokio::time::sleep(d).await,
+            Some(Fault::HoldReply(gate)) => gate.pass().await,
+            Some(Fault::RawReply(raw)) => bytes = raw,
+            _ => {}
+        }
+        write.write_all(&bytes).await?;
+        if close {
+            write.shutdown().await?;
+            return Ok(());
+        }
+    }
+    Ok(())
+}
+
+/// Runs one command; returns its reply line and whether to close the connection after it.
+async fn execute(shared: &Shared, session: &mut Session, command: &Command) -> (String, bool) {
+    let outcome = lock(&shared.controller).execute(session, command, shared.now());
+    shared.changed.notify_waiters();
+    match outcome {
+        Outcome::Reply(line) => (line, false),
+        Outcome::Bye => ("ACK".to_owned(), true),
+        Outcome::Wait(wait) => {
+            let line = hold(shared, session, &wait).await;
+            shared.changed.notify_waiters();
+            (line, false)
+        }
+    }
+}
+
+/// Waits until the held reply is due: at the simulated time the controller names, or earlier
+/// when another connection changed the state.
+async fn hold(shared: &Shared, session: &Session, wait: &Wait) -> String {
+    loop {
+        let changed = shared.changed.notified();
+        tokio::pin!(changed);
+        changed.as_mut().enable();
+        let wake = {
+            let mut controller = lock(&shared.controller);
+            let now = shared.now();
+            if let Some(line) = controller.poll(session, wait, now) {
+                return line;
+            }
+            controller.next_wake(wait, now)
+        };
+        tokio::select! {
+            () = &mut changed => {}
+            () = tokio::time::sleep_until(shared.epoch + wake) => {}
+        }
+    }
+}
