@@ -23,6 +23,8 @@ pub enum Kind {
     Output,
     /// The simulator could not be started.
     Simulator,
+    /// Ctrl-C ended the command.
+    Interrupted,
 }
 
 impl Kind {
@@ -35,6 +37,7 @@ impl Kind {
             Kind::Argument => "argument",
             Kind::Output => "output",
             Kind::Simulator => "simulator",
+            Kind::Interrupted => "interrupted",
         }
     }
 }

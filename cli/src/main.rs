@@ -8,6 +8,7 @@
 
 mod common;
 mod error;
+mod griplink;
 mod output;
 mod sim;
 mod smartgrasp;
@@ -37,6 +38,8 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
+    /// Weiss GRIPLINK controllers (ASCII lines over TCP port 10001).
+    Griplink(griplink::Args),
     /// SCHUNK 2D Grasping-Kit (native protocol V3, TCP port 42001).
     Smartgrasp(smartgrasp::Args),
     /// Serve a simulator.
@@ -48,6 +51,7 @@ async fn main() -> ExitCode {
     let cli = Cli::parse();
     let out = Out::new(cli.json);
     let result = match cli.command {
+        Command::Griplink(args) => griplink::run(args, cli.timeout, out).await,
         Command::Smartgrasp(args) => smartgrasp::run(args, cli.timeout, out).await,
         Command::Sim(args) => sim::run(args, out).await,
     };

@@ -5,7 +5,6 @@
 //! it, as they do with the `*_simulator` examples.
 
 use std::io::Write;
-use std::net::SocketAddr;
 
 use clap::{Args as ClapArgs, Subcommand, ValueEnum};
 use gripper::smartgrasp::sim::{SimConfig, SimServer};
@@ -24,6 +23,9 @@ pub struct Args {
 
 #[derive(Debug, Subcommand)]
 enum Device {
+    /// A Weiss GRIPLINK-ET4 controller (IEG 55-020 on port 0, CRG 200-085 on port 2), or a
+    /// WPG 100-090 with --wpg.
+    Griplink(GriplinkSim),
     /// A SCHUNK 2D Grasping-Kit server (protocol V3) with a scene of parts.
     Smartgrasp(SmartgraspSim),
 }
@@ -47,6 +49,25 @@ struct SmartgraspSim {
     protocol_version: u16,
 }
 
+#[derive(Debug, ClapArgs)]
+struct GriplinkSim {
+    /// Address to serve on; port 0 picks a free port.
+    #[arg(long, default_value = "127.0.0.1:10001")]
+    listen: String,
+    /// Simulate a WPG 100-090 gripper (one port) instead of a GRIPLINK-ET4.
+    #[arg(long)]
+    wpg: bool,
+    /// Width of the part between the fingers of the gripper on port 0, mm.
+    #[arg(long, default_value_t = 12.0, conflicts_with = "no_part")]
+    part: f64,
+    /// No part on port 0: every grip ends in DS_NO_PART.
+    #[arg(long)]
+    no_part: bool,
+    /// Wall seconds per simulated second of motion: 0 is instant, 1 real time.
+    #[arg(long, default_value_t = 0.0)]
+    time_scale: f64,
+}
+
 #[derive(Debug, Clone, Copy, ValueEnum)]
 enum Scene {
     Demo,
@@ -64,7 +85,53 @@ enum StateArg {
 /// Runs `gripctl sim …` until Ctrl-C.
 pub async fn run(args: Args, out: Out) -> Result<(), CliError> {
     match args.device {
+        Device::Griplink(sim) => griplink(sim, out).await,
         Device::Smartgrasp(sim) => smartgrasp(sim, out).await,
+    }
+}
+
+async fn griplink(args: GriplinkSim, out: Out) -> Result<(), CliError> {
+    use gripper::griplink::sim::{SimConfig as GriplinkConfig, SimServer as GriplinkServer};
+    check_time_scale(args.time_scale)?;
+    let base = if args.wpg {
+        GriplinkConfig::wpg()
+    } else {
+        GriplinkConfig::et4()
+    };
+    let mut config = base.time_scale(args.time_scale);
+    let part = (!args.no_part).then_some(args.part);
+    if let Some(Some(device)) = config.ports.get_mut(0) {
+        device.part_width_mm = part;
+    }
+    let devices: Vec<String> = config
+        .ports
+        .iter()
+        .enumerate()
+        .filter_map(|(i, d)| d.as_ref().map(|d| format!("{} on port {i}", d.name)))
+        .collect();
+    let id = config.id.clone();
+    let server = GriplinkServer::start(args.listen.as_str(), config)
+        .await
+        .map_err(|e| cannot_listen(&args.listen, &e))?;
+    announce(&server.local_addr())?;
+    out.emit(
+        format!(
+            "griplink simulator: {id}, {}; {} on port 0",
+            devices.join(", "),
+            part.map_or("no part".to_owned(), |w| format!("a {w} mm part"))
+        ),
+        json!({ "device": "griplink", "id": id, "ports": devices, "part_mm": part }),
+    )?;
+    wait_for_ctrl_c().await?;
+    server.shutdown();
+    Ok(())
+}
+
+fn check_time_scale(scale: f64) -> Result<(), CliError> {
+    if scale.is_finite() && scale >= 0.0 {
+        Ok(())
+    } else {
+        Err(CliError::argument("--time-scale must be 0 or more"))
     }
 }
 
@@ -75,7 +142,7 @@ async fn smartgrasp(args: SmartgraspSim, out: Out) -> Result<(), CliError> {
     let server = SimServer::bind(args.listen.as_str(), config)
         .await
         .map_err(|e| cannot_listen(&args.listen, &e))?;
-    announce(server.local_addr())?;
+    announce(&server.local_addr())?;
     out.emit(
         format!("smartgrasp simulator: {parts} parts in project 0, {state}"),
         json!({ "device": "smartgrasp", "parts": parts, "state": state.to_string() }),
@@ -122,7 +189,7 @@ fn smartgrasp_config(args: &SmartgraspSim) -> SimConfig {
 }
 
 /// The contract with scripts: exactly this first line, flushed at once.
-fn announce(addr: SocketAddr) -> Result<(), CliError> {
+fn announce(addr: &dyn std::fmt::Display) -> Result<(), CliError> {
     let mut stdout = std::io::stdout().lock();
     writeln!(stdout, "listening on {addr}")
         .and_then(|()| stdout.flush())
