@@ -48,7 +48,10 @@ enum Command {
 
 #[tokio::main(flavor = "current_thread")]
 async fn main() -> ExitCode {
-    let cli = Cli::parse();
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => return usage_error(&e),
+    };
     let out = Out::new(cli.json);
     let result = match cli.command {
         Command::Griplink(args) => griplink::run(args, cli.timeout, out).await,
@@ -62,6 +65,33 @@ async fn main() -> ExitCode {
             ExitCode::FAILURE
         }
     }
+}
+
+/// `--help` and `--version` print as clap prints them; a command line that does not parse gets
+/// the same one-line error as any other failure (exit status 2), not clap's multi-line usage.
+fn usage_error(e: &clap::Error) -> ExitCode {
+    use clap::error::ErrorKind;
+    if matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion)
+        || e.kind() == ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand
+    {
+        let _ = e.print();
+        return ExitCode::from(if e.use_stderr() { 2 } else { 0 });
+    }
+    let rendered = e.render().to_string();
+    let message = rendered
+        .lines()
+        .take_while(|l| !l.starts_with("Usage:"))
+        .map(str::trim)
+        .filter(|l| {
+            !l.is_empty() && !l.starts_with("tip:") && !l.starts_with("For more information")
+        })
+        .collect::<Vec<_>>()
+        .join(" ");
+    let message = message.strip_prefix("error: ").unwrap_or(&message);
+    let error = CliError::argument(format!("{message} (see gripctl --help)"));
+    // The mode could not be parsed; a script that asked for JSON still gets it.
+    report(&error, Out::new(std::env::args().any(|a| a == "--json")));
+    ExitCode::from(2)
 }
 
 fn report(e: &CliError, out: Out) {
