@@ -187,7 +187,7 @@ async fn connection_refused_and_timeout_are_one_line() {
 
     let (server, addr) = et4().await;
     let _held = server.hold_next_reply();
-    let run = gripctl(&[
+    let args = [
         "--timeout",
         "200ms",
         "griplink",
@@ -195,14 +195,10 @@ async fn connection_refused_and_timeout_are_one_line() {
         &addr,
         "state",
         "--json",
-    ])
-    .await;
-    let line = run.failed();
-    assert!(
-        line.contains("no reply to DEVSTATE[0]? within 200ms"),
-        "{line}"
-    );
-    assert_eq!(run.json()["error"]["kind"], "timeout");
+    ];
+    gripctl(&args)
+        .await
+        .failed_with("timeout", "no reply to DEVSTATE[0]? within 200ms");
 
     // The controller hangs up instead of answering.
     server.inject(Fault::Close);

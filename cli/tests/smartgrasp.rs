@@ -258,7 +258,7 @@ async fn connection_refused_is_one_line() {
 async fn a_missing_response_times_out() {
     let (server, addr) = server(SimConfig::default()).await;
     server.inject(Fault::SkipResponse);
-    let run = gripctl(&[
+    let args = [
         "--timeout",
         "200ms",
         "smartgrasp",
@@ -266,14 +266,10 @@ async fn a_missing_response_times_out() {
         &addr,
         "state",
         "--json",
-    ])
-    .await;
-    let line = run.failed();
-    assert!(
-        line.contains("no response to GET_STATE within 200ms"),
-        "{line}"
-    );
-    assert_eq!(run.json()["error"]["kind"], "timeout");
+    ];
+    gripctl(&args)
+        .await
+        .failed_with("timeout", "no response to GET_STATE within 200ms");
 }
 
 #[tokio::test]

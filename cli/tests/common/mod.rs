@@ -41,6 +41,16 @@ impl Run {
         lines[0]
     }
 
+    /// Asserts a failure (see [`Run::failed`]) run with `--json`: its line contains `text`, and
+    /// the JSON error on stdout has `kind`. Returns the JSON error.
+    pub fn failed_with(&self, kind: &str, text: &str) -> Value {
+        let line = self.failed();
+        assert!(line.contains(text), "{text:?} not in {line:?}");
+        let error = self.json()["error"].clone();
+        assert_eq!(error["kind"], kind, "{self:#?}");
+        error
+    }
+
     /// Stdout as one JSON document (asserts it is exactly one line).
     pub fn json(&self) -> Value {
         let lines: Vec<&str> = self.stdout.lines().collect();
