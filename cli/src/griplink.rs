@@ -321,15 +321,21 @@ async fn info(client: &Client, out: Out) -> Result<(), CliError> {
             continue;
         };
         let name = port.name().await.map_err(classify)?;
-        let vendor = port.vendor().await.map_err(classify)?;
         let product_id = port.product_id().await.map_err(classify)?;
-        let serial = port.serial_number().await.map_err(classify)?;
-        let version = port.version().await.map_err(classify)?;
-        let tag = port.tag().await.map_err(classify)?;
         let state = port.state().await.map_err(classify)?;
+        // Not every IO-Link device has these: one it lacks must not hide the rest.
+        let vendor = optional(port.vendor().await)?;
+        let serial = optional(port.serial_number().await)?;
+        let version = optional(port.version().await)?;
+        let tag = optional(port.tag().await)?;
+        let na = |v: &Option<String>| v.clone().unwrap_or_else(|| "n/a".to_owned());
         human.push_str(&format!(
-            "\nport {number}: {name} ({vendor}, vendor {vendor_id}, product {product_id}), \
-             serial {serial}, firmware {version}, tag {tag:?}, {state}"
+            "\nport {number}: {name} ({}, vendor {vendor_id}, product {product_id}), \
+             serial {}, firmware {}, tag {}, {state}",
+            na(&vendor),
+            na(&serial),
+            na(&version),
+            tag.as_ref().map_or("n/a".to_owned(), |t| format!("{t:?}")),
         ));
         ports.push(json!({
             "port": number,
@@ -394,6 +400,18 @@ async fn watch(
         emitted += 1;
     }
     Ok(())
+}
+
+/// A reading the device may not support: `None` when it answers that it has no such data.
+fn optional<T>(reading: gripper::griplink::Result<T>) -> Result<Option<T>, CliError> {
+    match reading {
+        Ok(v) => Ok(Some(v)),
+        Err(Error::Device {
+            status: Status::NotAvailable | Status::NotSupported | Status::CmdUnknown,
+            ..
+        }) => Ok(None),
+        Err(e) => Err(classify(e)),
+    }
 }
 
 /// The library's error as a `gripctl` error: the controller's status code where it gave one.

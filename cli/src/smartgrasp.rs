@@ -196,6 +196,16 @@ async fn execute(
     timeout: Option<Duration>,
     out: Out,
 ) -> Result<(), CliError> {
+    if let Command::RobotPose(args) = &command {
+        // The values are checked before connecting: a typo needs no server to be reported.
+        let pose = pose_from_args(args)?;
+        let client = connect(addr, timeout).await?;
+        client.robot_pose(pose).await.map_err(classify)?;
+        return out.emit(
+            format!("robot pose sent: {}: {pose}", pose.format()),
+            json!({ "robot_pose": pose_json(&pose)? }),
+        );
+    }
     let client = connect(addr, timeout).await?;
     match command {
         Command::Version => {
@@ -286,14 +296,7 @@ async fn execute(
                 json!({ "feedback": named(u8::from(feedback), feedback) }),
             )
         }
-        Command::RobotPose(args) => {
-            let pose = pose_from_args(&args)?;
-            client.robot_pose(pose).await.map_err(classify)?;
-            out.emit(
-                format!("robot pose sent: {}: {pose}", pose.format()),
-                json!({ "robot_pose": pose_json(&pose)? }),
-            )
-        }
+        Command::RobotPose(_) => Ok(()), // answered above
     }
 }
 
