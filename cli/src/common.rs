@@ -57,9 +57,46 @@ pub fn parse_duration(text: &str) -> Result<Duration, String> {
     Duration::try_from_secs_f64(seconds).map_err(|e| format!("{text:?}: {e}"))
 }
 
+/// Parses hex bytes: `"01 0a FF"`, `"010aff"`, `"0x01,0x0a"`; separators are spaces, commas,
+/// colons and `0x` prefixes. An odd number of digits is refused rather than guessed at.
+pub fn parse_hex(text: &str) -> Result<Vec<u8>, String> {
+    let digits: String = text
+        .split(|c: char| c.is_whitespace() || c == ',' || c == ':')
+        .map(|word| {
+            word.strip_prefix("0x")
+                .or(word.strip_prefix("0X"))
+                .unwrap_or(word)
+        })
+        .collect();
+    if digits.len() % 2 != 0 {
+        return Err(format!("{text:?}: hex needs two digits per byte"));
+    }
+    (0..digits.len())
+        .step_by(2)
+        .map(|i| {
+            digits
+                .get(i..i + 2)
+                .and_then(|pair| u8::from_str_radix(pair, 16).ok())
+                .ok_or_else(|| format!("{text:?} is not hex"))
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn hex() {
+        assert_eq!(parse_hex(""), Ok(vec![]));
+        assert_eq!(parse_hex("01 0a FF"), Ok(vec![1, 10, 255]));
+        assert_eq!(parse_hex("010aff"), Ok(vec![1, 10, 255]));
+        assert_eq!(parse_hex("0x01,0x0A"), Ok(vec![1, 10]));
+        assert!(parse_hex("123").is_err());
+        assert!(parse_hex("zz").is_err());
+        // Multi-byte characters must not split a pair mid-character.
+        assert!(parse_hex("é1").is_err());
+    }
 
     #[test]
     fn default_port_only_when_missing() {

@@ -12,6 +12,7 @@ mod griplink;
 mod output;
 mod sim;
 mod smartgrasp;
+mod wsg;
 
 use std::process::ExitCode;
 use std::time::Duration;
@@ -38,6 +39,8 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
+    /// Weiss WSG grippers (binary protocol over TCP port 1000, UDP or RS-232).
+    Wsg(wsg::Args),
     /// Weiss GRIPLINK controllers (ASCII lines over TCP port 10001).
     Griplink(griplink::Args),
     /// SCHUNK 2D Grasping-Kit (native protocol V3, TCP port 42001).
@@ -54,6 +57,7 @@ async fn main() -> ExitCode {
     };
     let out = Out::new(cli.json);
     let result = match cli.command {
+        Command::Wsg(args) => wsg::run(args, cli.timeout, out).await,
         Command::Griplink(args) => griplink::run(args, cli.timeout, out).await,
         Command::Smartgrasp(args) => smartgrasp::run(args, cli.timeout, out).await,
         Command::Sim(args) => sim::run(args, out).await,

@@ -23,6 +23,9 @@ pub struct Args {
 
 #[derive(Debug, Subcommand)]
 enum Device {
+    /// A Weiss WSG gripper (binary protocol) over TCP, UDP or a serial pseudo-terminal, with a
+    /// part between the fingers. Motion takes no wall time unless --time-scale says so.
+    Wsg(WsgSim),
     /// A Weiss GRIPLINK-ET4 controller (IEG 55-020 on port 0, CRG 200-085 on port 2), or a
     /// WPG 100-090 with --wpg.
     Griplink(GriplinkSim),
@@ -50,6 +53,35 @@ struct SmartgraspSim {
 }
 
 #[derive(Debug, ClapArgs)]
+struct WsgSim {
+    /// Address to serve on; port 0 picks a free port.
+    #[arg(long, default_value = "127.0.0.1:1000")]
+    listen: String,
+    /// Serve UDP (one frame per datagram) instead of TCP.
+    #[arg(long, conflicts_with = "pty")]
+    udp: bool,
+    /// Serve on a new serial pseudo-terminal instead (its path is printed; open it with
+    /// `gripctl wsg --serial PATH --shared`).
+    #[arg(long)]
+    pty: bool,
+    /// The gripper model (device type and limits).
+    #[arg(long, value_enum, default_value_t = ModelArg::Wsg50)]
+    model: ModelArg,
+    /// Width of the part between the fingers, mm.
+    #[arg(long, default_value_t = 40.0, conflicts_with = "no_part")]
+    part: f32,
+    /// How far a grasp's nominal width may be off the part's and still find it, mm.
+    #[arg(long, default_value_t = 2.0)]
+    tolerance: f32,
+    /// No part: every grasp ends in NO PART FOUND.
+    #[arg(long)]
+    no_part: bool,
+    /// Wall seconds per simulated second of motion: 0 is instant, 1 real time.
+    #[arg(long, default_value_t = 0.0)]
+    time_scale: f64,
+}
+
+#[derive(Debug, ClapArgs)]
 struct GriplinkSim {
     /// Address to serve on; port 0 picks a free port.
     #[arg(long, default_value = "127.0.0.1:10001")]
@@ -69,6 +101,14 @@ struct GriplinkSim {
 }
 
 #[derive(Debug, Clone, Copy, ValueEnum)]
+enum ModelArg {
+    Wsg50,
+    Wsg32,
+    Wsg25,
+    Wsg70,
+}
+
+#[derive(Debug, Clone, Copy, ValueEnum)]
 enum Scene {
     Demo,
     Empty,
@@ -85,6 +125,7 @@ enum StateArg {
 /// Runs `gripctl sim …` until Ctrl-C.
 pub async fn run(args: Args, out: Out) -> Result<(), CliError> {
     match args.device {
+        Device::Wsg(sim) => wsg(sim, out).await,
         Device::Griplink(sim) => griplink(sim, out).await,
         Device::Smartgrasp(sim) => smartgrasp(sim, out).await,
     }
@@ -133,6 +174,66 @@ fn check_time_scale(scale: f64) -> Result<(), CliError> {
     } else {
         Err(CliError::argument("--time-scale must be 0 or more"))
     }
+}
+
+async fn wsg(args: WsgSim, out: Out) -> Result<(), CliError> {
+    use gripper::wsg::sim::{Model, SimConfig as WsgConfig, SimServer as WsgServer};
+    let model = match args.model {
+        ModelArg::Wsg50 => Model::Wsg50,
+        ModelArg::Wsg32 => Model::Wsg32,
+        ModelArg::Wsg25 => Model::Wsg25,
+        ModelArg::Wsg70 => Model::Wsg70,
+    };
+    check_time_scale(args.time_scale)?;
+    let mut config = WsgConfig::new(model).with_time_scale(args.time_scale);
+    if !args.no_part {
+        config = config.with_part(args.part, args.tolerance);
+    }
+    let server = if args.pty {
+        WsgServer::serial_pty(config).map_err(|e| {
+            CliError::new(
+                Kind::Simulator,
+                format!("cannot open a pseudo-terminal: {e}"),
+            )
+        })?
+    } else if args.udp {
+        WsgServer::udp(config, args.listen.as_str())
+            .await
+            .map_err(|e| cannot_listen(&args.listen, &e))?
+    } else {
+        WsgServer::tcp(config, args.listen.as_str())
+            .await
+            .map_err(|e| cannot_listen(&args.listen, &e))?
+    };
+    let place = match (server.local_addr(), server.serial_path()) {
+        (Some(addr), _) => addr.to_string(),
+        (None, Some(path)) => path.to_owned(),
+        (None, None) => {
+            return Err(CliError::new(
+                Kind::Simulator,
+                "the simulator serves nowhere",
+            ));
+        }
+    };
+    announce(&place)?;
+    let transport = if args.pty {
+        "serial"
+    } else if args.udp {
+        "udp"
+    } else {
+        "tcp"
+    };
+    let part = (!args.no_part).then_some(args.part);
+    out.emit(
+        format!(
+            "wsg simulator: {model:?} over {transport}, {}",
+            part.map_or("no part".to_owned(), |w| format!("a {w} mm part"))
+        ),
+        json!({ "device": "wsg", "model": format!("{model:?}"), "transport": transport, "part_mm": part }),
+    )?;
+    wait_for_ctrl_c().await?;
+    server.shutdown();
+    Ok(())
 }
 
 async fn smartgrasp(args: SmartgraspSim, out: Out) -> Result<(), CliError> {
