@@ -5,25 +5,23 @@
 //! 3.1.2), since a connection that just drops puts the gripper into FAST STOP. Ctrl-C during a
 //! motion sends STOP (0x22) before closing; during `watch` it ends the watch.
 
-use std::future::poll_fn;
+mod info;
+mod live;
+mod show;
+
 use std::net::SocketAddr;
-use std::pin::Pin;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use clap::{Args as ClapArgs, Subcommand, ValueEnum};
-use futures_core::Stream;
 use gripper::wsg::client::{DEFAULT_MOTION_TIMEOUT, DEFAULT_QUERY_TIMEOUT};
 use gripper::wsg::transport::{DEFAULT_BAUD_RATE, DEFAULT_TCP_PORT};
-use gripper::wsg::types::decode_temperature_c;
-use gripper::wsg::{
-    Client, ClientBuilder, Error, GraspingStatistics, GripState, HomingDirection, SoftLimits,
-    Status, Subscription, SystemInfo, SystemLimits, SystemState, UpdateOptions,
-};
-use serde_json::{json, Value};
+use gripper::wsg::{Client, ClientBuilder, Error, HomingDirection, SoftLimits, Status};
+use serde_json::json;
 
 use crate::common::{parse_duration, parse_hex, with_default_port};
 use crate::error::{CliError, DeviceCode, Kind};
 use crate::output::Out;
+use show::{decode_reply, grip_json, grip_name, num, soft_limits_json, status_json, to_hex};
 
 /// Default finger speed of `move`, `grasp` and `release` when `--speed` is not given, mm/s: slow
 /// enough to watch during commissioning on every model (the WSG 25's maximum is well above it).
@@ -274,7 +272,7 @@ async fn execute(
     out: Out,
 ) -> Result<(), CliError> {
     match command {
-        Command::Info => info(client, out).await,
+        Command::Info => info::info(client, out).await,
         Command::Home { direction } => {
             let direction = match direction {
                 Direction::Default => HomingDirection::Default,
@@ -328,8 +326,8 @@ async fn execute(
             out.emit("acknowledged", json!({ "done": "ack" }))
         }
         Command::Set(setting) => set(client, setting, out).await,
-        Command::Watch { count, period } => watch(client, count, period, out).await,
-        Command::Loop { size, repeat } => loop_test(client, size, repeat, out).await,
+        Command::Watch { count, period } => live::watch(client, count, period, out).await,
+        Command::Loop { size, repeat } => live::loop_test(client, size, repeat, out).await,
         Command::Raw { id, payload } => {
             let payload = parse_hex(&payload).map_err(CliError::argument)?;
             let timeout = timeout.unwrap_or(DEFAULT_MOTION_TIMEOUT);
@@ -360,77 +358,6 @@ async fn execute(
             )
         }
     }
-}
-
-async fn info(client: &Client, out: Out) -> Result<(), CliError> {
-    let system: SystemInfo = client.system_info().await.map_err(classify)?;
-    let state = client.system_state().await.map_err(classify)?;
-    let grip = client.grip_state().await.map_err(classify)?;
-    let width_mm = client.width_mm().await.map_err(classify)?;
-    let tag = client.device_tag().await.map_err(classify)?;
-    let soft_limits = client.soft_limits().await.map_err(classify)?;
-    // Older firmware lacks some queries: one it does not know must not hide the rest.
-    let limits: Option<SystemLimits> = optional(client.system_limits().await)?;
-    let temperature_c = optional(client.temperature_c().await)?;
-    let force_n = optional(client.grasping_force_n().await)?;
-    let acceleration = optional(client.acceleration_mm_per_s2().await)?;
-
-    let device = device_name(system);
-    let na = || "n/a".to_owned();
-    let limits_text = limits.map_or(na(), |l| {
-        format!(
-            "stroke {:.1} mm, speed {:.1}–{:.1} mm/s, acceleration {:.0}–{:.0} mm/s², \
-             force min {:.1} N, nominal {:.1} N, overdrive {:.1} N",
-            l.stroke_mm,
-            l.min_speed_mm_per_s,
-            l.max_speed_mm_per_s,
-            l.min_acceleration_mm_per_s2,
-            l.max_acceleration_mm_per_s2,
-            l.min_force_n,
-            l.nominal_force_n,
-            l.overdrive_force_n,
-        )
-    });
-    let human = format!(
-        "type: {device}, hardware revision {}\n\
-         firmware: {}\n\
-         serial number: {}\n\
-         tag: {}\n\
-         limits: {limits_text}\n\
-         set: grasping force {}, acceleration {}, soft limits {}\n\
-         temperature: {}\n\
-         state: {}\n\
-         grip state: {}, width {width_mm:.2} mm",
-        system.hardware_revision,
-        system.firmware,
-        system.serial_number,
-        tag.as_deref().unwrap_or("(none)"),
-        force_n.map_or(na(), |f| format!("{f:.1} N")),
-        acceleration.map_or(na(), |a| format!("{a:.0} mm/s²")),
-        soft_limits.map_or("none".to_owned(), |l| format!(
-            "{:.2} mm … {:.2} mm",
-            l.minus_mm, l.plus_mm
-        )),
-        temperature_c.map_or(na(), |t| format!("{t:.1} °C")),
-        flags_text(state),
-        grip_name(grip),
-    );
-    let json = json!({
-        "device_type": { "name": device, "code": system.device_type.to_u8() },
-        "hardware_revision": system.hardware_revision,
-        "firmware": system.firmware.to_string(),
-        "serial_number": system.serial_number,
-        "tag": tag,
-        "limits": limits.map(|l| limits_json(&l)),
-        "grasping_force_n": force_n.map(num),
-        "acceleration_mm_per_s2": acceleration.map(num),
-        "soft_limits": soft_limits.map(|l| soft_limits_json(&l)),
-        "temperature_c": temperature_c.map(num),
-        "system_state": flags_json(state),
-        "grip_state": grip_json(grip),
-        "width_mm": num(width_mm),
-    });
-    out.emit(human, json)
 }
 
 /// After a motion: where the fingers ended up, and the grip state (HOLDING after a grasp).
@@ -502,124 +429,9 @@ async fn set(client: &Client, setting: Setting, out: Out) -> Result<(), CliError
     }
 }
 
-/// The latest of each streamed value.
-struct Sample {
-    width_mm: f32,
-    speed_mm_per_s: f32,
-    force_n: f32,
-    grip: GripState,
-}
-
-async fn watch(
-    client: &Client,
-    count: Option<u64>,
-    period: Duration,
-    out: Out,
-) -> Result<(), CliError> {
-    let options = UpdateOptions::periodic(period);
-    let mut width = client.subscribe_width_mm(options).await.map_err(classify)?;
-    let mut speed = client
-        .subscribe_speed_mm_per_s(options)
-        .await
-        .map_err(classify)?;
-    let mut force = client.subscribe_force_n(options).await.map_err(classify)?;
-    let mut grip = client
-        .subscribe_grip_state(options)
-        .await
-        .map_err(classify)?;
-    // Each stream's first item answers the subscription: a complete first sample.
-    let mut sample = Sample {
-        width_mm: next(&mut width).await?,
-        speed_mm_per_s: next(&mut speed).await?,
-        force_n: next(&mut force).await?,
-        grip: next(&mut grip).await?,
-    };
-    let start = Instant::now();
-    let mut emitted = 0;
-    loop {
-        if count.is_some_and(|n| emitted >= n) {
-            return Ok(());
-        }
-        emit_sample(&sample, start.elapsed(), out)?;
-        emitted += 1;
-        if count.is_some_and(|n| emitted >= n) {
-            return Ok(());
-        }
-        // One sample per width update (all four share the period); the others refresh between.
-        loop {
-            tokio::select! {
-                w = next(&mut width) => { sample.width_mm = w?; break; }
-                s = next(&mut speed) => sample.speed_mm_per_s = s?,
-                f = next(&mut force) => sample.force_n = f?,
-                g = next(&mut grip) => sample.grip = g?,
-            }
-        }
-    }
-}
-
-async fn next<T>(stream: &mut Subscription<T>) -> Result<T, CliError> {
-    poll_fn(|cx| Pin::new(&mut *stream).poll_next(cx))
-        .await
-        .ok_or_else(|| {
-            CliError::new(
-                Kind::Connection,
-                "the auto-update stream ended: connection lost",
-            )
-        })
-}
-
-fn emit_sample(s: &Sample, elapsed: Duration, out: Out) -> Result<(), CliError> {
-    out.emit(
-        format!(
-            "{:8.3} s  width {:7.2} mm  speed {:7.2} mm/s  force {:6.1} N  {}",
-            elapsed.as_secs_f64(),
-            s.width_mm,
-            s.speed_mm_per_s,
-            s.force_n,
-            grip_name(s.grip)
-        ),
-        json!({
-            "elapsed_s": elapsed.as_secs_f64(),
-            "width_mm": num(s.width_mm),
-            "speed_mm_per_s": num(s.speed_mm_per_s),
-            "force_n": num(s.force_n),
-            "grip_state": grip_json(s.grip),
-        }),
-    )
-}
-
-async fn loop_test(client: &Client, size: u16, repeat: u32, out: Out) -> Result<(), CliError> {
-    let start = Instant::now();
-    for round in 0..repeat {
-        // A different pattern each round, so a stale echo of an earlier round cannot pass.
-        let data: Vec<u8> = (0..size)
-            .map(|i| (u32::from(i) + round * 7) as u8)
-            .collect();
-        let echo = client.loop_back(data.clone()).await.map_err(classify)?;
-        if echo[..] != data[..] {
-            return Err(CliError::new(
-                Kind::Malformed,
-                format!(
-                    "loop round {}: sent {} bytes, the echo differs ({} bytes: [{}])",
-                    round + 1,
-                    data.len(),
-                    echo.len(),
-                    to_hex(&echo)
-                ),
-            ));
-        }
-    }
-    let elapsed = start.elapsed();
-    let per_round_ms = elapsed.as_secs_f64() * 1000.0 / f64::from(repeat);
-    out.emit(
-        format!("loop test passed: {repeat} × {size} bytes echoed, {per_round_ms:.2} ms per round"),
-        json!({ "rounds": repeat, "size": size, "ms_per_round": per_round_ms }),
-    )
-}
-
 /// A query the gripper may not support: `None` when it answers that it has no such data or
 /// does not know the command.
-fn optional<T>(reply: gripper::wsg::Result<T>) -> Result<Option<T>, CliError> {
+pub(super) fn optional<T>(reply: gripper::wsg::Result<T>) -> Result<Option<T>, CliError> {
     match reply {
         Ok(v) => Ok(Some(v)),
         Err(Error::Device {
@@ -631,7 +443,7 @@ fn optional<T>(reply: gripper::wsg::Result<T>) -> Result<Option<T>, CliError> {
 }
 
 /// The library's error as a `gripctl` error: the gripper's status code where it gave one.
-fn classify(e: Error) -> CliError {
+pub(super) fn classify(e: Error) -> CliError {
     let message = e.to_string();
     match e {
         Error::Device { status, .. } => device_error(message, status),
@@ -657,179 +469,4 @@ fn device_error(message: String, status: Status) -> CliError {
             description: status.description().to_owned(),
         },
     )
-}
-
-fn status_json(status: Status) -> Value {
-    json!({ "name": status.symbol(), "code": status.code(), "description": status.description() })
-}
-
-fn device_name(info: SystemInfo) -> String {
-    use gripper::wsg::DeviceType;
-    match info.device_type {
-        DeviceType::Unknown => "unknown".into(),
-        DeviceType::Wsg50 => "WSG 50".into(),
-        DeviceType::Wsg32 => "WSG 32".into(),
-        DeviceType::Kms40 => "KMS 40".into(),
-        DeviceType::Wts => "WTS".into(),
-        DeviceType::Wsg25 => "WSG 25".into(),
-        DeviceType::Wsg70 => "WSG 70".into(),
-        DeviceType::Other(n) => format!("device type {n}"),
-    }
-}
-
-/// The grip state's name as the manual's state diagram writes it (Anhang C).
-fn grip_name(g: GripState) -> String {
-    match g {
-        GripState::Idle => "IDLE".into(),
-        GripState::Grasping => "GRASPING".into(),
-        GripState::NoPartFound => "NO PART FOUND".into(),
-        GripState::PartLost => "PART LOST".into(),
-        GripState::Holding => "HOLDING".into(),
-        GripState::Releasing => "RELEASING".into(),
-        GripState::Positioning => "POSITIONING".into(),
-        GripState::Error => "ERROR".into(),
-        GripState::Reserved(n) => format!("reserved grip state {n}"),
-    }
-}
-
-fn grip_json(g: GripState) -> Value {
-    json!({ "name": grip_name(g), "code": g.to_u8() })
-}
-
-/// The system state flags with the manual's names (Anhang B).
-const FLAGS: &[(SystemState, &str)] = &[
-    (SystemState::REFERENCED, "SF_REFERENCED"),
-    (SystemState::MOVING, "SF_MOVING"),
-    (SystemState::BLOCKED_MINUS, "SF_BLOCKED_MINUS"),
-    (SystemState::BLOCKED_PLUS, "SF_BLOCKED_PLUS"),
-    (SystemState::SOFT_LIMIT_MINUS, "SF_SOFT_LIMIT_MINUS"),
-    (SystemState::SOFT_LIMIT_PLUS, "SF_SOFT_LIMIT_PLUS"),
-    (SystemState::AXIS_STOPPED, "SF_AXIS_STOPPED"),
-    (SystemState::TARGET_POS_REACHED, "SF_TARGET_POS_REACHED"),
-    (SystemState::OVERDRIVE_MODE, "SF_OVERDRIVE_MODE"),
-    (SystemState::FORCECNTL_MODE, "SF_FORCECNTL_MODE"),
-    (SystemState::FAST_STOP, "SF_FAST_STOP"),
-    (SystemState::TEMP_WARNING, "SF_TEMP_WARNING"),
-    (SystemState::TEMP_FAULT, "SF_TEMP_FAULT"),
-    (SystemState::POWER_FAULT, "SF_POWER_FAULT"),
-    (SystemState::CURR_FAULT, "SF_CURR_FAULT"),
-    (SystemState::FINGER_FAULT, "SF_FINGER_FAULT"),
-    (SystemState::CMD_FAILURE, "SF_CMD_FAILURE"),
-    (SystemState::SCRIPT_RUNNING, "SF_SCRIPT_RUNNING"),
-    (SystemState::SCRIPT_FAILURE, "SF_SCRIPT_FAILURE"),
-];
-
-fn flag_names(state: SystemState) -> Vec<String> {
-    let mut names: Vec<String> = FLAGS
-        .iter()
-        .filter(|(flag, _)| state.contains(*flag))
-        .map(|(_, name)| (*name).to_owned())
-        .collect();
-    let known = FLAGS.iter().fold(0, |bits, (flag, _)| bits | flag.bits());
-    // Reserved bits are shown rather than dropped.
-    let rest = state.bits() & !known;
-    if rest != 0 {
-        names.push(format!("reserved bits {rest:#x}"));
-    }
-    names
-}
-
-fn flags_text(state: SystemState) -> String {
-    let names = flag_names(state);
-    if names.is_empty() {
-        format!("{:#010x} (no flags)", state.bits())
-    } else {
-        format!("{:#010x} {}", state.bits(), names.join(" "))
-    }
-}
-
-fn flags_json(state: SystemState) -> Value {
-    json!({ "bits": state.bits(), "flags": flag_names(state) })
-}
-
-fn limits_json(l: &SystemLimits) -> Value {
-    json!({
-        "stroke_mm": num(l.stroke_mm),
-        "min_speed_mm_per_s": num(l.min_speed_mm_per_s),
-        "max_speed_mm_per_s": num(l.max_speed_mm_per_s),
-        "min_acceleration_mm_per_s2": num(l.min_acceleration_mm_per_s2),
-        "max_acceleration_mm_per_s2": num(l.max_acceleration_mm_per_s2),
-        "min_force_n": num(l.min_force_n),
-        "nominal_force_n": num(l.nominal_force_n),
-        "overdrive_force_n": num(l.overdrive_force_n),
-    })
-}
-
-fn soft_limits_json(l: &SoftLimits) -> Value {
-    json!({ "minus_mm": num(l.minus_mm), "plus_mm": num(l.plus_mm) })
-}
-
-/// The reply data of the queries the library has a type for, decoded; `None` for the others.
-fn decode_reply(id: u8, data: &[u8]) -> Option<(String, Value)> {
-    match id {
-        0x40 => SystemState::decode(data)
-            .ok()
-            .map(|s| (flags_text(s), flags_json(s))),
-        0x41 => GripState::decode(data)
-            .ok()
-            .map(|g| (grip_name(g), grip_json(g))),
-        0x42 => GraspingStatistics::decode(data).ok().map(|s| {
-            (
-                format!(
-                    "{} grasps, {} no part, {} lost",
-                    s.total, s.no_part, s.lost_part
-                ),
-                json!({ "total": s.total, "no_part": s.no_part, "lost_part": s.lost_part }),
-            )
-        }),
-        // 0x43–0x45 (manual 3.4.4–3.4.6): one f32, little endian, in bytes 0..3 (PROTOCOLS.md
-        // erratum: the manual lists it as "Byte 0").
-        0x43..=0x45 => {
-            let bytes: [u8; 4] = data.try_into().ok()?;
-            let v = f32::from_le_bytes(bytes);
-            let unit = ["mm", "mm/s", "N"][usize::from(id - 0x43)];
-            Some((format!("{v} {unit}"), num(v)))
-        }
-        0x46 => decode_temperature_c(data)
-            .ok()
-            .map(|t| (format!("{t:.1} °C"), num(t))),
-        0x50 => SystemInfo::decode(data).ok().map(|i| {
-            (
-                format!(
-                    "{}, hardware revision {}, firmware {}, serial {}",
-                    device_name(i),
-                    i.hardware_revision,
-                    i.firmware,
-                    i.serial_number
-                ),
-                json!({
-                    "device_type": device_name(i),
-                    "hardware_revision": i.hardware_revision,
-                    "firmware": i.firmware.to_string(),
-                    "serial_number": i.serial_number,
-                }),
-            )
-        }),
-        0x53 => SystemLimits::decode(data)
-            .ok()
-            .map(|l| (format!("{l:?}"), limits_json(&l))),
-        _ => None,
-    }
-}
-
-/// An f32 from the wire as JSON, by its shortest decimal form: 23.4 °C prints as 23.4, not as
-/// the 23.399999618530273 a plain widening to f64 gives.
-fn num(v: f32) -> Value {
-    v.to_string()
-        .parse::<f64>()
-        .ok()
-        .and_then(serde_json::Number::from_f64)
-        .map_or(Value::Null, Value::Number)
-}
-
-fn to_hex(data: &[u8]) -> String {
-    data.iter()
-        .map(|b| format!("{b:02X}"))
-        .collect::<Vec<_>>()
-        .join(" ")
 }
