@@ -226,13 +226,12 @@ async fn execute(client: &Client, port: &Port, command: Command, out: Out) -> Re
                 .await
                 .map_err(classify)?;
             match port.state().await.map_err(classify)? {
+                DeviceState::Holding => after_motion(port, "gripped", out).await,
                 DeviceState::NoPart => {
                     Err(state_error("the grip found no part", DeviceState::NoPart))
                 }
-                DeviceState::Fault => {
-                    Err(state_error("the grip ended in a fault", DeviceState::Fault))
-                }
-                _ => after_motion(port, "gripped", out).await,
+                // Anything but holding after a finished grip is not a grip.
+                other => Err(state_error("the grip did not end holding a part", other)),
             }
         }
         Command::Flexrelease {
@@ -248,7 +247,13 @@ async fn execute(client: &Client, port: &Port, command: Command, out: Out) -> Re
             port.flex_release(params, Blocking::UntilDone)
                 .await
                 .map_err(classify)?;
-            after_motion(port, "released", out).await
+            match port.state().await.map_err(classify)? {
+                DeviceState::Fault => Err(state_error(
+                    "the release ended in a fault",
+                    DeviceState::Fault,
+                )),
+                _ => after_motion(port, "released", out).await,
+            }
         }
         Command::State => {
             let state = port.state().await.map_err(classify)?;
@@ -444,7 +449,7 @@ fn classify(e: Error) -> CliError {
 /// A motion that ended in the wrong device state: the state is the device's answer.
 fn state_error(what: &str, state: DeviceState) -> CliError {
     CliError::device(
-        format!("{what}: {state}"),
+        format!("{what}: {state} ({})", state_description(state)),
         DeviceCode {
             number: u32::try_from(state.code()).unwrap_or(u32::MAX),
             name: state.to_string(),

@@ -128,7 +128,7 @@ async fn flexgrip_and_flexrelease_on_another_port() {
 
 #[tokio::test]
 async fn controller_errors_carry_the_status_name_and_description() {
-    let (_server, addr) = et4().await;
+    let (server, addr) = et4().await;
     // Gripping before homing.
     let run = gl(&addr, &["grip", "--json"]).await;
     let line = run.failed();
@@ -141,6 +141,14 @@ async fn controller_errors_carry_the_status_name_and_description() {
     assert_eq!(error["code"], 4);
     assert_eq!(error["name"], "E_NOT_INITIALIZED");
     assert_eq!(error["description"], "Device not initialized");
+
+    // A fault during the motion: the device's state is the answer.
+    gl(&addr, &["home"]).await.ok();
+    server.fault_next_motion(0);
+    let run = gl(&addr, &["grip", "--json"]).await;
+    let error = run.failed_with("device", "the grip ended in a fault: DS_FAULT");
+    assert_eq!(error["name"], "DS_FAULT");
+    assert_eq!(error["code"], 7);
 
     let run = gl(&addr, &["--port", "7", "state"]).await;
     assert!(run.failed().contains("E_INDEX_OUT_OF_BOUNDS"), "{run:?}");
