@@ -34,7 +34,7 @@ const DEFAULT_CONNECT_TIMEOUT: Duration = Duration::from_secs(5);
 #[derive(Debug, ClapArgs)]
 pub struct Args {
     /// The gripper: HOST or HOST:PORT (port 1000 when omitted, the WSG's default).
-    #[arg(long, default_value = "127.0.0.1")]
+    #[arg(long, default_value = "127.0.0.1", conflicts_with = "serial")]
     addr: String,
     /// Talk UDP to --addr (one frame per datagram) instead of TCP.
     #[arg(long, conflicts_with = "serial")]
