@@ -301,6 +301,19 @@ async fn sim_child_process_serves_its_scene() {
     .await;
     let state = sg(&stopped.addr, &["state", "--json"]).await.json();
     assert_eq!(state["state"]["name"], "STOPPED");
+
+    // A V2 server answers a V3 frame with the empty "too old" message (manual 1.3).
+    let old = Simulator::start(&[
+        "smartgrasp",
+        "--listen",
+        "127.0.0.1:0",
+        "--protocol-version",
+        "2",
+    ])
+    .await;
+    sg(&old.addr, &["version", "--json"])
+        .await
+        .failed_with("device", "the server is too old: it speaks protocol v2");
 }
 
 #[tokio::test]
