@@ -18,9 +18,15 @@ async fn et4() -> (SimServer, String) {
     (server, addr)
 }
 
-/// `gripctl griplink --addr ADDR args…`
+/// `gripctl --timeout 20s griplink --addr ADDR args…`
 async fn gl(addr: &str, args: &[&str]) -> Run {
-    let mut all = vec!["griplink", "--addr", addr];
+    let mut all = vec![
+        "--timeout",
+        common::CALL_TIMEOUT,
+        "griplink",
+        "--addr",
+        addr,
+    ];
     all.extend_from_slice(args);
     gripctl(&all).await
 }

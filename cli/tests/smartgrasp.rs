@@ -14,9 +14,15 @@ async fn server(config: SimConfig) -> (SimServer, String) {
     (server, addr)
 }
 
-/// `gripctl smartgrasp --addr ADDR args…`
+/// `gripctl --timeout 20s smartgrasp --addr ADDR args…`
 async fn sg(addr: &str, args: &[&str]) -> common::Run {
-    let mut all = vec!["smartgrasp", "--addr", addr];
+    let mut all = vec![
+        "--timeout",
+        common::CALL_TIMEOUT,
+        "smartgrasp",
+        "--addr",
+        addr,
+    ];
     all.extend_from_slice(args);
     gripctl(&all).await
 }

@@ -19,9 +19,9 @@ fn with_part() -> SimConfig {
     SimConfig::new(Model::Wsg50).with_part(40.0, 2.0)
 }
 
-/// `gripctl wsg --addr ADDR args…`
+/// `gripctl --timeout 20s wsg --addr ADDR args…`
 async fn wsg(addr: &str, args: &[&str]) -> Run {
-    let mut all = vec!["wsg", "--addr", addr];
+    let mut all = vec!["--timeout", common::CALL_TIMEOUT, "wsg", "--addr", addr];
     all.extend_from_slice(args);
     gripctl(&all).await
 }

@@ -14,6 +14,10 @@ use tokio::process::{Child, Command};
 /// a hang into a failure; nothing is timed.
 pub const PATIENCE: Duration = Duration::from_secs(60);
 
+/// `--timeout` of the tests' calls: far above what a loopback simulator needs, so that a loaded
+/// CI machine cannot turn the library's short query defaults (1–2 s) into failures.
+pub const CALL_TIMEOUT: &str = "20s";
+
 /// What a `gripctl` run left behind.
 #[derive(Debug)]
 pub struct Run {
