@@ -90,9 +90,9 @@ enum Command {
         /// Stop after this many samples.
         #[arg(long)]
         count: Option<u64>,
-        /// Polling interval, e.g. 100ms.
-        #[arg(long, default_value = "100ms", value_parser = parse_duration)]
-        interval: Duration,
+        /// Polling period, e.g. 100ms (the same option as `gripctl wsg watch`).
+        #[arg(long, alias = "interval", default_value = "100ms", value_parser = parse_duration)]
+        period: Duration,
     },
     /// Grip recipes (GRIPCFGF, manual 3.6.1).
     #[command(subcommand)]
@@ -263,7 +263,7 @@ async fn execute(client: &Client, port: &Port, command: Command, out: Out) -> Re
             let value = port.value_f(index).await.map_err(classify)?;
             out.emit(value, json!({ "index": index, "value": value }))
         }
-        Command::Watch { count, interval } => watch(port, count, interval, out).await,
+        Command::Watch { count, period } => watch(port, count, period, out).await,
         Command::Recipe(Recipe::Get { index }) => {
             let recipe = port.grip_config_f(index).await.map_err(classify)?;
             out.emit(recipe_text(index, &recipe), recipe_json(index, &recipe))

@@ -177,7 +177,7 @@ async fn raw_lines_and_watch() {
 
     let run = gl(
         &addr,
-        &["watch", "--count", "3", "--interval", "10ms", "--json"],
+        &["watch", "--count", "3", "--period", "10ms", "--json"],
     )
     .await;
     run.ok();
