@@ -223,6 +223,7 @@ impl Client {
             pipeline_depth: config.pipeline_depth,
             give_up_after: config.give_up_after,
             max_line_len: config.max_line_len,
+            probe_timeout: config.query_timeout.saturating_add(config.give_up_after),
         };
         tokio::spawn(task::run(stream, rx, task_config, Arc::clone(&shared)));
         Client {

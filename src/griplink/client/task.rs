@@ -9,13 +9,13 @@ use std::time::Duration;
 use bytes::BytesMut;
 use futures_core::Stream;
 use tokio::io::AsyncWriteExt;
-use tokio::net::tcp::OwnedReadHalf;
+use tokio::net::tcp::{OwnedReadHalf, OwnedWriteHalf};
 use tokio::net::TcpStream;
 use tokio::sync::mpsc;
 use tokio::time::Instant;
 use tokio_util::codec::{Encoder, FramedRead};
 
-use super::pipeline::{Pipeline, Slot, Waiter};
+use super::pipeline::{Delivery, Pipeline, Slot, Waiter};
 use crate::griplink::codec::{Line, LineCodec};
 use crate::griplink::command::Expect;
 use crate::griplink::error::Error;
@@ -63,6 +63,28 @@ pub(crate) struct TaskConfig {
     pub pipeline_depth: usize,
     pub give_up_after: Duration,
     pub max_line_len: usize,
+    /// How long a resynchronisation probe may take before the connection is given up.
+    pub probe_timeout: Duration,
+}
+
+/// Writes one command line, giving up on the connection if the controller stops reading.
+async fn send_line(
+    write: &mut OwnedWriteHalf,
+    encoder: &mut LineCodec,
+    line: &str,
+    limit: Instant,
+) -> Result<(), Error> {
+    let mut out = BytesMut::new();
+    encoder
+        .encode(line, &mut out)
+        .map_err(|e| Error::invalid("command line", e.to_string()))?;
+    match tokio::time::timeout_at(limit, write.write_all(&out)).await {
+        Ok(Ok(())) => Ok(()),
+        Ok(Err(e)) => Err(Error::from(e)),
+        Err(_) => Err(Error::Broken(
+            "the controller stopped reading commands".into(),
+        )),
+    }
 }
 
 async fn next_line(
@@ -79,10 +101,13 @@ pub(crate) async fn run(
     shared: Arc<Shared>,
 ) {
     let (read, mut write) = stream.into_split();
-    let mut reader = FramedRead::new(read, LineCodec::new(config.max_line_len));
+    // A line cut off by the end of the connection is not a reply: `VALUE[0][0]=12` may be the
+    // first half of `VALUE[0][0]=12345`.
+    let codec = LineCodec::new(config.max_line_len).reject_unterminated();
+    let mut reader = FramedRead::new(read, codec);
     let mut encoder = LineCodec::new(config.max_line_len);
-    let mut pipeline = Pipeline::new(config.pipeline_depth);
-    let mut out = BytesMut::new();
+    let mut pipeline =
+        Pipeline::new(config.pipeline_depth).with_probe_timeout(config.probe_timeout);
     let mut closing = false;
 
     let end: Error = loop {
@@ -91,12 +116,21 @@ pub(crate) async fn run(
             // Replies first: they free slots and callers.
             biased;
             line = next_line(&mut reader) => match line {
-                Some(Ok(line)) => {
-                    pipeline.on_line(line);
-                    if closing && pipeline.is_empty() {
-                        break Error::Closed;
+                Some(Ok(line)) => match pipeline.on_line(line) {
+                    Delivery::Resync(probe) if !closing => {
+                        tracing::warn!(%probe, "griplink: a reply was out of step, resynchronising");
+                        let limit = pipeline.give_up_at().unwrap_or_else(Instant::now);
+                        if let Err(e) = send_line(&mut write, &mut encoder, probe, limit).await {
+                            break e;
+                        }
                     }
-                }
+                    Delivery::Lost => break Error::Broken(
+                        "a reply did not answer its command while others were on the wire; \
+                         replies can no longer be paired".into(),
+                    ),
+                    _ if closing && pipeline.is_empty() => break Error::Closed,
+                    _ => {}
+                },
                 Some(Err(e)) => break Error::from(e),
                 None if closing => break Error::Closed,
                 None => break Error::from(std::io::Error::new(
@@ -126,21 +160,14 @@ pub(crate) async fn run(
                     }));
                     continue;
                 }
-                out.clear();
-                if let Err(e) = encoder.encode(request.line.as_str(), &mut out) {
-                    let _ = request.waiter.send(Err(Error::invalid("command line", e.to_string())));
-                    continue;
-                }
-                let write_limit = request.deadline + config.give_up_after;
-                match tokio::time::timeout_at(write_limit, write.write_all(&out)).await {
-                    Ok(Ok(())) => {}
-                    Ok(Err(e)) => {
-                        let err = Error::from(e);
-                        let _ = request.waiter.send(Err(err.clone()));
-                        break err;
+                let give_up_at = request.deadline + config.give_up_after;
+                match send_line(&mut write, &mut encoder, &request.line, give_up_at).await {
+                    Ok(()) => {}
+                    Err(err @ Error::InvalidArgument { .. }) => {
+                        let _ = request.waiter.send(Err(err));
+                        continue;
                     }
-                    Err(_) => {
-                        let err = Error::Broken("the controller stopped reading commands".into());
+                    Err(err) => {
                         let _ = request.waiter.send(Err(err.clone()));
                         break err;
                     }
@@ -151,7 +178,8 @@ pub(crate) async fn run(
                     line: request.line,
                     expect: request.expect,
                     waiter: request.waiter,
-                    give_up_at: request.deadline + config.give_up_after,
+                    give_up_at,
+                    probe: None,
                 });
             }
         }
