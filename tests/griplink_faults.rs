@@ -608,3 +608,80 @@ async fn cut_before_or_inside_a_command_is_a_connection_error_and_nothing_runs()
         assert_eq!(rig.server.device_state(0), Some(DeviceState::Disabled));
     }
 }
+
+// ---- bounds ----------------------------------------------------------------------------------
+
+#[tokio::test]
+async fn callers_beyond_the_pipeline_wait_in_the_bounded_queue_and_never_reach_the_wire_late() {
+    let rig = Rig::new().await;
+    let client = rig
+        .client_with(ClientConfig {
+            queue_len: 2,
+            ..ClientConfig::default()
+        })
+        .await;
+    healthy(&client).await;
+    let before = rig.commands().stats().frames;
+    rig.replies().stall();
+    let held = spawn({
+        let client = client.clone();
+        async move { client.port(0).product_id().await }
+    });
+    rig.commands_seen(before + 1).await;
+    // Ten more callers: two fit in the queue, the others wait to enter it; all give up.
+    let waiting: Vec<_> = (0..10)
+        .map(|_| {
+            let client = client.with_timeout(SHORT);
+            spawn(async move { client.id().await })
+        })
+        .collect();
+    for call in waiting {
+        let r = within("queued", call).await.unwrap();
+        assert!(matches!(r, Err(Error::Timeout { .. })), "{r:?}");
+    }
+    rig.replies().release();
+    assert_eq!(within("held", held).await.unwrap().unwrap(), 20);
+    healthy(&client).await;
+    // One command was on the wire (pipeline depth 1) while eleven calls were made; the ten that
+    // gave up were never sent, then two `healthy` checks of two commands each.
+    assert_eq!(rig.commands().stats().frames, before + 1 + 2);
+}
+
+#[tokio::test]
+async fn a_command_line_over_the_maximum_is_refused_before_sending() {
+    let rig = Rig::new().await;
+    let client = rig
+        .client_with(ClientConfig {
+            max_line_len: 64,
+            ..ClientConfig::default()
+        })
+        .await;
+    let before = rig.commands().stats().frames;
+    let r = within(
+        "long",
+        client.command(&format!("LABEL=\"{}\"", "x".repeat(60))),
+    )
+    .await;
+    assert!(matches!(r, Err(Error::InvalidArgument { .. })), "{r:?}");
+    healthy(&client).await;
+    assert_eq!(rig.commands().stats().frames, before + 2);
+}
+
+#[tokio::test]
+async fn a_slow_watch_consumer_slows_the_polling_instead_of_piling_up_readings() {
+    use futures_util::StreamExt as _;
+    let rig = Rig::new().await;
+    let client = rig.client().await;
+    let mut states = client.port(0).watch_state(Duration::from_millis(1));
+    assert!(within("first", states.next()).await.unwrap().is_ok());
+    let polled = rig.commands().stats().frames;
+    // The consumer does not read for 200 ms: at 1 ms per poll an unbounded poller would send
+    // about 200 queries; this one holds at most one reading in the stream and one waiting to
+    // be put there, then stops.
+    tokio::time::sleep(Duration::from_millis(200)).await;
+    let extra = rig.commands().stats().frames - polled;
+    assert!(extra <= 2, "{extra} polls while nobody read");
+    assert!(within("next", states.next()).await.unwrap().is_ok());
+    drop(states);
+    healthy(&client).await;
+}

@@ -26,6 +26,37 @@
 //! paired with confidence: the client then reports [`Error::Broken`] to every pending and
 //! future call and closes the connection. Reconnecting is left to the caller (connect a new
 //! [`Client`]).
+//!
+//! # Replies out of step
+//! GRIPLINK replies carry no request id and no checksum (manual 2.1): order is the only
+//! pairing. An extra line on the wire (a duplicated reply, a command duplicated by the network
+//! and answered twice, a byte corrupted into LF) would hand every later caller the reply of the
+//! call before it. So a reply that does not answer its command (another key, port or index,
+//! `ACK` for a query, a value for a command that answers `ACK`, or not GRIPLINK at all) is
+//! never skipped silently: the call fails with [`Error::UnexpectedReply`] or
+//! [`Error::MalformedReply`], and before it returns the client resynchronises: it sends a
+//! harmless probe (`ID?`, or `SN?` after an `ID?`), skips every line until the probe's answer,
+//! and only then sends the next command. If other commands were on the wire at that moment
+//! (pipelining), their replies could be anyone's: the connection is given up
+//! ([`Error::Broken`]).
+//!
+//! What cannot be detected at the protocol level: a changed digit in a value or in a command's
+//! argument (`DEVPID[0]=20` read as 30, `LED(0,1)` run as `LED(0,3)`), and an extra reply taken
+//! by a next command that expects the same shape (two identical `ACK`s: a blocking `HOME` may
+//! then return at once; two replies to the same query: the second caller gets the first's
+//! value). The shift is detected, and repaired as above, at the first later command that
+//! expects another shape. A reply cut off by a lost connection is never taken for a whole one
+//! (it fails with [`Error::Io`]).
+//!
+//! # Cancellation
+//! Every async method is cancel-safe for the connection: dropping its future (a `select!`,
+//! a timeout, an aborted task) at any await point never hands its reply to another caller. A
+//! command still queued when its call is dropped is never sent. A command already sent,
+//! though, runs on the controller: a cancelled GRIP still grips, a cancelled HOME still homes
+//! (a motion keeps moving until it ends or is stopped, e.g. with [`Port::disable`]); and a
+//! cancelled blocking call (HOME, [`Blocking::UntilDone`], WSTR, WAITVAL) still holds this
+//! connection on the controller until it answers, so later calls wait behind it. Nothing is
+//! ever re-sent by the library.
 
 mod pipeline;
 mod port;
@@ -196,11 +227,15 @@ impl Reading {
 
 impl Client {
     /// Connects to a controller (`"192.168.1.40:10001"`) with the default configuration.
+    ///
+    /// Cancel-safe: dropped, nothing is left running.
     pub async fn connect(addr: impl ToSocketAddrs) -> Result<Client> {
         Client::connect_with(addr, ClientConfig::default()).await
     }
 
     /// Connects with the given configuration.
+    ///
+    /// Cancel-safe: dropped, nothing is left running.
     pub async fn connect_with(addr: impl ToSocketAddrs, config: ClientConfig) -> Result<Client> {
         let stream = tokio::time::timeout(config.connect_timeout, TcpStream::connect(addr))
             .await
@@ -286,6 +321,9 @@ impl Client {
     }
 
     /// Sends a typed command and returns its checked reply.
+    ///
+    /// [Cancel-safe](self#cancellation) for the connection; once sent, the command runs on the
+    /// controller even if the call is dropped (a motion keeps moving).
     pub async fn execute(&self, command: &Command) -> Result<Answer> {
         let line = command.encode()?;
         let bye = matches!(command, Command::Bye);
@@ -297,6 +335,9 @@ impl Client {
     /// `ACK` or `KEY[…]=value`; `ERR` becomes [`Error::Device`]. The line must be printable
     /// ASCII without control characters. Uses the query timeout unless overridden with
     /// [`Client::with_timeout`]; do not send `BYE()` this way, use [`Client::close`].
+    ///
+    /// [Cancel-safe](self#cancellation) for the connection; once sent, the command runs on the
+    /// controller even if the call is dropped (a motion keeps moving).
     pub async fn command(&self, line: &str) -> Result<Answer> {
         check_raw_line(line)?;
         self.submit(line.to_owned(), Expect::Any, Duty::Query, false)
@@ -355,17 +396,23 @@ impl Client {
     }
 
     /// `ID?`: the controller's identification, e.g. `GRIPLINK-ET4` (manual 3.1.1).
+    ///
+    /// [Cancel-safe](self#cancellation): dropped, its reply is discarded when it comes.
     pub async fn id(&self) -> Result<String> {
         self.read_string(Command::Id).await
     }
 
     /// `PROTOCOL?`: the protocol version string, e.g. `GRIPLINK-V3` (manual 3.1.2).
+    ///
+    /// [Cancel-safe](self#cancellation): dropped, its reply is discarded when it comes.
     pub async fn protocol(&self) -> Result<String> {
         self.read_string(Command::Protocol).await
     }
 
     /// `PROTASSERT`: fails with [`Status::NotSupported`](super::Status::NotSupported) unless the
     /// controller runs `identifier` in at least `min_version` (manual 3.1.3).
+    ///
+    /// [Cancel-safe](self#cancellation): dropped, its reply is discarded when it comes.
     pub async fn protocol_assert(&self, identifier: &str, min_version: u32) -> Result<()> {
         self.ack(Command::ProtAssert {
             identifier: identifier.to_owned(),
@@ -375,28 +422,40 @@ impl Client {
     }
 
     /// `SN?`: the controller's serial number (manual 3.1.4).
+    ///
+    /// [Cancel-safe](self#cancellation): dropped, its reply is discarded when it comes.
     pub async fn serial_number(&self) -> Result<String> {
         self.read_string(Command::SerialNumber).await
     }
 
     /// `LABEL?` (manual 3.1.5).
+    ///
+    /// [Cancel-safe](self#cancellation): dropped, its reply is discarded when it comes.
     pub async fn label(&self) -> Result<String> {
         self.read_string(Command::Label).await
     }
 
     /// `LABEL="…"`: at most 32 printable ASCII characters without `'` `"` `\` (checked before
     /// sending). Returns the label the controller reports back (manual 3.1.5).
+    ///
+    /// [Cancel-safe](self#cancellation) for the connection; dropped after it was sent, the change
+    /// still takes effect on the controller.
     pub async fn set_label(&self, label: &str) -> Result<String> {
         self.read_string(Command::SetLabel(label.to_owned())).await
     }
 
     /// `VER?`: the controller's firmware version (manual 3.1.6).
+    ///
+    /// [Cancel-safe](self#cancellation): dropped, its reply is discarded when it comes.
     pub async fn version(&self) -> Result<String> {
         self.read_string(Command::Version).await
     }
 
     /// `VERBOSE=0|1`: whether `ERR` replies carry a description (manual 3.1.7). Returns the
     /// mode the controller reports back.
+    ///
+    /// [Cancel-safe](self#cancellation) for the connection; dropped after it was sent, the change
+    /// still takes effect on the controller.
     pub async fn set_verbose(&self, on: bool) -> Result<bool> {
         Ok(self.read_int::<i64>(Command::SetVerbose(on)).await? != 0)
     }
@@ -404,6 +463,9 @@ impl Client {
     /// `BYE()`: ends the session gracefully; waits for the `ACK` (manual 3.3.1). The connection
     /// is closed once the reply is in, whatever it says; calls made afterwards, on any clone,
     /// fail with [`Error::Closed`].
+    ///
+    /// [Cancel-safe](self#cancellation): once `BYE()` was sent the connection closes whether or not
+    /// the call is still waiting.
     pub async fn close(&self) -> Result<()> {
         self.ack(Command::Bye).await
     }

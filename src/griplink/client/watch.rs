@@ -114,6 +114,10 @@ impl Port {
 
     /// Starts `GRIP(p,index)` and waits for its outcome: holding, no part, or fault. The whole
     /// wait is bounded by the motion timeout (or the handle's timeout).
+    ///
+    /// Not atomic: dropped after the command was sent, the motion still runs and only the wait is
+    /// abandoned (with [`WaitBy::Transition`] a `WSTR` in flight still holds the connection until
+    /// the next state change). Each step is [cancel-safe](super#cancellation).
     pub async fn grip_and_wait(&self, index: u32, by: WaitBy) -> Result<GripOutcome> {
         self.grip(index, Blocking::Immediate).await?;
         self.wait_until("waiting for the grip", by, grip_outcome)
@@ -121,6 +125,10 @@ impl Port {
     }
 
     /// Starts `RELEASE(p,index)` and waits for its outcome: released or fault.
+    ///
+    /// Not atomic: dropped after the command was sent, the motion still runs and only the wait is
+    /// abandoned (with [`WaitBy::Transition`] a `WSTR` in flight still holds the connection until
+    /// the next state change). Each step is [cancel-safe](super#cancellation).
     pub async fn release_and_wait(&self, index: u32, by: WaitBy) -> Result<ReleaseOutcome> {
         self.release(index, Blocking::Immediate).await?;
         self.wait_until("waiting for the release", by, release_outcome)
