@@ -624,7 +624,8 @@ async fn callers_beyond_the_pipeline_wait_in_the_bounded_queue_and_never_reach_t
     let before = rig.commands().stats().frames;
     rig.replies().stall();
     let held = spawn({
-        let client = client.clone();
+        // Held for as long as the test takes: a timeout that a slow machine cannot reach.
+        let client = client.with_timeout(LIMIT);
         async move { client.port(0).product_id().await }
     });
     rig.commands_seen(before + 1).await;
