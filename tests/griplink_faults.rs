@@ -16,7 +16,7 @@
 use std::future::Future;
 use std::time::Duration;
 
-use gripper::fault::{At, Fault, FaultProxy, Faults, Framing, ProxyConfig};
+use gripper::fault::{At, Fault, FaultProxy, Faults, Framing, ProxyConfig, Rule};
 use gripper::griplink::sim::{SimConfig, SimDevice, SimServer};
 use gripper::griplink::{Blocking, Client, ClientConfig, DeviceState, Error, Status};
 
@@ -109,6 +109,15 @@ async fn healthy(client: &Client) {
         within("pid", client.port(2).product_id()).await.unwrap(),
         50
     );
+}
+
+/// Flips bits `xor` of byte `at` of the next line.
+fn corrupt(at: usize, xor: u8) -> Rule {
+    Fault::Corrupt {
+        at: At::Start(at),
+        xor,
+    }
+    .once()
 }
 
 fn spawn<T: Send + 'static>(
@@ -233,13 +242,7 @@ async fn corrupted_digit_in_a_value_is_undetectable() {
     let client = rig.client().await;
     // `DEVPID[0]=20`: the `2` becomes a `3`. Nothing in GRIPLINK can tell: the client reports
     // what the wire said. (This test documents the limit; it is not a wish.)
-    rig.replies().add(
-        Fault::Corrupt {
-            at: At::Start(10),
-            xor: b'2' ^ b'3',
-        }
-        .once(),
-    );
+    rig.replies().add(corrupt(10, b'2' ^ b'3'));
     assert_eq!(
         within("pid", client.port(0).product_id()).await.unwrap(),
         30
@@ -252,46 +255,22 @@ async fn corrupted_key_is_an_error_never_an_answer() {
     let rig = Rig::new().await;
     let client = rig.client().await;
     // `DEVPID[0]=20` → `EEVPID[0]=20`: not the key asked for.
-    rig.replies().add(
-        Fault::Corrupt {
-            at: At::Start(0),
-            xor: 0x01,
-        }
-        .once(),
-    );
+    rig.replies().add(corrupt(0, 0x01));
     let r = within("pid", client.port(0).product_id()).await;
     assert!(matches!(r, Err(Error::UnexpectedReply { .. })), "{r:?}");
     healthy(&client).await;
     // `DEVPID[0]=20` → `DEVPID[1]=20`: another port.
-    rig.replies().add(
-        Fault::Corrupt {
-            at: At::Start(7),
-            xor: b'0' ^ b'1',
-        }
-        .once(),
-    );
+    rig.replies().add(corrupt(7, b'0' ^ b'1'));
     let r = within("pid", client.port(0).product_id()).await;
     assert!(matches!(r, Err(Error::UnexpectedReply { .. })), "{r:?}");
     healthy(&client).await;
     // `ACK` → `BCK`: not GRIPLINK at all.
-    rig.replies().add(
-        Fault::Corrupt {
-            at: At::Start(0),
-            xor: 0x03,
-        }
-        .once(),
-    );
+    rig.replies().add(corrupt(0, 0x03));
     let r = within("led", client.port(0).led(1)).await;
     assert!(matches!(r, Err(Error::MalformedReply { .. })), "{r:?}");
     healthy(&client).await;
     // A byte above 0x7F: the codec discards the line, which still answers its command.
-    rig.replies().add(
-        Fault::Corrupt {
-            at: At::Start(1),
-            xor: 0x80,
-        }
-        .once(),
-    );
+    rig.replies().add(corrupt(1, 0x80));
     let r = within("id", client.id()).await;
     assert!(matches!(r, Err(Error::MalformedReply { .. })), "{r:?}");
     healthy(&client).await;
@@ -303,13 +282,7 @@ async fn byte_corrupted_into_lf_splits_a_reply_in_two_and_the_client_resynchroni
     let client = rig.client().await;
     // `DEVPID[0]=20` → `DEVPID[0]` LF `20`: one line too many. The first half is refused; the
     // second must not be taken for the next command's reply.
-    rig.replies().add(
-        Fault::Corrupt {
-            at: At::Start(9),
-            xor: b'=' ^ b'\n',
-        }
-        .once(),
-    );
+    rig.replies().add(corrupt(9, b'=' ^ b'\n'));
     let r = within("pid", client.port(0).product_id()).await;
     assert!(matches!(r, Err(Error::MalformedReply { .. })), "{r:?}");
     assert_eq!(
@@ -372,23 +345,11 @@ async fn corrupted_command_is_refused_by_the_controller() {
     let rig = Rig::new().await;
     let client = rig.client().await;
     // `DEVPID[0]?` → `DEVPID[0]!`: a syntax error on the controller's side.
-    rig.commands().add(
-        Fault::Corrupt {
-            at: At::Start(9),
-            xor: b'?' ^ b'!',
-        }
-        .once(),
-    );
+    rig.commands().add(corrupt(9, b'?' ^ b'!'));
     let r = within("pid", client.port(0).product_id()).await;
     assert_eq!(r.unwrap_err().status(), Some(Status::CmdSyntax));
     // A digit of an argument, though, is undetectable: `LED(0,1)` → `LED(0,3)` runs as LED 3.
-    rig.commands().add(
-        Fault::Corrupt {
-            at: At::Start(6),
-            xor: b'1' ^ b'3',
-        }
-        .once(),
-    );
+    rig.commands().add(corrupt(6, b'1' ^ b'3'));
     within("led", client.port(0).led(1)).await.unwrap();
     healthy(&client).await;
 }

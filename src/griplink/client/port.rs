@@ -152,11 +152,9 @@ impl Port {
     /// [`Blocking::Immediate`] it returns when the motion starts; see
     /// [`Port::grip_and_wait`] for the outcome.
     ///
-    /// [Cancel-safe](super#cancellation) for the connection, but a motion once sent runs even if
-    /// the call is dropped (a cancelled GRIP still grips: stop it with
-    /// [`Port::disable`](crate::griplink::Port::disable)). With
-    /// [`Blocking::UntilDone`](crate::griplink::Blocking::UntilDone) the controller also holds this
-    /// connection until the motion ends: later calls on it wait, dropped or not.
+    /// [Cancel-safe](super#cancellation), but once sent the motion runs even if the call is
+    /// dropped (a cancelled GRIP still grips), and with `Blocking::UntilDone` it holds this
+    /// connection until it ends.
     pub async fn grip(&self, index: u32, blocking: Blocking) -> Result<()> {
         self.client
             .ack(Command::Grip {
@@ -169,11 +167,9 @@ impl Port {
 
     /// `RELEASE(p,index[,1])` with grip recipe `index` (manual 3.4.5).
     ///
-    /// [Cancel-safe](super#cancellation) for the connection, but a motion once sent runs even if
-    /// the call is dropped (a cancelled GRIP still grips: stop it with
-    /// [`Port::disable`](crate::griplink::Port::disable)). With
-    /// [`Blocking::UntilDone`](crate::griplink::Blocking::UntilDone) the controller also holds this
-    /// connection until the motion ends: later calls on it wait, dropped or not.
+    /// [Cancel-safe](super#cancellation), but once sent the motion runs even if the call is
+    /// dropped (a cancelled GRIP still grips), and with `Blocking::UntilDone` it holds this
+    /// connection until it ends.
     pub async fn release(&self, index: u32, blocking: Blocking) -> Result<()> {
         self.client
             .ack(Command::Release {
@@ -186,11 +182,9 @@ impl Port {
 
     /// `FLEXGRIPF(…)`: grip with explicit parameters in mm, N, mm/s, mm/s² (manual 3.4.6).
     ///
-    /// [Cancel-safe](super#cancellation) for the connection, but a motion once sent runs even if
-    /// the call is dropped (a cancelled GRIP still grips: stop it with
-    /// [`Port::disable`](crate::griplink::Port::disable)). With
-    /// [`Blocking::UntilDone`](crate::griplink::Blocking::UntilDone) the controller also holds this
-    /// connection until the motion ends: later calls on it wait, dropped or not.
+    /// [Cancel-safe](super#cancellation), but once sent the motion runs even if the call is
+    /// dropped (a cancelled GRIP still grips), and with `Blocking::UntilDone` it holds this
+    /// connection until it ends.
     pub async fn flex_grip(&self, params: FlexGrip, blocking: Blocking) -> Result<()> {
         self.client
             .ack(Command::FlexGripF(self.port, params, blocking))
@@ -199,11 +193,9 @@ impl Port {
 
     /// `FLEXGRIP(…)`: grip with explicit parameters in µm, mN, µm/s, µm/s² (manual 3.4.6).
     ///
-    /// [Cancel-safe](super#cancellation) for the connection, but a motion once sent runs even if
-    /// the call is dropped (a cancelled GRIP still grips: stop it with
-    /// [`Port::disable`](crate::griplink::Port::disable)). With
-    /// [`Blocking::UntilDone`](crate::griplink::Blocking::UntilDone) the controller also holds this
-    /// connection until the motion ends: later calls on it wait, dropped or not.
+    /// [Cancel-safe](super#cancellation), but once sent the motion runs even if the call is
+    /// dropped (a cancelled GRIP still grips), and with `Blocking::UntilDone` it holds this
+    /// connection until it ends.
     pub async fn flex_grip_scaled(&self, params: FlexGripScaled, blocking: Blocking) -> Result<()> {
         self.client
             .ack(Command::FlexGrip(self.port, params, blocking))
@@ -212,11 +204,9 @@ impl Port {
 
     /// `FLEXRELEASEF(…)`: release or pre-position, in mm, mm/s, mm/s² (manual 3.4.7).
     ///
-    /// [Cancel-safe](super#cancellation) for the connection, but a motion once sent runs even if
-    /// the call is dropped (a cancelled GRIP still grips: stop it with
-    /// [`Port::disable`](crate::griplink::Port::disable)). With
-    /// [`Blocking::UntilDone`](crate::griplink::Blocking::UntilDone) the controller also holds this
-    /// connection until the motion ends: later calls on it wait, dropped or not.
+    /// [Cancel-safe](super#cancellation), but once sent the motion runs even if the call is
+    /// dropped (a cancelled GRIP still grips), and with `Blocking::UntilDone` it holds this
+    /// connection until it ends.
     pub async fn flex_release(&self, params: FlexRelease, blocking: Blocking) -> Result<()> {
         self.client
             .ack(Command::FlexReleaseF(self.port, params, blocking))
@@ -225,11 +215,9 @@ impl Port {
 
     /// `FLEXRELEASE(…)`: release or pre-position, in µm, µm/s, µm/s² (manual 3.4.7).
     ///
-    /// [Cancel-safe](super#cancellation) for the connection, but a motion once sent runs even if
-    /// the call is dropped (a cancelled GRIP still grips: stop it with
-    /// [`Port::disable`](crate::griplink::Port::disable)). With
-    /// [`Blocking::UntilDone`](crate::griplink::Blocking::UntilDone) the controller also holds this
-    /// connection until the motion ends: later calls on it wait, dropped or not.
+    /// [Cancel-safe](super#cancellation), but once sent the motion runs even if the call is
+    /// dropped (a cancelled GRIP still grips), and with `Blocking::UntilDone` it holds this
+    /// connection until it ends.
     pub async fn flex_release_scaled(
         &self,
         params: FlexReleaseScaled,
