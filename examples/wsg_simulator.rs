@@ -1,1 +1,130 @@
-fn main() {}
+//! Serves the simulated WSG gripper so any program can connect to it.
+//!
+//! ```text
+//! cargo run --example wsg_simulator -- --listen 127.0.0.1:1000 [--udp] [--part MM | --no-part]
+//!                                      [--time-scale S] [--model wsg50|wsg32|wsg25|wsg70]
+//! cargo run --example wsg_simulator -- --pty          # serial: prints the pseudo-terminal path
+//!     (open it non-exclusively: `wsg_pick --serial PATH --shared`)
+//! ```
+//! The first line of standard output is `listening on <address or path>`; then it runs until
+//! killed.
+
+use std::io::Write;
+use std::process::ExitCode;
+
+use gripper::wsg::sim::{Model, SimConfig, SimServer};
+
+struct Args {
+    listen: String,
+    udp: bool,
+    pty: bool,
+    config: SimConfig,
+}
+
+fn parse() -> Result<Args, String> {
+    let mut args = Args {
+        listen: "127.0.0.1:1000".into(),
+        udp: false,
+        pty: false,
+        config: SimConfig::new(Model::Wsg50).with_part(40.0, 2.0),
+    };
+    let mut it = std::env::args().skip(1);
+    while let Some(a) = it.next() {
+        let mut value = |name: &str| it.next().ok_or_else(|| format!("{name} needs a value"));
+        match a.as_str() {
+            "--listen" => args.listen = value("--listen")?,
+            "--udp" => args.udp = true,
+            "--pty" => args.pty = true,
+            "--no-part" => args.config.part = None,
+            "--part" => {
+                let w: f32 = value("--part")?
+                    .parse()
+                    .map_err(|e| format!("--part: {e}"))?;
+                args.config = args.config.with_part(w, 2.0);
+            }
+            "--time-scale" => {
+                let s: f64 = value("--time-scale")?
+                    .parse()
+                    .map_err(|e| format!("--time-scale: {e}"))?;
+                args.config.time_scale = s;
+            }
+            "--model" => {
+                let model = match value("--model")?.to_ascii_lowercase().as_str() {
+                    "wsg50" => Model::Wsg50,
+                    "wsg32" => Model::Wsg32,
+                    "wsg25" => Model::Wsg25,
+                    "wsg70" => Model::Wsg70,
+                    other => return Err(format!("unknown model {other}")),
+                };
+                let part = args.config.part;
+                args.config = SimConfig {
+                    part,
+                    time_scale: args.config.time_scale,
+                    ..SimConfig::new(model)
+                };
+            }
+            "-h" | "--help" => {
+                return Err(
+                    "usage: wsg_simulator [--listen ADDR] [--udp | --pty] [--part MM | --no-part] \
+                            [--time-scale S] [--model wsg50|wsg32|wsg25|wsg70]"
+                        .into(),
+                )
+            }
+            other => return Err(format!("unknown argument {other} (try --help)")),
+        }
+    }
+    Ok(args)
+}
+
+#[tokio::main]
+async fn main() -> ExitCode {
+    let args = match parse() {
+        Ok(a) => a,
+        Err(e) => {
+            eprintln!("wsg_simulator: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    let server = if args.pty {
+        serve_pty(args.config)
+    } else if args.udp {
+        SimServer::udp(args.config, args.listen.as_str()).await
+    } else {
+        SimServer::tcp(args.config, args.listen.as_str()).await
+    };
+    let server = match server {
+        Ok(s) => s,
+        Err(e) => {
+            eprintln!("wsg_simulator: cannot serve on {}: {e}", args.listen);
+            return ExitCode::FAILURE;
+        }
+    };
+    let place = match (server.local_addr(), server.serial_path()) {
+        (Some(addr), _) => addr.to_string(),
+        (None, Some(path)) => path.to_owned(),
+        (None, None) => "nowhere".into(),
+    };
+    let mut out = std::io::stdout().lock();
+    if writeln!(out, "listening on {place}")
+        .and_then(|()| out.flush())
+        .is_err()
+    {
+        return ExitCode::FAILURE;
+    }
+    drop(out);
+    std::future::pending::<()>().await;
+    drop(server);
+    ExitCode::SUCCESS
+}
+
+#[cfg(all(unix, feature = "serial"))]
+fn serve_pty(config: SimConfig) -> std::io::Result<SimServer> {
+    SimServer::serial_pty(config)
+}
+
+#[cfg(not(all(unix, feature = "serial")))]
+fn serve_pty(_: SimConfig) -> std::io::Result<SimServer> {
+    Err(std::io::Error::other(
+        "pseudo-terminals need unix and the `serial` feature",
+    ))
+}

@@ -17,5 +17,7 @@
 #[cfg(feature = "sim")]
 pub mod fault;
 pub mod griplink;
+/// Reconnecting after a lost connection: backoff policy and connection events, for every client.
+pub mod reconnect;
 pub mod smartgrasp;
 pub mod wsg;

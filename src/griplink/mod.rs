@@ -83,7 +83,8 @@ pub mod status;
 pub mod value;
 
 pub use client::{Client, ClientConfig, Port, DEFAULT_PORT};
-pub use command::{Blocking, Command, PortNumber};
+pub use client::{GripOutcome, ReleaseOutcome, WaitBy, Watch};
+pub use command::{Blocking, Command, FlexGrip, FlexRelease, GripConfig, GripConfigF, PortNumber};
 pub use error::{Error, Result};
 pub use reply::Answer;
 pub use state::DeviceState;

@@ -56,6 +56,25 @@ pub fn peek_frame(bytes: &[u8]) -> Result<Peeked, Prefix> {
     }
 }
 
+/// How long the frame at the front of `bytes` is, in any protocol version: the 6-byte prefix plus
+/// its `length` field (manual 1.3). `None` until the prefix is complete. Unlike [`peek_frame`] it
+/// does not judge the length: it cuts a stream into frames (`proxy_frame_len`, feature `sim`,
+/// does it for the fault proxy).
+pub fn frame_len(bytes: &[u8]) -> Option<usize> {
+    let prefix = Prefix::decode(bytes.first_chunk::<PREFIX_LEN>()?);
+    // Saturating: on a 32-bit target a hostile u32 length must not wrap to a small frame.
+    Some(PREFIX_LEN.saturating_add(usize::try_from(prefix.length).unwrap_or(usize::MAX)))
+}
+
+/// [`frame_len`] in the fault proxy's terms, so that its faults hit whole SmartGrasp frames:
+/// `ProxyConfig::new().framing(Framing::Custom(codec::proxy_frame_len))` (see
+/// [`crate::fault`]). A length over the proxy's `max_frame_len` is forwarded unframed.
+#[cfg(feature = "sim")]
+pub fn proxy_frame_len(bytes: &[u8]) -> crate::fault::FrameLen {
+    use crate::fault::FrameLen;
+    frame_len(bytes).map_or(FrameLen::NeedMore, FrameLen::Complete)
+}
+
 /// What [`take`] cut off the front of a buffer.
 enum Taken {
     Frame([u8; FRAME_LEN]),
@@ -99,9 +118,29 @@ impl Decoder for ClientCodec {
         match take(src)? {
             None => Ok(None),
             Some(Taken::Frame(bytes)) => Ok(Some(ResponseFrame::decode(&bytes))),
-            Some(Taken::Empty { version }) => Err(Error::ServerTooOld {
-                server_version: version,
-                client_version: PROTOCOL_VERSION,
+            // Only a server older than this client answers with an empty message (manual 1.3);
+            // one that claims v3 or newer is a damaged frame, not a version answer.
+            Some(Taken::Empty { version }) if version < PROTOCOL_VERSION => {
+                Err(Error::ServerTooOld {
+                    server_version: version,
+                    client_version: PROTOCOL_VERSION,
+                })
+            }
+            Some(Taken::Empty { .. }) => Err(Malformed::FrameLength { length: 0 }.into()),
+        }
+    }
+
+    fn decode_eof(&mut self, src: &mut BytesMut) -> Result<Option<ResponseFrame>, Error> {
+        match self.decode(src)? {
+            Some(frame) => Ok(Some(frame)),
+            None if src.is_empty() => Ok(None),
+            // Say what happened rather than the default "bytes remaining on stream".
+            None => Err(Error::ConnectionClosed {
+                reason: format!(
+                    "the server closed the connection in the middle of a frame ({} bytes of it)",
+                    src.len()
+                )
+                .into(),
             }),
         }
     }
@@ -197,6 +236,54 @@ mod tests {
                 client_version: 3
             }
         ));
+    }
+
+    #[test]
+    fn frame_len_is_prefix_plus_length_field() {
+        let frame = response(7).encode();
+        assert_eq!(frame_len(&frame[..5]), None);
+        assert_eq!(frame_len(&frame[..6]), Some(FRAME_LEN));
+        assert_eq!(frame_len(&frame), Some(FRAME_LEN));
+        let empty = Prefix {
+            version: 2,
+            length: 0,
+        }
+        .encode();
+        assert_eq!(frame_len(&empty), Some(PREFIX_LEN));
+        let hostile = Prefix {
+            version: 3,
+            length: u32::MAX,
+        }
+        .encode();
+        assert_eq!(frame_len(&hostile), Some(PREFIX_LEN + u32::MAX as usize));
+    }
+
+    #[test]
+    fn an_empty_message_from_a_server_as_new_as_this_client_is_malformed() {
+        let mut buf = BytesMut::from(
+            &Prefix {
+                version: 3,
+                length: 0,
+            }
+            .encode()[..],
+        );
+        assert!(matches!(
+            ClientCodec.decode(&mut buf),
+            Err(Error::Malformed(Malformed::FrameLength { length: 0 }))
+        ));
+    }
+
+    #[test]
+    fn end_of_stream_inside_a_frame_is_a_closed_connection() {
+        let bytes = response(1).encode();
+        let mut buf = BytesMut::from(&bytes[..30]);
+        assert!(matches!(
+            ClientCodec.decode_eof(&mut buf),
+            Err(Error::ConnectionClosed { reason }) if reason.contains("30 bytes")
+        ));
+        let mut buf = BytesMut::from(&bytes[..]);
+        assert_eq!(ClientCodec.decode_eof(&mut buf).unwrap(), Some(response(1)));
+        assert_eq!(ClientCodec.decode_eof(&mut buf).unwrap(), None);
     }
 
     #[test]

@@ -114,6 +114,17 @@ pub enum Malformed {
         /// The response's message type.
         received: MessageType,
     },
+    /// A SUCCESS response does not repeat a field of the request it was paired with, as the
+    /// manual says it does (GET_GRASP: tool, pose format and a non-zero object class, 3.3.3.1;
+    /// GET_OBJECT_COUNT: object class, 3.3.4.1). It answers another request (or was corrupted):
+    /// the connection is closed rather than hand it to this caller.
+    #[error("the response to {request} does not repeat the request's {field}")]
+    Echo {
+        /// The request's message type.
+        request: MessageType,
+        /// The field that differs.
+        field: &'static str,
+    },
     /// A response arrived while no request was waiting.
     #[error("unsolicited response (counter {counter})")]
     Unsolicited {

@@ -11,6 +11,42 @@
 //!   every response (type, message type, response counter, response code);
 //! - `sim` (feature `sim`): a simulated server.
 //!
+//! # Faults, cancellation and reconnecting
+//!
+//! Every call has a timeout and fails with a typed [`Error`]; the fault matrix
+//! (`tests/smartgrasp_faults.rs`, through `gripper::fault::FaultProxy` framed with
+//! [`codec::frame_len`]) pins down what each wire fault becomes. Dropping a call's future is safe
+//! at any point (see [`Client`]: a request that was sent may still be acted on by the server).
+//! With [`ClientConfig::reconnect`] the client reconnects after a lost connection and restores
+//! registration and project; [`Client::connection_events`] reports it.
+//!
+//! What V3 cannot detect, and so neither can this client: frames carry no checksum and
+//! responses no request id. A corrupted byte that still reads as a valid value (a count, a pose
+//! coordinate, a server state, a response code: SUCCESS turned NO_OBJECT looks like an empty bin)
+//! reaches the caller. The client checks everything the protocol offers — prefix length and
+//! version, communication and message type, the response counter, and the fields a response
+//! repeats from its request — and closes the connection when they disagree. Over TCP such
+//! corruption needs faulty equipment; a cell that must rule it out checks plausibility itself.
+//! Without a request id, the reply to a request right behind one whose caller gave up could be
+//! either's; the client sends a side-effect-free query of another type between them (only then),
+//! so that a request lost on the wire (not something TCP does) or a late reply never shifts the
+//! pairing.
+//!
+//! # Memory bounds
+//!
+//! Per client, whatever the server or the callers do:
+//! - frames: the decoder holds at most one frame (80 bytes) beyond tokio-util's 8 KiB read
+//!   buffer; it refuses any prefix length but 74 (and 0) before buffering a byte of it, so a
+//!   hostile 4 GB length allocates nothing;
+//! - requests in flight: at most 16 sent and unanswered (one 80-byte request and a reply slot
+//!   each), plus the one marker query above; a server that stops answering gets no more;
+//! - request channel: at most 32 calls queued towards the connection task; further callers wait
+//!   for room, each within its own timeout, and a call given up while queued is never sent;
+//! - connection events: each [`Client::connection_events`] stream buffers at most 32 events; a
+//!   reader further behind loses the oldest and gets a
+//!   [`ConnectionEvent::Missed`](crate::reconnect::ConnectionEvent::Missed) in their place;
+//! - session: the last REGISTER_CLIENT and SET_PROJECT request, one of each.
+//!
 //! ```
 //! # #[cfg(not(feature = "sim"))]
 //! # fn main() {}

@@ -1,28 +1,36 @@
 //! The async client: a cheap, cloneable handle to a background task that owns the TCP connection.
 
+mod link;
 mod pairing;
+mod session;
 mod task;
 
+use std::net::SocketAddr;
 use std::sync::{Arc, OnceLock};
 use std::time::Duration;
 
-use tokio::net::{TcpStream, ToSocketAddrs};
+use tokio::net::ToSocketAddrs;
 use tokio::sync::{mpsc, oneshot};
 
-use super::error::{Error, Malformed, Result};
-use super::frame::PROTOCOL_VERSION;
+use super::error::{Error, Result};
+use super::frame::ResponseFrame;
 use super::message::{Grasp, GraspRequest, ObjectCount, Request, Response, ResponseBody};
 use super::pose::Pose;
 use super::types::{
     GraspFeedback, MessageType, PoseFormat, ResponseCode, RobotSystem, ServerState,
 };
-use task::Call;
+use crate::reconnect::{ConnectionEvents, EventSender, EventSubscriber, ReconnectPolicy};
+use link::{Call, Link};
+use session::{success, unexpected_body, Session};
 
 /// The server's TCP port (manual 1.1).
 pub const DEFAULT_PORT: u16 = 42001;
 
 /// Calls queued towards the task, at most; more callers wait (within their timeouts).
 const CALL_QUEUE: usize = 32;
+
+/// Connection events each [`Client::connection_events`] stream buffers, at most.
+const EVENT_BUFFER: usize = 32;
 
 /// How to connect and what the opening sequence of [`Client::connect`] does.
 #[derive(Debug, Clone)]
@@ -40,6 +48,24 @@ pub struct ClientConfig {
     pub robot_system: Option<RobotSystem>,
     /// Project to activate in the opening sequence (`None`: keep the server's active project).
     pub project_index: Option<u32>,
+    /// Reconnect after a lost connection (`None`, the default: a lost connection stays closed
+    /// and every later call fails with [`Error::ConnectionClosed`]).
+    ///
+    /// With a policy, when the connection breaks (the server closed it, I/O failed, or a reply
+    /// broke the protocol):
+    /// - the calls in flight fail ([`Error::ConnectionClosed`], or the error that broke it); they
+    ///   are **never sent again** by the client: a GET_GRASP or GRASP_FEEDBACK may have been
+    ///   acted on by the server, and only the program can tell whether to repeat it;
+    /// - the client reconnects with the policy's backoff and runs the opening sequence again:
+    ///   GET_PROTOCOL_VERSION, GET_STATE, and the last REGISTER_CLIENT and SET_PROJECT the server
+    ///   accepted (from this configuration or from the program's own calls);
+    /// - calls that were still queued (not yet sent) and calls made meanwhile **wait** in the
+    ///   queue, within their own timeouts, and go out once the session is restored; a call that
+    ///   times out while waiting was never sent;
+    /// - each step is reported through [`Client::connection_events`] and `tracing`.
+    ///
+    /// When the policy gives up, the client is closed like one without a policy.
+    pub reconnect: Option<ReconnectPolicy>,
 }
 
 impl Default for ClientConfig {
@@ -50,7 +76,52 @@ impl Default for ClientConfig {
             detection_timeout: Duration::from_secs(30),
             robot_system: None,
             project_index: None,
+            reconnect: None,
         }
+    }
+}
+
+impl ClientConfig {
+    fn timeouts(&self) -> Timeouts {
+        Timeouts {
+            query: self.query_timeout,
+            detection: self.detection_timeout,
+        }
+    }
+}
+
+/// The two call timeouts, and the one place a call is bounded by its timeout.
+#[derive(Debug, Clone, Copy)]
+struct Timeouts {
+    query: Duration,
+    detection: Duration,
+}
+
+impl Timeouts {
+    fn for_type(self, message_type: MessageType) -> Duration {
+        match message_type {
+            MessageType::GetGrasp | MessageType::GetObjectCount | MessageType::SetProject => {
+                self.detection
+            }
+            _ => self.query,
+        }
+    }
+
+    /// Runs `exchange` (send `message_type`'s request, get its checked response frame) within
+    /// its timeout, and reads the typed response.
+    async fn run(
+        self,
+        message_type: MessageType,
+        exchange: impl std::future::Future<Output = Result<ResponseFrame>>,
+    ) -> Result<Response> {
+        let timeout = self.for_type(message_type);
+        let frame = tokio::time::timeout(timeout, exchange)
+            .await
+            .map_err(|_| Error::Timeout {
+                message_type,
+                timeout,
+            })??;
+        Ok(Response::from_frame(&frame)?)
     }
 }
 
@@ -77,12 +148,26 @@ pub enum GetGraspOutcome {
 /// Every call has a timeout ([`ClientConfig`], or [`Client::with_timeout`] per call). A call that
 /// times out or is dropped keeps its place in the pairing: its late reply is discarded, never
 /// handed to the next caller.
+///
+/// # Cancellation
+///
+/// Every call is cancel-safe in the sense that dropping its future (a `select!`, a timeout, an
+/// aborted task) never disturbs the connection or another call. What a dropped call did on the
+/// server depends on how far it got, which its caller cannot know:
+/// - dropped while queued (before the task sent it): nothing was sent, and nothing will be;
+/// - dropped after its request went out: the server receives it and **acts on it** (REGISTER_CLIENT
+///   registers, SET_PROJECT switches the project, GRASP_FEEDBACK OK removes the object from the
+///   scene, GET_GRASP makes its grasp the one the next feedback refers to); its reply is
+///   discarded.
+///
+/// A timed-out call ([`Error::Timeout`]) means the same: it may or may not have been acted on.
+/// Query the server (GET_OBJECT_COUNT) rather than repeat a GRASP_FEEDBACK blindly.
 #[derive(Debug, Clone)]
 pub struct Client {
     calls: mpsc::Sender<Call>,
     closed: Arc<OnceLock<Error>>,
-    query_timeout: Duration,
-    detection_timeout: Duration,
+    events: EventSubscriber,
+    timeouts: Timeouts,
 }
 
 impl Client {
@@ -90,70 +175,118 @@ impl Client {
     /// server must speak v3 or newer), GET_STATE (must be OPERATIONAL), REGISTER_CLIENT and
     /// SET_PROJECT when configured. After it, the robot program is one call away from
     /// [`get_grasp`](Self::get_grasp).
+    ///
+    /// A failure here is returned, whatever [`ClientConfig::reconnect`] says: reconnecting is for
+    /// a session that was open. Cancel-safe: dropping the future closes the new connection.
     pub async fn connect(addr: impl ToSocketAddrs, config: ClientConfig) -> Result<Client> {
-        let client = Client::connect_without_opening(addr, config.clone()).await?;
-        let server_version = client.get_protocol_version().await?;
-        if server_version < PROTOCOL_VERSION {
-            return Err(Error::ServerTooOld {
-                server_version,
-                client_version: PROTOCOL_VERSION,
-            });
-        }
-        let state = client.get_state().await?;
-        if state != ServerState::Operational {
-            return Err(Error::NotOperational { state });
-        }
-        if let Some(robot) = config.robot_system {
-            client.register_client(robot).await?;
-        }
-        if let Some(project) = config.project_index {
-            client.set_project(project).await?;
-        }
+        let addrs = link::within_connect_timeout(config.connect_timeout, resolve(addr)).await?;
+        let mut link = Link::connect(&addrs, config.connect_timeout).await?;
+        let session = Session::from_config(&config);
+        let server_version = session.open(&mut link, &config).await?;
         tracing::info!(server_version, "smartgrasp session open");
-        Ok(client)
+        Ok(Client::spawn(link, addrs, session, config))
     }
 
-    /// Connects without sending anything (`config`'s opening-sequence fields are not used).
+    /// Connects without sending anything (`config`'s opening-sequence fields are not used; a
+    /// reconnect runs GET_PROTOCOL_VERSION and GET_STATE, then restores what the program set up
+    /// with its own calls). Cancel-safe like [`connect`](Self::connect).
     pub async fn connect_without_opening(
         addr: impl ToSocketAddrs,
         config: ClientConfig,
     ) -> Result<Client> {
-        let stream = tokio::time::timeout(config.connect_timeout, TcpStream::connect(addr))
-            .await
-            .map_err(|_| {
-                Error::from(std::io::Error::new(
-                    std::io::ErrorKind::TimedOut,
-                    "connecting to the Smart Grasping server timed out",
-                ))
-            })??;
-        // Requests are single 80-byte writes waiting for an answer: do not let Nagle hold them.
-        stream.set_nodelay(true)?;
+        let addrs = link::within_connect_timeout(config.connect_timeout, resolve(addr)).await?;
+        let link = Link::connect(&addrs, config.connect_timeout).await?;
+        Ok(Client::spawn(link, addrs, Session::default(), config))
+    }
+
+    fn spawn(link: Link, addrs: Vec<SocketAddr>, session: Session, config: ClientConfig) -> Client {
         let (calls, rx) = mpsc::channel(CALL_QUEUE);
         let closed = Arc::new(OnceLock::new());
-        tokio::spawn(task::run(stream, rx, Arc::clone(&closed)));
-        Ok(Client {
+        let events = EventSender::new("smartgrasp", EVENT_BUFFER);
+        let client = Client {
             calls,
+            closed: Arc::clone(&closed),
+            events: events.subscriber(),
+            timeouts: config.timeouts(),
+        };
+        let task = task::Task {
+            calls: rx,
             closed,
-            query_timeout: config.query_timeout,
-            detection_timeout: config.detection_timeout,
-        })
+            session,
+            config,
+            addrs,
+            events,
+        };
+        tokio::spawn(task::run(link, task));
+        client
     }
 
     /// A handle to the same connection whose calls all use `timeout`.
     pub fn with_timeout(&self, timeout: Duration) -> Client {
         Client {
-            query_timeout: timeout,
-            detection_timeout: timeout,
+            timeouts: Timeouts {
+                query: timeout,
+                detection: timeout,
+            },
             ..self.clone()
         }
     }
 
-    /// Whether the connection is closed (every call would fail).
+    /// Whether the connection is closed for good (every call would fail). While the client
+    /// reconnects it is not closed.
     pub fn is_closed(&self) -> bool {
         self.calls.is_closed()
     }
 
+    /// The connection's events from now on: each loss, reconnect attempt and recovery (see
+    /// [`ClientConfig::reconnect`]); without a reconnect policy, only the loss. The stream ends
+    /// when the connection is closed for good. It buffers at most 32 events: a reader that falls
+    /// further behind loses the oldest and gets a
+    /// [`ConnectionEvent::Missed`](crate::reconnect::ConnectionEvent::Missed) instead.
+    ///
+    /// ```
+    /// # #[cfg(not(feature = "sim"))]
+    /// # fn main() {}
+    /// # #[cfg(feature = "sim")]
+    /// # #[tokio::main(flavor = "current_thread")]
+    /// # async fn main() -> Result<(), Box<dyn std::error::Error>> {
+    /// use futures_util::StreamExt;
+    /// use gripper::fault::{FaultProxy, Framing, ProxyConfig};
+    /// use gripper::reconnect::{ConnectionEvent, ReconnectPolicy};
+    /// use gripper::smartgrasp::sim::{SimConfig, SimServer};
+    /// use gripper::smartgrasp::{codec, Client, ClientConfig, RobotSystem};
+    ///
+    /// let server = SimServer::bind("127.0.0.1:0", SimConfig::default()).await?;
+    /// // A proxy to pull the cable with.
+    /// let framing = Framing::Custom(codec::proxy_frame_len);
+    /// let proxy = FaultProxy::start_with(server.local_addr(), ProxyConfig::new().framing(framing)).await?;
+    /// let config = ClientConfig {
+    ///     robot_system: Some(RobotSystem::Ur),
+    ///     reconnect: Some(ReconnectPolicy::default()),
+    ///     ..ClientConfig::default()
+    /// };
+    /// let client = Client::connect(proxy.local_addr(), config).await?;
+    /// let mut events = client.connection_events();
+    ///
+    /// proxy.cut_connections();
+    /// while let Some(event) = events.next().await {
+    ///     println!("{event}");
+    ///     if let ConnectionEvent::Restored { .. } = event {
+    ///         break;
+    ///     }
+    /// }
+    /// // Registered again on the new connection.
+    /// assert_eq!(server.registered_clients(), [RobotSystem::Ur, RobotSystem::Ur]);
+    /// client.get_state().await?;
+    /// # Ok(())
+    /// # }
+    /// ```
+    pub fn connection_events(&self) -> ConnectionEvents {
+        self.events.subscribe()
+    }
+
     /// GET_PROTOCOL_VERSION: the server's highest protocol version (manual 3.3.2.1).
+    /// Cancel-safe; a cancelled call has no effect on the server.
     pub async fn get_protocol_version(&self) -> Result<u16> {
         match self.expect_success(Request::GetProtocolVersion).await? {
             ResponseBody::ProtocolVersion(v) => Ok(v),
@@ -162,6 +295,7 @@ impl Client {
     }
 
     /// GET_STATE: the server's state (manual 3.3.2.2).
+    /// Cancel-safe; a cancelled call has no effect on the server.
     pub async fn get_state(&self) -> Result<ServerState> {
         match self.expect_success(Request::GetState).await? {
             ResponseBody::State(s) => Ok(s),
@@ -169,13 +303,17 @@ impl Client {
         }
     }
 
-    /// REGISTER_CLIENT: tells the server which robot system this is (manual 3.3.2.3).
+    /// REGISTER_CLIENT: tells the server which robot system this is (manual 3.3.2.3). A reconnect
+    /// registers again with the last system the server accepted.
+    /// Cancel-safe (see [`Client`]); a cancelled call may still have registered.
     pub async fn register_client(&self, robot: RobotSystem) -> Result<()> {
         self.expect_success(Request::RegisterClient(robot)).await?;
         Ok(())
     }
 
-    /// SET_PROJECT: activates the project with `project_index` (manual 3.3.2.4).
+    /// SET_PROJECT: activates the project with `project_index` (manual 3.3.2.4). A reconnect
+    /// activates the last project the server accepted again.
+    /// Cancel-safe (see [`Client`]); a cancelled call may still have switched the project.
     pub async fn set_project(&self, project_index: u32) -> Result<()> {
         self.expect_success(Request::SetProject { project_index })
             .await?;
@@ -184,6 +322,8 @@ impl Client {
 
     /// GET_GRASP: a grasp for the current scene (manual 3.3.3.1). The pose comes back in
     /// `request.pose_format`.
+    /// Cancel-safe (see [`Client`]); a cancelled call may still have made the server pick a grasp,
+    /// which the next GRASP_FEEDBACK then refers to.
     pub async fn get_grasp(&self, request: GraspRequest) -> Result<GetGraspOutcome> {
         if let PoseFormat::Unknown(_) = request.pose_format {
             return Err(Error::InvalidArgument(
@@ -207,6 +347,9 @@ impl Client {
     }
 
     /// GRASP_FEEDBACK: reports the result of the last grasp (manual 3.3.3.2).
+    /// Cancel-safe (see [`Client`]), but a cancelled or timed-out OK may still have removed the
+    /// object from the scene: check with [`get_object_count`](Self::get_object_count) before
+    /// sending it again.
     pub async fn grasp_feedback(&self, feedback: GraspFeedback) -> Result<()> {
         self.expect_success(Request::GraspFeedback(feedback))
             .await?;
@@ -215,6 +358,7 @@ impl Client {
 
     /// GET_OBJECT_COUNT: counts the objects of the scene, and those of `object_class` (0 = all)
     /// (manual 3.3.4.1). INVALID_OBJECT_CLASS is [`Error::Refused`].
+    /// Cancel-safe; a cancelled call has no effect on the server.
     pub async fn get_object_count(&self, object_class: u16) -> Result<ObjectCount> {
         match self
             .expect_success(Request::GetObjectCount { object_class })
@@ -227,21 +371,17 @@ impl Client {
 
     /// ROBOT_POSE: tells the server the end effector's pose in the robot base frame, in any of
     /// the four formats (manual 3.3.5.1).
+    /// Cancel-safe (see [`Client`]); a cancelled call may still have been recorded.
     pub async fn robot_pose(&self, pose: Pose) -> Result<()> {
         self.expect_success(Request::RobotPose(pose)).await?;
         Ok(())
     }
 
     /// Sends any request and returns the checked, typed response whatever its response code.
-    /// Header, message type and counter are checked; the response code is left to the caller.
+    /// Header, message type, counter and the fields a response repeats from its request are
+    /// checked; the response code is left to the caller.
+    /// Cancel-safe (see [`Client`]): a cancelled request may have been acted on.
     pub async fn call(&self, request: Request) -> Result<Response> {
-        let message_type = request.message_type();
-        let timeout = match message_type {
-            MessageType::GetGrasp | MessageType::GetObjectCount | MessageType::SetProject => {
-                self.detection_timeout
-            }
-            _ => self.query_timeout,
-        };
         let (reply, answer) = oneshot::channel();
         let exchange = async {
             let call = Call {
@@ -251,35 +391,28 @@ impl Client {
             self.calls.send(call).await.map_err(|_| self.closed())?;
             answer.await.map_err(|_| self.closed())?
         };
-        let frame = tokio::time::timeout(timeout, exchange)
-            .await
-            .map_err(|_| Error::Timeout {
-                message_type,
-                timeout,
-            })??;
-        Ok(Response::from_frame(&frame)?)
+        self.timeouts.run(request.message_type(), exchange).await
     }
 
     async fn expect_success(&self, request: Request) -> Result<ResponseBody> {
-        let response = self.call(request).await?;
-        if response.code != ResponseCode::Success {
-            return Err(Error::Refused {
-                message_type: response.message_type,
-                code: response.code,
-            });
-        }
-        Ok(response.body)
+        success(self.call(request).await?)
     }
 
     /// The error of a call on a connection that is gone.
     fn closed(&self) -> Error {
-        task::closed_error(self.closed.get())
+        link::closed_error(self.closed.get())
     }
 }
 
-/// A SUCCESS response whose body does not fit its message type cannot happen after the pairing
-/// checks (the body is read by message type); reported as malformed rather than trusted.
-fn unexpected_body(body: ResponseBody) -> Error {
-    tracing::error!(?body, "response body does not match its message type");
-    Error::Malformed(Malformed::MissingBody)
+/// Resolves `addr` once; a reconnect goes to the same addresses.
+async fn resolve(addr: impl ToSocketAddrs) -> Result<Vec<SocketAddr>> {
+    let addrs: Vec<SocketAddr> = tokio::net::lookup_host(addr).await?.collect();
+    if addrs.is_empty() {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            "the address resolved to nothing",
+        )
+        .into());
+    }
+    Ok(addrs)
 }

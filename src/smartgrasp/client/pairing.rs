@@ -10,10 +10,14 @@
 //!   responses before this one were lost; with in-order delivery those belong to the `k` oldest
 //!   waiting requests, which get [`Error::ResponseLost`] instead of someone else's answer. A gap
 //!   that no waiting request can explain breaks the connection.
+//! - the fields a SUCCESS response repeats from its request must match ([`check_response`]).
+//!
+//! What no check can see (V3 frames carry no checksum): a corrupted body byte that still makes a
+//! valid value (a count, a pose, a server state, a response code) reaches the caller as it is.
 
 use crate::smartgrasp::error::{Error, Malformed};
-use crate::smartgrasp::frame::{ResponseFrame, PROTOCOL_VERSION};
-use crate::smartgrasp::types::{CommunicationType, MessageType};
+use crate::smartgrasp::frame::{RequestFrame, ResponseFrame, PROTOCOL_VERSION};
+use crate::smartgrasp::types::{CommunicationType, MessageType, ResponseCode};
 
 /// The response counter's expectations across a connection.
 #[derive(Debug, Default, Clone, Copy)]
@@ -70,6 +74,48 @@ pub(crate) fn check_header(request: MessageType, frame: &ResponseFrame) -> Resul
             expected: request,
             received: frame.header.message_type,
         });
+    }
+    Ok(())
+}
+
+/// Checks a response against the request it is paired with: [`check_header`], then the fields a
+/// SUCCESS response repeats from its request. The manual: GET_GRASP's tool is "the tool of the
+/// request (same value)", its pose is in the pose format the request asked for, and its object is
+/// of the requested class unless that was 0 = any (3.3.3.1); GET_OBJECT_COUNT repeats the
+/// requested class (3.3.4.1). These catch a response paired with another request of the same
+/// type (a request lost on the wire, a corrupted counter) where the header cannot.
+pub(crate) fn check_response(
+    request: &RequestFrame,
+    frame: &ResponseFrame,
+) -> Result<(), Malformed> {
+    let message_type = request.header.message_type;
+    check_header(message_type, frame)?;
+    if frame.header.response_code != ResponseCode::Success {
+        // The rest of the body is meaningless (manual 3.2.2.2).
+        return Ok(());
+    }
+    let differs = |field| {
+        Err(Malformed::Echo {
+            request: message_type,
+            field,
+        })
+    };
+    match message_type {
+        MessageType::GetGrasp => {
+            if frame.tool != request.tool {
+                return differs("tool");
+            }
+            if frame.pose_format != request.pose_format {
+                return differs("pose format");
+            }
+            if request.object_class != 0 && frame.object_class != request.object_class {
+                return differs("object class");
+            }
+        }
+        MessageType::GetObjectCount if frame.object_class != request.object_class => {
+            return differs("object class");
+        }
+        _ => {}
     }
     Ok(())
 }
@@ -147,5 +193,53 @@ mod tests {
             check_header(MessageType::GetObjectCount, &v4),
             Err(Malformed::Version { version: 4 })
         );
+    }
+
+    #[test]
+    fn success_responses_must_repeat_the_request() {
+        use crate::smartgrasp::message::{GraspRequest, Request};
+        use crate::smartgrasp::types::{GraspMode, PoseFormat, Tool};
+        let count = Request::GetObjectCount { object_class: 2 }.to_frame();
+        let mut ok = ResponseFrame::new(MessageType::GetObjectCount, ResponseCode::Success, 0);
+        ok.object_class = 2;
+        assert_eq!(check_response(&count, &ok), Ok(()));
+        let mut other = ok;
+        other.object_class = 1;
+        assert!(matches!(
+            check_response(&count, &other),
+            Err(Malformed::Echo {
+                field: "object class",
+                ..
+            })
+        ));
+        // Without SUCCESS the body means nothing and is not checked.
+        other.header.response_code = ResponseCode::InvalidObjectClass;
+        assert_eq!(check_response(&count, &other), Ok(()));
+
+        let any = Request::GetGrasp(GraspRequest {
+            grasp_mode: GraspMode::AutoGrasp,
+            object_class: 0,
+            tool: Tool::Exterior,
+            pose_format: PoseFormat::Abc,
+        })
+        .to_frame();
+        let mut grasp = ResponseFrame::new(MessageType::GetGrasp, ResponseCode::Success, 0);
+        grasp.tool = Tool::Exterior;
+        grasp.pose_format = PoseFormat::Abc;
+        grasp.object_class = 7;
+        assert_eq!(
+            check_response(&any, &grasp),
+            Ok(()),
+            "class 0 asks for any class"
+        );
+        let mut class_one = any;
+        class_one.object_class = 1;
+        assert!(check_response(&class_one, &grasp).is_err());
+        let mut suction = grasp;
+        suction.tool = Tool::Contact;
+        assert!(check_response(&any, &suction).is_err());
+        let mut wpr = grasp;
+        wpr.pose_format = PoseFormat::Wpr;
+        assert!(check_response(&any, &wpr).is_err());
     }
 }

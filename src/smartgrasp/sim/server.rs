@@ -27,7 +27,8 @@ pub struct SimServer {
 }
 
 impl SimServer {
-    /// Binds `addr` (port 0 picks a free port) and serves in the background.
+    /// Binds `addr` (port 0 picks a free port) and serves in the background. Cancel-safe: a
+    /// dropped future has bound nothing or drops the listener it bound.
     pub async fn bind(addr: impl ToSocketAddrs, config: SimConfig) -> std::io::Result<SimServer> {
         let listener = TcpListener::bind(addr).await?;
         let local_addr = listener.local_addr()?;

@@ -1,0 +1,295 @@
+//! One TCP connection to the server: sends requests in arrival order, reads responses, pairs them
+//! (see [`pairing`](super::pairing)) and answers each waiting call. A call whose caller timed out
+//! or went away keeps its place; its reply is consumed and discarded.
+
+use std::collections::VecDeque;
+use std::future::poll_fn;
+use std::net::SocketAddr;
+use std::pin::Pin;
+use std::sync::Arc;
+use std::time::Duration;
+
+use futures_core::Stream;
+use tokio::io::AsyncWriteExt;
+use tokio::net::tcp::{OwnedReadHalf, OwnedWriteHalf};
+use tokio::net::TcpStream;
+use tokio::sync::{mpsc, oneshot};
+use tokio_util::codec::FramedRead;
+
+use super::pairing::{check_response, Pairing};
+use super::session::Session;
+use super::ClientConfig;
+use crate::smartgrasp::codec::ClientCodec;
+use crate::smartgrasp::error::{Error, Malformed, Result};
+use crate::smartgrasp::frame::{RequestFrame, ResponseFrame};
+use crate::smartgrasp::message::{Request, Response};
+use crate::smartgrasp::types::MessageType;
+
+/// Requests sent and not yet answered, at most (plus one marker, see `marker_before`). Bounds the
+/// waiting queue when a server stops answering; further calls wait in the channel and run into
+/// their timeouts.
+pub(crate) const MAX_IN_FLIGHT: usize = 16;
+
+/// One call from a handle to the task.
+pub(crate) struct Call {
+    pub frame: RequestFrame,
+    pub reply: oneshot::Sender<Result<ResponseFrame>>,
+}
+
+/// A request on the wire, waiting for its response.
+struct Waiting {
+    request: RequestFrame,
+    reply: oneshot::Sender<Result<ResponseFrame>>,
+}
+
+/// A connection and its pairing state.
+pub(crate) struct Link {
+    responses: FramedRead<OwnedReadHalf, ClientCodec>,
+    write: OwnedWriteHalf,
+    /// At most [`MAX_IN_FLIGHT`].
+    waiting: VecDeque<Waiting>,
+    pairing: Pairing,
+    /// The last response paired, to recognise an exact repeat of it (see `on_response`).
+    last_response: Option<ResponseFrame>,
+}
+
+impl Link {
+    /// Connects within `timeout`.
+    pub(crate) async fn connect(addrs: &[SocketAddr], timeout: Duration) -> Result<Link> {
+        let stream =
+            within_connect_timeout(timeout, async { Ok(TcpStream::connect(addrs).await?) }).await?;
+        // Requests are single 80-byte writes waiting for an answer: do not let Nagle hold them.
+        stream.set_nodelay(true)?;
+        let (read, write) = stream.into_split();
+        Ok(Link {
+            responses: FramedRead::new(read, ClientCodec),
+            write,
+            waiting: VecDeque::with_capacity(MAX_IN_FLIGHT),
+            pairing: Pairing::default(),
+            last_response: None,
+        })
+    }
+
+    /// One request with nothing else in flight (the opening sequence), answered within the
+    /// configured timeout of its type. After an error the link must be dropped.
+    pub(crate) async fn exchange(
+        &mut self,
+        request: RequestFrame,
+        config: &ClientConfig,
+    ) -> Result<Response> {
+        let answer = async {
+            self.write.write_all(&request.encode()).await?;
+            let frame = match self.next_response().await {
+                None => return Err(server_closed()),
+                Some(frame) => frame?,
+            };
+            self.pairing.counter(frame.header.response_counter, 1)?;
+            check_response(&request, &frame)?;
+            self.last_response = Some(frame);
+            Ok(frame)
+        };
+        config
+            .timeouts()
+            .run(request.header.message_type, answer)
+            .await
+    }
+
+    async fn next_response(&mut self) -> Option<Result<ResponseFrame>> {
+        poll_fn(|cx| Pin::new(&mut self.responses).poll_next(cx)).await
+    }
+
+    /// Serves calls until the connection breaks (`Some(reason)`; every call that was waiting on
+    /// it has been answered with an error) or every handle is gone (`None`). Records the set-up
+    /// requests the server accepts in `session`.
+    pub(crate) async fn serve(
+        &mut self,
+        calls: &mut mpsc::Receiver<Call>,
+        session: &mut Session,
+    ) -> Option<Error> {
+        let reason = loop {
+            tokio::select! {
+                // Responses first: each frees a slot.
+                biased;
+                item = self.next_response() => match item {
+                    None => break server_closed(),
+                    Some(Err(e)) => break e,
+                    Some(Ok(frame)) => {
+                        if let Err(e) = self.on_response(session, &frame) {
+                            break e;
+                        }
+                    }
+                },
+                call = calls.recv(), if self.waiting.len() < MAX_IN_FLIGHT => match call {
+                    // Every handle is gone, so no call can be waiting: nothing left to do.
+                    None => return None,
+                    Some(call) => {
+                        if call.reply.is_closed() {
+                            // Its caller gave up before it was sent: sending it would only
+                            // create a reply to discard.
+                            continue;
+                        }
+                        if let Some(marker) = self.marker_before(&call.frame) {
+                            // Its reply goes to nobody: the receiver is dropped at once.
+                            let (reply, _) = oneshot::channel();
+                            if let Err(e) = self.send(marker, reply).await {
+                                let _ = call.reply.send(Err(e.clone()));
+                                break e;
+                            }
+                        }
+                        if let Err(e) = self.send(call.frame, call.reply).await {
+                            break e;
+                        }
+                    }
+                },
+            }
+        };
+        for w in self.waiting.drain(..) {
+            let _ = w.reply.send(Err(waiting_error(&reason)));
+        }
+        Some(reason)
+    }
+
+    /// Writes a request and queues its reply slot. On a write error the call gets it too.
+    async fn send(
+        &mut self,
+        request: RequestFrame,
+        reply: oneshot::Sender<Result<ResponseFrame>>,
+    ) -> Result<()> {
+        if let Err(e) = self.write.write_all(&request.encode()).await {
+            let e = Error::from(e);
+            let _ = reply.send(Err(e.clone()));
+            return Err(e);
+        }
+        self.waiting.push_back(Waiting { request, reply });
+        Ok(())
+    }
+
+    /// Responses carry no request id. Right behind a request whose caller gave up, the response
+    /// to a request of the same type could be either's: the abandoned one's, late, or this one's
+    /// if the abandoned request never reached the server. A request of another type in between
+    /// (a side-effect-free query) tells them apart: whichever way the abandoned request went, its
+    /// slot is settled by the time the marker's response arrives (see `on_response`), and the
+    /// next response is this request's. Costs one query, only after a call was given up.
+    fn marker_before(&self, next: &RequestFrame) -> Option<RequestFrame> {
+        let back = self.waiting.back()?;
+        let same_type = back.request.header.message_type == next.header.message_type;
+        if !same_type || !back.reply.is_closed() {
+            return None;
+        }
+        let marker = match next.header.message_type {
+            MessageType::GetProtocolVersion => Request::GetState,
+            _ => Request::GetProtocolVersion,
+        };
+        Some(marker.to_frame())
+    }
+
+    /// Pairs one response; `Err` breaks the connection (the paired call, if any, gets the error
+    /// too).
+    fn on_response(&mut self, session: &mut Session, frame: &ResponseFrame) -> Result<()> {
+        if self.last_response.as_ref() == Some(frame) {
+            // The same bytes again, counter included: the server counts every response, so this
+            // is a copy (a network device repeating a segment), not a new answer. Noise, skipped.
+            tracing::warn!(
+                counter = frame.header.response_counter,
+                "repeated response skipped"
+            );
+            return Ok(());
+        }
+        let received = frame.header.response_counter;
+        let lost = self.pairing.counter(received, self.waiting.len())?;
+        for i in 0..lost.count {
+            if let Some(w) = self.waiting.pop_front() {
+                let expected = lost.first_expected.wrapping_add(i as u8);
+                tracing::warn!(expected, received, request = %w.request.header.message_type, "response lost");
+                let _ = w
+                    .reply
+                    .send(Err(Error::ResponseLost { expected, received }));
+            }
+        }
+        let Some(mut w) = self.waiting.pop_front() else {
+            // `counter` guarantees one is left; treat it as unsolicited all the same.
+            return Err(Malformed::Unsolicited { counter: received }.into());
+        };
+        if let Err(e) = check_response(&w.request, frame) {
+            // The server answers in order, so a response that does not fit the oldest request
+            // but fits the next one means the oldest was never answered (it was lost before it
+            // reached the server: no counter gap). If its caller has already given up, nobody
+            // is owed anything: drop its slot and go on. A caller still waiting gets the error,
+            // and the connection is closed.
+            let skip = lost.count == 0
+                && w.reply.is_closed()
+                && self
+                    .waiting
+                    .front()
+                    .is_some_and(|next| check_response(&next.request, frame).is_ok());
+            if !skip {
+                let e = Error::from(e);
+                let _ = w.reply.send(Err(e.clone()));
+                return Err(e);
+            }
+            tracing::warn!(request = %w.request.header.message_type, "an abandoned request was never answered; its slot is dropped");
+            match self.waiting.pop_front() {
+                Some(next) => w = next,
+                None => return Err(Malformed::Unsolicited { counter: received }.into()),
+            }
+        }
+        self.last_response = Some(*frame);
+        session.record(&w.request, frame);
+        if w.reply.send(Ok(*frame)).is_err() {
+            tracing::debug!(request = %w.request.header.message_type, counter = received, "late reply discarded");
+        }
+        Ok(())
+    }
+}
+
+/// Runs a step of connecting (resolving the address, the TCP connect) within `timeout`.
+pub(crate) async fn within_connect_timeout<T>(
+    timeout: Duration,
+    step: impl std::future::Future<Output = Result<T>>,
+) -> Result<T> {
+    tokio::time::timeout(timeout, step).await.map_err(|_| {
+        Error::from(std::io::Error::new(
+            std::io::ErrorKind::TimedOut,
+            "connecting to the Smart Grasping server timed out",
+        ))
+    })?
+}
+
+fn server_closed() -> Error {
+    Error::ConnectionClosed {
+        reason: "the server closed the connection".into(),
+    }
+}
+
+/// What a call that was sent and still waits gets when the connection breaks. A header error
+/// was already given to the call whose response carried it; the others only lost the connection.
+fn waiting_error(reason: &Error) -> Error {
+    match reason {
+        Error::Malformed(
+            Malformed::MessageType { .. }
+            | Malformed::CommunicationType(_)
+            | Malformed::Version { .. }
+            | Malformed::Echo { .. }
+            | Malformed::Unsolicited { .. },
+        ) => closed_error(Some(reason)),
+        // Stream-level reasons (I/O, bad length, too old, lost responses) concern every call.
+        other => other.clone(),
+    }
+}
+
+/// What a call gets on a connection that is already gone (or never got to send its request).
+pub(crate) fn closed_error(reason: Option<&Error>) -> Error {
+    match reason {
+        Some(Error::ConnectionClosed { reason }) => Error::ConnectionClosed {
+            reason: Arc::clone(reason),
+        },
+        // Still the answer to every later call, and typed so a program can tell the user.
+        Some(e @ Error::ServerTooOld { .. }) => e.clone(),
+        Some(reason) => Error::ConnectionClosed {
+            reason: reason.to_string().into(),
+        },
+        None => Error::ConnectionClosed {
+            reason: "the connection task has ended".into(),
+        },
+    }
+}

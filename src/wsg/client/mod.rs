@@ -1,0 +1,703 @@
+//! The async client: a cheap, cloneable handle to a background task that owns the connection.
+
+mod pairing;
+mod task;
+
+use std::net::SocketAddr;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, OnceLock};
+use std::time::Duration;
+
+use bytes::Bytes;
+use tokio::net::{TcpStream, ToSocketAddrs, UdpSocket};
+use tokio::sync::{mpsc, oneshot};
+use tokio::time::{timeout_at, Instant};
+use tokio_util::codec::Framed;
+
+use self::task::{Msg, Task};
+use super::command::{id, Command, HomingDirection, UpdateMode};
+use super::subscription::{Subscriber, Subscription, UpdateOptions};
+use super::transport::{AsyncReadWrite, Link, TransportKind};
+use super::types::{self, decode_f32};
+use super::{
+    Error, Finger, FingerFlags, FingerInfo, Frame, GraspingStatistics, GripState, Reply, Result,
+    SoftLimits, Status, SystemInfo, SystemLimits, SystemState, WsgCodec,
+};
+
+/// Default timeout of queries and settings.
+pub const DEFAULT_QUERY_TIMEOUT: Duration = Duration::from_secs(1);
+/// Default timeout of motion commands (homing, pre-position, grasp, release, finger power on),
+/// from sending to the final reply.
+pub const DEFAULT_MOTION_TIMEOUT: Duration = Duration::from_secs(30);
+/// Default time an unanswered request keeps its command id after its caller's deadline.
+pub const DEFAULT_LATE_REPLY_GRACE: Duration = Duration::from_secs(2);
+/// Default buffer of each subscription, in updates.
+pub const DEFAULT_SUBSCRIPTION_BUFFER: usize = 64;
+
+/// Configures and opens a [`Client`].
+#[derive(Clone, Debug)]
+pub struct ClientBuilder {
+    query_timeout: Duration,
+    motion_timeout: Duration,
+    late_reply_grace: Duration,
+    subscription_buffer: usize,
+    request_queue: usize,
+    max_payload_len: usize,
+    announce_disconnect: Option<bool>,
+    serial_exclusive: bool,
+}
+
+impl Default for ClientBuilder {
+    fn default() -> Self {
+        Self {
+            query_timeout: DEFAULT_QUERY_TIMEOUT,
+            motion_timeout: DEFAULT_MOTION_TIMEOUT,
+            late_reply_grace: DEFAULT_LATE_REPLY_GRACE,
+            subscription_buffer: DEFAULT_SUBSCRIPTION_BUFFER,
+            request_queue: 64,
+            max_payload_len: super::frame::DEFAULT_MAX_PAYLOAD_LEN,
+            announce_disconnect: None,
+            serial_exclusive: true,
+        }
+    }
+}
+
+impl ClientBuilder {
+    /// Timeout of queries and settings (default 1 s).
+    pub fn query_timeout(mut self, t: Duration) -> Self {
+        self.query_timeout = t;
+        self
+    }
+
+    /// Timeout of motion commands up to their final reply (default 30 s).
+    pub fn motion_timeout(mut self, t: Duration) -> Self {
+        self.motion_timeout = t;
+        self
+    }
+
+    /// How long after its caller's deadline an unanswered request keeps its command id, so that
+    /// its late reply is consumed rather than handed to the next caller (default 2 s). See the
+    /// client documentation for the residual risk.
+    pub fn late_reply_grace(mut self, t: Duration) -> Self {
+        self.late_reply_grace = t;
+        self
+    }
+
+    /// Updates buffered per subscriber (default 64, at least 1).
+    pub fn subscription_buffer(mut self, n: usize) -> Self {
+        self.subscription_buffer = n.max(1);
+        self
+    }
+
+    /// Requests buffered between the handles and the task (default 64, at least 1); callers wait
+    /// (within their timeout) when it is full.
+    pub fn request_queue(mut self, n: usize) -> Self {
+        self.request_queue = n.max(1);
+        self
+    }
+
+    /// Largest reply payload accepted (default
+    /// [`DEFAULT_MAX_PAYLOAD_LEN`](super::frame::DEFAULT_MAX_PAYLOAD_LEN)).
+    pub fn max_payload_len(mut self, n: usize) -> Self {
+        self.max_payload_len = n;
+        self
+    }
+
+    /// Whether [`Client::close`] sends the disconnect announcement (0x07) first. Default: on for
+    /// TCP (manual 1.4.2: an unannounced close puts the gripper into FAST STOP), off otherwise
+    /// (other transports answer E_NOT_AVAILABLE).
+    pub fn announce_disconnect(mut self, on: bool) -> Self {
+        self.announce_disconnect = Some(on);
+        self
+    }
+
+    /// Whether `open_serial` (feature `serial`) takes the port exclusively (default true; the
+    /// simulator's pseudo-terminal, `sim::SimServer::serial_pty`, needs false).
+    pub fn serial_exclusive(mut self, exclusive: bool) -> Self {
+        self.serial_exclusive = exclusive;
+        self
+    }
+
+    /// Connects over TCP (the WSG listens on port 1000 by default).
+    pub async fn connect_tcp(self, addr: impl ToSocketAddrs) -> Result<Client> {
+        let stream = TcpStream::connect(addr).await?;
+        stream.set_nodelay(true)?;
+        Ok(self.start(Box::new(stream), TransportKind::Tcp))
+    }
+
+    /// Talks over UDP to `remote`, from an ephemeral local port (each datagram is one frame).
+    pub async fn connect_udp(self, remote: SocketAddr) -> Result<Client> {
+        let local: SocketAddr = if remote.is_ipv4() {
+            (std::net::Ipv4Addr::UNSPECIFIED, 0).into()
+        } else {
+            (std::net::Ipv6Addr::UNSPECIFIED, 0).into()
+        };
+        self.connect_udp_from(local, remote).await
+    }
+
+    /// Talks over UDP to `remote` from the local address `local` (use the port the gripper is
+    /// configured to send its replies to). Datagrams are accepted from `remote`'s IP address,
+    /// whatever their source port; others are dropped with a trace.
+    pub async fn connect_udp_from(self, local: SocketAddr, remote: SocketAddr) -> Result<Client> {
+        let socket = UdpSocket::bind(local).await?;
+        let link = Link::Udp {
+            socket,
+            peer: remote,
+            max_payload_len: self.max_payload_len,
+        };
+        Ok(self.start_link(link, TransportKind::Udp))
+    }
+
+    /// Opens a serial port (8N1, no flow control) at `baud_rate` (the WSG default is 115200).
+    #[cfg(feature = "serial")]
+    pub fn open_serial(self, path: &str, baud_rate: u32) -> Result<Client> {
+        use tokio_serial::SerialPortBuilderExt;
+        let port = tokio_serial::new(path, baud_rate)
+            .data_bits(tokio_serial::DataBits::Eight)
+            .parity(tokio_serial::Parity::None)
+            .stop_bits(tokio_serial::StopBits::One)
+            .flow_control(tokio_serial::FlowControl::None)
+            .exclusive(self.serial_exclusive)
+            .open_native_async()
+            .map_err(|e| Error::Io(std::io::Error::other(e)))?;
+        Ok(self.start(Box::new(port), TransportKind::Serial))
+    }
+
+    /// Uses a byte stream the caller already has (a serial port, a TLS tunnel, a test pipe).
+    pub fn attach(self, io: impl AsyncReadWrite) -> Client {
+        self.start(Box::new(io), TransportKind::Attached)
+    }
+
+    /// Spawns the task on the current tokio runtime.
+    fn start(self, io: Box<dyn AsyncReadWrite>, kind: TransportKind) -> Client {
+        let link = stream_link(io, self.max_payload_len);
+        self.start_link(link, kind)
+    }
+
+    fn start_link(self, link: Link, kind: TransportKind) -> Client {
+        let (tx, rx) = mpsc::channel(self.request_queue);
+        let (unsub_tx, unsub_rx) = mpsc::unbounded_channel();
+        let announce = self
+            .announce_disconnect
+            .unwrap_or(kind == TransportKind::Tcp);
+        let lost = Arc::new(OnceLock::new());
+        let task = Task::new(
+            link,
+            rx,
+            unsub_rx,
+            self.late_reply_grace,
+            self.query_timeout,
+            announce,
+            lost.clone(),
+        );
+        tokio::spawn(task.run());
+        Client {
+            shared: Arc::new(Shared {
+                tx,
+                unsubscribe: unsub_tx,
+                subscription_buffer: self.subscription_buffer,
+                next_key: AtomicU64::new(0),
+                kind,
+                lost,
+            }),
+            query_timeout: self.query_timeout,
+            motion_timeout: self.motion_timeout,
+        }
+    }
+}
+
+fn stream_link(io: Box<dyn AsyncReadWrite>, max_payload_len: usize) -> Link {
+    Link::Stream(Framed::new(
+        io,
+        WsgCodec::with_max_payload_len(max_payload_len),
+    ))
+}
+
+#[derive(Debug)]
+struct Shared {
+    tx: mpsc::Sender<Msg>,
+    unsubscribe: mpsc::UnboundedSender<(u8, u64)>,
+    subscription_buffer: usize,
+    next_key: AtomicU64,
+    kind: TransportKind,
+    /// Why the connection broke, once it did.
+    lost: Arc<OnceLock<String>>,
+}
+
+impl Shared {
+    /// The error for a call that finds the task gone: lost connection or closed client.
+    fn gone(&self) -> Error {
+        match self.lost.get() {
+            Some(reason) => Error::ConnectionLost(reason.clone()),
+            None => Error::Closed,
+        }
+    }
+}
+
+/// A handle to a WSG gripper: `Clone + Send + Sync`, any number of tasks may call it at once.
+///
+/// One background task owns the connection. Replies are paired with requests by command id:
+/// calls with different ids run concurrently, calls with the same id are queued. Motion commands
+/// resolve on their final reply (after E_CMD_PENDING); a stop or fast stop is never blocked by a
+/// pending move, which then fails with E_CMD_ABORTED.
+///
+/// Every call has a timeout ([`ClientBuilder::query_timeout`], [`ClientBuilder::motion_timeout`],
+/// or per handle with [`Client::with_timeouts`]) covering queueing, sending and the final reply.
+/// A call that times out or whose future is dropped does not desync the connection: its request
+/// keeps its command id until its late reply arrives, and that reply is discarded. Because the
+/// protocol has no sequence numbers, an unanswered (and unacknowledged) request gives up its id
+/// after its deadline plus [`ClientBuilder::late_reply_grace`]; only a reply later than that could
+/// be taken for the next request of the same id. Acknowledged motion commands hold their id until
+/// their final reply.
+///
+/// While a value is streamed ([`Client::subscribe_width_mm`] and friends), a one-off query of
+/// it is sent with the stream's flags, so it does not switch the device's updates off (FLAGS bit0
+/// clear would); it is answered by the next frame of that value, the reply or an update, which
+/// is at most one period older than the query.
+///
+/// The connection closes when [`Client::close`] is called or the last handle is dropped (with the
+/// disconnect announcement on TCP either way). Call [`Client::close`] before the runtime shuts
+/// down: a task cancelled with its runtime cannot announce anything.
+#[derive(Clone, Debug)]
+pub struct Client {
+    shared: Arc<Shared>,
+    query_timeout: Duration,
+    motion_timeout: Duration,
+}
+
+impl Client {
+    /// A builder with the default configuration.
+    pub fn builder() -> ClientBuilder {
+        ClientBuilder::default()
+    }
+
+    /// Connects over TCP with the default configuration.
+    pub async fn connect_tcp(addr: impl ToSocketAddrs) -> Result<Client> {
+        ClientBuilder::default().connect_tcp(addr).await
+    }
+
+    /// A handle on the same connection whose calls use these timeouts.
+    #[must_use]
+    pub fn with_timeouts(&self, query: Duration, motion: Duration) -> Client {
+        Client {
+            shared: self.shared.clone(),
+            query_timeout: query,
+            motion_timeout: motion,
+        }
+    }
+
+    /// The transport this client uses.
+    pub fn transport(&self) -> TransportKind {
+        self.shared.kind
+    }
+
+    /// Sends `frame` and returns its final reply, whatever its status.
+    async fn exchange(&self, frame: Frame, timeout: Duration) -> Result<Reply> {
+        let command = frame.id;
+        let deadline = Instant::now() + timeout;
+        let (reply, rx) = oneshot::channel();
+        let msg = Msg::Call {
+            frame,
+            deadline,
+            reply,
+        };
+        self.send_and_wait(msg, rx, deadline, command, timeout)
+            .await
+    }
+
+    /// Hands `msg` to the task and waits for its reply, all within the deadline (a full request
+    /// channel counts against it too).
+    async fn send_and_wait(
+        &self,
+        msg: Msg,
+        rx: oneshot::Receiver<Result<Reply>>,
+        deadline: Instant,
+        command: u8,
+        timeout: Duration,
+    ) -> Result<Reply> {
+        let work = async {
+            self.shared
+                .tx
+                .send(msg)
+                .await
+                .map_err(|_| self.shared.gone())?;
+            rx.await.map_err(|_| self.shared.gone())?
+        };
+        timeout_at(deadline, work)
+            .await
+            .map_err(|_| Error::Timeout { command, timeout })?
+    }
+
+    /// Sends a typed command and returns the data of its E_SUCCESS reply; any other final status
+    /// is [`Error::Device`].
+    pub async fn command(&self, command: Command) -> Result<Bytes> {
+        command.validate().map_err(Error::InvalidArgument)?;
+        let timeout = if command.is_async() {
+            self.motion_timeout
+        } else {
+            self.query_timeout
+        };
+        let reply = self.exchange(command.to_frame(), timeout).await?;
+        success(reply)
+    }
+
+    /// Sends a command the crate has no type for (e.g. scripting commands) and returns its final
+    /// reply (after E_CMD_PENDING, if the device sends one) with whatever status it has, within
+    /// the query timeout.
+    pub async fn request(&self, id: u8, payload: impl Into<Bytes>) -> Result<Reply> {
+        self.request_with_timeout(id, payload, self.query_timeout)
+            .await
+    }
+
+    /// [`Client::request`] with an explicit timeout.
+    pub async fn request_with_timeout(
+        &self,
+        id: u8,
+        payload: impl Into<Bytes>,
+        timeout: Duration,
+    ) -> Result<Reply> {
+        let payload = payload.into();
+        if id == 0xAA {
+            // The decoder reads AA runs as preamble (see frame.rs): a reply with id 0xAA could
+            // not be received reliably.
+            return Err(Error::InvalidArgument(
+                "command id 0xAA cannot be framed unambiguously".into(),
+            ));
+        }
+        if payload.len() > usize::from(u16::MAX) {
+            return Err(Error::InvalidArgument(format!(
+                "payload of {} bytes exceeds 65535",
+                payload.len()
+            )));
+        }
+        self.exchange(Frame::new(id, payload), timeout).await
+    }
+
+    async fn query<T>(
+        &self,
+        command: Command,
+        decode: fn(&[u8]) -> std::result::Result<T, String>,
+    ) -> Result<T> {
+        let id = command.id();
+        let data = self.command(command).await?;
+        decode(&data).map_err(|reason| Error::MalformedReply {
+            command: id,
+            reason,
+        })
+    }
+
+    async fn no_data(&self, command: Command) -> Result<()> {
+        self.command(command).await.map(drop)
+    }
+
+    /// Loop (0x06): the device echoes up to 256 bytes.
+    pub async fn loop_back(&self, data: impl Into<Bytes>) -> Result<Bytes> {
+        self.command(Command::Loop(data.into())).await
+    }
+
+    /// Homing (0x20): references the fingers; needed before any other motion.
+    pub async fn home(&self, direction: HomingDirection) -> Result<()> {
+        self.no_data(Command::Homing(direction)).await
+    }
+
+    /// Pre-position (0x21) to an absolute width, stopping if blocked.
+    pub async fn pre_position(&self, width_mm: f32, speed_mm_per_s: f32) -> Result<()> {
+        self.no_data(Command::PrePosition {
+            relative: false,
+            stop_on_block: true,
+            width_mm,
+            speed_mm_per_s,
+        })
+        .await
+    }
+
+    /// Pre-position (0x21) by a distance relative to the current width, stopping if blocked.
+    pub async fn pre_position_relative(&self, distance_mm: f32, speed_mm_per_s: f32) -> Result<()> {
+        self.no_data(Command::PrePosition {
+            relative: true,
+            stop_on_block: true,
+            width_mm: distance_mm,
+            speed_mm_per_s,
+        })
+        .await
+    }
+
+    /// Stop (0x22): stops any motion (a pending motion fails with E_CMD_ABORTED).
+    pub async fn stop(&self) -> Result<()> {
+        self.no_data(Command::Stop).await
+    }
+
+    /// Fast stop (0x23): stops and refuses motion until [`Client::acknowledge_fast_stop`].
+    pub async fn fast_stop(&self) -> Result<()> {
+        self.no_data(Command::FastStop).await
+    }
+
+    /// Acknowledge a fast stop or fault (0x24).
+    pub async fn acknowledge_fast_stop(&self) -> Result<()> {
+        self.no_data(Command::AckFastStop).await
+    }
+
+    /// Grasp a part (0x25) of nominal width `width_mm`. No part found is
+    /// `Error::Device { status: Status::CmdFailed, .. }`.
+    pub async fn grasp(&self, width_mm: f32, speed_mm_per_s: f32) -> Result<()> {
+        self.no_data(Command::Grasp {
+            width_mm,
+            speed_mm_per_s,
+        })
+        .await
+    }
+
+    /// Release the part (0x26), opening to `width_mm`.
+    pub async fn release(&self, width_mm: f32, speed_mm_per_s: f32) -> Result<()> {
+        self.no_data(Command::Release {
+            width_mm,
+            speed_mm_per_s,
+        })
+        .await
+    }
+
+    /// Set the acceleration (0x30); the device clamps it to its limits.
+    pub async fn set_acceleration(&self, mm_per_s2: f32) -> Result<()> {
+        self.no_data(Command::SetAcceleration(mm_per_s2)).await
+    }
+
+    /// The acceleration (0x31), mm/s².
+    pub async fn acceleration_mm_per_s2(&self) -> Result<f32> {
+        self.query(Command::GetAcceleration, decode_f32).await
+    }
+
+    /// Set the grasping force (0x32); the device clamps it to its limits.
+    pub async fn set_grasping_force(&self, force_n: f32) -> Result<()> {
+        self.no_data(Command::SetForce(force_n)).await
+    }
+
+    /// The grasping force limit (0x33), N.
+    pub async fn grasping_force_n(&self) -> Result<f32> {
+        self.query(Command::GetForce, decode_f32).await
+    }
+
+    /// Set soft limits (0x34).
+    pub async fn set_soft_limits(&self, limits: SoftLimits) -> Result<()> {
+        self.no_data(Command::SetSoftLimits(limits)).await
+    }
+
+    /// The soft limits (0x35); `None` when none are set (E_NOT_AVAILABLE).
+    pub async fn soft_limits(&self) -> Result<Option<SoftLimits>> {
+        not_available_as_none(self.query(Command::GetSoftLimits, SoftLimits::decode).await)
+    }
+
+    /// Clear the soft limits (0x36).
+    pub async fn clear_soft_limits(&self) -> Result<()> {
+        self.no_data(Command::ClearSoftLimits).await
+    }
+
+    /// Overdrive mode on or off (0x37).
+    pub async fn set_overdrive(&self, on: bool) -> Result<()> {
+        self.no_data(Command::Overdrive(on)).await
+    }
+
+    /// Tare the force sensor (0x38); refused (E_ACCESS_DENIED) while holding a part.
+    pub async fn tare_force_sensor(&self) -> Result<()> {
+        self.no_data(Command::Tare).await
+    }
+
+    /// The system state flags (0x40).
+    pub async fn system_state(&self) -> Result<SystemState> {
+        self.query(Command::SystemState(UpdateMode::ONCE), SystemState::decode)
+            .await
+    }
+
+    /// The grip state (0x41).
+    pub async fn grip_state(&self) -> Result<GripState> {
+        self.query(Command::GripState(UpdateMode::ONCE), GripState::decode)
+            .await
+    }
+
+    /// The grasping statistics (0x42), reset after reading when `reset`.
+    pub async fn grasping_statistics(&self, reset: bool) -> Result<GraspingStatistics> {
+        self.query(
+            Command::GraspingStatistics { reset },
+            GraspingStatistics::decode,
+        )
+        .await
+    }
+
+    /// The opening width (0x43), mm.
+    pub async fn width_mm(&self) -> Result<f32> {
+        self.query(Command::Width(UpdateMode::ONCE), decode_f32)
+            .await
+    }
+
+    /// The finger speed (0x44), mm/s.
+    pub async fn speed_mm_per_s(&self) -> Result<f32> {
+        self.query(Command::Speed(UpdateMode::ONCE), decode_f32)
+            .await
+    }
+
+    /// The finger force (0x45), N.
+    pub async fn force_n(&self) -> Result<f32> {
+        self.query(Command::Force(UpdateMode::ONCE), decode_f32)
+            .await
+    }
+
+    /// The temperature inside the gripper (0x46), °C.
+    pub async fn temperature_c(&self) -> Result<f32> {
+        self.query(Command::Temperature, types::decode_temperature_c)
+            .await
+    }
+
+    /// System information (0x50).
+    pub async fn system_info(&self) -> Result<SystemInfo> {
+        self.query(Command::SystemInfo, SystemInfo::decode).await
+    }
+
+    /// Set the device tag (0x51): printable ASCII, at most 64 characters.
+    pub async fn set_device_tag(&self, tag: &str) -> Result<()> {
+        self.no_data(Command::SetTag(tag.to_owned())).await
+    }
+
+    /// The device tag (0x52); `None` when none is set (E_NOT_AVAILABLE).
+    pub async fn device_tag(&self) -> Result<Option<String>> {
+        let decode = |d: &[u8]| -> std::result::Result<String, String> {
+            std::str::from_utf8(d)
+                .map(str::to_owned)
+                .map_err(|e| e.to_string())
+        };
+        not_available_as_none(self.query(Command::GetTag, decode).await)
+    }
+
+    /// The system limits (0x53).
+    pub async fn system_limits(&self) -> Result<SystemLimits> {
+        self.query(Command::SystemLimits, SystemLimits::decode)
+            .await
+    }
+
+    /// Finger information (0x60 / 0x70).
+    pub async fn finger_info(&self, finger: Finger) -> Result<FingerInfo> {
+        self.query(Command::FingerInfo(finger), FingerInfo::decode)
+            .await
+    }
+
+    /// Finger flags (0x61 / 0x71).
+    pub async fn finger_flags(&self, finger: Finger) -> Result<FingerFlags> {
+        self.query(Command::FingerFlags(finger), FingerFlags::decode)
+            .await
+    }
+
+    /// Finger power (0x62 / 0x72); switching on waits for the final reply (about 500 ms).
+    pub async fn set_finger_power(&self, finger: Finger, on: bool) -> Result<()> {
+        self.no_data(Command::FingerPower(finger, on)).await
+    }
+
+    /// Finger data (0x63 / 0x73), finger-specific bytes.
+    pub async fn finger_data(&self, finger: Finger) -> Result<Bytes> {
+        self.command(Command::FingerData(finger)).await
+    }
+
+    async fn subscribe<T>(
+        &self,
+        id: u8,
+        options: UpdateOptions,
+        decode: fn(&[u8]) -> std::result::Result<T, String>,
+    ) -> Result<Subscription<T>> {
+        let mode = options.to_mode().map_err(Error::InvalidArgument)?;
+        let (tx, rx) = mpsc::channel(self.shared.subscription_buffer);
+        let key = self.shared.next_key.fetch_add(1, Ordering::Relaxed);
+        let missed = Arc::new(AtomicU64::new(0));
+        // Created first so that an early return unsubscribes (Drop) again.
+        let subscription = Subscription {
+            rx,
+            id,
+            key,
+            unsubscribe: self.shared.unsubscribe.clone(),
+            missed: missed.clone(),
+            decode,
+        };
+        let timeout = self.query_timeout;
+        let deadline = Instant::now() + timeout;
+        let (reply, rx) = oneshot::channel();
+        let subscriber = Subscriber { key, tx, missed };
+        let msg = Msg::Subscribe {
+            id,
+            mode,
+            subscriber,
+            deadline,
+            reply,
+        };
+        let reply = self.send_and_wait(msg, rx, deadline, id, timeout).await?;
+        success(reply)?;
+        Ok(subscription)
+    }
+
+    /// A stream of the system state flags (0x40 with auto-update).
+    pub async fn subscribe_system_state(
+        &self,
+        options: UpdateOptions,
+    ) -> Result<Subscription<SystemState>> {
+        self.subscribe(id::SYSTEM_STATE, options, SystemState::decode)
+            .await
+    }
+
+    /// A stream of the grip state (0x41 with auto-update).
+    pub async fn subscribe_grip_state(
+        &self,
+        options: UpdateOptions,
+    ) -> Result<Subscription<GripState>> {
+        self.subscribe(id::GRIP_STATE, options, GripState::decode)
+            .await
+    }
+
+    /// A stream of the opening width in mm (0x43 with auto-update).
+    pub async fn subscribe_width_mm(&self, options: UpdateOptions) -> Result<Subscription<f32>> {
+        self.subscribe(id::WIDTH, options, decode_f32).await
+    }
+
+    /// A stream of the finger speed in mm/s (0x44 with auto-update).
+    pub async fn subscribe_speed_mm_per_s(
+        &self,
+        options: UpdateOptions,
+    ) -> Result<Subscription<f32>> {
+        self.subscribe(id::SPEED, options, decode_f32).await
+    }
+
+    /// A stream of the finger force in N (0x45 with auto-update).
+    pub async fn subscribe_force_n(&self, options: UpdateOptions) -> Result<Subscription<f32>> {
+        self.subscribe(id::FORCE, options, decode_f32).await
+    }
+
+    /// Closes the connection: on TCP, announces the disconnect (0x07) and waits for its reply
+    /// first, so the gripper does not go into FAST STOP. Calls still waiting fail with
+    /// [`Error::Closed`], streams end, and every other handle's calls fail with
+    /// [`Error::Closed`] (or [`Error::ConnectionLost`] if the connection had broken).
+    pub async fn close(&self) -> Result<()> {
+        let (done, rx) = oneshot::channel();
+        self.shared
+            .tx
+            .send(Msg::Close { done })
+            .await
+            .map_err(|_| self.shared.gone())?;
+        rx.await.map_err(|_| self.shared.gone())?
+    }
+}
+
+fn success(reply: Reply) -> Result<Bytes> {
+    if reply.status == Status::Success {
+        Ok(reply.data)
+    } else {
+        Err(Error::Device {
+            command: reply.id,
+            status: reply.status,
+        })
+    }
+}
+
+fn not_available_as_none<T>(r: Result<T>) -> Result<Option<T>> {
+    match r {
+        Ok(v) => Ok(Some(v)),
+        Err(Error::Device {
+            status: Status::NotAvailable,
+            ..
+        }) => Ok(None),
+        Err(e) => Err(e),
+    }
+}

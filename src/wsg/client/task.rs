@@ -1,0 +1,358 @@
+//! The background task that owns the transport (the model of rodbus's channel task): it sends
+//! requests, pairs replies (see [`super::pairing`]), fans auto-updates out to
+//! subscribers, and is the one place where requests fail when the connection goes.
+
+use std::collections::HashMap;
+use std::io;
+use std::sync::{Arc, OnceLock};
+use std::time::Duration;
+
+use bytes::Bytes;
+use tokio::sync::{mpsc, oneshot};
+use tokio::time::{sleep_until, Instant};
+
+use super::pairing::{Event, Pairing, Request, Token};
+use crate::wsg::command::{id, Command, UpdateMode};
+use crate::wsg::subscription::Subscriber;
+use crate::wsg::transport::Link;
+use crate::wsg::{Error, Frame, Reply, Result, Status};
+
+/// A request from a handle to the task.
+pub(crate) enum Msg {
+    /// Send `frame` and answer with its final reply (whatever its status).
+    Call {
+        frame: Frame,
+        deadline: Instant,
+        reply: oneshot::Sender<Result<Reply>>,
+    },
+    /// Register a subscriber, then send the command with auto-update `mode`.
+    Subscribe {
+        id: u8,
+        mode: UpdateMode,
+        subscriber: Subscriber,
+        deadline: Instant,
+        reply: oneshot::Sender<Result<Reply>>,
+    },
+    /// Announce the disconnect (if configured), close the transport and end.
+    Close { done: oneshot::Sender<Result<()>> },
+}
+
+/// Who asked to close (nobody when the last handle went away), and how closing went.
+type Closing = Option<(oneshot::Sender<Result<()>>, Result<()>)>;
+
+enum Waiter {
+    Caller(oneshot::Sender<Result<Reply>>),
+    /// A request the task made itself (turning updates off): its reply is discarded.
+    Internal,
+}
+
+struct StreamState {
+    mode: UpdateMode,
+    subscribers: Vec<Subscriber>,
+}
+
+pub(crate) struct Task {
+    pub(crate) link: Link,
+    pub(crate) rx: mpsc::Receiver<Msg>,
+    pub(crate) unsubscribe: mpsc::UnboundedReceiver<(u8, u64)>,
+    pub(crate) pairing: Pairing,
+    pub(crate) query_timeout: Duration,
+    pub(crate) announce_on_close: bool,
+    /// Set to the reason when the connection breaks, so later calls can say why.
+    lost: Arc<OnceLock<String>>,
+    waiters: HashMap<Token, Waiter>,
+    streams: HashMap<u8, StreamState>,
+    next_token: Token,
+}
+
+fn stream_command(id: u8, mode: UpdateMode) -> Frame {
+    match id {
+        id::SYSTEM_STATE => Command::SystemState(mode),
+        id::GRIP_STATE => Command::GripState(mode),
+        id::WIDTH => Command::Width(mode),
+        id::SPEED => Command::Speed(mode),
+        _ => Command::Force(mode),
+    }
+    .to_frame()
+}
+
+impl Task {
+    pub(crate) fn new(
+        link: Link,
+        rx: mpsc::Receiver<Msg>,
+        unsubscribe: mpsc::UnboundedReceiver<(u8, u64)>,
+        grace: Duration,
+        query_timeout: Duration,
+        announce_on_close: bool,
+        lost: Arc<OnceLock<String>>,
+    ) -> Self {
+        Self {
+            lost,
+            link,
+            rx,
+            unsubscribe,
+            pairing: Pairing::new(grace),
+            query_timeout,
+            announce_on_close,
+            waiters: HashMap::new(),
+            streams: HashMap::new(),
+            next_token: 0,
+        }
+    }
+
+    pub(crate) async fn run(mut self) {
+        let (lost, done) = match self.serve().await {
+            Ok(done) => (None, done),
+            Err(reason) => {
+                tracing::warn!(%reason, "WSG connection lost");
+                let _ = self.lost.set(reason.clone());
+                (Some(reason), None)
+            }
+        };
+        for (_, w) in self.waiters.drain() {
+            if let Waiter::Caller(tx) = w {
+                let e = match &lost {
+                    Some(reason) => Error::ConnectionLost(reason.clone()),
+                    None => Error::Closed,
+                };
+                let _ = tx.send(Err(e));
+            }
+        }
+        self.pairing.drain();
+        // Dropping the subscribers' senders ends their streams.
+        self.streams.clear();
+        if let Some((done, result)) = done {
+            let _ = done.send(result);
+        }
+    }
+
+    /// Runs until closed (returns who to tell and how it went) or the connection breaks
+    /// (returns the reason).
+    async fn serve(&mut self) -> std::result::Result<Closing, String> {
+        loop {
+            let release = self.pairing.next_release();
+            tokio::select! {
+                msg = self.rx.recv() => match msg {
+                    // A caller that gave up while its request waited in the channel: never sent.
+                    Some(Msg::Call { reply, .. }) if reply.is_closed() => {}
+                    Some(Msg::Call { frame, deadline, reply }) => {
+                        let token = self.waiter(Waiter::Caller(reply));
+                        self.submit(Request { token, frame, deadline }).await.map_err(io_reason)?;
+                    }
+                    Some(Msg::Subscribe { id, mode, subscriber, deadline, reply }) => {
+                        let st = self.streams.entry(id).or_insert(StreamState { mode, subscribers: Vec::new() });
+                        st.mode = mode;
+                        st.subscribers.push(subscriber);
+                        let token = self.waiter(Waiter::Caller(reply));
+                        let frame = stream_command(id, mode);
+                        self.submit(Request { token, frame, deadline }).await.map_err(io_reason)?;
+                    }
+                    Some(Msg::Close { done }) => {
+                        let result = self.close().await;
+                        return Ok(Some((done, result)));
+                    }
+                    None => {
+                        // Every handle is gone: close as gracefully as `close()` would.
+                        let _ = self.close().await;
+                        return Ok(None);
+                    }
+                },
+                Some((id, key)) = self.unsubscribe.recv() => {
+                    self.unsubscribe(id, key).await.map_err(io_reason)?;
+                }
+                received = self.link.recv() => match received {
+                    Some(Ok(frame)) => self.on_frame(frame).await.map_err(io_reason)?,
+                    Some(Err(e)) => return Err(e.to_string()),
+                    None => return Err("the gripper closed the connection".into()),
+                },
+                _ = sleep_until(release.unwrap_or_else(Instant::now)), if release.is_some() => {
+                    for (id, token) in self.pairing.release_expired(Instant::now()) {
+                        tracing::warn!(id, "no reply within timeout + grace: command id released; \
+                            a reply arriving later would be taken for the next request of this id");
+                        self.waiters.remove(&token);
+                        self.send_next(id).await.map_err(io_reason)?;
+                    }
+                }
+            }
+        }
+    }
+
+    fn waiter(&mut self, w: Waiter) -> Token {
+        self.next_token += 1;
+        self.waiters.insert(self.next_token, w);
+        self.next_token
+    }
+
+    async fn submit(&mut self, req: Request) -> io::Result<()> {
+        match self.pairing.submit(req) {
+            Some(req) => self.transmit(req).await,
+            None => Ok(()),
+        }
+    }
+
+    async fn transmit(&mut self, req: Request) -> io::Result<()> {
+        let mut frame = req.frame;
+        // A one-off query of a value that is being streamed must not switch the device's
+        // updates off (FLAGS bit0 clear would): ask with the stream's flags instead. The device
+        // answers with the current value and keeps streaming.
+        if let Some(st) = self.streams.get(&frame.id) {
+            if frame.payload.first().is_some_and(|flags| flags & 1 == 0) {
+                frame = stream_command(frame.id, st.mode);
+            }
+        }
+        tracing::trace!(id = frame.id, len = frame.payload.len(), "WSG send");
+        self.link.send(&frame).await
+    }
+
+    async fn send_next(&mut self, id: u8) -> io::Result<()> {
+        let waiters = &self.waiters;
+        let (next, skipped) = self.pairing.next(id, |t| match waiters.get(&t) {
+            Some(Waiter::Caller(tx)) => !tx.is_closed(),
+            Some(Waiter::Internal) => true,
+            None => false,
+        });
+        for t in skipped {
+            self.waiters.remove(&t);
+        }
+        match next {
+            Some(req) => self.transmit(req).await,
+            None => Ok(()),
+        }
+    }
+
+    async fn on_frame(&mut self, frame: Frame) -> io::Result<()> {
+        let id = frame.id;
+        let reply = match Reply::from_frame(frame) {
+            Ok(r) => r,
+            Err(reason) => {
+                tracing::warn!(id, %reason, "malformed WSG reply");
+                if let Some(token) = self.pairing.on_malformed(id) {
+                    if let Some(Waiter::Caller(tx)) = self.waiters.remove(&token) {
+                        let _ = tx.send(Err(Error::MalformedReply {
+                            command: id,
+                            reason,
+                        }));
+                    }
+                    self.send_next(id).await?;
+                }
+                return Ok(());
+            }
+        };
+        match self.pairing.on_reply(reply) {
+            Event::Accepted(_) => tracing::debug!(id, "WSG command accepted (E_CMD_PENDING)"),
+            Event::Resolved(token, reply) => {
+                if reply.status == Status::Success {
+                    self.fan_out(id, &reply.data).await?;
+                }
+                match self.waiters.remove(&token) {
+                    Some(Waiter::Caller(tx)) => {
+                        if tx.send(Ok(reply)).is_err() {
+                            tracing::debug!(
+                                id,
+                                "late reply of a timed-out or dropped call: discarded"
+                            );
+                        }
+                    }
+                    Some(Waiter::Internal) | None => {}
+                }
+                self.send_next(id).await?;
+            }
+            Event::Unsolicited(reply) => {
+                if reply.status == Status::Success && self.streams.contains_key(&id) {
+                    self.fan_out(id, &reply.data).await?;
+                } else {
+                    tracing::debug!(id, status = %reply.status, "WSG reply nobody waits for: dropped");
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Hands a value to the subscribers of `id`; turns the device's updates off when the last
+    /// one is gone.
+    async fn fan_out(&mut self, id: u8, data: &Bytes) -> io::Result<()> {
+        let Some(st) = self.streams.get_mut(&id) else {
+            return Ok(());
+        };
+        st.subscribers.retain(|s| s.deliver(data));
+        if st.subscribers.is_empty() {
+            self.stop_stream(id).await?;
+        }
+        Ok(())
+    }
+
+    async fn unsubscribe(&mut self, id: u8, key: u64) -> io::Result<()> {
+        let Some(st) = self.streams.get_mut(&id) else {
+            return Ok(());
+        };
+        st.subscribers.retain(|s| s.key != key);
+        if st.subscribers.is_empty() {
+            self.stop_stream(id).await?;
+        }
+        Ok(())
+    }
+
+    async fn stop_stream(&mut self, id: u8) -> io::Result<()> {
+        self.streams.remove(&id);
+        tracing::debug!(id, "last subscriber gone: turning auto-updates off");
+        let token = self.waiter(Waiter::Internal);
+        let deadline = Instant::now() + self.query_timeout;
+        self.submit(Request {
+            token,
+            frame: stream_command(id, UpdateMode::ONCE),
+            deadline,
+        })
+        .await
+    }
+
+    /// Announces the disconnect (TCP, manual 3.1.2) and waits for its reply, so the gripper does
+    /// not go into FAST STOP; then shuts the transport down.
+    async fn close(&mut self) -> Result<()> {
+        let mut result = Ok(());
+        if self.announce_on_close {
+            let (tx, mut rx) = oneshot::channel();
+            let token = self.waiter(Waiter::Caller(tx));
+            let deadline = Instant::now() + self.query_timeout;
+            let frame = Command::AnnounceDisconnect.to_frame();
+            if let Err(e) = self
+                .submit(Request {
+                    token,
+                    frame,
+                    deadline,
+                })
+                .await
+            {
+                return Err(Error::ConnectionLost(e.to_string()));
+            }
+            result = loop {
+                tokio::select! {
+                    r = &mut rx => break match r {
+                        Ok(Ok(reply)) if reply.status == Status::Success => Ok(()),
+                        Ok(Ok(reply)) => Err(Error::Device { command: id::ANNOUNCE_DISCONNECT, status: reply.status }),
+                        Ok(Err(e)) => Err(e),
+                        Err(_) => Err(Error::Closed),
+                    },
+                    received = self.link.recv() => match received {
+                        Some(Ok(frame)) => {
+                            if let Err(e) = self.on_frame(frame).await {
+                                break Err(Error::ConnectionLost(e.to_string()));
+                            }
+                        }
+                        Some(Err(e)) => break Err(Error::ConnectionLost(e.to_string())),
+                        None => break Err(Error::ConnectionLost("closed by the gripper".into())),
+                    },
+                    _ = sleep_until(deadline) => break Err(Error::Timeout {
+                        command: id::ANNOUNCE_DISCONNECT,
+                        timeout: self.query_timeout,
+                    }),
+                }
+            };
+        }
+        self.link.shutdown().await;
+        result
+    }
+}
+
+fn io_reason(e: io::Error) -> String {
+    e.to_string()
+}

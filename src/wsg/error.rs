@@ -1,0 +1,66 @@
+//! The one error type of [`crate::wsg`].
+
+use std::time::Duration;
+
+use super::Status;
+
+/// Everything a WSG call can fail with.
+///
+/// The variants keep apart: the device said no ([`Error::Device`], with its status code), the
+/// connection ([`Error::Io`], [`Error::ConnectionLost`], [`Error::Closed`]), no answer in time
+/// ([`Error::Timeout`]), a reply that does not parse ([`Error::MalformedReply`]), and arguments
+/// refused before anything was sent ([`Error::InvalidArgument`]).
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum Error {
+    /// The device answered the command with a status other than E_SUCCESS.
+    #[error("device answered command {command:#04x} with {status}")]
+    Device {
+        /// The command id.
+        command: u8,
+        /// The status code of the (final) reply.
+        status: Status,
+    },
+    /// Opening or configuring the transport failed.
+    #[error("I/O error: {0}")]
+    Io(#[from] std::io::Error),
+    /// The connection broke: the call was in progress, or the client had already lost its
+    /// connection (every later call gets this too).
+    #[error("connection to the gripper lost: {0}")]
+    ConnectionLost(String),
+    /// The client was closed with [`Client::close`](super::Client::close).
+    #[error("the client was closed")]
+    Closed,
+    /// No (final) reply arrived within the call's timeout.
+    #[error("no reply to command {command:#04x} within {timeout:?}")]
+    Timeout {
+        /// The command id.
+        command: u8,
+        /// The timeout that elapsed.
+        timeout: Duration,
+    },
+    /// A reply arrived but its data does not have the documented layout.
+    #[error("malformed reply to command {command:#04x}: {reason}")]
+    MalformedReply {
+        /// The command id.
+        command: u8,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// The arguments were refused before sending (out of the protocol's range).
+    #[error("invalid argument: {0}")]
+    InvalidArgument(String),
+}
+
+impl Error {
+    /// The device's status code, if the device answered with an error.
+    pub fn status(&self) -> Option<Status> {
+        match self {
+            Error::Device { status, .. } => Some(*status),
+            _ => None,
+        }
+    }
+}
+
+/// `Result` with [`Error`].
+pub type Result<T> = std::result::Result<T, Error>;

@@ -1,0 +1,18 @@
+//! An in-process WSG gripper that speaks the binary protocol over TCP, UDP, a serial
+//! pseudo-terminal or any byte stream (feature `sim`, on by default).
+//!
+//! [`device`] is the pure state machine (homing, moves with trapezoidal profiles within the
+//! model's limits, the grip states of Anhang C, stop and FAST STOP, soft limits, force,
+//! overdrive, auto-updates, tag, statistics, finger interface); [`server`] serves it.
+//!
+//! Simulated motion costs no wall time with [`SimConfig::time_scale`] = 0 (the default): a move's
+//! final reply follows its E_CMD_PENDING at once. Give it a large scale (e.g. 1000) to have a move
+//! still running when a stop arrives.
+
+pub mod device;
+mod model;
+pub mod server;
+
+pub use device::{Device, Out, SessionId, SessionKind};
+pub use model::{Model, Part, SimConfig, SimFinger};
+pub use server::{SimServer, SimSnapshot};

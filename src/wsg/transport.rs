@@ -1,0 +1,127 @@
+//! The byte transports a client (or the simulator) talks over: TCP, UDP, serial, or any
+//! `AsyncRead + AsyncWrite` the user already has.
+
+use std::io;
+use std::net::SocketAddr;
+
+use bytes::BytesMut;
+use futures_core::Stream;
+use tokio::io::{AsyncRead, AsyncWrite};
+use tokio::net::UdpSocket;
+use tokio_util::codec::Framed;
+
+use super::codec::WsgCodec;
+use super::frame::{self, Decoded, Frame};
+
+/// Default TCP port of a WSG's command interface.
+pub const DEFAULT_TCP_PORT: u16 = 1000;
+/// Default serial baud rate (8N1).
+pub const DEFAULT_BAUD_RATE: u32 = 115_200;
+
+/// Anything a client can be attached to.
+pub trait AsyncReadWrite: AsyncRead + AsyncWrite + Send + Unpin + 'static {}
+impl<T: AsyncRead + AsyncWrite + Send + Unpin + 'static> AsyncReadWrite for T {}
+
+/// Which kind of transport a client uses (decides whether closing announces it, manual 3.1.2).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TransportKind {
+    /// TCP: closing sends the disconnect announcement (0x07) first.
+    Tcp,
+    /// UDP, one frame per datagram.
+    Udp,
+    /// RS-232.
+    Serial,
+    /// A stream given to [`ClientBuilder::attach`](super::ClientBuilder::attach).
+    Attached,
+}
+
+/// A framed link: one frame in, one frame out.
+pub(crate) enum Link {
+    Stream(Framed<Box<dyn AsyncReadWrite>, WsgCodec>),
+    Udp {
+        socket: UdpSocket,
+        peer: SocketAddr,
+        max_payload_len: usize,
+    },
+}
+
+impl Link {
+    /// The next frame; `None` at end of stream. Cancel-safe (used in `select!`).
+    pub(crate) async fn recv(&mut self) -> Option<io::Result<Frame>> {
+        match self {
+            Link::Stream(framed) => {
+                std::future::poll_fn(|cx| std::pin::Pin::new(&mut *framed).poll_next(cx)).await
+            }
+            Link::Udp {
+                socket,
+                peer,
+                max_payload_len,
+            } => {
+                let mut buf = vec![0u8; frame::HEADER_LEN + *max_payload_len + 2];
+                loop {
+                    let (n, from) = match socket.recv_from(&mut buf[..]).await {
+                        Ok(x) => x,
+                        Err(e) => return Some(Err(e)),
+                    };
+                    // Everything after the await is synchronous: a cancelled recv loses nothing.
+                    if from.ip() != peer.ip() {
+                        tracing::warn!(%from, "UDP datagram from a stranger: dropped");
+                        continue;
+                    }
+                    if let Some(f) = decode_datagram(&buf[..n], *max_payload_len) {
+                        return Some(Ok(f));
+                    }
+                }
+            }
+        }
+    }
+
+    /// Sends one frame (and flushes it).
+    pub(crate) async fn send(&mut self, f: &Frame) -> io::Result<()> {
+        match self {
+            Link::Stream(framed) => {
+                // Only the read half of `Framed` is used: encode here and write through.
+                use tokio::io::AsyncWriteExt;
+                use tokio_util::codec::Encoder;
+                let mut buf = BytesMut::with_capacity(f.encoded_len());
+                framed.codec_mut().encode(f, &mut buf)?;
+                let io = framed.get_mut();
+                io.write_all(&buf).await?;
+                io.flush().await
+            }
+            Link::Udp { socket, peer, .. } => {
+                let mut b = BytesMut::with_capacity(f.encoded_len());
+                frame::encode(f, &mut b)
+                    .map_err(|e| io::Error::new(io::ErrorKind::InvalidInput, e))?;
+                socket.send_to(&b, *peer).await.map(drop)
+            }
+        }
+    }
+
+    /// Flushes and shuts down the write side.
+    pub(crate) async fn shutdown(&mut self) {
+        if let Link::Stream(framed) = self {
+            use tokio::io::AsyncWriteExt;
+            let _ = framed.get_mut().shutdown().await;
+        }
+    }
+}
+
+/// Decodes the single frame a datagram carries (each UDP datagram is one frame); anything else
+/// in it is noise, traced and dropped.
+pub(crate) fn decode_datagram(datagram: &[u8], max_payload_len: usize) -> Option<Frame> {
+    let mut b = BytesMut::from(datagram);
+    let mut found = None;
+    while let Some(d) = frame::decode_eof(&mut b, max_payload_len) {
+        match d {
+            Decoded::Frame(f) if found.is_none() => found = Some(f),
+            Decoded::Frame(f) => {
+                tracing::warn!(id = f.id, "extra frame in a UDP datagram: dropped")
+            }
+            Decoded::Corrupt { id, .. } => {
+                tracing::warn!(id, "UDP datagram with a bad checksum: dropped")
+            }
+        }
+    }
+    found
+}

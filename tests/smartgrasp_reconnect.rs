@@ -1,0 +1,294 @@
+//! `ClientConfig::reconnect`: the client through the fault proxy to the simulator; the proxy pulls
+//! the cable (`cut_connections`) and its stall switch holds the new connection's opening sequence
+//! where a test needs to act in between. Every wait is on an event or a proxy counter, bounded by
+//! `within`; the real clock runs (short backoff).
+#![cfg(feature = "sim")]
+
+use std::future::Future;
+use std::time::Duration;
+
+use futures_util::StreamExt;
+use gripper::fault::{FaultProxy, Framing, ProxyConfig};
+use gripper::reconnect::{ConnectionEvent, ConnectionEvents, ReconnectPolicy};
+use gripper::smartgrasp::codec;
+use gripper::smartgrasp::sim::{SimConfig, SimProject, SimServer};
+use gripper::smartgrasp::{
+    AbcPose, Client, ClientConfig, Error, GetGraspOutcome, GraspMode, GraspRequest, Pose,
+    PoseFormat, RobotSystem, Tool,
+};
+
+const LIMIT: Duration = Duration::from_secs(10);
+
+async fn within<F: Future>(what: &str, future: F) -> F::Output {
+    tokio::time::timeout(LIMIT, future)
+        .await
+        .unwrap_or_else(|_| panic!("hung: {what}"))
+}
+
+const POLICY: ReconnectPolicy = ReconnectPolicy {
+    initial_delay: Duration::from_millis(10),
+    max_delay: Duration::from_millis(40),
+    factor: 2.0,
+    max_attempts: None,
+};
+
+/// The demo project, and an empty one as project 1.
+async fn sim() -> SimServer {
+    let config = SimConfig {
+        projects: vec![
+            SimConfig::demo_project(),
+            SimProject::from_scene(Vec::new()),
+        ],
+        ..SimConfig::default()
+    };
+    SimServer::bind("127.0.0.1:0", config).await.unwrap()
+}
+
+async fn proxy(server: &SimServer) -> FaultProxy {
+    let config = ProxyConfig::new().framing(Framing::Custom(codec::proxy_frame_len));
+    FaultProxy::start_with(server.local_addr(), config)
+        .await
+        .unwrap()
+}
+
+fn config(reconnect: Option<ReconnectPolicy>) -> ClientConfig {
+    ClientConfig {
+        query_timeout: Duration::from_secs(2),
+        detection_timeout: Duration::from_secs(2),
+        robot_system: Some(RobotSystem::Kuka),
+        project_index: Some(0),
+        reconnect,
+        ..ClientConfig::default()
+    }
+}
+
+/// The simulator, the proxy to it, a client through the proxy and its event stream.
+async fn setup(
+    reconnect: Option<ReconnectPolicy>,
+) -> (SimServer, FaultProxy, Client, ConnectionEvents) {
+    let server = sim().await;
+    let proxy = proxy(&server).await;
+    let client = Client::connect(proxy.local_addr(), config(reconnect))
+        .await
+        .unwrap();
+    let events = client.connection_events();
+    (server, proxy, client, events)
+}
+
+async fn next(events: &mut ConnectionEvents) -> Option<ConnectionEvent> {
+    within("next connection event", events.next()).await
+}
+
+/// Reads events up to and including the first `Restored`.
+async fn until_restored(events: &mut ConnectionEvents) -> Vec<ConnectionEvent> {
+    let mut seen = Vec::new();
+    loop {
+        let event = next(events)
+            .await
+            .expect("the stream ended before Restored");
+        let done = matches!(event, ConnectionEvent::Restored { .. });
+        seen.push(event);
+        if done {
+            return seen;
+        }
+    }
+}
+
+fn grasp_request() -> GraspRequest {
+    GraspRequest {
+        grasp_mode: GraspMode::AnyGrasp,
+        object_class: 1,
+        tool: Tool::Exterior,
+        pose_format: PoseFormat::Abc,
+    }
+}
+
+async fn assert_grasp_works(client: &Client) {
+    let outcome = within("get_grasp", client.get_grasp(grasp_request()))
+        .await
+        .unwrap();
+    assert!(
+        matches!(outcome, GetGraspOutcome::Grasp(g) if g.object_class == 1),
+        "{outcome:?}"
+    );
+}
+
+#[tokio::test]
+async fn a_cut_is_reported_and_the_session_restored() {
+    let (server, proxy, client, mut events) = setup(Some(POLICY)).await;
+    // The program switches project and registers as another robot itself: a reconnect must
+    // restore that, not the configuration's.
+    client.set_project(1).await.unwrap();
+    client.register_client(RobotSystem::Ur).await.unwrap();
+
+    // Hold the new connection's requests, so a restarted server can "forget" the project first.
+    let requests = proxy.client_to_server();
+    requests.stall();
+    proxy.cut_connections();
+    assert!(matches!(
+        next(&mut events).await,
+        Some(ConnectionEvent::Lost { .. })
+    ));
+    within(
+        "opening sequence held",
+        requests.wait_for(|s| s.held_bytes >= 80),
+    )
+    .await;
+    let other = Client::connect(server.local_addr(), config(None))
+        .await
+        .unwrap();
+    assert_eq!(
+        server.state().active_project(),
+        Some(0),
+        "set by the other client"
+    );
+    requests.release();
+
+    let seen = until_restored(&mut events).await;
+    assert_eq!(
+        seen,
+        [
+            ConnectionEvent::Reconnecting {
+                attempt: 1,
+                delay: POLICY.initial_delay
+            },
+            ConnectionEvent::Connected,
+            ConnectionEvent::Restored { attempts: 1 },
+        ]
+    );
+    assert_eq!(
+        server.registered_clients(),
+        [
+            RobotSystem::Kuka,
+            RobotSystem::Ur,
+            RobotSystem::Kuka,
+            RobotSystem::Ur
+        ],
+        "config, program, other client, restored"
+    );
+    assert_eq!(server.state().active_project(), Some(1), "restored");
+    // Project 1 is empty; back to the bin and pick.
+    client.set_project(0).await.unwrap();
+    assert_grasp_works(&client).await;
+    assert!(!client.is_closed());
+    drop(other);
+}
+
+#[tokio::test]
+async fn calls_in_flight_fail_and_are_never_sent_again() {
+    let (server, proxy, client, mut events) = setup(Some(POLICY)).await;
+    let replies = proxy.server_to_client();
+    replies.stall();
+    let pose = Pose::Abc(AbcPose {
+        position_um: [1, 2, 3],
+        abc_udeg: [4, 5, 6],
+    });
+    let call = tokio::spawn({
+        let client = client.clone();
+        async move { client.robot_pose(pose).await }
+    });
+    // The server has the request and answered; the answer is held at the stall.
+    within("reply held", replies.wait_for(|s| s.held_bytes == 80)).await;
+    proxy.cut_connections();
+    let err = within("call", call).await.unwrap().unwrap_err();
+    assert!(matches!(err, Error::ConnectionClosed { .. }), "{err}");
+    assert!(matches!(
+        next(&mut events).await,
+        Some(ConnectionEvent::Lost { .. })
+    ));
+    replies.release();
+    until_restored(&mut events).await;
+    assert_grasp_works(&client).await;
+    assert_eq!(server.robot_poses(), [pose], "received once, never re-sent");
+}
+
+#[tokio::test]
+async fn calls_made_while_reconnecting_wait_for_the_restored_session() {
+    let (_server, proxy, client, mut events) = setup(Some(POLICY)).await;
+    let requests = proxy.client_to_server();
+    requests.stall();
+    proxy.cut_connections();
+    assert!(matches!(
+        next(&mut events).await,
+        Some(ConnectionEvent::Lost { .. })
+    ));
+    assert!(matches!(
+        next(&mut events).await,
+        Some(ConnectionEvent::Reconnecting { attempt: 1, .. })
+    ));
+    assert_eq!(next(&mut events).await, Some(ConnectionEvent::Connected));
+    // The opening sequence is held at the stall: this call waits for it.
+    let call = tokio::spawn({
+        let client = client.clone();
+        async move { client.get_grasp(grasp_request()).await }
+    });
+    within(
+        "opening sequence held",
+        requests.wait_for(|s| s.held_bytes >= 80),
+    )
+    .await;
+    assert!(!call.is_finished());
+    requests.release();
+    let outcome = within("call", call).await.unwrap().unwrap();
+    assert!(matches!(outcome, GetGraspOutcome::Grasp(_)), "{outcome:?}");
+    assert_eq!(
+        next(&mut events).await,
+        Some(ConnectionEvent::Restored { attempts: 1 })
+    );
+}
+
+#[tokio::test]
+async fn gives_up_after_max_attempts_and_closes() {
+    let policy = ReconnectPolicy {
+        max_attempts: Some(2),
+        ..POLICY
+    };
+    let (server, _proxy, client, mut events) = setup(Some(policy)).await;
+    // The server goes away for good: the proxy still accepts, but closes each connection.
+    drop(server);
+    let mut seen = Vec::new();
+    while let Some(event) = next(&mut events).await {
+        seen.push(event);
+    }
+    assert!(
+        matches!(seen.first(), Some(ConnectionEvent::Lost { .. })),
+        "{seen:?}"
+    );
+    assert_eq!(
+        &seen[1..],
+        [
+            ConnectionEvent::Reconnecting {
+                attempt: 1,
+                delay: Duration::from_millis(10)
+            },
+            ConnectionEvent::Connected,
+            ConnectionEvent::Reconnecting {
+                attempt: 2,
+                delay: Duration::from_millis(20)
+            },
+            ConnectionEvent::Connected,
+            ConnectionEvent::GaveUp { attempts: 2 },
+        ]
+    );
+    let err = client.get_state().await.unwrap_err();
+    assert!(matches!(err, Error::ConnectionClosed { .. }), "{err}");
+    assert!(client.is_closed());
+}
+
+#[tokio::test]
+async fn without_a_policy_the_loss_is_reported_and_the_client_closes() {
+    let (_server, proxy, client, mut events) = setup(None).await;
+    proxy.cut_connections();
+    assert!(matches!(
+        next(&mut events).await,
+        Some(ConnectionEvent::Lost { .. })
+    ));
+    assert_eq!(
+        next(&mut events).await,
+        None,
+        "the stream ends with the client"
+    );
+    let err = client.get_state().await.unwrap_err();
+    assert!(matches!(err, Error::ConnectionClosed { .. }), "{err}");
+    assert_eq!(proxy.stats().connections_accepted, 1, "no reconnect");
+}
