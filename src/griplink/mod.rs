@@ -29,11 +29,15 @@
 //!   and its caller's reply channel; a resynchronisation probe takes one of these places.
 //! - **Queued calls** ([`ClientConfig::queue_len`], default 64): a bounded channel to the
 //!   connection's task; more callers wait (each in its own future, within its own timeout) to
-//!   enter it. A queued call whose caller gave up is dropped, never sent.
+//!   enter it. A queued call whose caller gave up is dropped, never sent. While a lost
+//!   connection is being restored ([`ClientConfig::reconnect`]) calls wait the same way.
 //! - **Polling streams** ([`Port::watch_state`], [`Port::watch_value`]): one reading buffered in
 //!   the stream and at most one more waiting to be put there; the poller then waits for the
 //!   consumer instead of polling, so a slow consumer slows the polling. Readings it did not
 //!   take are never made (no backlog): the next reading it gets may be as old as its own pause.
+//! - **Connection events** ([`Client::connection_events`]): at most 32 buffered per stream; a
+//!   reader that falls further behind loses the oldest and is told how many
+//!   ([`ConnectionEvent::Missed`](crate::reconnect::ConnectionEvent::Missed)).
 //! - **Simulator** ([`sim`]): per connection, one command line of at most 1024 bytes (longer:
 //!   `ERR 01`) and one reply; the fault queue holds what the test injected.
 //!

@@ -24,8 +24,8 @@
 //! If a reply stays away [`ClientConfig::give_up_after`] beyond its call's timeout, the
 //! controller is not answering the way the protocol promises, and no later reply could be
 //! paired with confidence: the client then reports [`Error::Broken`] to every pending and
-//! future call and closes the connection. Reconnecting is left to the caller (connect a new
-//! [`Client`]).
+//! future call and closes the connection. It then reconnects if [`ClientConfig::reconnect`] is
+//! set; otherwise reconnecting is left to the caller (connect a new [`Client`]).
 //!
 //! # Replies out of step
 //! GRIPLINK replies carry no request id and no checksum (manual 2.1): order is the only
@@ -63,6 +63,7 @@ mod port;
 mod task;
 mod watch;
 
+use std::net::SocketAddr;
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -73,7 +74,7 @@ use tokio::time::Instant;
 pub use port::Port;
 pub use watch::{GripOutcome, ReleaseOutcome, WaitBy, Watch};
 
-use self::task::{Request, Shared, TaskConfig};
+use self::task::{Request, Shared, Task, TaskConfig};
 use super::codec::DEFAULT_MAX_LINE_LEN;
 #[cfg(doc)]
 use super::command::Blocking;
@@ -82,6 +83,10 @@ use super::error::{Error, Result};
 use super::reply::{Answer, Data};
 use super::state::DeviceState;
 use super::value::Value;
+use crate::reconnect::{ConnectionEvents, EventSender, EventSubscriber, ReconnectPolicy};
+
+/// Connection events each [`Client::connection_events`] stream buffers, at most.
+const EVENT_BUFFER: usize = 32;
 
 /// The controller's default TCP port (manual 2.5.1).
 pub const DEFAULT_PORT: u16 = 10001;
@@ -109,6 +114,24 @@ pub struct ClientConfig {
     /// buffer is not documented, and a command still in our queue can be withdrawn when its
     /// caller gives up, one already sent cannot.
     pub pipeline_depth: usize,
+    /// Reconnect after a lost connection (`None`, the default: a lost connection stays closed
+    /// and every later call fails with the reason).
+    ///
+    /// With a policy, when the connection is lost (the controller closed it, I/O failed, or
+    /// the client gave up on it, [`Error::Broken`]):
+    /// - the calls in flight fail with the reason; they are **never sent again** by the client:
+    ///   a GRIP may have run, and only the program can tell whether to repeat it;
+    /// - the client reconnects to the same address with the policy's backoff and restores what
+    ///   the program set up: the last [`Client::set_verbose`] the controller accepted (a
+    ///   `VERBOSE=` sent with [`Client::command`] is not tracked);
+    /// - calls still queued (not yet sent) and calls made meanwhile **wait** in the queue within
+    ///   their own timeouts and go out once the session is restored; a call that times out
+    ///   while waiting was never sent;
+    /// - each step is reported through [`Client::connection_events`] and `tracing`.
+    ///
+    /// After [`Client::close`], or when every handle is dropped, nothing reconnects. When the
+    /// policy gives up, the client is closed like one without a policy.
+    pub reconnect: Option<ReconnectPolicy>,
 }
 
 impl Default for ClientConfig {
@@ -122,6 +145,7 @@ impl Default for ClientConfig {
             max_line_len: DEFAULT_MAX_LINE_LEN,
             queue_len: 64,
             pipeline_depth: 1,
+            reconnect: None,
         }
     }
 }
@@ -145,6 +169,7 @@ impl ClientConfig {
 pub struct Client {
     requests: mpsc::Sender<Request>,
     shared: Arc<Shared>,
+    events: EventSubscriber,
     config: Arc<ClientConfig>,
     timeout: Option<Duration>,
 }
@@ -233,40 +258,85 @@ impl Client {
         Client::connect_with(addr, ClientConfig::default()).await
     }
 
-    /// Connects with the given configuration.
+    /// Connects with the given configuration. A reconnect ([`ClientConfig::reconnect`]) goes
+    /// to the addresses `addr` resolved to now. A failure here is returned whatever the
+    /// reconnect policy says.
     ///
     /// Cancel-safe: dropped, nothing is left running.
     pub async fn connect_with(addr: impl ToSocketAddrs, config: ClientConfig) -> Result<Client> {
-        let stream = tokio::time::timeout(config.connect_timeout, TcpStream::connect(addr))
+        let connect = async {
+            let addrs: Vec<SocketAddr> = tokio::net::lookup_host(addr).await?.collect();
+            let mut last = None;
+            for a in &addrs {
+                match TcpStream::connect(a).await {
+                    Ok(stream) => return Ok((stream, addrs)),
+                    Err(e) => last = Some(e),
+                }
+            }
+            Err(last.unwrap_or_else(|| {
+                std::io::Error::new(
+                    std::io::ErrorKind::InvalidInput,
+                    "the address resolved to nothing",
+                )
+            }))
+        };
+        let (stream, addrs) = tokio::time::timeout(config.connect_timeout, connect)
             .await
-            .map_err(|_| {
-                Error::from(std::io::Error::new(
-                    std::io::ErrorKind::TimedOut,
-                    "connecting to the controller timed out",
-                ))
-            })??;
+            .map_err(|_| task::connect_timed_out())??;
         // Lines are small and each waits for an answer: send them at once.
         stream.set_nodelay(true)?;
-        Ok(Client::from_stream(stream, config))
+        Ok(Client::spawn(stream, addrs, config))
     }
 
     /// Runs the client over an already connected stream. Must be called inside a tokio runtime.
+    /// A reconnect ([`ClientConfig::reconnect`]) goes to the stream's peer address.
     pub fn from_stream(stream: TcpStream, config: ClientConfig) -> Client {
+        let addrs = stream.peer_addr().into_iter().collect();
+        Client::spawn(stream, addrs, config)
+    }
+
+    fn spawn(stream: TcpStream, addrs: Vec<SocketAddr>, config: ClientConfig) -> Client {
         let (requests, rx) = mpsc::channel(config.queue_len.max(1));
         let shared = Arc::new(Shared::default());
-        let task_config = TaskConfig {
-            pipeline_depth: config.pipeline_depth,
-            give_up_after: config.give_up_after,
-            max_line_len: config.max_line_len,
-            probe_timeout: config.query_timeout.saturating_add(config.give_up_after),
+        let events = EventSender::new("griplink", EVENT_BUFFER);
+        let task = Task {
+            requests: rx,
+            config: TaskConfig {
+                pipeline_depth: config.pipeline_depth,
+                give_up_after: config.give_up_after,
+                max_line_len: config.max_line_len,
+                probe_timeout: config.query_timeout.saturating_add(config.give_up_after),
+                query_timeout: config.query_timeout,
+                connect_timeout: config.connect_timeout,
+            },
+            shared: Arc::clone(&shared),
+            reconnect: config.reconnect,
+            events: events.clone(),
+            addrs,
         };
-        tokio::spawn(task::run(stream, rx, task_config, Arc::clone(&shared)));
+        tokio::spawn(task::run(stream, task));
         Client {
             requests,
             shared,
+            events: events.subscriber(),
             config: Arc::new(config),
             timeout: None,
         }
+    }
+
+    /// Whether the connection is closed for good (every call fails). While the client
+    /// reconnects it is not closed.
+    pub fn is_closed(&self) -> bool {
+        self.requests.is_closed()
+    }
+
+    /// The connection's events from now on: each loss, reconnect attempt and recovery (see
+    /// [`ClientConfig::reconnect`]); without a reconnect policy, only the loss. The stream ends
+    /// when the connection is closed for good. It buffers at most 32 events: a reader that falls
+    /// further behind loses the oldest and gets a
+    /// [`ConnectionEvent::Missed`](crate::reconnect::ConnectionEvent::Missed) instead.
+    pub fn connection_events(&self) -> ConnectionEvents {
+        self.events.subscribe()
     }
 
     /// A handle whose calls all use `timeout` instead of the defaults. Shares the connection.
@@ -327,8 +397,16 @@ impl Client {
     pub async fn execute(&self, command: &Command) -> Result<Answer> {
         let line = command.encode()?;
         let bye = matches!(command, Command::Bye);
-        self.submit(line, command.expect(), command.duty(), bye)
-            .await
+        let answer = self
+            .submit(line, command.expect(), command.duty(), bye)
+            .await?;
+        // What a reconnect restores: the mode the controller reports.
+        if let (Command::SetVerbose(_), Answer::Data(data)) = (command, &answer) {
+            if let Some(mode) = data.value.as_int() {
+                self.shared.set_verbose(mode != 0);
+            }
+        }
+        Ok(answer)
     }
 
     /// Sends a raw command line (without LF) the crate has no type for, and returns its reply:

@@ -1,7 +1,12 @@
 //! The background task that owns the connection: it writes commands in the order callers
-//! submit them and pairs each reply line with the oldest outstanding command.
+//! submit them and pairs each reply line with the oldest outstanding command. When the
+//! connection is lost it either closes for good or, with [`ClientConfig::reconnect`], connects
+//! again with backoff and restores the session before serving the calls that queued meanwhile.
+//!
+//! [`ClientConfig::reconnect`]: super::ClientConfig::reconnect
 
 use std::future::poll_fn;
+use std::net::SocketAddr;
 use std::pin::Pin;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
@@ -17,8 +22,10 @@ use tokio_util::codec::{Encoder, FramedRead};
 
 use super::pipeline::{Delivery, Pipeline, Slot, Waiter};
 use crate::griplink::codec::{Line, LineCodec};
-use crate::griplink::command::Expect;
+use crate::griplink::command::{Command, Expect};
 use crate::griplink::error::Error;
+use crate::griplink::reply::interpret;
+use crate::reconnect::{self, ConnectionEvent, EventSender, ReconnectPolicy};
 
 /// A caller's command, on its way to the task.
 #[derive(Debug)]
@@ -34,10 +41,13 @@ pub(crate) struct Request {
     pub bye: bool,
 }
 
-/// What the handles and the task share: why the connection ended.
+/// What the handles and the task share: why the connection ended, and what the program set up
+/// that a reconnect restores.
 #[derive(Debug, Default)]
 pub(crate) struct Shared {
     failure: Mutex<Option<Error>>,
+    /// The last `VERBOSE` mode the controller accepted.
+    verbose: Mutex<Option<bool>>,
 }
 
 impl Shared {
@@ -48,6 +58,16 @@ impl Shared {
             .ok()
             .and_then(|f| f.clone())
             .unwrap_or(Error::Closed)
+    }
+
+    pub(crate) fn set_verbose(&self, on: bool) {
+        if let Ok(mut v) = self.verbose.lock() {
+            *v = Some(on);
+        }
+    }
+
+    fn verbose(&self) -> Option<bool> {
+        self.verbose.lock().ok().and_then(|v| *v)
     }
 
     fn record(&self, error: &Error) {
@@ -65,6 +85,97 @@ pub(crate) struct TaskConfig {
     pub max_line_len: usize,
     /// How long a resynchronisation probe may take before the connection is given up.
     pub probe_timeout: Duration,
+    /// Timeout of the commands that restore the session after a reconnect.
+    pub query_timeout: Duration,
+    pub connect_timeout: Duration,
+}
+
+/// Everything the task needs besides the first connection.
+pub(crate) struct Task {
+    pub requests: mpsc::Receiver<Request>,
+    pub config: TaskConfig,
+    pub shared: Arc<Shared>,
+    pub events: EventSender,
+    /// Reconnect with this backoff (`None`: a lost connection stays closed).
+    pub reconnect: Option<ReconnectPolicy>,
+    /// Where to reconnect to (resolved once, when the client connected).
+    pub addrs: Vec<SocketAddr>,
+}
+
+/// One connection: the reply reader and the command writer.
+struct Conn {
+    reader: FramedRead<OwnedReadHalf, LineCodec>,
+    write: OwnedWriteHalf,
+    encoder: LineCodec,
+}
+
+impl Conn {
+    fn new(stream: TcpStream, max_line_len: usize) -> Conn {
+        let (read, write) = stream.into_split();
+        // A line cut off by the end of the connection is not a reply: `VALUE[0][0]=12` may be
+        // the first half of `VALUE[0][0]=12345`.
+        let codec = LineCodec::new(max_line_len).reject_unterminated();
+        Conn {
+            reader: FramedRead::new(read, codec),
+            write,
+            encoder: LineCodec::new(max_line_len),
+        }
+    }
+
+    /// Connects to the first of `addrs` that answers.
+    async fn connect(addrs: &[SocketAddr], config: &TaskConfig) -> Result<Conn, Error> {
+        let mut last = None;
+        for addr in addrs {
+            match tokio::time::timeout(config.connect_timeout, TcpStream::connect(addr)).await {
+                Ok(Ok(stream)) => {
+                    stream.set_nodelay(true)?;
+                    return Ok(Conn::new(stream, config.max_line_len));
+                }
+                Ok(Err(e)) => last = Some(Error::from(e)),
+                Err(_) => last = Some(connect_timed_out()),
+            }
+        }
+        Err(last.unwrap_or_else(|| {
+            Error::from(std::io::Error::new(
+                std::io::ErrorKind::InvalidInput,
+                "no address to connect to",
+            ))
+        }))
+    }
+
+    /// One command and its reply, before any caller's command is served (restoring the
+    /// session on a new connection).
+    async fn exchange(&mut self, command: Command, timeout: Duration) -> Result<(), Error> {
+        let line = command.encode()?;
+        let deadline = Instant::now() + timeout;
+        send_line(&mut self.write, &mut self.encoder, &line, deadline).await?;
+        let reply = match tokio::time::timeout_at(deadline, next_line(&mut self.reader)).await {
+            Err(_) => {
+                return Err(Error::Timeout {
+                    command: line,
+                    timeout,
+                })
+            }
+            Ok(None) => return Err(Error::Closed),
+            Ok(Some(reply)) => reply?,
+        };
+        match reply {
+            Line::Text(text) => interpret(&line, command.expect(), &text).map(drop),
+            Line::Discarded(why) => Err(Error::MalformedReply {
+                command: line,
+                line: String::new(),
+                reason: why.to_string(),
+            }),
+        }
+    }
+}
+
+/// The error of a TCP connect that took longer than its timeout.
+pub(crate) fn connect_timed_out() -> Error {
+    Error::from(std::io::Error::new(
+        std::io::ErrorKind::TimedOut,
+        "connecting to the controller timed out",
+    ))
 }
 
 /// Writes one command line, giving up on the connection if the controller stops reading.
@@ -93,19 +204,66 @@ async fn next_line(
     poll_fn(|cx| Pin::new(&mut *reader).poll_next(cx)).await
 }
 
-/// Runs the connection until it closes, fails or every handle is dropped.
-pub(crate) async fn run(
-    stream: TcpStream,
-    mut requests: mpsc::Receiver<Request>,
-    config: TaskConfig,
-    shared: Arc<Shared>,
-) {
-    let (read, mut write) = stream.into_split();
-    // A line cut off by the end of the connection is not a reply: `VALUE[0][0]=12` may be the
-    // first half of `VALUE[0][0]=12345`.
-    let codec = LineCodec::new(config.max_line_len).reject_unterminated();
-    let mut reader = FramedRead::new(read, codec);
-    let mut encoder = LineCodec::new(config.max_line_len);
+/// Runs until every handle is dropped, the program closes the connection, or it is lost for
+/// good.
+pub(crate) async fn run(stream: TcpStream, mut task: Task) {
+    let mut conn = Conn::new(stream, task.config.max_line_len);
+    let end = loop {
+        let end = serve(conn, &mut task.requests, &task.config).await;
+        // `Closed`: BYE, or nobody left to call; nothing to report or restore.
+        if matches!(end, Error::Closed) {
+            break end;
+        }
+        task.events.send(ConnectionEvent::Lost {
+            reason: end.to_string(),
+        });
+        let Some(policy) = task.reconnect else {
+            break end;
+        };
+        // Calls made meanwhile wait in the queue, within their own timeouts.
+        let Task {
+            requests,
+            config,
+            shared,
+            events,
+            addrs,
+            ..
+        } = &task;
+        let restored = reconnect::retry(
+            &policy,
+            events,
+            || requests.is_closed(),
+            |_| async {
+                let mut conn = Conn::connect(addrs, config).await?;
+                events.send(ConnectionEvent::Connected);
+                if let Some(on) = shared.verbose() {
+                    conn.exchange(Command::SetVerbose(on), config.query_timeout)
+                        .await?;
+                }
+                Ok::<_, Error>(conn)
+            },
+        )
+        .await;
+        match restored {
+            Some(restored) => conn = restored,
+            None => break end,
+        }
+    };
+    task.shared.record(&end);
+    task.requests.close();
+    while let Ok(request) = task.requests.try_recv() {
+        let _ = request.waiter.send(Err(end.clone()));
+    }
+}
+
+/// Serves calls over one connection until it closes, fails or every handle is dropped; fails
+/// the calls in flight with the reason, which it returns.
+async fn serve(conn: Conn, requests: &mut mpsc::Receiver<Request>, config: &TaskConfig) -> Error {
+    let Conn {
+        mut reader,
+        mut write,
+        mut encoder,
+    } = conn;
     let mut pipeline =
         Pipeline::new(config.pipeline_depth).with_probe_timeout(config.probe_timeout);
     let mut closing = false;
@@ -185,11 +343,12 @@ pub(crate) async fn run(
         }
     };
 
-    shared.record(&end);
     pipeline.fail_all(&end);
-    requests.close();
-    while let Ok(request) = requests.try_recv() {
-        let _ = request.waiter.send(Err(end.clone()));
-    }
     let _ = write.shutdown().await;
+    // After BYE the program is done with the connection, however it ended.
+    if closing {
+        Error::Closed
+    } else {
+        end
+    }
 }
