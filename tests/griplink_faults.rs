@@ -144,20 +144,30 @@ async fn reply_delayed_within_the_timeout_is_the_answer() {
 }
 
 #[tokio::test]
-async fn reply_delayed_beyond_the_timeout_is_discarded_when_it_comes() {
-    let rig = Rig::new().await;
-    let client = rig.client_with(ClientConfig::default()).await;
-    rig.replies().add(Fault::Delay(LONG).once());
-    let r = within("pid", client.port(0).with_timeout(SHORT).product_id()).await;
-    assert!(matches!(r, Err(Error::Timeout { .. })), "{r:?}");
-    // The next call waits behind the late reply, which is discarded when the delay ends.
-    let next = spawn({
-        let client = client.clone();
-        async move { client.port(2).product_id().await }
-    });
-    rig.replies().clear(); // ends the delay
-    assert_eq!(within("next", next).await.unwrap().unwrap(), 50);
-    healthy(&client).await;
+async fn line_delayed_beyond_the_timeout_is_discarded_when_it_comes() {
+    for direction in ["command", "reply"] {
+        let rig = Rig::new().await;
+        let client = rig.client_with(ClientConfig::default()).await;
+        let faults = if direction == "command" {
+            rig.commands()
+        } else {
+            rig.replies()
+        };
+        faults.add(Fault::Delay(LONG).once());
+        let r = within("pid", client.port(0).with_timeout(SHORT).product_id()).await;
+        assert!(
+            matches!(r, Err(Error::Timeout { .. })),
+            "{direction}: {r:?}"
+        );
+        // The next call waits behind the late reply, which is discarded when the delay ends.
+        let next = spawn({
+            let client = client.clone();
+            async move { client.port(2).product_id().await }
+        });
+        faults.clear(); // ends the delay
+        assert_eq!(within("next", next).await.unwrap().unwrap(), 50);
+        healthy(&client).await;
+    }
 }
 
 #[tokio::test]
