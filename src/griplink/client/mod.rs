@@ -335,6 +335,43 @@ impl Client {
     /// when the connection is closed for good. It buffers at most 32 events: a reader that falls
     /// further behind loses the oldest and gets a
     /// [`ConnectionEvent::Missed`](crate::reconnect::ConnectionEvent::Missed) instead.
+    ///
+    /// ```
+    /// # #[cfg(not(feature = "sim"))]
+    /// # fn main() {}
+    /// # #[cfg(feature = "sim")]
+    /// # #[tokio::main(flavor = "current_thread")]
+    /// # async fn main() -> Result<(), Box<dyn std::error::Error>> {
+    /// use futures_util::StreamExt;
+    /// use gripper::fault::{FaultProxy, Framing, ProxyConfig};
+    /// use gripper::griplink::sim::{SimConfig, SimServer};
+    /// use gripper::griplink::{Client, ClientConfig};
+    /// use gripper::reconnect::{ConnectionEvent, ReconnectPolicy};
+    ///
+    /// let server = SimServer::start("127.0.0.1:0", SimConfig::et4().time_scale(0.0)).await?;
+    /// // A proxy to pull the cable with.
+    /// let lines = ProxyConfig::new().framing(Framing::Delimited(b'\n'));
+    /// let proxy = FaultProxy::start_with(server.local_addr(), lines).await?;
+    /// let config = ClientConfig {
+    ///     reconnect: Some(ReconnectPolicy::default()),
+    ///     ..ClientConfig::default()
+    /// };
+    /// let client = Client::connect_with(proxy.local_addr(), config).await?;
+    /// client.set_verbose(true).await?;
+    /// let mut events = client.connection_events();
+    ///
+    /// proxy.cut_connections();
+    /// while let Some(event) = events.next().await {
+    ///     println!("{event}");
+    ///     if let ConnectionEvent::Restored { .. } = event {
+    ///         break;
+    ///     }
+    /// }
+    /// // A new connection, verbose again.
+    /// assert_eq!(client.id().await?, "GRIPLINK-ET4");
+    /// # Ok(())
+    /// # }
+    /// ```
     pub fn connection_events(&self) -> ConnectionEvents {
         self.events.subscribe()
     }
