@@ -264,27 +264,17 @@ impl Client {
     ///
     /// Cancel-safe: dropped, nothing is left running.
     pub async fn connect_with(addr: impl ToSocketAddrs, config: ClientConfig) -> Result<Client> {
-        let connect = async {
-            let addrs: Vec<SocketAddr> = tokio::net::lookup_host(addr).await?.collect();
-            let mut last = None;
-            for a in &addrs {
-                match TcpStream::connect(a).await {
-                    Ok(stream) => return Ok((stream, addrs)),
-                    Err(e) => last = Some(e),
-                }
-            }
-            Err(last.unwrap_or_else(|| {
-                std::io::Error::new(
-                    std::io::ErrorKind::InvalidInput,
-                    "the address resolved to nothing",
-                )
-            }))
-        };
-        let (stream, addrs) = tokio::time::timeout(config.connect_timeout, connect)
-            .await
-            .map_err(|_| task::connect_timed_out())??;
-        // Lines are small and each waits for an answer: send them at once.
-        stream.set_nodelay(true)?;
+        let addrs: Vec<SocketAddr> =
+            tokio::time::timeout(config.connect_timeout, tokio::net::lookup_host(addr))
+                .await
+                .map_err(|_| {
+                    Error::from(std::io::Error::new(
+                        std::io::ErrorKind::TimedOut,
+                        "resolving the controller's address timed out",
+                    ))
+                })??
+                .collect();
+        let stream = task::connect_any(&addrs, config.connect_timeout).await?;
         Ok(Client::spawn(stream, addrs, config))
     }
 

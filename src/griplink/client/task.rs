@@ -124,23 +124,8 @@ impl Conn {
 
     /// Connects to the first of `addrs` that answers.
     async fn connect(addrs: &[SocketAddr], config: &TaskConfig) -> Result<Conn, Error> {
-        let mut last = None;
-        for addr in addrs {
-            match tokio::time::timeout(config.connect_timeout, TcpStream::connect(addr)).await {
-                Ok(Ok(stream)) => {
-                    stream.set_nodelay(true)?;
-                    return Ok(Conn::new(stream, config.max_line_len));
-                }
-                Ok(Err(e)) => last = Some(Error::from(e)),
-                Err(_) => last = Some(connect_timed_out()),
-            }
-        }
-        Err(last.unwrap_or_else(|| {
-            Error::from(std::io::Error::new(
-                std::io::ErrorKind::InvalidInput,
-                "no address to connect to",
-            ))
-        }))
+        let stream = connect_any(addrs, config.connect_timeout).await?;
+        Ok(Conn::new(stream, config.max_line_len))
     }
 
     /// One command and its reply, before any caller's command is served (restoring the
@@ -170,12 +155,32 @@ impl Conn {
     }
 }
 
-/// The error of a TCP connect that took longer than its timeout.
-pub(crate) fn connect_timed_out() -> Error {
-    Error::from(std::io::Error::new(
-        std::io::ErrorKind::TimedOut,
-        "connecting to the controller timed out",
-    ))
+/// Connects to the first of `addrs` that answers, each within `timeout`, with Nagle off:
+/// lines are small and each waits for an answer.
+pub(crate) async fn connect_any(
+    addrs: &[SocketAddr],
+    timeout: Duration,
+) -> Result<TcpStream, Error> {
+    let mut last = Error::from(std::io::Error::new(
+        std::io::ErrorKind::InvalidInput,
+        "the address resolved to nothing",
+    ));
+    for addr in addrs {
+        match tokio::time::timeout(timeout, TcpStream::connect(addr)).await {
+            Ok(Ok(stream)) => {
+                stream.set_nodelay(true)?;
+                return Ok(stream);
+            }
+            Ok(Err(e)) => last = Error::from(e),
+            Err(_) => {
+                last = Error::from(std::io::Error::new(
+                    std::io::ErrorKind::TimedOut,
+                    "connecting to the controller timed out",
+                ))
+            }
+        }
+    }
+    Err(last)
 }
 
 /// Writes one command line, giving up on the connection if the controller stops reading.
