@@ -75,6 +75,15 @@ impl Rig {
         .unwrap()
     }
 
+    /// The faults of the direction named `"command"` or `"reply"`.
+    fn faults(&self, direction: &str) -> Faults {
+        if direction == "command" {
+            self.commands()
+        } else {
+            self.replies()
+        }
+    }
+
     fn replies(&self) -> Faults {
         self.proxy.server_to_client()
     }
@@ -144,29 +153,35 @@ async fn reply_delayed_within_the_timeout_is_the_answer() {
 }
 
 #[tokio::test]
-async fn line_delayed_beyond_the_timeout_is_discarded_when_it_comes() {
+async fn line_delayed_or_stalled_beyond_the_timeout_is_discarded_when_it_comes() {
     for direction in ["command", "reply"] {
-        let rig = Rig::new().await;
-        let client = rig.client_with(ClientConfig::default()).await;
-        let faults = if direction == "command" {
-            rig.commands()
-        } else {
-            rig.replies()
-        };
-        faults.add(Fault::Delay(LONG).once());
-        let r = within("pid", client.port(0).with_timeout(SHORT).product_id()).await;
-        assert!(
-            matches!(r, Err(Error::Timeout { .. })),
-            "{direction}: {r:?}"
-        );
-        // The next call waits behind the late reply, which is discarded when the delay ends.
-        let next = spawn({
-            let client = client.clone();
-            async move { client.port(2).product_id().await }
-        });
-        faults.clear(); // ends the delay
-        assert_eq!(within("next", next).await.unwrap().unwrap(), 50);
-        healthy(&client).await;
+        for stall in [false, true] {
+            let rig = Rig::new().await;
+            let client = rig.client_with(ClientConfig::default()).await;
+            let faults = rig.faults(direction);
+            if stall {
+                faults.stall();
+            } else {
+                faults.add(Fault::Delay(LONG).once());
+            }
+            let r = within("pid", client.port(0).with_timeout(SHORT).product_id()).await;
+            assert!(
+                matches!(r, Err(Error::Timeout { .. })),
+                "{direction}: {r:?}"
+            );
+            // The next call waits behind the late reply, which is discarded when it comes.
+            let next = spawn({
+                let client = client.clone();
+                async move { client.port(2).product_id().await }
+            });
+            if stall {
+                faults.release();
+            } else {
+                faults.clear(); // ends the delay
+            }
+            assert_eq!(within("next", next).await.unwrap().unwrap(), 50);
+            healthy(&client).await;
+        }
     }
 }
 
@@ -371,11 +386,7 @@ async fn dropped_line_in_either_direction_times_out_then_breaks_the_connection()
     for direction in ["command", "reply"] {
         let rig = Rig::new().await;
         let client = rig.client().await;
-        let faults = if direction == "command" {
-            rig.commands()
-        } else {
-            rig.replies()
-        };
+        let faults = rig.faults(direction);
         let drop = faults.add(Fault::Drop.once());
         let r = within("pid", client.port(0).with_timeout(SHORT).product_id()).await;
         assert!(
@@ -504,32 +515,6 @@ async fn stall_released_within_the_timeout_delivers_the_answer() {
     rig.replies().release();
     assert_eq!(within("call", call).await.unwrap().unwrap(), 20);
     healthy(&client).await;
-}
-
-#[tokio::test]
-async fn stall_beyond_the_timeout_then_release_discards_the_late_reply() {
-    for direction in ["command", "reply"] {
-        let rig = Rig::new().await;
-        let client = rig.client_with(ClientConfig::default()).await;
-        let faults = if direction == "command" {
-            rig.commands()
-        } else {
-            rig.replies()
-        };
-        faults.stall();
-        let r = within("pid", client.port(0).with_timeout(SHORT).product_id()).await;
-        assert!(
-            matches!(r, Err(Error::Timeout { .. })),
-            "{direction}: {r:?}"
-        );
-        let next = spawn({
-            let client = client.clone();
-            async move { client.port(2).product_id().await }
-        });
-        faults.release();
-        assert_eq!(within("next", next).await.unwrap().unwrap(), 50);
-        healthy(&client).await;
-    }
 }
 
 // ---- cut -------------------------------------------------------------------------------------

@@ -44,6 +44,19 @@ fn reconnecting(max_attempts: Option<u32>) -> ClientConfig {
     }
 }
 
+/// A simulator, a proxy to pull the cable with, and a reconnecting client through it.
+async fn proxied() -> (SimServer, FaultProxy, Client) {
+    let server = sim().await;
+    let lines = ProxyConfig::new().framing(Framing::Delimited(b'\n'));
+    let proxy = FaultProxy::start_with(server.local_addr(), lines)
+        .await
+        .unwrap();
+    let client = Client::connect_with(proxy.local_addr(), reconnecting(None))
+        .await
+        .unwrap();
+    (server, proxy, client)
+}
+
 /// The next events, up to and including the first that `last` accepts.
 async fn events_until(
     events: &mut ConnectionEvents,
@@ -62,16 +75,7 @@ async fn events_until(
 
 #[tokio::test]
 async fn reconnects_after_a_cut_restores_verbose_and_reports_each_step() {
-    let server = sim().await;
-    let proxy = FaultProxy::start_with(
-        server.local_addr(),
-        ProxyConfig::new().framing(Framing::Delimited(b'\n')),
-    )
-    .await
-    .unwrap();
-    let client = Client::connect_with(proxy.local_addr(), reconnecting(None))
-        .await
-        .unwrap();
+    let (_server, proxy, client) = proxied().await;
     assert!(client.set_verbose(true).await.unwrap());
     let mut events = client.connection_events();
     let commands = proxy.client_to_server().stats().frames;
@@ -109,16 +113,7 @@ async fn reconnects_after_a_cut_restores_verbose_and_reports_each_step() {
 
 #[tokio::test]
 async fn a_call_in_flight_when_the_link_drops_fails_and_is_never_sent_again() {
-    let server = sim().await;
-    let proxy = FaultProxy::start_with(
-        server.local_addr(),
-        ProxyConfig::new().framing(Framing::Delimited(b'\n')),
-    )
-    .await
-    .unwrap();
-    let client = Client::connect_with(proxy.local_addr(), reconnecting(None))
-        .await
-        .unwrap();
+    let (server, proxy, client) = proxied().await;
     let mut events = client.connection_events();
     let g = client.port(0);
     g.home().await.unwrap();
@@ -201,16 +196,7 @@ async fn close_does_not_reconnect() {
 
 #[tokio::test]
 async fn a_watch_goes_on_across_a_reconnect() {
-    let server = sim().await;
-    let proxy = FaultProxy::start_with(
-        server.local_addr(),
-        ProxyConfig::new().framing(Framing::Delimited(b'\n')),
-    )
-    .await
-    .unwrap();
-    let client = Client::connect_with(proxy.local_addr(), reconnecting(None))
-        .await
-        .unwrap();
+    let (_server, proxy, client) = proxied().await;
     let mut events = client.connection_events();
     let mut states = client.port(0).watch_state(Duration::from_millis(1));
     assert_eq!(
