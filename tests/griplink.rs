@@ -596,15 +596,16 @@ async fn queued_command_of_a_caller_that_gave_up_is_never_sent() {
 async fn delayed_reply_after_timeout_is_discarded() {
     let server = sim().await;
     let client = connect(&server).await;
-    // The reply comes a second after the caller gave up (wide margin: a loaded machine must not
-    // see both at once).
-    server.inject(Fault::DelayReply(Duration::from_secs(1)));
+    // The reply is held until the caller has given up, then comes: no wall-clock margin, so a
+    // loaded machine cannot see the reply before the timeout.
+    let gate = server.hold_next_reply();
     let r = client
         .port(0)
         .with_timeout(Duration::from_millis(10))
         .state()
         .await;
     assert!(matches!(r, Err(Error::Timeout { .. })));
+    gate.release();
     assert_eq!(client.id().await.unwrap(), "GRIPLINK-ET4");
 }
 

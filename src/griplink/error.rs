@@ -73,8 +73,9 @@ pub enum Error {
     /// dropped).
     #[error("connection closed")]
     Closed,
-    /// The client gave up on the connection: a reply stayed away so far past its timeout that
-    /// the in-order pairing of replies can no longer be trusted.
+    /// The client gave up on the connection because the in-order pairing of replies can no
+    /// longer be trusted: a reply stayed away far past its timeout, the controller stopped
+    /// reading, or a reply did not answer its command while other commands were on the wire.
     #[error("connection broken: {0}")]
     Broken(String),
 }

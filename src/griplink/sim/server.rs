@@ -229,7 +229,10 @@ async fn serve(stream: TcpStream, shared: Arc<Shared>) {
 
 async fn serve_lines(stream: TcpStream, shared: &Shared) -> io::Result<()> {
     let (read, mut write) = stream.into_split();
-    let mut reader = FramedRead::new(read, LineCodec::new(shared.max_line_len));
+    // A command is a line ended by LF (manual 2.1): one cut off by a lost connection is not
+    // executed (`GRIP(0,1)` without its LF must not grip).
+    let codec = LineCodec::new(shared.max_line_len).reject_unterminated();
+    let mut reader = FramedRead::new(read, codec);
     let mut session = Session::default();
     while let Some(line) = poll_fn(|cx| Pin::new(&mut reader).poll_next(cx)).await {
         let command = match line? {
