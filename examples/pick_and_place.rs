@@ -169,9 +169,9 @@ async fn start(args: &Args) -> Result<(String, String, String, Simulators), Stri
         None => {
             let device = griplink::sim::SimDevice::wpg_100_090().with_part(GRIPLINK_PART_MM);
             let config = griplink::sim::SimConfig::et4()
-                .device(usize::from(args.griplink_port), Some(device))
+                .device(args.griplink_port, Some(device))
                 .time_scale(0.0);
-            let sim = griplink::sim::SimServer::start("127.0.0.1:0", config)
+            let sim = griplink::sim::SimServer::bind("127.0.0.1:0", config)
                 .await
                 .map_err(|e| format!("cannot start the GRIPLINK simulator: {e}"))?;
             let addr = sim.local_addr().to_string();

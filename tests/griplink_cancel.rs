@@ -21,7 +21,7 @@ async fn sim() -> SimServer {
         .device(1, Some(SimDevice::wpg_100_090()))
         .device(3, Some(SimDevice::wpg_300_120()))
         .time_scale(0.0);
-    SimServer::start("127.0.0.1:0", config).await.unwrap()
+    SimServer::bind("127.0.0.1:0", config).await.unwrap()
 }
 
 const PRODUCT_IDS: [u32; 4] = [20, 6050, 50, 6060];

@@ -47,7 +47,7 @@ impl Rig {
         let config = SimConfig::et4()
             .device(0, Some(SimDevice::ieg_55_020().with_part(12.0)))
             .time_scale(0.0);
-        let server = SimServer::start("127.0.0.1:0", config).await.unwrap();
+        let server = SimServer::bind("127.0.0.1:0", config).await.unwrap();
         let proxy = FaultProxy::start_with(
             server.local_addr(),
             ProxyConfig::new().framing(Framing::Delimited(b'\n')),
@@ -193,10 +193,10 @@ async fn reply_delayed_far_beyond_the_timeout_breaks_the_connection() {
     let r = within("pid", client.port(0).with_timeout(SHORT).product_id()).await;
     assert!(matches!(r, Err(Error::Timeout { .. })), "{r:?}");
     let r = within("next", client.id()).await;
-    assert!(matches!(r, Err(Error::Broken(_))), "{r:?}");
+    assert!(matches!(r, Err(Error::ConnectionLost(_))), "{r:?}");
     assert!(matches!(
         within("later", client.id()).await,
-        Err(Error::Broken(_))
+        Err(Error::ConnectionLost(_))
     ));
     rig.replies().clear();
     healthy(&rig.client().await).await;
@@ -337,7 +337,7 @@ async fn lost_lf_merges_two_replies_and_breaks_the_connection() {
         let r = within("pid", client.port(0).with_timeout(SHORT).product_id()).await;
         assert!(matches!(r, Err(Error::Timeout { .. })), "{r:?}");
         let r = within("next", client.id()).await;
-        assert!(matches!(r, Err(Error::Broken(_))), "{r:?}");
+        assert!(matches!(r, Err(Error::ConnectionLost(_))), "{r:?}");
         healthy(&rig.client().await).await;
 
         // Depth 2: the next reply completes the merged line `DEVPID[0]=20?DEVPID[2]=50`: the
@@ -360,7 +360,10 @@ async fn lost_lf_merges_two_replies_and_breaks_the_connection() {
             matches!(first, Err(Error::MalformedReply { .. })),
             "{first:?}"
         );
-        assert!(matches!(second, Err(Error::Broken(_))), "{second:?}");
+        assert!(
+            matches!(second, Err(Error::ConnectionLost(_))),
+            "{second:?}"
+        );
         healthy(&rig.client().await).await;
     }
 }
@@ -396,7 +399,10 @@ async fn dropped_line_in_either_direction_times_out_then_breaks_the_connection()
         assert_eq!(drop.fired(), 1);
         // The reply can never come: waiting behind it ends with the connection given up.
         let r = within("next", client.id()).await;
-        assert!(matches!(r, Err(Error::Broken(_))), "{direction}: {r:?}");
+        assert!(
+            matches!(r, Err(Error::ConnectionLost(_))),
+            "{direction}: {r:?}"
+        );
         healthy(&rig.client().await).await;
     }
 }
@@ -529,12 +535,12 @@ async fn cut_before_or_inside_a_reply_is_a_connection_error() {
         rig.replies().add(Fault::Cut { after_bytes }.once());
         let r = within("value", client.port(0).value(0)).await;
         assert!(
-            matches!(r, Err(Error::Io(_))),
+            matches!(r, Err(Error::ConnectionLost(_))),
             "cut after {after_bytes}: {r:?}"
         );
         assert!(matches!(
             within("later", client.id()).await,
-            Err(Error::Io(_))
+            Err(Error::ConnectionLost(_))
         ));
         healthy(&rig.client().await).await;
     }
@@ -551,7 +557,7 @@ async fn cut_before_or_inside_a_command_is_a_connection_error_and_nothing_runs()
         rig.commands().add(Fault::Cut { after_bytes }.once());
         let r = within("grip", g.grip(0, Blocking::Immediate)).await;
         assert!(
-            matches!(r, Err(Error::Io(_))),
+            matches!(r, Err(Error::ConnectionLost(_))),
             "cut after {after_bytes}: {r:?}"
         );
         let fresh = rig.client().await;

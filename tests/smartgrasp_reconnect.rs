@@ -138,7 +138,7 @@ async fn a_cut_is_reported_and_the_session_restored() {
         .await
         .unwrap();
     assert_eq!(
-        server.state().active_project(),
+        server.with_state(|s| s.active_project()),
         Some(0),
         "set by the other client"
     );
@@ -166,7 +166,11 @@ async fn a_cut_is_reported_and_the_session_restored() {
         ],
         "config, program, other client, restored"
     );
-    assert_eq!(server.state().active_project(), Some(1), "restored");
+    assert_eq!(
+        server.with_state(|s| s.active_project()),
+        Some(1),
+        "restored"
+    );
     // Project 1 is empty; back to the bin and pick.
     client.set_project(0).await.unwrap();
     assert_grasp_works(&client).await;
@@ -191,7 +195,7 @@ async fn calls_in_flight_fail_and_are_never_sent_again() {
     within("reply held", replies.wait_for(|s| s.held_bytes == 80)).await;
     proxy.cut_connections();
     let err = within("call", call).await.unwrap().unwrap_err();
-    assert!(matches!(err, Error::ConnectionClosed { .. }), "{err}");
+    assert!(matches!(err, Error::ConnectionLost { .. }), "{err}");
     assert!(matches!(
         next(&mut events).await,
         Some(ConnectionEvent::Lost { .. })
@@ -271,7 +275,7 @@ async fn gives_up_after_max_attempts_and_closes() {
         ]
     );
     let err = client.get_state().await.unwrap_err();
-    assert!(matches!(err, Error::ConnectionClosed { .. }), "{err}");
+    assert!(matches!(err, Error::ConnectionLost { .. }), "{err}");
     assert!(client.is_closed());
 }
 
@@ -289,6 +293,6 @@ async fn without_a_policy_the_loss_is_reported_and_the_client_closes() {
         "the stream ends with the client"
     );
     let err = client.get_state().await.unwrap_err();
-    assert!(matches!(err, Error::ConnectionClosed { .. }), "{err}");
+    assert!(matches!(err, Error::ConnectionLost { .. }), "{err}");
     assert_eq!(proxy.stats().connections_accepted, 1, "no reconnect");
 }

@@ -436,7 +436,7 @@ fn classify(e: Error) -> CliError {
             CliError::new(Kind::Timeout, io.to_string())
         }
         Error::Io(io) => CliError::new(Kind::Connection, io.to_string()),
-        Error::Closed | Error::Broken(_) => CliError::new(Kind::Connection, message),
+        Error::Closed | Error::ConnectionLost(_) => CliError::new(Kind::Connection, message),
         Error::MalformedReply { .. } | Error::UnexpectedReply { .. } => {
             CliError::new(Kind::Malformed, message)
         }

@@ -351,9 +351,9 @@ async fn check_operational(client: &Client) -> Result<(), CliError> {
 fn classify(e: Error) -> CliError {
     let message = e.to_string();
     match e {
-        Error::Refused { code, .. } => CliError::device(
+        Error::Device { status, .. } => CliError::device(
             message,
-            DeviceCode::from_display(u8::from(code).into(), &code.to_string()),
+            DeviceCode::from_display(u8::from(status).into(), &status.to_string()),
         ),
         Error::NotOperational { state } => CliError::device(
             message,
@@ -365,11 +365,13 @@ fn classify(e: Error) -> CliError {
             CliError::new(Kind::Timeout, io.to_string())
         }
         Error::Io(io) => CliError::new(Kind::Connection, io.to_string()),
-        Error::ConnectionClosed { .. } | Error::ResponseLost { .. } => {
+        Error::ConnectionLost { .. } | Error::Closed | Error::ResponseLost { .. } => {
             CliError::new(Kind::Connection, message)
         }
-        Error::Malformed(_) | Error::Pose(_) => CliError::new(Kind::Malformed, message),
+        Error::MalformedReply(_) | Error::Pose(_) => CliError::new(Kind::Malformed, message),
         Error::InvalidArgument(_) => CliError::argument(message),
+        // `smartgrasp::Error` is non-exhaustive: a kind added later still gets its message through.
+        _ => CliError::new(Kind::Connection, message),
     }
 }
 

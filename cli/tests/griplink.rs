@@ -13,7 +13,7 @@ async fn et4() -> (SimServer, String) {
     let config = SimConfig::et4()
         .device(0, Some(SimDevice::ieg_55_020().with_part(12.0)))
         .time_scale(0.0);
-    let server = SimServer::start("127.0.0.1:0", config).await.expect("bind");
+    let server = SimServer::bind("127.0.0.1:0", config).await.expect("bind");
     let addr = server.local_addr().to_string();
     (server, addr)
 }

@@ -119,7 +119,7 @@ async fn picking_until_the_scene_is_empty() {
             "{feedback:?}"
         );
     }
-    assert!(server.state().projects()[0].scene.is_empty());
+    assert!(server.with_state(|s| s.projects()[0].scene.is_empty()));
     // An empty bin is an answer, not a failure.
     let empty = sg(&addr, &["grasp"]).await;
     assert_eq!(empty.ok().trim(), "no object in the scene (NO_OBJECT)");
@@ -263,7 +263,7 @@ async fn connection_refused_is_one_line() {
 #[tokio::test]
 async fn a_missing_response_times_out() {
     let (server, addr) = server(SimConfig::default()).await;
-    server.inject(Fault::SkipResponse);
+    server.inject(Fault::DropReply);
     let args = [
         "--timeout",
         "200ms",

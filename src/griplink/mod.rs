@@ -56,7 +56,7 @@
 //! let config = SimConfig::et4()
 //!     .device(0, Some(SimDevice::ieg_55_020().with_part(12.0)))
 //!     .time_scale(0.0);
-//! let server = SimServer::start("127.0.0.1:0", config).await?;
+//! let server = SimServer::bind("127.0.0.1:0", config).await?;
 //!
 //! let client = Client::connect(server.local_addr()).await?;
 //! assert_eq!(client.id().await?, "GRIPLINK-ET4");

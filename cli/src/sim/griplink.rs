@@ -48,7 +48,7 @@ pub async fn run(args: GriplinkSim, out: Out) -> Result<(), CliError> {
         .filter_map(|(i, d)| d.as_ref().map(|d| format!("{} on port {i}", d.name)))
         .collect();
     let id = config.id.clone();
-    let server = SimServer::start(args.listen.as_str(), config)
+    let server = SimServer::bind(args.listen.as_str(), config)
         .await
         .map_err(|e| cannot_listen(&args.listen, &e))?;
     announce(&server.local_addr())?;

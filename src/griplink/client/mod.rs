@@ -23,7 +23,7 @@
 //!
 //! If a reply stays away [`ClientConfig::give_up_after`] beyond its call's timeout, the
 //! controller is not answering the way the protocol promises, and no later reply could be
-//! paired with confidence: the client then reports [`Error::Broken`] to every pending and
+//! paired with confidence: the client then reports [`Error::ConnectionLost`] to every pending and
 //! future call and closes the connection. It then reconnects if [`ClientConfig::reconnect`] is
 //! set; otherwise reconnecting is left to the caller (connect a new [`Client`]).
 //!
@@ -38,7 +38,7 @@
 //! harmless probe (`ID?`, or `SN?` after an `ID?`), skips every line until the probe's answer,
 //! and only then sends the next command. If other commands were on the wire at that moment
 //! (pipelining), their replies could be anyone's: the connection is given up
-//! ([`Error::Broken`]).
+//! ([`Error::ConnectionLost`]).
 //!
 //! What cannot be detected at the protocol level: a changed digit in a value or in a command's
 //! argument (`DEVPID[0]=20` read as 30, `LED(0,1)` run as `LED(0,3)`), and an extra reply taken
@@ -46,7 +46,7 @@
 //! then return at once; two replies to the same query: the second caller gets the first's
 //! value). The shift is detected, and repaired as above, at the first later command that
 //! expects another shape. A reply cut off by a lost connection is never taken for a whole one
-//! (it fails with [`Error::Io`]).
+//! (it fails with [`Error::ConnectionLost`]).
 //!
 //! # Cancellation
 //! Every async method is cancel-safe for the connection: dropping its future (a `select!`,
@@ -118,7 +118,7 @@ pub struct ClientConfig {
     /// and every later call fails with the reason).
     ///
     /// With a policy, when the connection is lost (the controller closed it, I/O failed, or
-    /// the client gave up on it, [`Error::Broken`]):
+    /// the client gave up on it, [`Error::ConnectionLost`]):
     /// - the calls in flight fail with the reason; they are **never sent again** by the client:
     ///   a GRIP may have run, and only the program can tell whether to repeat it;
     /// - the client reconnects to the same address with the policy's backoff and restores what
@@ -338,7 +338,7 @@ impl Client {
     /// use gripper::griplink::{Client, ClientConfig};
     /// use gripper::reconnect::{ConnectionEvent, ReconnectPolicy};
     ///
-    /// let server = SimServer::start("127.0.0.1:0", SimConfig::et4().time_scale(0.0)).await?;
+    /// let server = SimServer::bind("127.0.0.1:0", SimConfig::et4().time_scale(0.0)).await?;
     /// // A proxy to pull the cable with.
     /// let lines = ProxyConfig::new().framing(Framing::Delimited(b'\n'));
     /// let proxy = FaultProxy::start_with(server.local_addr(), lines).await?;

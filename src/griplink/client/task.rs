@@ -141,8 +141,8 @@ impl Conn {
                     timeout,
                 })
             }
-            Ok(None) => return Err(Error::Closed),
-            Ok(Some(reply)) => reply?,
+            Ok(None) => return Err(controller_closed()),
+            Ok(Some(reply)) => reply.map_err(io_error)?,
         };
         match reply {
             Line::Text(text) => interpret(&line, command.expect(), &text).map(drop),
@@ -196,10 +196,29 @@ async fn send_line(
         .map_err(|e| Error::invalid("command line", e.to_string()))?;
     match tokio::time::timeout_at(limit, write.write_all(&out)).await {
         Ok(Ok(())) => Ok(()),
-        Ok(Err(e)) => Err(Error::from(e)),
-        Err(_) => Err(Error::Broken(
+        Ok(Err(e)) => Err(io_error(e)),
+        Err(_) => Err(Error::ConnectionLost(
             "the controller stopped reading commands".into(),
         )),
+    }
+}
+
+/// The controller ended the connection (EOF after it was open): the connection is lost, not
+/// closed by this client.
+fn controller_closed() -> Error {
+    Error::ConnectionLost("the controller closed the connection".into())
+}
+
+/// An I/O error on an open connection. The peer ending it — an EOF (the codec reports a line
+/// cut off by it as `UnexpectedEof`), a reset, a broken pipe — is a lost connection, whichever
+/// way the socket happened to see it; anything else is the socket's own error.
+fn io_error(e: std::io::Error) -> Error {
+    use std::io::ErrorKind::{BrokenPipe, ConnectionAborted, ConnectionReset, UnexpectedEof};
+    match e.kind() {
+        UnexpectedEof | ConnectionReset | ConnectionAborted | BrokenPipe => {
+            Error::ConnectionLost(format!("the controller closed the connection: {e}"))
+        }
+        _ => Error::from(e),
     }
 }
 
@@ -287,24 +306,21 @@ async fn serve(conn: Conn, requests: &mut mpsc::Receiver<Request>, config: &Task
                             break e;
                         }
                     }
-                    Delivery::Lost => break Error::Broken(
+                    Delivery::Lost => break Error::ConnectionLost(
                         "a reply did not answer its command while others were on the wire; \
                          replies can no longer be paired".into(),
                     ),
                     _ if closing && pipeline.is_empty() => break Error::Closed,
                     _ => {}
                 },
-                Some(Err(e)) => break Error::from(e),
+                Some(Err(e)) => break io_error(e),
                 None if closing => break Error::Closed,
-                None => break Error::from(std::io::Error::new(
-                    std::io::ErrorKind::UnexpectedEof,
-                    "the controller closed the connection",
-                )),
+                None => break controller_closed(),
             },
             () = tokio::time::sleep_until(give_up.unwrap_or_else(Instant::now)), if give_up.is_some() => {
                 let command = pipeline.oldest().unwrap_or_default().to_owned();
                 tracing::error!(%command, "griplink: reply overdue, giving up on the connection");
-                break Error::Broken(format!(
+                break Error::ConnectionLost(format!(
                     "no reply to {command} long after its timeout; replies can no longer be paired"
                 ));
             },

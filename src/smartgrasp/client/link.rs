@@ -256,7 +256,7 @@ pub(crate) async fn within_connect_timeout<T>(
 }
 
 fn server_closed() -> Error {
-    Error::ConnectionClosed {
+    Error::ConnectionLost {
         reason: "the server closed the connection".into(),
     }
 }
@@ -265,7 +265,7 @@ fn server_closed() -> Error {
 /// was already given to the call whose response carried it; the others only lost the connection.
 fn waiting_error(reason: &Error) -> Error {
     match reason {
-        Error::Malformed(
+        Error::MalformedReply(
             Malformed::MessageType { .. }
             | Malformed::CommunicationType(_)
             | Malformed::Version { .. }
@@ -280,15 +280,15 @@ fn waiting_error(reason: &Error) -> Error {
 /// What a call gets on a connection that is already gone (or never got to send its request).
 pub(crate) fn closed_error(reason: Option<&Error>) -> Error {
     match reason {
-        Some(Error::ConnectionClosed { reason }) => Error::ConnectionClosed {
+        Some(Error::ConnectionLost { reason }) => Error::ConnectionLost {
             reason: Arc::clone(reason),
         },
         // Still the answer to every later call, and typed so a program can tell the user.
         Some(e @ Error::ServerTooOld { .. }) => e.clone(),
-        Some(reason) => Error::ConnectionClosed {
+        Some(reason) => Error::ConnectionLost {
             reason: reason.to_string().into(),
         },
-        None => Error::ConnectionClosed {
+        None => Error::ConnectionLost {
             reason: "the connection task has ended".into(),
         },
     }

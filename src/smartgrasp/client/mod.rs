@@ -49,11 +49,11 @@ pub struct ClientConfig {
     /// Project to activate in the opening sequence (`None`: keep the server's active project).
     pub project_index: Option<u32>,
     /// Reconnect after a lost connection (`None`, the default: a lost connection stays closed
-    /// and every later call fails with [`Error::ConnectionClosed`]).
+    /// and every later call fails with [`Error::ConnectionLost`]).
     ///
     /// With a policy, when the connection breaks (the server closed it, I/O failed, or a reply
     /// broke the protocol):
-    /// - the calls in flight fail ([`Error::ConnectionClosed`], or the error that broke it); they
+    /// - the calls in flight fail ([`Error::ConnectionLost`], or the error that broke it); they
     ///   are **never sent again** by the client: a GET_GRASP or GRASP_FEEDBACK may have been
     ///   acted on by the server, and only the program can tell whether to repeat it;
     /// - the client reconnects with the policy's backoff and runs the opening sequence again:
@@ -127,7 +127,7 @@ impl Timeouts {
 
 /// The outcome of GET_GRASP. NO_OBJECT and NO_GRASP are normal results in a picking loop (the
 /// bin is empty, or nothing is graspable right now), so they are values, not errors; ERROR and
-/// undefined codes are [`Error::Refused`].
+/// undefined codes are [`Error::Device`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[must_use]
 pub enum GetGraspOutcome {
@@ -339,9 +339,9 @@ impl Client {
             (ResponseCode::NoGrasp, _) => Ok(GetGraspOutcome::NoGrasp),
             (ResponseCode::InvalidObjectClass, _) => Ok(GetGraspOutcome::InvalidObjectClass),
             (ResponseCode::Success, other) => Err(unexpected_body(other)),
-            (code, _) => Err(Error::Refused {
+            (code, _) => Err(Error::Device {
                 message_type: MessageType::GetGrasp,
-                code,
+                status: code,
             }),
         }
     }
@@ -357,7 +357,7 @@ impl Client {
     }
 
     /// GET_OBJECT_COUNT: counts the objects of the scene, and those of `object_class` (0 = all)
-    /// (manual 3.3.4.1). INVALID_OBJECT_CLASS is [`Error::Refused`].
+    /// (manual 3.3.4.1). INVALID_OBJECT_CLASS is [`Error::Device`].
     /// Cancel-safe; a cancelled call has no effect on the server.
     pub async fn get_object_count(&self, object_class: u16) -> Result<ObjectCount> {
         match self
