@@ -11,7 +11,7 @@ use futures_util::StreamExt;
 use gripper::fault::{FaultProxy, Framing, ProxyConfig};
 use gripper::reconnect::{ConnectionEvent, ConnectionEvents, ReconnectPolicy};
 use gripper::smartgrasp::codec;
-use gripper::smartgrasp::sim::{SimConfig, SimProject, SimServer};
+use gripper::smartgrasp::sim::{Fault, SimConfig, SimProject, SimServer};
 use gripper::smartgrasp::{
     AbcPose, Client, ClientConfig, Error, GetGraspOutcome, GraspMode, GraspRequest, Pose,
     PoseFormat, RobotSystem, Tool,
@@ -294,5 +294,65 @@ async fn without_a_policy_the_loss_is_reported_and_the_client_closes() {
     );
     let err = client.get_state().await.unwrap_err();
     assert!(matches!(err, Error::ConnectionLost { .. }), "{err}");
+    assert_eq!(proxy.stats().connections_accepted, 1, "no reconnect");
+}
+
+#[tokio::test]
+async fn close_ends_the_connection_and_fails_pending_and_later_calls() {
+    let (server, proxy, client, mut events) = setup(None).await;
+    let other = client.clone();
+    let opening = proxy.client_to_server().stats().frames;
+    // A request the server never answers is waiting when the client closes.
+    server.inject(Fault::DropReply);
+    let pending = tokio::spawn({
+        let client = client.clone();
+        async move { client.get_state().await }
+    });
+    within("the request reaches the server", async {
+        while proxy.client_to_server().stats().frames == opening {
+            tokio::time::sleep(Duration::from_millis(1)).await;
+        }
+    })
+    .await;
+    within("close", client.close()).await.unwrap();
+    let r = within("pending call", pending).await.unwrap();
+    assert!(matches!(r, Err(Error::Closed)), "{r:?}");
+    let r = other.get_state().await;
+    assert!(matches!(r, Err(Error::Closed)), "{r:?}");
+    assert!(matches!(client.close().await, Err(Error::Closed)));
+    assert!(client.is_closed());
+    // Closing is not a loss: no event, the stream just ends.
+    assert_eq!(next(&mut events).await, None);
+    within("the connection is closed", async {
+        while proxy.stats().connections_open != 0 {
+            tokio::time::sleep(Duration::from_millis(1)).await;
+        }
+    })
+    .await;
+}
+
+#[tokio::test]
+async fn close_stops_reconnecting() {
+    // A backoff far longer than the test: close() must not wait for it.
+    let policy = ReconnectPolicy {
+        initial_delay: Duration::from_secs(3600),
+        max_delay: Duration::from_secs(3600),
+        ..POLICY
+    };
+    let (_server, proxy, client, mut events) = setup(Some(policy)).await;
+    proxy.cut_connections();
+    assert!(matches!(
+        next(&mut events).await,
+        Some(ConnectionEvent::Lost { .. })
+    ));
+    assert!(matches!(
+        next(&mut events).await,
+        Some(ConnectionEvent::Reconnecting { attempt: 1, .. })
+    ));
+    within("close", client.close()).await.unwrap();
+    assert_eq!(next(&mut events).await, None, "no attempt after close");
+    let r = client.get_state().await;
+    assert!(matches!(r, Err(Error::Closed)), "{r:?}");
+    assert!(client.is_closed());
     assert_eq!(proxy.stats().connections_accepted, 1, "no reconnect");
 }
