@@ -8,7 +8,7 @@ use bytes::BytesMut;
 use futures_core::Stream;
 use tokio::io::{AsyncRead, AsyncWrite};
 use tokio::net::UdpSocket;
-use tokio_util::codec::Framed;
+use tokio_util::codec::{Decoder, Framed};
 
 use super::codec::WsgCodec;
 use super::frame::{self, Decoded, Frame};
@@ -96,6 +96,35 @@ impl Link {
                 socket.send_to(&b, *peer).await.map(drop)
             }
         }
+    }
+
+    /// Bytes received but not decoded yet: the start of a frame still arriving (or a corrupted
+    /// header waiting for bytes that will never come). Always 0 on UDP.
+    pub(crate) fn partial_len(&self) -> usize {
+        match self {
+            Link::Stream(framed) => framed.read_buffer().len(),
+            Link::Udp { .. } => 0,
+        }
+    }
+
+    /// Gives up on the partial frame held by the decoder (called after a silence on the line):
+    /// skips its header as noise and returns the frames found in the bytes after it. Without
+    /// this, a corrupted length field (below the maximum) would hold every later reply until
+    /// that many bytes had arrived.
+    pub(crate) fn resync(&mut self) -> Vec<Frame> {
+        let Link::Stream(framed) = self else {
+            return Vec::new();
+        };
+        let mut buf = std::mem::take(framed.read_buffer_mut());
+        let mut frames = Vec::new();
+        while let Ok(Some(f)) = framed.codec_mut().decode_eof(&mut buf) {
+            frames.push(f);
+        }
+        tracing::warn!(
+            frames = frames.len(),
+            "WSG partial frame stalled: dropped as noise"
+        );
+        frames
     }
 
     /// Flushes and shuts down the write side.

@@ -31,6 +31,9 @@ pub const DEFAULT_QUERY_TIMEOUT: Duration = Duration::from_secs(1);
 pub const DEFAULT_MOTION_TIMEOUT: Duration = Duration::from_secs(30);
 /// Default time an unanswered request keeps its command id after its caller's deadline.
 pub const DEFAULT_LATE_REPLY_GRACE: Duration = Duration::from_secs(2);
+/// Default silence after which a partial frame is dropped as noise (see
+/// [`ClientBuilder::partial_frame_timeout`]).
+pub const DEFAULT_PARTIAL_FRAME_TIMEOUT: Duration = Duration::from_millis(500);
 /// Default buffer of each subscription, in updates.
 pub const DEFAULT_SUBSCRIPTION_BUFFER: usize = 64;
 
@@ -45,6 +48,7 @@ pub struct ClientBuilder {
     max_payload_len: usize,
     announce_disconnect: Option<bool>,
     serial_exclusive: bool,
+    partial_frame_timeout: Duration,
 }
 
 impl Default for ClientBuilder {
@@ -58,6 +62,7 @@ impl Default for ClientBuilder {
             max_payload_len: super::frame::DEFAULT_MAX_PAYLOAD_LEN,
             announce_disconnect: None,
             serial_exclusive: true,
+            partial_frame_timeout: DEFAULT_PARTIAL_FRAME_TIMEOUT,
         }
     }
 }
@@ -100,6 +105,16 @@ impl ClientBuilder {
     /// [`DEFAULT_MAX_PAYLOAD_LEN`](super::frame::DEFAULT_MAX_PAYLOAD_LEN)).
     pub fn max_payload_len(mut self, n: usize) -> Self {
         self.max_payload_len = n;
+        self
+    }
+
+    /// How long the start of a frame may wait for its next byte before the decoder drops it as
+    /// noise and looks for a frame after it (default 500 ms). A corrupted length field (below
+    /// [`max_payload_len`](Self::max_payload_len)) would otherwise hold back every later reply
+    /// until that many bytes had arrived. Keep it above the longest pause a sound link can have
+    /// inside one frame (a TCP retransmission takes 200 ms or more).
+    pub fn partial_frame_timeout(mut self, t: Duration) -> Self {
+        self.partial_frame_timeout = t;
         self
     }
 
@@ -181,7 +196,7 @@ impl ClientBuilder {
             .announce_disconnect
             .unwrap_or(kind == TransportKind::Tcp);
         let lost = Arc::new(OnceLock::new());
-        let task = Task::new(
+        let mut task = Task::new(
             link,
             rx,
             unsub_rx,
@@ -190,6 +205,7 @@ impl ClientBuilder {
             announce,
             lost.clone(),
         );
+        task.partial_frame_timeout = self.partial_frame_timeout;
         tokio::spawn(task.run());
         Client {
             shared: Arc::new(Shared {

@@ -20,8 +20,10 @@
 use std::collections::{HashMap, VecDeque};
 use std::time::Duration;
 
+use bytes::Bytes;
 use tokio::time::Instant;
 
+use crate::wsg::command::id;
 use crate::wsg::{Frame, Reply, Status};
 
 /// Identifies one request for the task.
@@ -42,6 +44,32 @@ struct InFlight {
     /// E_CMD_PENDING seen: a final reply is guaranteed to follow.
     acknowledged: bool,
     release_at: Instant,
+    /// The payload sent: a loop reply (0x06) must echo it.
+    payload: Bytes,
+}
+
+impl InFlight {
+    fn new(req: &Request, grace: Duration) -> Self {
+        Self {
+            token: req.token,
+            acknowledged: false,
+            release_at: req.deadline + grace,
+            payload: req.frame.payload.clone(),
+        }
+    }
+
+    /// Whether `reply` provably answers some other request of the same id: a duplicate of an
+    /// earlier reply, or the device's answer to a duplicated request (faults seen on UDP and by
+    /// the fault matrix). Such a reply is consumed as unsolicited instead of ending this request.
+    fn rejects(&self, reply: &Reply) -> bool {
+        // A loop reply carries the payload it echoes (3.1.1): another payload is not ours.
+        let foreign_echo =
+            reply.id == id::LOOP && reply.status == Status::Success && reply.data != self.payload;
+        // Once the device has acknowledged this command, E_ALREADY_RUNNING cannot be its final
+        // reply (1.3: that code is only ever an immediate refusal): it refuses a duplicate of it.
+        let refused_duplicate = self.acknowledged && reply.status == Status::AlreadyRunning;
+        foreign_echo || refused_duplicate
+    }
 }
 
 #[derive(Debug, Default)]
@@ -82,11 +110,7 @@ impl Pairing {
     pub(crate) fn submit(&mut self, req: Request) -> Option<Request> {
         let st = self.ids.entry(req.frame.id).or_default();
         if st.in_flight.is_none() && st.queue.is_empty() {
-            st.in_flight = Some(InFlight {
-                token: req.token,
-                acknowledged: false,
-                release_at: req.deadline + self.grace,
-            });
+            st.in_flight = Some(InFlight::new(&req, self.grace));
             Some(req)
         } else {
             st.queue.push_back(req);
@@ -103,6 +127,11 @@ impl Pairing {
         else {
             return Event::Unsolicited(reply);
         };
+        if f.rejects(&reply) {
+            tracing::warn!(id = reply.id, status = %reply.status,
+                "WSG reply that cannot answer the request on the wire: dropped");
+            return Event::Unsolicited(reply);
+        }
         if reply.status == Status::CmdPending {
             f.acknowledged = true;
             return Event::Accepted(f.token);
@@ -137,11 +166,7 @@ impl Pairing {
         }
         while let Some(req) = st.queue.pop_front() {
             if alive(req.token) {
-                st.in_flight = Some(InFlight {
-                    token: req.token,
-                    acknowledged: false,
-                    release_at: req.deadline + self.grace,
-                });
+                st.in_flight = Some(InFlight::new(&req, self.grace));
                 return (Some(req), skipped);
             }
             skipped.push(req.token);
@@ -189,7 +214,6 @@ impl Pairing {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use bytes::Bytes;
 
     fn req(token: Token, id: u8, deadline: Instant) -> Request {
         Request {
@@ -290,6 +314,45 @@ mod tests {
             Event::Resolved(1, _)
         ));
         assert_eq!(p.drain(), vec![2]);
+    }
+
+    #[test]
+    fn replies_that_cannot_answer_the_request_on_the_wire_are_unsolicited() {
+        let t = Instant::now() + Duration::from_secs(1);
+        let mut p = Pairing::new(Duration::from_secs(1));
+        let looped = |data: &'static [u8]| Reply::new(id::LOOP, Status::Success, data);
+        let mut echo = req(1, id::LOOP, t);
+        echo.frame.payload = Bytes::from_static(b"mine");
+        assert!(p.submit(echo).is_some());
+        // A copy of an earlier loop reply: another payload.
+        assert_eq!(
+            p.on_reply(looped(b"old")),
+            Event::Unsolicited(looped(b"old"))
+        );
+        assert_eq!(
+            p.on_reply(looped(b"mine")),
+            Event::Resolved(1, looped(b"mine"))
+        );
+        // An acknowledged move refuses a duplicate of itself; its final reply still ends it.
+        assert!(p.submit(req(2, 0x21, t)).is_some());
+        assert_eq!(
+            p.on_reply(reply(0x21, Status::CmdPending)),
+            Event::Accepted(2)
+        );
+        assert!(matches!(
+            p.on_reply(reply(0x21, Status::AlreadyRunning)),
+            Event::Unsolicited(_)
+        ));
+        assert_eq!(
+            p.on_reply(reply(0x21, Status::Success)),
+            Event::Resolved(2, reply(0x21, Status::Success))
+        );
+        // Not acknowledged: E_ALREADY_RUNNING is this request's own refusal.
+        assert!(p.submit(req(3, 0x21, t)).is_some());
+        assert!(matches!(
+            p.on_reply(reply(0x21, Status::AlreadyRunning)),
+            Event::Resolved(3, _)
+        ));
     }
 
     proptest::proptest! {

@@ -58,6 +58,10 @@ pub(crate) struct Task {
     pub(crate) pairing: Pairing,
     pub(crate) query_timeout: Duration,
     pub(crate) announce_on_close: bool,
+    /// How long a partial frame may wait for its next byte before it is dropped as noise.
+    pub(crate) partial_frame_timeout: Duration,
+    /// Bytes of the partial frame held by the decoder, and since when that count is unchanged.
+    partial: (usize, Instant),
     /// Set to the reason when the connection breaks, so later calls can say why.
     lost: Arc<OnceLock<String>>,
     waiters: HashMap<Token, Waiter>,
@@ -87,6 +91,8 @@ impl Task {
         lost: Arc<OnceLock<String>>,
     ) -> Self {
         Self {
+            partial_frame_timeout: super::DEFAULT_PARTIAL_FRAME_TIMEOUT,
+            partial: (0, Instant::now()),
             lost,
             link,
             rx,
@@ -131,7 +137,24 @@ impl Task {
     async fn serve(&mut self) -> std::result::Result<Closing, String> {
         loop {
             let release = self.pairing.next_release();
+            let stale = self.partial_frame_deadline();
             tokio::select! {
+                // Input first: a frame already received cannot answer a request sent after it,
+                // so it is paired before the next request of its id goes out (a duplicated
+                // reply sitting in the buffer is then dropped as unsolicited).
+                biased;
+                received = self.link.recv() => match received {
+                    Some(Ok(frame)) => self.on_frame(frame).await.map_err(io_reason)?,
+                    Some(Err(e)) => return Err(e.to_string()),
+                    None => return Err("the gripper closed the connection".into()),
+                },
+                _ = sleep_until(stale.unwrap_or_else(Instant::now)), if stale.is_some() => {
+                    if self.link.partial_len() == self.partial.0 {
+                        for frame in self.link.resync() {
+                            self.on_frame(frame).await.map_err(io_reason)?;
+                        }
+                    }
+                }
                 msg = self.rx.recv() => match msg {
                     // A caller that gave up while its request waited in the channel: never sent.
                     Some(Msg::Call { reply, .. }) if reply.is_closed() => {}
@@ -160,11 +183,6 @@ impl Task {
                 Some((id, key)) = self.unsubscribe.recv() => {
                     self.unsubscribe(id, key).await.map_err(io_reason)?;
                 }
-                received = self.link.recv() => match received {
-                    Some(Ok(frame)) => self.on_frame(frame).await.map_err(io_reason)?,
-                    Some(Err(e)) => return Err(e.to_string()),
-                    None => return Err("the gripper closed the connection".into()),
-                },
                 _ = sleep_until(release.unwrap_or_else(Instant::now)), if release.is_some() => {
                     for (id, token) in self.pairing.release_expired(Instant::now()) {
                         tracing::warn!(id, "no reply within timeout + grace: command id released; \
@@ -175,6 +193,17 @@ impl Task {
                 }
             }
         }
+    }
+
+    /// When the partial frame held by the decoder (if any) counts as stalled: no new byte for
+    /// `partial_frame_timeout`. The count is compared when the timer fires, so bytes that arrive
+    /// while the task waits restart the wait instead of ending the frame.
+    fn partial_frame_deadline(&mut self) -> Option<Instant> {
+        let len = self.link.partial_len();
+        if len != self.partial.0 {
+            self.partial = (len, Instant::now());
+        }
+        (len > 0).then(|| self.partial.1 + self.partial_frame_timeout)
     }
 
     fn waiter(&mut self, w: Waiter) -> Token {
