@@ -134,6 +134,8 @@ impl ClientBuilder {
     }
 
     /// Connects over TCP (the WSG listens on port 1000 by default).
+    ///
+    /// Cancel-safe: a dropped call leaves nothing behind.
     pub async fn connect_tcp(self, addr: impl ToSocketAddrs) -> Result<Client> {
         let stream = TcpStream::connect(addr).await?;
         stream.set_nodelay(true)?;
@@ -141,6 +143,8 @@ impl ClientBuilder {
     }
 
     /// Talks over UDP to `remote`, from an ephemeral local port (each datagram is one frame).
+    ///
+    /// Cancel-safe: a dropped call leaves nothing behind.
     pub async fn connect_udp(self, remote: SocketAddr) -> Result<Client> {
         let local: SocketAddr = if remote.is_ipv4() {
             (std::net::Ipv4Addr::UNSPECIFIED, 0).into()
@@ -153,6 +157,8 @@ impl ClientBuilder {
     /// Talks over UDP to `remote` from the local address `local` (use the port the gripper is
     /// configured to send its replies to). Datagrams are accepted from `remote`'s IP address,
     /// whatever their source port; others are dropped with a trace.
+    ///
+    /// Cancel-safe: a dropped call leaves nothing behind.
     pub async fn connect_udp_from(self, local: SocketAddr, remote: SocketAddr) -> Result<Client> {
         let socket = UdpSocket::bind(local).await?;
         let link = Link::Udp {
@@ -271,6 +277,17 @@ impl Shared {
 /// clear would); it is answered by the next frame of that value, the reply or an update, which
 /// is at most one period older than the query.
 ///
+/// # Cancellation
+/// Every method is cancel-safe for the connection: dropping its future at any await point (a
+/// `select!`, a timeout, an aborted task) never desyncs the client. A request not sent yet
+/// (waiting in the request queue or behind a request of the same id) is never sent. A request
+/// already sent keeps its command id until its reply arrives; that reply is consumed and
+/// discarded, never handed to another call. Cancelling does **not** undo the command on the
+/// device: a setting that was sent takes effect, and a motion command that was sent keeps the
+/// fingers moving to its end — send [`Client::stop`] (or [`Client::fast_stop`]) to stop them.
+/// Whether a dropped call had been sent cannot be told from outside: query the state (e.g.
+/// [`Client::system_state`]) when it matters.
+///
 /// The connection closes when [`Client::close`] is called or the last handle is dropped (with the
 /// disconnect announcement on TCP either way). Call [`Client::close`] before the runtime shuts
 /// down: a task cancelled with its runtime cannot announce anything.
@@ -288,6 +305,8 @@ impl Client {
     }
 
     /// Connects over TCP with the default configuration.
+    ///
+    /// Cancel-safe: a dropped call leaves nothing behind.
     pub async fn connect_tcp(addr: impl ToSocketAddrs) -> Result<Client> {
         ClientBuilder::default().connect_tcp(addr).await
     }
@@ -346,6 +365,9 @@ impl Client {
 
     /// Sends a typed command and returns the data of its E_SUCCESS reply; any other final status
     /// is [`Error::Device`].
+    ///
+    /// Cancel-safe for the connection; a command that was sent takes effect (a motion keeps moving)
+    /// even if the call is dropped (see [Cancellation](Client#cancellation)).
     pub async fn command(&self, command: Command) -> Result<Bytes> {
         command.validate().map_err(Error::InvalidArgument)?;
         let timeout = if command.is_async() {
@@ -360,12 +382,18 @@ impl Client {
     /// Sends a command the crate has no type for (e.g. scripting commands) and returns its final
     /// reply (after E_CMD_PENDING, if the device sends one) with whatever status it has, within
     /// the query timeout.
+    ///
+    /// Cancel-safe for the connection; a command that was sent takes effect (a motion keeps moving)
+    /// even if the call is dropped (see [Cancellation](Client#cancellation)).
     pub async fn request(&self, id: u8, payload: impl Into<Bytes>) -> Result<Reply> {
         self.request_with_timeout(id, payload, self.query_timeout)
             .await
     }
 
     /// [`Client::request`] with an explicit timeout.
+    ///
+    /// Cancel-safe for the connection; a command that was sent takes effect (a motion keeps moving)
+    /// even if the call is dropped (see [Cancellation](Client#cancellation)).
     pub async fn request_with_timeout(
         &self,
         id: u8,
@@ -407,16 +435,24 @@ impl Client {
     }
 
     /// Loop (0x06): the device echoes up to 256 bytes.
+    ///
+    /// Cancel-safe (see [Cancellation](Client#cancellation)).
     pub async fn loop_back(&self, data: impl Into<Bytes>) -> Result<Bytes> {
         self.command(Command::Loop(data.into())).await
     }
 
     /// Homing (0x20): references the fingers; needed before any other motion.
+    ///
+    /// Cancel-safe for the connection, but dropping the call does **not** stop the fingers: once
+    /// sent, the move runs to its end; send [`Client::stop`] (see [Cancellation](Client#cancellation)).
     pub async fn home(&self, direction: HomingDirection) -> Result<()> {
         self.no_data(Command::Homing(direction)).await
     }
 
     /// Pre-position (0x21) to an absolute width, stopping if blocked.
+    ///
+    /// Cancel-safe for the connection, but dropping the call does **not** stop the fingers: once
+    /// sent, the move runs to its end; send [`Client::stop`] (see [Cancellation](Client#cancellation)).
     pub async fn pre_position(&self, width_mm: f32, speed_mm_per_s: f32) -> Result<()> {
         self.no_data(Command::PrePosition {
             relative: false,
@@ -428,6 +464,9 @@ impl Client {
     }
 
     /// Pre-position (0x21) by a distance relative to the current width, stopping if blocked.
+    ///
+    /// Cancel-safe for the connection, but dropping the call does **not** stop the fingers: once
+    /// sent, the move runs to its end; send [`Client::stop`] (see [Cancellation](Client#cancellation)).
     pub async fn pre_position_relative(&self, distance_mm: f32, speed_mm_per_s: f32) -> Result<()> {
         self.no_data(Command::PrePosition {
             relative: true,
@@ -439,22 +478,34 @@ impl Client {
     }
 
     /// Stop (0x22): stops any motion (a pending motion fails with E_CMD_ABORTED).
+    ///
+    /// Cancel-safe for the connection; once sent, the command takes effect even if the call is
+    /// dropped (see [Cancellation](Client#cancellation)).
     pub async fn stop(&self) -> Result<()> {
         self.no_data(Command::Stop).await
     }
 
     /// Fast stop (0x23): stops and refuses motion until [`Client::acknowledge_fast_stop`].
+    ///
+    /// Cancel-safe for the connection; once sent, the command takes effect even if the call is
+    /// dropped (see [Cancellation](Client#cancellation)).
     pub async fn fast_stop(&self) -> Result<()> {
         self.no_data(Command::FastStop).await
     }
 
     /// Acknowledge a fast stop or fault (0x24).
+    ///
+    /// Cancel-safe for the connection; once sent, the command takes effect even if the call is
+    /// dropped (see [Cancellation](Client#cancellation)).
     pub async fn acknowledge_fast_stop(&self) -> Result<()> {
         self.no_data(Command::AckFastStop).await
     }
 
     /// Grasp a part (0x25) of nominal width `width_mm`. No part found is
     /// `Error::Device { status: Status::CmdFailed, .. }`.
+    ///
+    /// Cancel-safe for the connection, but dropping the call does **not** stop the fingers: once
+    /// sent, the move runs to its end; send [`Client::stop`] (see [Cancellation](Client#cancellation)).
     pub async fn grasp(&self, width_mm: f32, speed_mm_per_s: f32) -> Result<()> {
         self.no_data(Command::Grasp {
             width_mm,
@@ -464,6 +515,9 @@ impl Client {
     }
 
     /// Release the part (0x26), opening to `width_mm`.
+    ///
+    /// Cancel-safe for the connection, but dropping the call does **not** stop the fingers: once
+    /// sent, the move runs to its end; send [`Client::stop`] (see [Cancellation](Client#cancellation)).
     pub async fn release(&self, width_mm: f32, speed_mm_per_s: f32) -> Result<()> {
         self.no_data(Command::Release {
             width_mm,
@@ -473,63 +527,93 @@ impl Client {
     }
 
     /// Set the acceleration (0x30); the device clamps it to its limits.
+    ///
+    /// Cancel-safe for the connection; once sent, the command takes effect even if the call is
+    /// dropped (see [Cancellation](Client#cancellation)).
     pub async fn set_acceleration(&self, mm_per_s2: f32) -> Result<()> {
         self.no_data(Command::SetAcceleration(mm_per_s2)).await
     }
 
     /// The acceleration (0x31), mm/s².
+    ///
+    /// Cancel-safe (see [Cancellation](Client#cancellation)).
     pub async fn acceleration_mm_per_s2(&self) -> Result<f32> {
         self.query(Command::GetAcceleration, decode_f32).await
     }
 
     /// Set the grasping force (0x32); the device clamps it to its limits.
+    ///
+    /// Cancel-safe for the connection; once sent, the command takes effect even if the call is
+    /// dropped (see [Cancellation](Client#cancellation)).
     pub async fn set_grasping_force(&self, force_n: f32) -> Result<()> {
         self.no_data(Command::SetForce(force_n)).await
     }
 
     /// The grasping force limit (0x33), N.
+    ///
+    /// Cancel-safe (see [Cancellation](Client#cancellation)).
     pub async fn grasping_force_n(&self) -> Result<f32> {
         self.query(Command::GetForce, decode_f32).await
     }
 
     /// Set soft limits (0x34).
+    ///
+    /// Cancel-safe for the connection; once sent, the command takes effect even if the call is
+    /// dropped (see [Cancellation](Client#cancellation)).
     pub async fn set_soft_limits(&self, limits: SoftLimits) -> Result<()> {
         self.no_data(Command::SetSoftLimits(limits)).await
     }
 
     /// The soft limits (0x35); `None` when none are set (E_NOT_AVAILABLE).
+    ///
+    /// Cancel-safe (see [Cancellation](Client#cancellation)).
     pub async fn soft_limits(&self) -> Result<Option<SoftLimits>> {
         not_available_as_none(self.query(Command::GetSoftLimits, SoftLimits::decode).await)
     }
 
     /// Clear the soft limits (0x36).
+    ///
+    /// Cancel-safe for the connection; once sent, the command takes effect even if the call is
+    /// dropped (see [Cancellation](Client#cancellation)).
     pub async fn clear_soft_limits(&self) -> Result<()> {
         self.no_data(Command::ClearSoftLimits).await
     }
 
     /// Overdrive mode on or off (0x37).
+    ///
+    /// Cancel-safe for the connection; once sent, the command takes effect even if the call is
+    /// dropped (see [Cancellation](Client#cancellation)).
     pub async fn set_overdrive(&self, on: bool) -> Result<()> {
         self.no_data(Command::Overdrive(on)).await
     }
 
     /// Tare the force sensor (0x38); refused (E_ACCESS_DENIED) while holding a part.
+    ///
+    /// Cancel-safe for the connection; once sent, the command takes effect even if the call is
+    /// dropped (see [Cancellation](Client#cancellation)).
     pub async fn tare_force_sensor(&self) -> Result<()> {
         self.no_data(Command::Tare).await
     }
 
     /// The system state flags (0x40).
+    ///
+    /// Cancel-safe (see [Cancellation](Client#cancellation)).
     pub async fn system_state(&self) -> Result<SystemState> {
         self.query(Command::SystemState(UpdateMode::ONCE), SystemState::decode)
             .await
     }
 
     /// The grip state (0x41).
+    ///
+    /// Cancel-safe (see [Cancellation](Client#cancellation)).
     pub async fn grip_state(&self) -> Result<GripState> {
         self.query(Command::GripState(UpdateMode::ONCE), GripState::decode)
             .await
     }
 
     /// The grasping statistics (0x42), reset after reading when `reset`.
+    ///
+    /// Cancel-safe (see [Cancellation](Client#cancellation)).
     pub async fn grasping_statistics(&self, reset: bool) -> Result<GraspingStatistics> {
         self.query(
             Command::GraspingStatistics { reset },
@@ -539,40 +623,55 @@ impl Client {
     }
 
     /// The opening width (0x43), mm.
+    ///
+    /// Cancel-safe (see [Cancellation](Client#cancellation)).
     pub async fn width_mm(&self) -> Result<f32> {
         self.query(Command::Width(UpdateMode::ONCE), decode_f32)
             .await
     }
 
     /// The finger speed (0x44), mm/s.
+    ///
+    /// Cancel-safe (see [Cancellation](Client#cancellation)).
     pub async fn speed_mm_per_s(&self) -> Result<f32> {
         self.query(Command::Speed(UpdateMode::ONCE), decode_f32)
             .await
     }
 
     /// The finger force (0x45), N.
+    ///
+    /// Cancel-safe (see [Cancellation](Client#cancellation)).
     pub async fn force_n(&self) -> Result<f32> {
         self.query(Command::Force(UpdateMode::ONCE), decode_f32)
             .await
     }
 
     /// The temperature inside the gripper (0x46), °C.
+    ///
+    /// Cancel-safe (see [Cancellation](Client#cancellation)).
     pub async fn temperature_c(&self) -> Result<f32> {
         self.query(Command::Temperature, types::decode_temperature_c)
             .await
     }
 
     /// System information (0x50).
+    ///
+    /// Cancel-safe (see [Cancellation](Client#cancellation)).
     pub async fn system_info(&self) -> Result<SystemInfo> {
         self.query(Command::SystemInfo, SystemInfo::decode).await
     }
 
     /// Set the device tag (0x51): printable ASCII, at most 64 characters.
+    ///
+    /// Cancel-safe for the connection; once sent, the command takes effect even if the call is
+    /// dropped (see [Cancellation](Client#cancellation)).
     pub async fn set_device_tag(&self, tag: &str) -> Result<()> {
         self.no_data(Command::SetTag(tag.to_owned())).await
     }
 
     /// The device tag (0x52); `None` when none is set (E_NOT_AVAILABLE).
+    ///
+    /// Cancel-safe (see [Cancellation](Client#cancellation)).
     pub async fn device_tag(&self) -> Result<Option<String>> {
         let decode = |d: &[u8]| -> std::result::Result<String, String> {
             std::str::from_utf8(d)
@@ -583,29 +682,40 @@ impl Client {
     }
 
     /// The system limits (0x53).
+    ///
+    /// Cancel-safe (see [Cancellation](Client#cancellation)).
     pub async fn system_limits(&self) -> Result<SystemLimits> {
         self.query(Command::SystemLimits, SystemLimits::decode)
             .await
     }
 
     /// Finger information (0x60 / 0x70).
+    ///
+    /// Cancel-safe (see [Cancellation](Client#cancellation)).
     pub async fn finger_info(&self, finger: Finger) -> Result<FingerInfo> {
         self.query(Command::FingerInfo(finger), FingerInfo::decode)
             .await
     }
 
     /// Finger flags (0x61 / 0x71).
+    ///
+    /// Cancel-safe (see [Cancellation](Client#cancellation)).
     pub async fn finger_flags(&self, finger: Finger) -> Result<FingerFlags> {
         self.query(Command::FingerFlags(finger), FingerFlags::decode)
             .await
     }
 
     /// Finger power (0x62 / 0x72); switching on waits for the final reply (about 500 ms).
+    ///
+    /// Cancel-safe for the connection, but dropping the call does **not** stop the fingers: once
+    /// sent, the move runs to its end; send [`Client::stop`] (see [Cancellation](Client#cancellation)).
     pub async fn set_finger_power(&self, finger: Finger, on: bool) -> Result<()> {
         self.no_data(Command::FingerPower(finger, on)).await
     }
 
     /// Finger data (0x63 / 0x73), finger-specific bytes.
+    ///
+    /// Cancel-safe (see [Cancellation](Client#cancellation)).
     pub async fn finger_data(&self, finger: Finger) -> Result<Bytes> {
         self.command(Command::FingerData(finger)).await
     }
@@ -646,6 +756,9 @@ impl Client {
     }
 
     /// A stream of the system state flags (0x40 with auto-update).
+    ///
+    /// Cancel-safe: a dropped call leaves no subscriber behind (the device's updates are turned off
+    /// again if nobody else streams the value).
     pub async fn subscribe_system_state(
         &self,
         options: UpdateOptions,
@@ -655,6 +768,9 @@ impl Client {
     }
 
     /// A stream of the grip state (0x41 with auto-update).
+    ///
+    /// Cancel-safe: a dropped call leaves no subscriber behind (the device's updates are turned off
+    /// again if nobody else streams the value).
     pub async fn subscribe_grip_state(
         &self,
         options: UpdateOptions,
@@ -664,11 +780,17 @@ impl Client {
     }
 
     /// A stream of the opening width in mm (0x43 with auto-update).
+    ///
+    /// Cancel-safe: a dropped call leaves no subscriber behind (the device's updates are turned off
+    /// again if nobody else streams the value).
     pub async fn subscribe_width_mm(&self, options: UpdateOptions) -> Result<Subscription<f32>> {
         self.subscribe(id::WIDTH, options, decode_f32).await
     }
 
     /// A stream of the finger speed in mm/s (0x44 with auto-update).
+    ///
+    /// Cancel-safe: a dropped call leaves no subscriber behind (the device's updates are turned off
+    /// again if nobody else streams the value).
     pub async fn subscribe_speed_mm_per_s(
         &self,
         options: UpdateOptions,
@@ -677,6 +799,9 @@ impl Client {
     }
 
     /// A stream of the finger force in N (0x45 with auto-update).
+    ///
+    /// Cancel-safe: a dropped call leaves no subscriber behind (the device's updates are turned off
+    /// again if nobody else streams the value).
     pub async fn subscribe_force_n(&self, options: UpdateOptions) -> Result<Subscription<f32>> {
         self.subscribe(id::FORCE, options, decode_f32).await
     }
@@ -685,6 +810,9 @@ impl Client {
     /// first, so the gripper does not go into FAST STOP. Calls still waiting fail with
     /// [`Error::Closed`], streams end, and every other handle's calls fail with
     /// [`Error::Closed`] (or [`Error::ConnectionLost`] if the connection had broken).
+    ///
+    /// Cancel-safe: once the request reached the task, the close completes even if this call is
+    /// dropped.
     pub async fn close(&self) -> Result<()> {
         let (done, rx) = oneshot::channel();
         self.shared
