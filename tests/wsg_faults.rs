@@ -358,6 +358,13 @@ async fn a_dropped_final_reply_times_out_the_motion_and_other_commands_still_wor
         .await
         .unwrap();
     assert_eq!(rig.client.width_mm().await.unwrap(), 50.0);
+    // Nor is the same command: the client asks the device whether the lost move still runs,
+    // and, as it does not, releases the id instead of waiting for that reply for ever.
+    bounded(MOTION, rig.client.home(HomingDirection::Default))
+        .await
+        .unwrap();
+    assert_eq!(rig.client.width_mm().await.unwrap(), 110.0);
+    assert_eq!(rig.count_received(id::HOMING), 2);
 }
 
 // ---- duplicate --------------------------------------------------------------------------------

@@ -175,6 +175,26 @@ impl Pairing {
         (None, skipped)
     }
 
+    /// The token of the acknowledged request of `id` on the wire, if there is one.
+    pub(crate) fn acknowledged(&self, id: u8) -> Option<Token> {
+        let f = self.ids.get(&id)?.in_flight.as_ref()?;
+        f.acknowledged.then_some(f.token)
+    }
+
+    /// Gives up on request `token` of `id` (still on the wire) because its final reply is known
+    /// to be lost; returns whether it was. Call [`Pairing::next`] for `id` afterwards.
+    pub(crate) fn abandon(&mut self, id: u8, token: Token) -> bool {
+        let Some(st) = self.ids.get_mut(&id) else {
+            return false;
+        };
+        if st.in_flight.as_ref().is_some_and(|f| f.token == token) {
+            st.in_flight = None;
+            true
+        } else {
+            false
+        }
+    }
+
     /// When the next unanswered, unacknowledged request is released.
     pub(crate) fn next_release(&self) -> Option<Instant> {
         self.ids

@@ -15,7 +15,7 @@ use super::pairing::{Event, Pairing, Request, Token};
 use crate::wsg::command::{id, Command, UpdateMode};
 use crate::wsg::subscription::Subscriber;
 use crate::wsg::transport::Link;
-use crate::wsg::{Error, Frame, Reply, Result, Status};
+use crate::wsg::{Error, Frame, Reply, Result, Status, SystemState};
 
 /// A request from a handle to the task.
 pub(crate) enum Msg {
@@ -44,6 +44,12 @@ enum Waiter {
     Caller(oneshot::Sender<Result<Reply>>),
     /// A request the task made itself (turning updates off): its reply is discarded.
     Internal,
+    /// A system-state query asking whether the acknowledged motion `token` of command `id`,
+    /// whose caller is gone, is still running (see [`Task::probe_if_orphaned`]).
+    Probe {
+        id: u8,
+        token: Token,
+    },
 }
 
 struct StreamState {
@@ -213,10 +219,61 @@ impl Task {
     }
 
     async fn submit(&mut self, req: Request) -> io::Result<()> {
+        let id = req.frame.id;
+        match self.pairing.submit(req) {
+            Some(req) => self.transmit(req).await,
+            None => self.probe_if_orphaned(id).await,
+        }
+    }
+
+    /// A request of motion command `id` waits behind an acknowledged one whose caller is gone.
+    /// The pairing holds an acknowledged request until its final reply (manual 1.3 promises
+    /// one), but a lossy link can lose it, which would block the id for good. So the task asks
+    /// the device whether it is still moving: the final reply of a move is sent before the
+    /// answer to a later query, so on an ordered link (TCP, serial) "not moving" proves that
+    /// reply lost, and the id is released.
+    async fn probe_if_orphaned(&mut self, id: u8) -> io::Result<()> {
+        if !matches!(id, id::HOMING | id::PRE_POSITION | id::GRASP | id::RELEASE) {
+            return Ok(());
+        }
+        let Some(token) = self.pairing.acknowledged(id) else {
+            return Ok(());
+        };
+        let orphaned = match self.waiters.get(&token) {
+            Some(Waiter::Caller(tx)) => tx.is_closed(),
+            _ => true,
+        };
+        let probing = self
+            .waiters
+            .values()
+            .any(|w| matches!(w, Waiter::Probe { id: p, .. } if *p == id));
+        if !orphaned || probing {
+            return Ok(());
+        }
+        let probe = self.waiter(Waiter::Probe { id, token });
+        let req = Request {
+            token: probe,
+            frame: Command::SystemState(UpdateMode::ONCE).to_frame(),
+            deadline: Instant::now() + self.query_timeout,
+        };
         match self.pairing.submit(req) {
             Some(req) => self.transmit(req).await,
             None => Ok(()),
         }
+    }
+
+    async fn on_probe(&mut self, id: u8, token: Token, reply: &Reply) -> io::Result<()> {
+        let still_moving = reply.status != Status::Success
+            || SystemState::decode(&reply.data).map_or(true, |s| s.contains(SystemState::MOVING));
+        if still_moving || !self.pairing.abandon(id, token) {
+            return Ok(());
+        }
+        tracing::warn!(
+            id,
+            "the final reply of a motion command was lost (the device is not moving): id released"
+        );
+        self.waiters.remove(&token);
+        self.send_next(id).await
     }
 
     async fn transmit(&mut self, req: Request) -> io::Result<()> {
@@ -237,7 +294,7 @@ impl Task {
         let waiters = &self.waiters;
         let (next, skipped) = self.pairing.next(id, |t| match waiters.get(&t) {
             Some(Waiter::Caller(tx)) => !tx.is_closed(),
-            Some(Waiter::Internal) => true,
+            Some(Waiter::Internal | Waiter::Probe { .. }) => true,
             None => false,
         });
         for t in skipped {
@@ -281,6 +338,9 @@ impl Task {
                                 "late reply of a timed-out or dropped call: discarded"
                             );
                         }
+                    }
+                    Some(Waiter::Probe { id: motion, token }) => {
+                        self.on_probe(motion, token, &reply).await?;
                     }
                     Some(Waiter::Internal) | None => {}
                 }
