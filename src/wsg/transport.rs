@@ -42,7 +42,22 @@ pub(crate) enum Link {
         socket: UdpSocket,
         peer: SocketAddr,
         max_payload_len: usize,
+        /// One datagram: a frame of `max_payload_len` (longer datagrams are cut to this and fail
+        /// their checksum). Allocated once per client.
+        buf: Vec<u8>,
     },
+}
+
+impl Link {
+    /// A UDP link to `peer`, accepting replies of up to `max_payload_len` bytes.
+    pub(crate) fn udp(socket: UdpSocket, peer: SocketAddr, max_payload_len: usize) -> Link {
+        Link::Udp {
+            socket,
+            peer,
+            max_payload_len,
+            buf: vec![0u8; frame::HEADER_LEN + max_payload_len + frame::CHECKSUM_LEN],
+        }
+    }
 }
 
 impl Link {
@@ -56,8 +71,8 @@ impl Link {
                 socket,
                 peer,
                 max_payload_len,
+                buf,
             } => {
-                let mut buf = vec![0u8; frame::HEADER_LEN + *max_payload_len + 2];
                 loop {
                     let (n, from) = match socket.recv_from(&mut buf[..]).await {
                         Ok(x) => x,

@@ -161,11 +161,7 @@ impl ClientBuilder {
     /// Cancel-safe: a dropped call leaves nothing behind.
     pub async fn connect_udp_from(self, local: SocketAddr, remote: SocketAddr) -> Result<Client> {
         let socket = UdpSocket::bind(local).await?;
-        let link = Link::Udp {
-            socket,
-            peer: remote,
-            max_payload_len: self.max_payload_len,
-        };
+        let link = Link::udp(socket, remote, self.max_payload_len);
         Ok(self.start_link(link, TransportKind::Udp))
     }
 

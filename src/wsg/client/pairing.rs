@@ -118,6 +118,24 @@ impl Pairing {
         }
     }
 
+    /// Drops the queued (never sent) requests of `id` whose caller is gone; returns their
+    /// tokens. Called before queueing another, so that callers who keep timing out behind a
+    /// long move cannot grow the queue: it holds at most one request per live caller.
+    pub(crate) fn prune(&mut self, id: u8, alive: impl Fn(Token) -> bool) -> Vec<Token> {
+        let Some(st) = self.ids.get_mut(&id) else {
+            return Vec::new();
+        };
+        let mut gone = Vec::new();
+        st.queue.retain(|r| {
+            let keep = alive(r.token);
+            if !keep {
+                gone.push(r.token);
+            }
+            keep
+        });
+        gone
+    }
+
     /// Pairs a received reply.
     pub(crate) fn on_reply(&mut self, reply: Reply) -> Event {
         let Some(f) = self
@@ -373,6 +391,25 @@ mod tests {
             p.on_reply(reply(0x21, Status::AlreadyRunning)),
             Event::Resolved(3, _)
         ));
+    }
+
+    #[test]
+    fn prune_drops_only_queued_dead_callers() {
+        let t = Instant::now() + Duration::from_secs(1);
+        let mut p = Pairing::new(Duration::from_secs(1));
+        assert!(p.submit(req(1, 0x21, t)).is_some());
+        for token in 2..=5 {
+            assert!(p.submit(req(token, 0x21, t)).is_none());
+        }
+        assert_eq!(p.prune(0x21, |t| t == 1 || t == 4), vec![2, 3, 5]);
+        assert!(matches!(
+            p.on_reply(reply(0x21, Status::Success)),
+            Event::Resolved(1, _)
+        ));
+        let (next, skipped) = p.next(0x21, |_| true);
+        assert_eq!(next.map(|r| r.token), Some(4));
+        assert!(skipped.is_empty());
+        assert_eq!(p.drain(), vec![4]);
     }
 
     proptest::proptest! {

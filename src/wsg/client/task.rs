@@ -220,6 +220,10 @@ impl Task {
 
     async fn submit(&mut self, req: Request) -> io::Result<()> {
         let id = req.frame.id;
+        let waiters = &self.waiters;
+        for gone in self.pairing.prune(id, |t| alive(waiters, t)) {
+            self.waiters.remove(&gone);
+        }
         match self.pairing.submit(req) {
             Some(req) => self.transmit(req).await,
             None => self.probe_if_orphaned(id).await,
@@ -292,11 +296,7 @@ impl Task {
 
     async fn send_next(&mut self, id: u8) -> io::Result<()> {
         let waiters = &self.waiters;
-        let (next, skipped) = self.pairing.next(id, |t| match waiters.get(&t) {
-            Some(Waiter::Caller(tx)) => !tx.is_closed(),
-            Some(Waiter::Internal | Waiter::Probe { .. }) => true,
-            None => false,
-        });
+        let (next, skipped) = self.pairing.next(id, |t| alive(waiters, t));
         for t in skipped {
             self.waiters.remove(&t);
         }
@@ -439,6 +439,15 @@ impl Task {
         }
         self.link.shutdown().await;
         result
+    }
+}
+
+/// Whether anyone still waits for request `token`.
+fn alive(waiters: &HashMap<Token, Waiter>, token: Token) -> bool {
+    match waiters.get(&token) {
+        Some(Waiter::Caller(tx)) => !tx.is_closed(),
+        Some(Waiter::Internal | Waiter::Probe { .. }) => true,
+        None => false,
     }
 }
 
