@@ -1,10 +1,11 @@
 //! The async client: a cheap, cloneable handle to a background task that owns the connection.
 
+mod connector;
 mod pairing;
 mod task;
 
 use std::net::SocketAddr;
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, OnceLock};
 use std::time::Duration;
 
@@ -14,6 +15,7 @@ use tokio::sync::{mpsc, oneshot};
 use tokio::time::{timeout_at, Instant};
 use tokio_util::codec::Framed;
 
+use self::connector::{Connector, ConnectorKind, Reconnect};
 use self::task::{Msg, Task};
 use super::command::{id, Command, HomingDirection, UpdateMode};
 use super::subscription::{Subscriber, Subscription, UpdateOptions};
@@ -23,6 +25,7 @@ use super::{
     Error, Finger, FingerFlags, FingerInfo, Frame, GraspingStatistics, GripState, Reply, Result,
     SoftLimits, Status, SystemInfo, SystemLimits, SystemState, WsgCodec,
 };
+use crate::reconnect::{ConnectionEvents, EventSubscriber, ReconnectPolicy};
 
 /// Default timeout of queries and settings.
 pub const DEFAULT_QUERY_TIMEOUT: Duration = Duration::from_secs(1);
@@ -34,6 +37,9 @@ pub const DEFAULT_LATE_REPLY_GRACE: Duration = Duration::from_secs(2);
 /// Default silence after which a partial frame is dropped as noise (see
 /// [`ClientBuilder::partial_frame_timeout`]).
 pub const DEFAULT_PARTIAL_FRAME_TIMEOUT: Duration = Duration::from_millis(500);
+/// Connection events each [`Client::connection_events`] stream buffers, at most (a slower
+/// reader gets [`ConnectionEvent::Missed`](crate::reconnect::ConnectionEvent::Missed)).
+pub const EVENT_BUFFER: usize = 32;
 /// Default buffer of each subscription, in updates.
 pub const DEFAULT_SUBSCRIPTION_BUFFER: usize = 64;
 
@@ -49,6 +55,7 @@ pub struct ClientBuilder {
     announce_disconnect: Option<bool>,
     serial_exclusive: bool,
     partial_frame_timeout: Duration,
+    reconnect: Option<ReconnectPolicy>,
 }
 
 impl Default for ClientBuilder {
@@ -63,6 +70,7 @@ impl Default for ClientBuilder {
             announce_disconnect: None,
             serial_exclusive: true,
             partial_frame_timeout: DEFAULT_PARTIAL_FRAME_TIMEOUT,
+            reconnect: None,
         }
     }
 }
@@ -118,6 +126,28 @@ impl ClientBuilder {
         self
     }
 
+    /// Reconnect after a lost connection, with this backoff (default: off, the client then fails
+    /// every later call with [`Error::ConnectionLost`]). TCP and serial only.
+    ///
+    /// With a policy:
+    /// - calls in flight when the link drops fail with [`Error::ConnectionLost`] and are never
+    ///   sent again on their own, motion commands included; calls made while the client
+    ///   reconnects wait for the new connection within their own timeouts;
+    /// - each attempt (bounded by the query timeout) reopens the same address or port;
+    /// - the auto-update streams that still have a [`Subscription`] are switched on again, and
+    ///   the streams go on; dropped ones are not restored;
+    /// - each loss, attempt and recovery is reported through [`Client::connection_events`] and
+    ///   `tracing`; after the policy's last attempt the client gives up and later calls fail.
+    ///
+    /// An unannounced TCP loss puts the gripper into FAST STOP (manual 1.4.2): after a
+    /// reconnect, motion is refused (E_ACCESS_DENIED) until the program calls
+    /// [`Client::acknowledge_fast_stop`]. The client never acknowledges it on its own; the
+    /// `Lost` event says so.
+    pub fn reconnect(mut self, policy: ReconnectPolicy) -> Self {
+        self.reconnect = Some(policy);
+        self
+    }
+
     /// Whether [`Client::close`] sends the disconnect announcement (0x07) first. Default: on for
     /// TCP (manual 1.4.2: an unannounced close puts the gripper into FAST STOP), off otherwise
     /// (other transports answer E_NOT_AVAILABLE).
@@ -137,9 +167,12 @@ impl ClientBuilder {
     ///
     /// Cancel-safe: a dropped call leaves nothing behind.
     pub async fn connect_tcp(self, addr: impl ToSocketAddrs) -> Result<Client> {
-        let stream = TcpStream::connect(addr).await?;
+        // Resolved once: a reconnect goes to the same addresses.
+        let addrs: Vec<SocketAddr> = tokio::net::lookup_host(addr).await?.collect();
+        let stream = TcpStream::connect(&addrs[..]).await?;
         stream.set_nodelay(true)?;
-        Ok(self.start(Box::new(stream), TransportKind::Tcp))
+        let reconnect = ConnectorKind::Tcp(addrs);
+        Ok(self.start(Box::new(stream), TransportKind::Tcp, Some(reconnect)))
     }
 
     /// Talks over UDP to `remote`, from an ephemeral local port (each datagram is one frame).
@@ -162,36 +195,43 @@ impl ClientBuilder {
     pub async fn connect_udp_from(self, local: SocketAddr, remote: SocketAddr) -> Result<Client> {
         let socket = UdpSocket::bind(local).await?;
         let link = Link::udp(socket, remote, self.max_payload_len);
-        Ok(self.start_link(link, TransportKind::Udp))
+        Ok(self.start_link(link, TransportKind::Udp, None))
     }
 
     /// Opens a serial port (8N1, no flow control) at `baud_rate` (the WSG default is 115200).
     #[cfg(feature = "serial")]
     pub fn open_serial(self, path: &str, baud_rate: u32) -> Result<Client> {
-        use tokio_serial::SerialPortBuilderExt;
-        let port = tokio_serial::new(path, baud_rate)
-            .data_bits(tokio_serial::DataBits::Eight)
-            .parity(tokio_serial::Parity::None)
-            .stop_bits(tokio_serial::StopBits::One)
-            .flow_control(tokio_serial::FlowControl::None)
-            .exclusive(self.serial_exclusive)
-            .open_native_async()
-            .map_err(|e| Error::Io(std::io::Error::other(e)))?;
-        Ok(self.start(Box::new(port), TransportKind::Serial))
+        let port = connector::serial(path, baud_rate, self.serial_exclusive)?;
+        let reconnect = ConnectorKind::Serial {
+            path: path.to_owned(),
+            baud_rate,
+            exclusive: self.serial_exclusive,
+        };
+        Ok(self.start(Box::new(port), TransportKind::Serial, Some(reconnect)))
     }
 
     /// Uses a byte stream the caller already has (a serial port, a TLS tunnel, a test pipe).
     pub fn attach(self, io: impl AsyncReadWrite) -> Client {
-        self.start(Box::new(io), TransportKind::Attached)
+        self.start(Box::new(io), TransportKind::Attached, None)
     }
 
     /// Spawns the task on the current tokio runtime.
-    fn start(self, io: Box<dyn AsyncReadWrite>, kind: TransportKind) -> Client {
+    fn start(
+        self,
+        io: Box<dyn AsyncReadWrite>,
+        kind: TransportKind,
+        reconnect: Option<ConnectorKind>,
+    ) -> Client {
         let link = stream_link(io, self.max_payload_len);
-        self.start_link(link, kind)
+        self.start_link(link, kind, reconnect)
     }
 
-    fn start_link(self, link: Link, kind: TransportKind) -> Client {
+    fn start_link(
+        self,
+        link: Link,
+        kind: TransportKind,
+        reconnect: Option<ConnectorKind>,
+    ) -> Client {
         let (tx, rx) = mpsc::channel(self.request_queue);
         let (unsub_tx, unsub_rx) = mpsc::unbounded_channel();
         let announce = self
@@ -208,6 +248,19 @@ impl ClientBuilder {
             lost.clone(),
         );
         task.partial_frame_timeout = self.partial_frame_timeout;
+        task.tcp = kind == TransportKind::Tcp;
+        task.reconnect = self
+            .reconnect
+            .zip(reconnect)
+            .map(|(policy, kind)| Reconnect {
+                policy,
+                connector: Connector {
+                    kind,
+                    max_payload_len: self.max_payload_len,
+                },
+            });
+        let events = task.events.subscriber();
+        let closing = task.closing.clone();
         tokio::spawn(task.run());
         Client {
             shared: Arc::new(Shared {
@@ -217,6 +270,8 @@ impl ClientBuilder {
                 next_key: AtomicU64::new(0),
                 kind,
                 lost,
+                events,
+                closing,
             }),
             query_timeout: self.query_timeout,
             motion_timeout: self.motion_timeout,
@@ -238,8 +293,11 @@ struct Shared {
     subscription_buffer: usize,
     next_key: AtomicU64,
     kind: TransportKind,
-    /// Why the connection broke, once it did.
+    /// Why the connection broke for good, once it did.
     lost: Arc<OnceLock<String>>,
+    events: EventSubscriber,
+    /// Set when a handle asks to close: the task stops reconnecting.
+    closing: Arc<AtomicBool>,
 }
 
 impl Shared {
@@ -315,6 +373,16 @@ impl Client {
             query_timeout: query,
             motion_timeout: motion,
         }
+    }
+
+    /// The connection's events from now on: each loss, and with
+    /// [`ClientBuilder::reconnect`] each attempt and recovery (each is also logged with
+    /// `tracing`). The stream ends when the client has closed or given up. It buffers
+    /// [`EVENT_BUFFER`] events; a slower reader gets
+    /// [`ConnectionEvent::Missed`](crate::reconnect::ConnectionEvent::Missed) instead of the
+    /// oldest ones.
+    pub fn connection_events(&self) -> ConnectionEvents {
+        self.shared.events.subscribe()
     }
 
     /// The transport this client uses.
@@ -810,6 +878,8 @@ impl Client {
     /// Cancel-safe: once the request reached the task, the close completes even if this call is
     /// dropped.
     pub async fn close(&self) -> Result<()> {
+        // Seen by a reconnecting task before its next attempt: it gives up instead.
+        self.shared.closing.store(true, Ordering::Release);
         let (done, rx) = oneshot::channel();
         self.shared
             .tx

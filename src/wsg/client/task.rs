@@ -4,6 +4,7 @@
 
 use std::collections::HashMap;
 use std::io;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, OnceLock};
 use std::time::Duration;
 
@@ -12,6 +13,8 @@ use tokio::sync::{mpsc, oneshot};
 use tokio::time::{sleep_until, Instant};
 
 use super::pairing::{Event, Pairing, Request, Token};
+use super::Reconnect;
+use crate::reconnect::{self, ConnectionEvent, EventSender};
 use crate::wsg::command::{id, Command, UpdateMode};
 use crate::wsg::subscription::Subscriber;
 use crate::wsg::transport::Link;
@@ -68,8 +71,16 @@ pub(crate) struct Task {
     pub(crate) partial_frame_timeout: Duration,
     /// Bytes of the partial frame held by the decoder, and since when that count is unchanged.
     partial: (usize, Instant),
-    /// Set to the reason when the connection breaks, so later calls can say why.
+    /// Set to the reason when the connection breaks for good, so later calls can say why.
     lost: Arc<OnceLock<String>>,
+    /// Where connection losses (and reconnects) are reported.
+    pub(crate) events: EventSender,
+    /// How to reconnect after a loss; `None`: the client ends with the connection.
+    pub(crate) reconnect: Option<Reconnect>,
+    /// Set by [`Client::close`](super::Client::close) before it asks: stops reconnecting.
+    pub(crate) closing: Arc<AtomicBool>,
+    /// The transport is TCP: a loss puts the gripper into FAST STOP.
+    pub(crate) tcp: bool,
     waiters: HashMap<Token, Waiter>,
     streams: HashMap<u8, StreamState>,
     next_token: Token,
@@ -99,6 +110,10 @@ impl Task {
         Self {
             partial_frame_timeout: super::DEFAULT_PARTIAL_FRAME_TIMEOUT,
             partial: (0, Instant::now()),
+            events: EventSender::new("wsg", super::EVENT_BUFFER),
+            reconnect: None,
+            closing: Arc::new(AtomicBool::new(false)),
+            tcp: false,
             lost,
             link,
             rx,
@@ -113,29 +128,114 @@ impl Task {
     }
 
     pub(crate) async fn run(mut self) {
-        let (lost, done) = match self.serve().await {
-            Ok(done) => (None, done),
-            Err(reason) => {
-                tracing::warn!(%reason, "WSG connection lost");
-                let _ = self.lost.set(reason.clone());
-                (Some(reason), None)
+        let (lost, done) = loop {
+            match self.serve().await {
+                Ok(done) => break (None, done),
+                Err(reason) => {
+                    self.events.send(ConnectionEvent::Lost {
+                        reason: self.loss_report(&reason),
+                    });
+                    // Calls in flight fail; nothing is sent again on its own (a move that was
+                    // cut off must not start again without the program deciding so).
+                    self.fail_waiters(&Error::ConnectionLost(reason.clone()));
+                    if self.reconnect_link().await {
+                        continue;
+                    }
+                    let _ = self.lost.set(reason.clone());
+                    break (Some(reason), None);
+                }
             }
         };
-        for (_, w) in self.waiters.drain() {
-            if let Waiter::Caller(tx) = w {
-                let e = match &lost {
-                    Some(reason) => Error::ConnectionLost(reason.clone()),
-                    None => Error::Closed,
-                };
-                let _ = tx.send(Err(e));
-            }
-        }
-        self.pairing.drain();
-        // Dropping the subscribers' senders ends their streams.
+        let e = match lost {
+            Some(reason) => Error::ConnectionLost(reason),
+            None => Error::Closed,
+        };
+        self.fail_waiters(&e);
+        // Dropping the subscribers' senders ends their streams; dropping the request channel
+        // fails the calls still in it (with the reason set above).
         self.streams.clear();
         if let Some((done, result)) = done {
             let _ = done.send(result);
         }
+    }
+
+    /// Fails every call in flight or queued behind one (internal requests are forgotten).
+    fn fail_waiters(&mut self, e: &Error) {
+        for (_, w) in self.waiters.drain() {
+            if let Waiter::Caller(tx) = w {
+                let again = match e {
+                    Error::ConnectionLost(reason) => Error::ConnectionLost(reason.clone()),
+                    _ => Error::Closed,
+                };
+                let _ = tx.send(Err(again));
+            }
+        }
+        self.pairing.drain();
+    }
+
+    /// What the connection events say about a loss: on TCP, that the gripper is now in FAST
+    /// STOP, which the client never acknowledges on its own.
+    fn loss_report(&self, reason: &str) -> String {
+        if self.tcp {
+            format!(
+                "{reason}; the gripper goes into FAST STOP on an unannounced TCP close (manual \
+                 1.4.2): motion is refused until the program calls acknowledge_fast_stop"
+            )
+        } else {
+            reason.to_owned()
+        }
+    }
+
+    /// Reconnects with the policy's backoff (if there is one) and restores the auto-update
+    /// streams that still have subscribers. Returns false when the client gives up (or has
+    /// no policy): the task then ends.
+    async fn reconnect_link(&mut self) -> bool {
+        let Some(reconnect) = &self.reconnect else {
+            return false;
+        };
+        for st in self.streams.values_mut() {
+            st.subscribers.retain(|s| !s.tx.is_closed());
+        }
+        self.streams.retain(|_, st| !st.subscribers.is_empty());
+        let restore: Vec<Frame> = self
+            .streams
+            .iter()
+            .map(|(id, st)| stream_command(*id, st.mode))
+            .collect();
+        let (rx, closing, events) = (&self.rx, &self.closing, &self.events);
+        let timeout = self.query_timeout;
+        let link = reconnect::retry(
+            &reconnect.policy,
+            events,
+            || rx.is_closed() || closing.load(Ordering::Acquire),
+            |_| async {
+                let mut link = reconnect.connector.connect(timeout).await?;
+                events.send(ConnectionEvent::Connected);
+                // The new connection starts without auto-updates: ask for them again.
+                for frame in &restore {
+                    link.send(frame).await?;
+                }
+                Ok::<_, io::Error>(link)
+            },
+        )
+        .await;
+        let Some(link) = link else {
+            return false;
+        };
+        self.link = link;
+        self.partial = (0, Instant::now());
+        // Their replies (the current values) go to the subscribers like any update.
+        let deadline = Instant::now() + self.query_timeout;
+        for frame in restore {
+            let token = self.waiter(Waiter::Internal);
+            // The ids are all free on a fresh connection: this only records what was sent.
+            let _ = self.pairing.submit(Request {
+                token,
+                frame,
+                deadline,
+            });
+        }
+        true
     }
 
     /// Runs until closed (returns who to tell and how it went) or the connection breaks
