@@ -326,6 +326,28 @@ impl Shared {
 /// be taken for the next request of the same id. Acknowledged motion commands hold their id until
 /// their final reply.
 ///
+/// # A misbehaving wire
+/// What the client does about each fault (each one is tested through the fault proxy in
+/// `tests/wsg_faults.rs`):
+/// - a frame with a bad checksum is dropped; its call ends in a timeout (or, when the device
+///   rejected a corrupted request, [`Error::Device`] with E_CHECKSUM_ERROR);
+/// - a header whose bytes stop coming (a corrupted length) is dropped after
+///   [`ClientBuilder::partial_frame_timeout`], and the frames behind it are decoded;
+/// - a lost reply ends its call in a timeout; a lost E_CMD_PENDING changes nothing (the final
+///   reply ends the call); a lost final reply of a move times its call out, and the next move
+///   of that id asks the device whether it still moves before taking the id back;
+/// - a duplicated reply is dropped when no request of its id is on the wire. Frames already
+///   received are paired before the next request goes out, and a loop reply must echo its own
+///   payload; otherwise, without sequence numbers, a copy arriving after the next request of
+///   its id went out would be taken as its answer (it carries the same value unless the device
+///   changed in between);
+/// - a duplicated motion request while the first still moves is refused by the device with
+///   E_ALREADY_RUNNING, which cannot be the final reply of an acknowledged move and is
+///   dropped; a move that already ended runs a second time (to the same target), and its second
+///   pair of replies is dropped as unsolicited;
+/// - a cut connection fails the calls in flight with [`Error::ConnectionLost`] (see
+///   [`ClientBuilder::reconnect`]).
+///
 /// While a value is streamed ([`Client::subscribe_width_mm`] and friends), a one-off query of
 /// it is sent with the stream's flags, so it does not switch the device's updates off (FLAGS bit0
 /// clear would); it is answered by the next frame of that value, the reply or an update, which
