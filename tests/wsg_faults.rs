@@ -188,47 +188,29 @@ async fn frames_split_into_single_bytes_decode_in_both_directions() {
 }
 
 #[tokio::test]
-async fn merged_replies_are_each_paired_with_their_own_call() {
+async fn merged_frames_are_each_paired_with_their_own_call() {
     let rig = Rig::new(config()).await;
-    let merge = rig.proxy.server_to_client().add(
-        Fault::Merge {
-            frames: 3,
-            max_wait: LONG,
-        }
-        .once(),
-    );
-    let patient = rig.patient();
-    let (a, b, c) = tokio::join!(
-        echo(&patient, "merged"),
-        patient.system_info(),
-        patient.temperature_c()
-    );
-    assert_eq!(a.unwrap(), b"merged");
-    assert_eq!(b.unwrap().serial_number, 4711);
-    assert_eq!(c.unwrap(), 23.4);
-    assert_eq!(merge.fired(), 1);
-    assert_eq!(rig.proxy.stats().server_to_client.writes, 1);
-}
-
-#[tokio::test]
-async fn merged_requests_are_all_answered() {
-    let rig = Rig::new(config()).await;
-    rig.proxy.client_to_server().add(
-        Fault::Merge {
-            frames: 3,
-            max_wait: LONG,
-        }
-        .once(),
-    );
-    let patient = rig.patient();
-    let (a, b, c) = tokio::join!(
-        echo(&patient, "one"),
-        patient.width_mm(),
-        patient.grip_state()
-    );
-    assert_eq!(a.unwrap(), b"one");
-    assert_eq!(b.unwrap(), 0.0);
-    assert_eq!(c.unwrap(), gripper::wsg::GripState::Idle);
+    for faults in [rig.proxy.server_to_client(), rig.proxy.client_to_server()] {
+        let writes = faults.stats().writes;
+        let merge = faults.add(
+            Fault::Merge {
+                frames: 3,
+                max_wait: LONG,
+            }
+            .once(),
+        );
+        let patient = rig.patient();
+        let (a, b, c) = tokio::join!(
+            echo(&patient, "merged"),
+            patient.system_info(),
+            patient.temperature_c()
+        );
+        assert_eq!(a.unwrap(), b"merged");
+        assert_eq!(b.unwrap().serial_number, 4711);
+        assert_eq!(c.unwrap(), 23.4);
+        assert_eq!(merge.fired(), 1);
+        assert_eq!(faults.stats().writes, writes + 1, "three frames, one write");
+    }
 }
 
 // ---- corrupt ----------------------------------------------------------------------------------
