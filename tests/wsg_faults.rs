@@ -349,6 +349,40 @@ async fn a_dropped_final_reply_times_out_the_motion_and_other_commands_still_wor
     assert_eq!(rig.count_received(id::HOMING), 2);
 }
 
+#[tokio::test]
+async fn a_timed_out_move_that_still_runs_keeps_its_id_until_its_final_reply() {
+    let rig = Rig::new(config()).await;
+    rig.client.home(HomingDirection::Default).await.unwrap();
+    rig.sim.set_time_scale(1000.0);
+    let impatient = rig.client.with_timeouts(QUERY, QUERY);
+    assert_timeout(
+        bounded(QUERY, impatient.pre_position(20.0, 50.0)).await,
+        id::PRE_POSITION,
+    );
+    // The next move of the id makes the client ask: the device still moves, so it waits.
+    let next = {
+        let c = rig.patient();
+        tokio::spawn(async move { c.pre_position(90.0, 50.0).await })
+    };
+    while rig.count_received(id::SYSTEM_STATE) == 0 {
+        rig.patient().temperature_c().await.unwrap();
+    }
+    rig.patient().temperature_c().await.unwrap();
+    assert_eq!(
+        rig.count_received(id::PRE_POSITION),
+        1,
+        "sent during the move"
+    );
+    // The stop ends the first move; its late E_CMD_ABORTED frees the id for the next one.
+    rig.patient().stop().await.unwrap();
+    while rig.count_received(id::PRE_POSITION) < 2 {
+        rig.patient().temperature_c().await.unwrap();
+    }
+    rig.patient().stop().await.unwrap();
+    let err = bounded(MOTION, next).await.unwrap().unwrap_err();
+    assert_eq!(err.status(), Some(Status::CmdAborted), "{err}");
+}
+
 // ---- duplicate --------------------------------------------------------------------------------
 
 #[tokio::test]

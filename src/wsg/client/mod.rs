@@ -895,7 +895,9 @@ impl Client {
     /// Closes the connection: on TCP, announces the disconnect (0x07) and waits for its reply
     /// first, so the gripper does not go into FAST STOP. Calls still waiting fail with
     /// [`Error::Closed`], streams end, and every other handle's calls fail with
-    /// [`Error::Closed`] (or [`Error::ConnectionLost`] if the connection had broken).
+    /// [`Error::Closed`] (or [`Error::ConnectionLost`] if the connection had broken). While the
+    /// client reconnects ([`ClientBuilder::reconnect`]), it gives up before its next attempt
+    /// and this returns [`Error::ConnectionLost`].
     ///
     /// Cancel-safe: once the request reached the task, the close completes even if this call is
     /// dropped.
