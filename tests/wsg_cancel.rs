@@ -225,3 +225,48 @@ async fn a_move_cancelled_before_it_was_sent_is_never_sent() {
         .unwrap()
         .contains(SystemState::MOVING));
 }
+
+#[tokio::test]
+async fn a_dropped_subscribe_call_leaves_no_stream_behind() {
+    let (sim, client) = setup().await;
+    let options = gripper::wsg::UpdateOptions::periodic(Duration::from_millis(10));
+    let mut cancelled = 0;
+    for polls in 1..8 {
+        let call = PollLimit {
+            call: Box::pin(client.subscribe_width_mm(options)),
+            polls,
+        };
+        match call.await {
+            // Subscribed before the limit: dropping the subscription ends it too.
+            Some(subscription) => drop(subscription.unwrap()),
+            None => cancelled += 1,
+        }
+    }
+    assert!(
+        cancelled > 0,
+        "every subscribe finished within its poll limit"
+    );
+    let asked = |sim: &SimServer| {
+        sim.received_ids()
+            .iter()
+            .filter(|i| **i == id::WIDTH)
+            .count()
+    };
+    assert!(asked(&sim) > 0, "no subscription reached the device");
+    // Whatever point each call was dropped at, the device ends up sending no updates.
+    let mut streams = sim.snapshot().streams;
+    for _ in 0..10_000 {
+        if streams == 0 {
+            break;
+        }
+        client.temperature_c().await.unwrap();
+        streams = sim.snapshot().streams;
+    }
+    assert_eq!(
+        streams, 0,
+        "a cancelled subscription left the device streaming"
+    );
+    // And a new subscription works.
+    let mut widths = client.subscribe_width_mm(options).await.unwrap();
+    assert_eq!(futures_util::StreamExt::next(&mut widths).await, Some(0.0));
+}
