@@ -5,7 +5,8 @@
 //! - [`frame`]: pure encode/decode of `AA AA AA | id | len | payload | crc` frames, resyncing
 //!   byte-wise on noise; [`WsgCodec`]: the tokio-util codec over it;
 //! - [`command`], [`types`], [`Status`]: typed commands, reply data and status codes;
-//! - [`Client`]: the async client; [`Subscription`]: auto-update streams;
+//! - [`Client`]: the async client (cancel-safe calls, optional reconnect, and what it does under
+//!   each wire fault: see its docs); [`Subscription`]: auto-update streams;
 //! - `sim` (feature `sim`): a simulated gripper serving TCP, UDP and a serial pseudo-terminal.
 //!
 //! # Memory bounds
@@ -31,6 +32,8 @@
 //!   (default 64); a slow consumer misses the newest updates while its buffer is full, counted by
 //!   [`Subscription::missed`], and reads the older buffered ones first (tested).
 //! - The unsubscribe channel holds at most one message per live subscription.
+//! - **Connection events**: each [`Client::connection_events`] stream buffers
+//!   [`client::EVENT_BUFFER`] events; a slower reader loses the oldest and is told how many.
 //!
 //! What a checksum cannot catch: random bytes pass the 16-bit checksum about once in 65536
 //! candidate frames. A loop reply is checked against its payload, and a reply with no request of
