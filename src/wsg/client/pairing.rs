@@ -16,6 +16,12 @@
 //! command (E_CMD_PENDING) it always sends a final reply (manual 1.3; a stop ends a motion with
 //! E_CMD_ABORTED), so an acknowledged request is never released early: the next motion command of
 //! that id waits for the final reply of the previous one, whatever the callers' timeouts.
+//! (If that reply is lost on the wire, the task, not this state machine, finds out by asking the
+//! device whether it still moves, and [`Pairing::abandon`]s the request.)
+//!
+//! Two kinds of reply provably answer another request of the same id and are treated as
+//! unsolicited: a loop reply that does not echo the payload on the wire, and E_ALREADY_RUNNING
+//! for an acknowledged request (the device's refusal of a duplicate of it).
 
 use std::collections::{HashMap, VecDeque};
 use std::time::Duration;
