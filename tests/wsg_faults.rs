@@ -663,4 +663,10 @@ async fn udp_dropped_and_duplicated_datagrams() {
         .await
         .unwrap();
     assert_eq!(client.width_mm().await.unwrap(), 110.0);
+    // A lost E_CMD_PENDING datagram: the final reply still ends the move.
+    sim.drop_next_reply(id::PRE_POSITION);
+    bounded(MOTION, client.pre_position(30.0, 100.0))
+        .await
+        .unwrap();
+    assert_eq!(client.width_mm().await.unwrap(), 30.0);
 }
