@@ -70,8 +70,17 @@ where
     v.parse().map_err(|e| format!("{flag} {v}: {e}"))
 }
 
+/// Adds the device's default port where the address has none: `host`, `10.0.0.5` and a bare
+/// IPv6 address get it; `host:port`, `10.0.0.5:port` and `[::1]:port` keep theirs.
 fn with_port(addr: String, default_port: u16) -> String {
-    if addr.contains(':') {
+    if addr.parse::<std::net::SocketAddr>().is_ok() {
+        addr
+    } else if addr.parse::<std::net::Ipv6Addr>().is_ok() {
+        format!("[{addr}]:{default_port}")
+    } else if addr
+        .rsplit_once(':')
+        .is_some_and(|(_, port)| port.parse::<u16>().is_ok())
+    {
         addr
     } else {
         format!("{addr}:{default_port}")
@@ -275,7 +284,7 @@ async fn empty_the_bin(
         let si = grasp.pose.to_si().map_err(|e| format!("grasp pose: {e}"))?;
         let [x, y, z] = si.position_m;
         println!(
-            "part {} (class {}, {} left): grasp at ({x:.3}, {y:.3}, {z:.3}) m, KUKA {}, stroke {:.1} mm",
+            "part {} (class {}, {} in the bin): grasp at ({x:.3}, {y:.3}, {z:.3}) m, KUKA {}, stroke {:.1} mm",
             grasp.object_instance,
             grasp.object_class,
             grasp.object_count,
