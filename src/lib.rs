@@ -61,7 +61,8 @@
 #[cfg(feature = "sim")]
 pub mod fault;
 pub mod griplink;
-/// Reconnecting after a lost connection: backoff policy and connection events, for every client.
+/// Reconnecting after a lost connection: backoff policy and connection events, shared by the
+/// `smartgrasp`, `griplink` and `wsg` clients (wsg over TCP and serial; UDP has no connection).
 pub mod reconnect;
 pub mod smartgrasp;
 pub mod wsg;

@@ -135,7 +135,7 @@ async fn every_message_type() {
         assert_eq!(g.pose.format(), format);
         let si = g.pose.to_si().unwrap();
         assert_eq!(g.pose.position_um(), reference.pose.position_um());
-        assert!(si.orientation.angle_to(&reference_si.orientation) < 5e-6);
+        assert!(si.orientation.angle_to_rad(&reference_si.orientation) < 5e-6);
     }
 
     // GRASP_FEEDBACK OK takes the object out of the scene; BAD leaves it.

@@ -86,10 +86,22 @@ pub mod state;
 pub mod status;
 pub mod value;
 
+// Inlined: the module page lists them with their summaries (`client` stays public for its
+// docs on timeouts, replies out of step and cancellation).
+#[doc(inline)]
 pub use client::{Client, ClientConfig, Port, DEFAULT_PORT};
+#[doc(inline)]
 pub use client::{GripOutcome, ReleaseOutcome, WaitBy, Watch};
-pub use command::{Blocking, Command, FlexGrip, FlexRelease, GripConfig, GripConfigF, PortNumber};
+#[doc(inline)]
+pub use command::{
+    Blocking, Command, FlexGrip, FlexGripScaled, FlexRelease, FlexReleaseScaled, GripConfig,
+    GripConfigF, PortNumber, MAX_PORT,
+};
+#[doc(inline)]
 pub use error::{Error, Result};
+#[doc(inline)]
 pub use reply::Answer;
+#[doc(inline)]
 pub use state::DeviceState;
+#[doc(inline)]
 pub use status::Status;

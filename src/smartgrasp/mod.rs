@@ -97,14 +97,19 @@ pub mod pose;
 pub mod sim;
 pub mod types;
 
+#[doc(inline)]
 pub use client::{Client, ClientConfig, GetGraspOutcome, DEFAULT_PORT};
+#[doc(inline)]
 pub use error::{Error, Malformed, Result};
+#[doc(inline)]
 pub use message::{
     Grasp, GraspRequest, ObjectCount, Request, RequestError, Response, ResponseBody,
 };
+#[doc(inline)]
 pub use pose::{
     AbcPose, AxisAnglePose, Pose, PoseError, QuaternionPose, SiPose, UnitQuaternion, WprPose,
 };
+#[doc(inline)]
 pub use types::{
     CommunicationType, GraspFeedback, GraspMode, MessageType, PoseFormat, ResponseCode,
     RobotSystem, ServerState, Tool,

@@ -9,7 +9,7 @@
 //! except a [`Fault::DelayReply`] a test asks for.
 
 mod server;
-pub mod state;
+mod state;
 
 pub use server::SimServer;
 pub use state::{
