@@ -161,7 +161,7 @@ async fn start(args: &Args) -> Result<(String, String, String, Simulators), Stri
             let config = wsg::sim::SimConfig::new(wsg::sim::Model::Wsg50)
                 .with_part(WSG_PART_MM, 2.0)
                 .with_time_scale(0.0);
-            let sim = wsg::sim::SimServer::tcp(config, "127.0.0.1:0")
+            let sim = wsg::sim::SimServer::bind("127.0.0.1:0", config)
                 .await
                 .map_err(|e| format!("cannot start the WSG simulator: {e}"))?;
             let addr = sim

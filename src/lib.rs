@@ -27,7 +27,7 @@
 //! // The simulated Grasping-Kit's demo bin, and a WSG 50 with an 86 mm part to find.
 //! let kit_sim = smartgrasp::sim::SimServer::bind("127.0.0.1:0", Default::default()).await?;
 //! let wsg_config = wsg::sim::SimConfig::new(wsg::sim::Model::Wsg50).with_part(86.0, 2.0);
-//! let wsg_sim = wsg::sim::SimServer::tcp(wsg_config, "127.0.0.1:0").await?;
+//! let wsg_sim = wsg::sim::SimServer::bind("127.0.0.1:0", wsg_config).await?;
 //!
 //! let kit = smartgrasp::Client::connect(kit_sim.local_addr(), Default::default()).await?;
 //! let gripper = wsg::Client::connect_tcp(wsg_sim.local_addr().expect("a TCP address")).await?;

@@ -129,7 +129,7 @@ proptest! {
 
 #[tokio::test]
 async fn a_slow_subscriber_misses_the_newest_updates_and_counts_them() {
-    let sim = SimServer::tcp(SimConfig::new(Model::Wsg50), "127.0.0.1:0")
+    let sim = SimServer::bind("127.0.0.1:0", SimConfig::new(Model::Wsg50))
         .await
         .unwrap();
     let client = Client::builder()

@@ -79,7 +79,7 @@ async fn ask_and_check(client: Client, ask: Ask, unique: u64) {
 }
 
 async fn setup() -> (SimServer, Client) {
-    let sim = SimServer::tcp(SimConfig::new(Model::Wsg50), "127.0.0.1:0")
+    let sim = SimServer::bind("127.0.0.1:0", SimConfig::new(Model::Wsg50))
         .await
         .unwrap();
     let client = Client::builder()

@@ -47,7 +47,7 @@ struct Rig {
 
 impl Rig {
     async fn new(config: SimConfig) -> Rig {
-        let sim = SimServer::tcp(config, "127.0.0.1:0").await.unwrap();
+        let sim = SimServer::bind("127.0.0.1:0", config).await.unwrap();
         let proxy = FaultProxy::start_with(
             sim.local_addr().unwrap(),
             ProxyConfig::new().framing(gripper::fault::Framing::Custom(frame_len)),
@@ -626,7 +626,7 @@ impl Relay {
 
 #[tokio::test]
 async fn udp_dropped_and_duplicated_datagrams() {
-    let sim = SimServer::udp(config(), "127.0.0.1:0").await.unwrap();
+    let sim = SimServer::bind_udp("127.0.0.1:0", config()).await.unwrap();
     let relay = Relay::start(sim.local_addr().unwrap()).await;
     let client = Client::builder()
         .query_timeout(SURE)

@@ -38,9 +38,9 @@ fn count(sim: &SimServer, command: u8) -> usize {
 
 #[tokio::test]
 async fn a_cut_connection_is_restored_with_its_streams_and_the_move_is_not_resent() {
-    let sim = SimServer::tcp(
-        SimConfig::new(Model::Wsg50).with_part(40.0, 2.0),
+    let sim = SimServer::bind(
         "127.0.0.1:0",
+        SimConfig::new(Model::Wsg50).with_part(40.0, 2.0),
     )
     .await
     .unwrap();
@@ -149,7 +149,7 @@ async fn a_cut_connection_is_restored_with_its_streams_and_the_move_is_not_resen
 
 #[tokio::test]
 async fn the_client_gives_up_after_its_attempts_and_later_calls_fail() {
-    let sim = SimServer::tcp(SimConfig::new(Model::Wsg50), "127.0.0.1:0")
+    let sim = SimServer::bind("127.0.0.1:0", SimConfig::new(Model::Wsg50))
         .await
         .unwrap();
     let client = Client::builder()
@@ -197,7 +197,7 @@ async fn the_client_gives_up_after_its_attempts_and_later_calls_fail() {
 
 #[tokio::test]
 async fn without_a_policy_the_loss_is_reported_and_final() {
-    let sim = SimServer::tcp(SimConfig::new(Model::Wsg50), "127.0.0.1:0")
+    let sim = SimServer::bind("127.0.0.1:0", SimConfig::new(Model::Wsg50))
         .await
         .unwrap();
     let client = Client::connect_tcp(sim.local_addr().unwrap())
@@ -222,7 +222,7 @@ async fn without_a_policy_the_loss_is_reported_and_final() {
 
 #[tokio::test]
 async fn close_while_reconnecting_gives_up() {
-    let sim = SimServer::tcp(SimConfig::new(Model::Wsg50), "127.0.0.1:0")
+    let sim = SimServer::bind("127.0.0.1:0", SimConfig::new(Model::Wsg50))
         .await
         .unwrap();
     let client = Client::builder()

@@ -10,7 +10,7 @@ use serde_json::Value;
 
 /// A simulated WSG 50 with a 40 mm part, instant motion, on a free TCP port.
 async fn tcp(config: SimConfig) -> (SimServer, String) {
-    let server = SimServer::tcp(config, "127.0.0.1:0").await.expect("bind");
+    let server = SimServer::bind("127.0.0.1:0", config).await.expect("bind");
     let addr = server.local_addr().expect("TCP address").to_string();
     (server, addr)
 }
@@ -282,7 +282,7 @@ async fn loop_test_and_raw_commands() {
 
 #[tokio::test]
 async fn udp_and_serial_transports() {
-    let server = SimServer::udp(with_part(), "127.0.0.1:0")
+    let server = SimServer::bind_udp("127.0.0.1:0", with_part())
         .await
         .expect("bind");
     let addr = server.local_addr().expect("UDP address").to_string();

@@ -49,7 +49,7 @@
 //!
 //! // A simulated WSG 50 with a 40 mm part between the fingers; motion takes no wall time.
 //! let config = sim::SimConfig::new(sim::Model::Wsg50).with_part(40.0, 2.0);
-//! let simulator = sim::SimServer::tcp(config, "127.0.0.1:0").await?;
+//! let simulator = sim::SimServer::bind("127.0.0.1:0", config).await?;
 //! let addr = simulator.local_addr().expect("TCP server has an address");
 //!
 //! let gripper = Client::connect_tcp(addr).await?;
@@ -74,11 +74,17 @@ pub mod frame;
 mod status;
 pub mod types;
 
+#[doc(inline)]
 pub use codec::WsgCodec;
+#[doc(inline)]
 pub use command::{Command, HomingDirection, Reply, UpdateMode};
+#[doc(inline)]
 pub use error::{Error, Result};
+#[doc(inline)]
 pub use frame::Frame;
+#[doc(inline)]
 pub use status::Status;
+#[doc(inline)]
 pub use types::{
     DeviceType, Finger, FingerFlags, FingerInfo, FingerType, FirmwareVersion, GraspingStatistics,
     GripState, SoftLimits, SystemInfo, SystemLimits, SystemState,
@@ -87,8 +93,14 @@ pub mod client;
 pub mod subscription;
 pub mod transport;
 
+#[doc(inline)]
 pub use client::{Client, ClientBuilder};
+#[doc(inline)]
 pub use subscription::{Subscription, UpdateOptions};
+#[doc(inline)]
 pub use transport::TransportKind;
+// `DEFAULT_PORT`, as in the other protocols' modules.
+#[doc(inline)]
+pub use transport::DEFAULT_TCP_PORT as DEFAULT_PORT;
 #[cfg(feature = "sim")]
 pub mod sim;

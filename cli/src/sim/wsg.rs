@@ -67,11 +67,11 @@ pub async fn run(args: WsgSim, out: Out) -> Result<(), CliError> {
             )
         })?
     } else if args.udp {
-        SimServer::udp(config, args.listen.as_str())
+        SimServer::bind_udp(args.listen.as_str(), config)
             .await
             .map_err(|e| cannot_listen(&args.listen, &e))?
     } else {
-        SimServer::tcp(config, args.listen.as_str())
+        SimServer::bind(args.listen.as_str(), config)
             .await
             .map_err(|e| cannot_listen(&args.listen, &e))?
     };

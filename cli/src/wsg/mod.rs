@@ -14,7 +14,8 @@ use std::time::Duration;
 
 use clap::{Args as ClapArgs, Subcommand, ValueEnum};
 use gripper::wsg::client::{DEFAULT_MOTION_TIMEOUT, DEFAULT_QUERY_TIMEOUT};
-use gripper::wsg::transport::{DEFAULT_BAUD_RATE, DEFAULT_TCP_PORT};
+use gripper::wsg::transport::DEFAULT_BAUD_RATE;
+use gripper::wsg::DEFAULT_PORT;
 use gripper::wsg::{Client, ClientBuilder, Error, HomingDirection, SoftLimits, Status};
 use serde_json::json;
 
@@ -220,7 +221,7 @@ pub async fn run(args: Args, timeout: Option<Duration>, out: Out) -> Result<(), 
 fn describe(args: &Args) -> String {
     match &args.serial {
         Some(path) => format!("{path} at {} Bd", args.baud),
-        None => with_default_port(&args.addr, DEFAULT_TCP_PORT),
+        None => with_default_port(&args.addr, DEFAULT_PORT),
     }
 }
 

@@ -22,6 +22,9 @@ pub(crate) struct Reconnect {
 pub(crate) struct Connector {
     pub(crate) kind: ConnectorKind,
     pub(crate) max_payload_len: usize,
+    /// Bounds a TCP connect (a host that is gone would otherwise take the operating system's
+    /// minutes).
+    pub(crate) connect_timeout: Duration,
 }
 
 #[derive(Debug)]
@@ -37,11 +40,10 @@ pub(crate) enum ConnectorKind {
 }
 
 impl Connector {
-    /// One attempt, bounded by `timeout` (a TCP connect to a host that is gone would otherwise
-    /// take the operating system's minutes).
-    pub(crate) async fn connect(&self, timeout: Duration) -> io::Result<Link> {
+    /// One attempt; a TCP connect is bounded by `connect_timeout`.
+    pub(crate) async fn connect(&self) -> io::Result<Link> {
         let io: Box<dyn AsyncReadWrite> = match &self.kind {
-            ConnectorKind::Tcp(addrs) => Box::new(tcp(addrs, timeout).await?),
+            ConnectorKind::Tcp(addrs) => Box::new(tcp(addrs, self.connect_timeout).await?),
             #[cfg(feature = "serial")]
             ConnectorKind::Serial {
                 path,
@@ -56,9 +58,14 @@ impl Connector {
 pub(crate) async fn tcp(addrs: &[SocketAddr], timeout: Duration) -> io::Result<TcpStream> {
     let stream = tokio::time::timeout(timeout, TcpStream::connect(addrs))
         .await
-        .map_err(|_| io::Error::new(io::ErrorKind::TimedOut, "TCP connect timed out"))??;
+        .map_err(|_| timed_out())??;
     stream.set_nodelay(true)?;
     Ok(stream)
+}
+
+/// The error of a TCP connect (or its address resolution) that ran out of time.
+pub(crate) fn timed_out() -> io::Error {
+    io::Error::new(io::ErrorKind::TimedOut, "TCP connect timed out")
 }
 
 /// Opens a serial port 8N1 without flow control (the WSG's settings).

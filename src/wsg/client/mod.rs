@@ -10,7 +10,7 @@ use std::sync::{Arc, OnceLock};
 use std::time::Duration;
 
 use bytes::Bytes;
-use tokio::net::{TcpStream, ToSocketAddrs, UdpSocket};
+use tokio::net::{ToSocketAddrs, UdpSocket};
 use tokio::sync::{mpsc, oneshot};
 use tokio::time::{timeout_at, Instant};
 use tokio_util::codec::Framed;
@@ -34,6 +34,8 @@ pub const DEFAULT_QUERY_TIMEOUT: Duration = Duration::from_secs(1);
 pub const DEFAULT_MOTION_TIMEOUT: Duration = Duration::from_secs(30);
 /// Default time an unanswered request keeps its command id after its caller's deadline.
 pub const DEFAULT_LATE_REPLY_GRACE: Duration = Duration::from_secs(2);
+/// Default timeout of a TCP connect (see [`ClientBuilder::connect_timeout`]).
+pub const DEFAULT_CONNECT_TIMEOUT: Duration = Duration::from_secs(5);
 /// Default silence after which a partial frame is dropped as noise (see
 /// [`ClientBuilder::partial_frame_timeout`]).
 pub const DEFAULT_PARTIAL_FRAME_TIMEOUT: Duration = Duration::from_millis(500);
@@ -55,6 +57,7 @@ pub struct ClientBuilder {
     announce_disconnect: Option<bool>,
     serial_exclusive: bool,
     partial_frame_timeout: Duration,
+    connect_timeout: Duration,
     reconnect: Option<ReconnectPolicy>,
 }
 
@@ -70,6 +73,7 @@ impl Default for ClientBuilder {
             announce_disconnect: None,
             serial_exclusive: true,
             partial_frame_timeout: DEFAULT_PARTIAL_FRAME_TIMEOUT,
+            connect_timeout: DEFAULT_CONNECT_TIMEOUT,
             reconnect: None,
         }
     }
@@ -126,6 +130,14 @@ impl ClientBuilder {
         self
     }
 
+    /// Timeout of a TCP connect, address resolution included, for the first connect and each
+    /// reconnect attempt (default 5 s). Without it a connect to a host that is gone would take
+    /// the operating system's retries, minutes.
+    pub fn connect_timeout(mut self, t: Duration) -> Self {
+        self.connect_timeout = t;
+        self
+    }
+
     /// Reconnect after a lost connection, with this backoff (default: off, the client then fails
     /// every later call with [`Error::ConnectionLost`]). TCP and serial only.
     ///
@@ -133,7 +145,8 @@ impl ClientBuilder {
     /// - calls in flight when the link drops fail with [`Error::ConnectionLost`] and are never
     ///   sent again on their own, motion commands included; calls made while the client
     ///   reconnects wait for the new connection within their own timeouts;
-    /// - each attempt (bounded by the query timeout) reopens the same address or port;
+    /// - each attempt reopens the same address or port (a TCP connect within
+    ///   [`connect_timeout`](Self::connect_timeout));
     /// - the auto-update streams that still have a [`Subscription`] are switched on again, and
     ///   the streams go on; dropped ones are not restored;
     /// - each loss, attempt and recovery is reported through [`Client::connection_events`] and
@@ -163,14 +176,20 @@ impl ClientBuilder {
         self
     }
 
-    /// Connects over TCP (the WSG listens on port 1000 by default).
+    /// Connects over TCP (the WSG listens on port [`DEFAULT_PORT`](crate::wsg::DEFAULT_PORT),
+    /// 1000, by default), within [`connect_timeout`](Self::connect_timeout).
     ///
     /// Cancel-safe: a dropped call leaves nothing behind.
     pub async fn connect_tcp(self, addr: impl ToSocketAddrs) -> Result<Client> {
+        let timeout = self.connect_timeout;
+        let deadline = Instant::now() + timeout;
         // Resolved once: a reconnect goes to the same addresses.
-        let addrs: Vec<SocketAddr> = tokio::net::lookup_host(addr).await?.collect();
-        let stream = TcpStream::connect(&addrs[..]).await?;
-        stream.set_nodelay(true)?;
+        let addrs: Vec<SocketAddr> = timeout_at(deadline, tokio::net::lookup_host(addr))
+            .await
+            .map_err(|_| connector::timed_out())??
+            .collect();
+        let stream =
+            connector::tcp(&addrs, deadline.saturating_duration_since(Instant::now())).await?;
         let reconnect = ConnectorKind::Tcp(addrs);
         Ok(self.start(Box::new(stream), TransportKind::Tcp, Some(reconnect)))
     }
@@ -257,6 +276,7 @@ impl ClientBuilder {
                 connector: Connector {
                     kind,
                     max_payload_len: self.max_payload_len,
+                    connect_timeout: self.connect_timeout,
                 },
             });
         let events = task.events.subscriber();

@@ -10,7 +10,7 @@ use std::time::Duration;
 
 use bytes::Bytes;
 use tokio::sync::{mpsc, oneshot};
-use tokio::time::{sleep_until, Instant};
+use tokio::time::{sleep_until, timeout, Instant};
 
 use super::pairing::{Event, Pairing, Request, Token};
 use super::Reconnect;
@@ -66,6 +66,10 @@ pub(crate) struct Task {
     pub(crate) unsubscribe: mpsc::UnboundedReceiver<(u8, u64)>,
     pub(crate) pairing: Pairing,
     pub(crate) query_timeout: Duration,
+    /// Bounds each write and the transport's shutdown: the query timeout plus the late-reply
+    /// grace, generous for a slow serial line, short enough that a gripper which stopped
+    /// reading cannot hold the task.
+    write_timeout: Duration,
     pub(crate) announce_on_close: bool,
     /// How long a partial frame may wait for its next byte before it is dropped as noise.
     pub(crate) partial_frame_timeout: Duration,
@@ -120,6 +124,7 @@ impl Task {
             unsubscribe,
             pairing: Pairing::new(grace),
             query_timeout,
+            write_timeout: query_timeout.saturating_add(grace),
             announce_on_close,
             waiters: HashMap::new(),
             streams: HashMap::new(),
@@ -203,17 +208,17 @@ impl Task {
             .map(|(id, st)| stream_command(*id, st.mode))
             .collect();
         let (rx, closing, events) = (&self.rx, &self.closing, &self.events);
-        let timeout = self.query_timeout;
+        let write_timeout = self.write_timeout;
         let link = reconnect::retry(
             &reconnect.policy,
             events,
             || rx.is_closed() || closing.load(Ordering::Acquire),
             |_| async {
-                let mut link = reconnect.connector.connect(timeout).await?;
+                let mut link = reconnect.connector.connect().await?;
                 events.send(ConnectionEvent::Connected);
                 // The new connection starts without auto-updates: ask for them again.
                 for frame in &restore {
-                    link.send(frame).await?;
+                    send_within(&mut link, frame, write_timeout).await?;
                 }
                 Ok::<_, io::Error>(link)
             },
@@ -391,7 +396,7 @@ impl Task {
             }
         }
         tracing::trace!(id = frame.id, len = frame.payload.len(), "WSG send");
-        self.link.send(&frame).await
+        send_within(&mut self.link, &frame, self.write_timeout).await
     }
 
     async fn send_next(&mut self, id: u8) -> io::Result<()> {
@@ -537,9 +542,27 @@ impl Task {
                 }
             };
         }
-        self.link.shutdown().await;
+        // Bounded like a write: a gripper that stopped reading must not hold close() forever.
+        if timeout(self.write_timeout, self.link.shutdown())
+            .await
+            .is_err()
+        {
+            tracing::warn!("WSG transport shutdown timed out; the connection is dropped");
+        }
         result
     }
+}
+
+/// Sends one frame within `limit`. A gripper (or a link) that stops reading fills the socket's
+/// buffer and would block the write, and with it the task that also reads replies and serves
+/// `close()`; on expiry the connection is given up as lost (a frame may be half written).
+async fn send_within(link: &mut Link, frame: &Frame, limit: Duration) -> io::Result<()> {
+    timeout(limit, link.send(frame)).await.unwrap_or_else(|_| {
+        Err(io::Error::new(
+            io::ErrorKind::TimedOut,
+            format!("the gripper stopped reading commands (a write took over {limit:?})"),
+        ))
+    })
 }
 
 /// Whether anyone still waits for request `token`.
