@@ -319,7 +319,7 @@ fn main() {
     println!("| query | variant | n | p50 µs | p99 µs | p50 / floor p50 | p99 − floor p99 µs | allocations per round trip |");
     println!("|---|---|---:|---:|---:|---:|---:|---:|");
     for (proto, addr) in targets {
-        // The bench thread is named so its CPU time could be told apart; it owns no runtime.
+        // A fresh thread per protocol, owning that protocol's client runtimes.
         let results = std::thread::Builder::new()
             .name("client".into())
             .spawn(move || measure(proto, addr, rounds))

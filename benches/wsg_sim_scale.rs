@@ -93,7 +93,7 @@ fn main() {
         .expect("WSG simulator");
     let addr = sim.local_addr().expect("TCP address");
 
-    let (results, wall, sim_cpu1, clients_cpu) =
+    let (results, wall, sim_cpu, clients_cpu, canary) =
         common::on_current_thread("clients", move || async move {
             let from = Instant::now() + Duration::from_secs(1);
             let until = from + Duration::from_secs_f64(seconds);
@@ -104,13 +104,15 @@ fn main() {
             // CPU is measured over the measured window only.
             tokio::time::sleep_until(from.into()).await;
             let (sim0, c0) = (thread_cpu_ns("sim"), thread_cpu_ns("clients"));
+            let canary = common::Canary::start();
             tokio::time::sleep_until(until.into()).await;
+            let canary = canary.stop();
             let (sim1, c1) = (thread_cpu_ns("sim"), thread_cpu_ns("clients"));
             let mut results = Vec::new();
             while let Some(r) = set.join_next().await {
                 results.push(r.expect("receiver"));
             }
-            (results, until - from, (sim0, sim1), c1 - c0)
+            (results, until - from, (sim0, sim1), c1 - c0, canary)
         });
 
     let mut all: Vec<Duration> = results
@@ -148,9 +150,11 @@ fn main() {
         ms(all.last().copied().unwrap_or_default()),
         ms(lateness.last().copied().unwrap_or_default()),
         ms(percentile(&lateness, 50.0)),
-        (sim_cpu1.1 - sim_cpu1.0) as f64 / wall.as_nanos() as f64 * 100.0,
+        (sim_cpu.1 - sim_cpu.0) as f64 / wall.as_nanos() as f64 * 100.0,
         clients_cpu as f64 / wall.as_nanos() as f64 * 100.0,
     );
+    println!();
+    println!("{canary}");
     if silent > 0 {
         println!("{silent} connections received no update in the measured window");
     }

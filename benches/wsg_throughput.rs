@@ -104,7 +104,7 @@ async fn throughput(
         let (client, stop) = (client.clone(), stop.clone());
         let id = QUERIES[t % QUERIES.len()].0;
         set.spawn(async move {
-            let mut lat = Vec::with_capacity(1 << 16);
+            let mut lat = Vec::with_capacity(1 << 12);
             while !stop.load(Ordering::Relaxed) {
                 let t0 = Instant::now();
                 query(&client, id).await;
@@ -200,6 +200,7 @@ async fn streams(addr: std::net::SocketAddr, seconds: f64) {
         thread_cpu_ns("sim"),
         Instant::now(),
     );
+    let canary = common::Canary::start();
     let mut set = JoinSet::new();
     set.spawn(drain(
         "system state",
@@ -243,6 +244,7 @@ async fn streams(addr: std::net::SocketAddr, seconds: f64) {
     }
     let wall = t0.elapsed();
     let (cpu1, sim1) = (thread_cpu_ns("client"), thread_cpu_ns("sim"));
+    let canary = canary.stop();
     client.close().await.expect("close");
     stats.sort_by_key(|s| s.name);
     println!("| stream | received | due (elapsed / 10 ms) | dropped by client (missed) | gaps > 15 ms | longest gap ms |");
@@ -269,6 +271,7 @@ async fn streams(addr: std::net::SocketAddr, seconds: f64) {
         (cpu1 - cpu0) as f64 / received.max(1) as f64 / 1000.0,
         (sim1 - sim0) as f64 / wall.as_nanos() as f64 * 100.0,
     );
+    println!("{canary}");
 }
 
 fn main() {

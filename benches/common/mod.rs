@@ -140,3 +140,73 @@ where
         .join()
         .expect("bench thread panicked")
 }
+
+/// Measures how late the machine lets a thread run: a thread (`canary`) sleeps 1 ms in a loop
+/// and records by how much each sleep overran. It does nothing else, so its oversleep is the
+/// scheduling delay the machine imposes (other processes' load), independent of the code
+/// under test: a stall seen by the bench and by the canary at once is the machine's.
+pub struct Canary {
+    stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
+    thread: std::thread::JoinHandle<CanaryReport>,
+}
+
+/// What the canary saw.
+#[derive(Clone, Copy, Debug)]
+pub struct CanaryReport {
+    /// Sleeps of 1 ms taken.
+    pub sleeps: u64,
+    /// The longest overrun of a 1 ms sleep.
+    pub max_oversleep: Duration,
+    /// Sleeps that overran by more than 10 ms.
+    pub over_10ms: u64,
+}
+
+impl Canary {
+    /// Starts the canary thread.
+    pub fn start() -> Canary {
+        let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let flag = stop.clone();
+        let thread = std::thread::Builder::new()
+            .name("canary".into())
+            .spawn(move || {
+                let tick = Duration::from_millis(1);
+                let mut r = CanaryReport {
+                    sleeps: 0,
+                    max_oversleep: Duration::ZERO,
+                    over_10ms: 0,
+                };
+                while !flag.load(std::sync::atomic::Ordering::Relaxed) {
+                    let t = std::time::Instant::now();
+                    std::thread::sleep(tick);
+                    let over = t.elapsed().saturating_sub(tick);
+                    r.sleeps += 1;
+                    r.max_oversleep = r.max_oversleep.max(over);
+                    if over > Duration::from_millis(10) {
+                        r.over_10ms += 1;
+                    }
+                }
+                r
+            })
+            .expect("spawn canary");
+        Canary { stop, thread }
+    }
+
+    /// Stops the canary and returns what it saw.
+    pub fn stop(self) -> CanaryReport {
+        self.stop.store(true, std::sync::atomic::Ordering::Relaxed);
+        self.thread.join().expect("canary panicked")
+    }
+}
+
+impl std::fmt::Display for CanaryReport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "scheduling canary (a thread sleeping 1 ms in a loop): {} sleeps, longest overrun \
+             {:.2} ms, {} overran by more than 10 ms",
+            self.sleeps,
+            self.max_oversleep.as_secs_f64() * 1e3,
+            self.over_10ms
+        )
+    }
+}
