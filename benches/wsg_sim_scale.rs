@@ -8,7 +8,13 @@
 //! cargo bench --bench wsg_sim_scale                        # 100 connections, 5 s
 //! cargo bench --bench wsg_sim_scale -- --long              # 100 connections, 60 s
 //! cargo bench --bench wsg_sim_scale -- --connections 100 --seconds 30 --sim-workers 2
+//! cargo bench --bench wsg_sim_scale -- --long --grippers  # 100 simulated grippers instead
 //! ```
+//!
+//! By default the 100 connections go to one simulated gripper (one `SimServer`: one device,
+//! one actor task serving every session). With `--grippers`, the process serves one simulated
+//! gripper per connection instead (100 `SimServer`s on the same runtime), the other reading of
+//! "one simulator process serving 100 simulated grippers".
 //!
 //! The simulator runs on its own multi-thread runtime (`sim`, `--sim-workers`, default 2: the
 //! `#[tokio::main]` default on this machine, as in `examples/wsg_simulator.rs`). The receivers are
@@ -80,26 +86,42 @@ fn main() {
     let seconds: f64 = flag_value("--seconds").unwrap_or(if long { 60.0 } else { 5.0 });
     let connections: usize = flag_value("--connections").unwrap_or(100);
     let sim_workers: usize = flag_value("--sim-workers").unwrap_or(2);
+    let grippers = has_flag("--grippers");
     println!("machine: {}", common::machine());
     println!(
-        "one WSG simulator ({sim_workers} worker threads), {connections} connections streaming width every \
+        "{} ({sim_workers} worker threads), {connections} connections streaming width every \
          {} ms, {seconds} s measured after 1 s of warm-up",
+        if grippers {
+            "one simulated WSG gripper per connection, one process"
+        } else {
+            "one simulated WSG gripper"
+        },
         PERIOD.as_millis()
     );
 
     let sim_rt = common::runtime("sim", sim_workers);
-    let sim = sim_rt
-        .block_on(SimServer::tcp(SimConfig::new(Model::Wsg50), "127.0.0.1:0"))
-        .expect("WSG simulator");
-    let addr = sim.local_addr().expect("TCP address");
+    let servers: Vec<SimServer> = sim_rt.block_on(async {
+        let mut servers = Vec::new();
+        for _ in 0..if grippers { connections } else { 1 } {
+            let server = SimServer::tcp(SimConfig::new(Model::Wsg50), "127.0.0.1:0")
+                .await
+                .expect("WSG simulator");
+            servers.push(server);
+        }
+        servers
+    });
+    let addrs: Vec<std::net::SocketAddr> = servers
+        .iter()
+        .map(|s| s.local_addr().expect("TCP address"))
+        .collect();
 
     let (results, wall, sim_cpu, clients_cpu, canary) =
         common::on_current_thread("clients", move || async move {
             let from = Instant::now() + Duration::from_secs(1);
             let until = from + Duration::from_secs_f64(seconds);
             let mut set = JoinSet::new();
-            for _ in 0..connections {
-                set.spawn(receive(addr, from, until));
+            for i in 0..connections {
+                set.spawn(receive(addrs[i % addrs.len()], from, until));
             }
             // CPU is measured over the measured window only.
             tokio::time::sleep_until(from.into()).await;
@@ -161,5 +183,5 @@ fn main() {
     println!();
     println!("load average at the end: {}", common::load());
     let _guard = sim_rt.enter();
-    drop(sim);
+    drop(servers);
 }
