@@ -155,7 +155,7 @@ struct StreamStats {
     gaps_over_1_5_periods: u64,
 }
 
-/// Reads one subscription until `stop`; records what arrived after the first (the reply to the
+/// Reads one subscription until `until`; records what arrived after the first (the reply to the
 /// subscription) and how far apart.
 async fn drain<T>(
     name: &'static str,
