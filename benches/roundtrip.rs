@@ -264,13 +264,13 @@ fn main() {
 
     let sim_rt = common::runtime("sim", 1);
     let (wsg_sim, griplink_sim, sg_sim) = sim_rt.block_on(async {
-        let wsg_sim = wsg::sim::SimServer::tcp(
-            wsg::sim::SimConfig::new(wsg::sim::Model::Wsg50),
+        let wsg_sim = wsg::sim::SimServer::bind(
             "127.0.0.1:0",
+            wsg::sim::SimConfig::new(wsg::sim::Model::Wsg50),
         )
         .await
         .expect("WSG simulator");
-        let griplink_sim = griplink::sim::SimServer::start(
+        let griplink_sim = griplink::sim::SimServer::bind(
             "127.0.0.1:0",
             griplink::sim::SimConfig::et4().time_scale(0.0),
         )

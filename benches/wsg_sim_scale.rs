@@ -103,7 +103,7 @@ fn main() {
     let servers: Vec<SimServer> = sim_rt.block_on(async {
         let mut servers = Vec::new();
         for _ in 0..if grippers { connections } else { 1 } {
-            let server = SimServer::tcp(SimConfig::new(Model::Wsg50), "127.0.0.1:0")
+            let server = SimServer::bind("127.0.0.1:0", SimConfig::new(Model::Wsg50))
                 .await
                 .expect("WSG simulator");
             servers.push(server);

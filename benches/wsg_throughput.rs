@@ -284,7 +284,7 @@ fn main() {
 
     let sim_rt = common::runtime("sim", 1);
     let sim = sim_rt
-        .block_on(SimServer::tcp(SimConfig::new(Model::Wsg50), "127.0.0.1:0"))
+        .block_on(SimServer::bind("127.0.0.1:0", SimConfig::new(Model::Wsg50)))
         .expect("WSG simulator");
     let addr = sim.local_addr().expect("TCP address");
 
