@@ -1,4 +1,5 @@
 //! The GRIPLINK client against the simulated controller, over real TCP on loopback.
+#![cfg(feature = "sim")]
 
 use std::time::Duration;
 

@@ -43,14 +43,13 @@
 //!
 //! # Example
 //! ```
-//! use std::time::Duration;
-//! use gripper::griplink::client::{GripOutcome, WaitBy};
-//! use gripper::griplink::command::GripConfigF;
-//! use gripper::griplink::sim::{SimConfig, SimDevice, SimServer};
-//! use gripper::griplink::{Client, DeviceState};
-//!
+//! # #[cfg(feature = "sim")]
 //! # #[tokio::main(flavor = "current_thread")]
 //! # async fn main() -> Result<(), Box<dyn std::error::Error>> {
+//! use std::time::Duration;
+//! use gripper::griplink::sim::{SimConfig, SimDevice, SimServer};
+//! use gripper::griplink::{Client, DeviceState, GripConfigF, GripOutcome, WaitBy};
+//!
 //! // A GRIPLINK-ET4 whose IEG 55-020 on port 0 has a 12 mm part between its fingers;
 //! // time scale 0: motion takes no time.
 //! let config = SimConfig::et4()
@@ -74,6 +73,8 @@
 //! assert_eq!(gripper.state().await?, DeviceState::Released);
 //! client.close().await?;
 //! # Ok(()) }
+//! # #[cfg(not(feature = "sim"))]
+//! # fn main() {}
 //! ```
 pub mod client;
 pub mod codec;
