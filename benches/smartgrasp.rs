@@ -7,7 +7,7 @@ use std::hint::black_box;
 
 use bytes::BytesMut;
 use criterion::measurement::WallTime;
-use criterion::{criterion_group, criterion_main, BenchmarkGroup, Criterion};
+use criterion::{criterion_group, criterion_main, BenchmarkGroup, Criterion, Throughput};
 use gripper::smartgrasp::codec::ClientCodec;
 use gripper::smartgrasp::frame::{ResponseFrame, FRAME_LEN};
 use gripper::smartgrasp::{
@@ -67,6 +67,7 @@ fn copy_floors(g: &mut BenchmarkGroup<'_, WallTime>, bytes: &[u8; FRAME_LEN], bu
 
 fn encode(c: &mut Criterion) {
     let mut g = c.benchmark_group("smartgrasp/get_grasp_request_encode");
+    g.throughput(Throughput::Bytes(FRAME_LEN as u64));
     let request = request();
     let bytes = request.to_frame().encode();
     g.bench_function("frame_encode", |b| {
@@ -88,6 +89,7 @@ fn encode(c: &mut Criterion) {
 
 fn decode(c: &mut Criterion) {
     let mut g = c.benchmark_group("smartgrasp/get_grasp_response_decode");
+    g.throughput(Throughput::Bytes(FRAME_LEN as u64));
     let bytes = response_bytes();
     g.bench_function("frame_decode", |b| {
         b.iter(|| black_box(ResponseFrame::decode(black_box(&bytes))))

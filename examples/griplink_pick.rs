@@ -117,7 +117,7 @@ async fn run() -> Result<(), Box<dyn std::error::Error>> {
             let config = SimConfig::et4()
                 .device(0, Some(SimDevice::ieg_55_020().with_part(12.0)))
                 .time_scale(0.1);
-            let server = SimServer::start("127.0.0.1:0", config).await?;
+            let server = SimServer::bind("127.0.0.1:0", config).await?;
             println!("simulated controller on {}", server.local_addr());
             (Client::connect(server.local_addr()).await?, Some(server))
         }

@@ -76,7 +76,7 @@ async fn main() -> ExitCode {
     if let Some(Some(device)) = config.ports.get_mut(0) {
         device.part_width_mm = args.part_mm;
     }
-    let server = match SimServer::start(args.listen.as_str(), config).await {
+    let server = match SimServer::bind(args.listen.as_str(), config).await {
         Ok(server) => server,
         Err(e) => {
             eprintln!("griplink_simulator: cannot listen on {}: {e}", args.listen);

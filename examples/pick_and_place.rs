@@ -70,8 +70,17 @@ where
     v.parse().map_err(|e| format!("{flag} {v}: {e}"))
 }
 
+/// Adds the device's default port where the address has none: `host`, `10.0.0.5` and a bare
+/// IPv6 address get it; `host:port`, `10.0.0.5:port` and `[::1]:port` keep theirs.
 fn with_port(addr: String, default_port: u16) -> String {
-    if addr.contains(':') {
+    if addr.parse::<std::net::SocketAddr>().is_ok() {
+        addr
+    } else if addr.parse::<std::net::Ipv6Addr>().is_ok() {
+        format!("[{addr}]:{default_port}")
+    } else if addr
+        .rsplit_once(':')
+        .is_some_and(|(_, port)| port.parse::<u16>().is_ok())
+    {
         addr
     } else {
         format!("{addr}:{default_port}")
@@ -152,7 +161,7 @@ async fn start(args: &Args) -> Result<(String, String, String, Simulators), Stri
             let config = wsg::sim::SimConfig::new(wsg::sim::Model::Wsg50)
                 .with_part(WSG_PART_MM, 2.0)
                 .with_time_scale(0.0);
-            let sim = wsg::sim::SimServer::tcp(config, "127.0.0.1:0")
+            let sim = wsg::sim::SimServer::bind("127.0.0.1:0", config)
                 .await
                 .map_err(|e| format!("cannot start the WSG simulator: {e}"))?;
             let addr = sim
@@ -169,9 +178,9 @@ async fn start(args: &Args) -> Result<(String, String, String, Simulators), Stri
         None => {
             let device = griplink::sim::SimDevice::wpg_100_090().with_part(GRIPLINK_PART_MM);
             let config = griplink::sim::SimConfig::et4()
-                .device(usize::from(args.griplink_port), Some(device))
+                .device(args.griplink_port, Some(device))
                 .time_scale(0.0);
-            let sim = griplink::sim::SimServer::start("127.0.0.1:0", config)
+            let sim = griplink::sim::SimServer::bind("127.0.0.1:0", config)
                 .await
                 .map_err(|e| format!("cannot start the GRIPLINK simulator: {e}"))?;
             let addr = sim.local_addr().to_string();
@@ -275,7 +284,7 @@ async fn empty_the_bin(
         let si = grasp.pose.to_si().map_err(|e| format!("grasp pose: {e}"))?;
         let [x, y, z] = si.position_m;
         println!(
-            "part {} (class {}, {} left): grasp at ({x:.3}, {y:.3}, {z:.3}) m, KUKA {}, stroke {:.1} mm",
+            "part {} (class {}, {} in the bin): grasp at ({x:.3}, {y:.3}, {z:.3}) m, KUKA {}, stroke {:.1} mm",
             grasp.object_instance,
             grasp.object_class,
             grasp.object_count,

@@ -47,7 +47,7 @@ fn parse() -> Result<Args, String> {
                 let mut addr = value("--addr")?;
                 if !addr.contains(':') {
                     // The WSG's default TCP port.
-                    addr = format!("{addr}:{}", gripper::wsg::transport::DEFAULT_TCP_PORT);
+                    addr = format!("{addr}:{}", gripper::wsg::DEFAULT_PORT);
                 }
                 target = Target::Tcp(addr);
             }
@@ -81,9 +81,9 @@ async fn connect(target: Target) -> Result<(Client, Option<SimServer>), String> 
     let e = |e: gripper::wsg::Error| e.to_string();
     Ok(match target {
         Target::Simulator => {
-            let sim = SimServer::tcp(
-                SimConfig::new(Model::Wsg50).with_part(40.0, 2.0),
+            let sim = SimServer::bind(
                 "127.0.0.1:0",
+                SimConfig::new(Model::Wsg50).with_part(40.0, 2.0),
             )
             .await
             .map_err(|e| format!("cannot start the simulator: {e}"))?;

@@ -88,9 +88,9 @@ async fn main() -> ExitCode {
     let server = if args.pty {
         serve_pty(args.config)
     } else if args.udp {
-        SimServer::udp(args.config, args.listen.as_str()).await
+        SimServer::bind_udp(args.listen.as_str(), args.config).await
     } else {
-        SimServer::tcp(args.config, args.listen.as_str()).await
+        SimServer::bind(args.listen.as_str(), args.config).await
     };
     let server = match server {
         Ok(s) => s,

@@ -10,6 +10,50 @@
 //! client whose connection is owned by a background task (the handle is cheap to clone and safe to
 //! share between tasks), and — behind the default-on `sim` feature — a simulator that behaves like
 //! the device, for tests that run without hardware.
+//!
+//! # Example
+//!
+//! A Grasping-Kit tells where the next part is; a WSG gripper pre-positions to the returned
+//! stroke and grasps it. Both devices are simulated here; with real ones, only the addresses
+//! change.
+//!
+//! ```
+//! # #[cfg(feature = "sim")]
+//! # #[tokio::main(flavor = "current_thread")]
+//! # async fn main() -> Result<(), Box<dyn std::error::Error>> {
+//! use gripper::{smartgrasp, wsg};
+//! use smartgrasp::{GetGraspOutcome, GraspFeedback, GraspMode, GraspRequest, PoseFormat, Tool};
+//!
+//! // The simulated Grasping-Kit's demo bin, and a WSG 50 with an 86 mm part to find.
+//! let kit_sim = smartgrasp::sim::SimServer::bind("127.0.0.1:0", Default::default()).await?;
+//! let wsg_config = wsg::sim::SimConfig::new(wsg::sim::Model::Wsg50).with_part(86.0, 2.0);
+//! let wsg_sim = wsg::sim::SimServer::bind("127.0.0.1:0", wsg_config).await?;
+//!
+//! let kit = smartgrasp::Client::connect(kit_sim.local_addr(), Default::default()).await?;
+//! let gripper = wsg::Client::connect_tcp(wsg_sim.local_addr().expect("a TCP address")).await?;
+//! gripper.home(wsg::HomingDirection::Default).await?;
+//!
+//! let request = GraspRequest {
+//!     grasp_mode: GraspMode::ActiveGrasp,
+//!     object_class: 1,
+//!     tool: Tool::Exterior,
+//!     pose_format: PoseFormat::Quaternion,
+//! };
+//! if let GetGraspOutcome::Grasp(grasp) = kit.get_grasp(request).await? {
+//!     let stroke_mm = (grasp.stroke_m() * 1000.0) as f32;
+//!     println!("grasp at {:?} m, stroke {stroke_mm} mm", grasp.pose.to_si()?.position_m);
+//!     gripper.pre_position(stroke_mm + 10.0, 100.0).await?;
+//!     gripper.grasp(stroke_mm, 50.0).await?;
+//!     assert_eq!(gripper.grip_state().await?, wsg::GripState::Holding);
+//!     gripper.release(stroke_mm + 10.0, 100.0).await?;
+//!     kit.grasp_feedback(GraspFeedback::Ok).await?;
+//! }
+//! gripper.close().await?; // announces the disconnect, so the gripper does not FAST STOP
+//! # Ok(())
+//! # }
+//! # #[cfg(not(feature = "sim"))]
+//! # fn main() {}
+//! ```
 #![warn(missing_docs)]
 #![forbid(unsafe_code)]
 
@@ -17,7 +61,8 @@
 #[cfg(feature = "sim")]
 pub mod fault;
 pub mod griplink;
-/// Reconnecting after a lost connection: backoff policy and connection events, for every client.
+/// Reconnecting after a lost connection: backoff policy and connection events, shared by the
+/// `smartgrasp`, `griplink` and `wsg` clients (wsg over TCP and serial; UDP has no connection).
 pub mod reconnect;
 pub mod smartgrasp;
 pub mod wsg;

@@ -1,12 +1,15 @@
 // Links name their targets in full: rustdoc resolves this module's docs from the crate root too
 // (through the doc line on `mod reconnect` there).
-//! Reconnecting after a lost connection, the same way for every protocol: a backoff policy
+//! Reconnecting after a lost connection, the same way in the `smartgrasp`, `griplink` and `wsg`
+//! clients (wsg over TCP and serial; over UDP there is no connection to lose): a backoff policy
 //! ([`ReconnectPolicy`]), the events a client reports ([`ConnectionEvent`]) and the stream a
 //! program reads them from ([`ConnectionEvents`]).
 //!
 //! What a client restores after reconnecting (subscriptions, registration…) and which calls fail
-//! is each protocol's business; see its client's docs (e.g.
-//! [`smartgrasp::ClientConfig::reconnect`](crate::smartgrasp::ClientConfig::reconnect)).
+//! is each protocol's business; see its client's docs:
+//! [`smartgrasp::ClientConfig::reconnect`](crate::smartgrasp::ClientConfig::reconnect),
+//! [`griplink::ClientConfig::reconnect`](crate::griplink::ClientConfig::reconnect),
+//! [`wsg::ClientBuilder::reconnect`](crate::wsg::ClientBuilder::reconnect).
 //!
 //! Memory bound: the events go through a [`tokio::sync::broadcast`] channel of fixed capacity.
 //! A consumer that falls behind does not make it grow: it loses the oldest events and is told so
@@ -134,7 +137,7 @@ impl fmt::Display for ConnectionEvent {
 /// The sending side, owned by a client's connection task: every event goes to the subscribed
 /// [`ConnectionEvents`] and to `tracing` (target this module, with the protocol's name).
 #[derive(Debug, Clone)]
-pub struct EventSender {
+pub(crate) struct EventSender {
     tx: broadcast::Sender<ConnectionEvent>,
     protocol: &'static str,
 }
@@ -160,7 +163,8 @@ impl EventSender {
         let _ = self.tx.send(event);
     }
 
-    /// A stream of the events sent from now on.
+    /// A stream of the events sent from now on (the clients' handles use [`EventSubscriber`]).
+    #[cfg(test)]
     pub fn subscribe(&self) -> ConnectionEvents {
         ConnectionEvents::new(self.tx.subscribe())
     }
@@ -174,7 +178,7 @@ impl EventSender {
 
 /// Subscribes to an [`EventSender`] while it exists (see [`EventSender::subscriber`]).
 #[derive(Debug, Clone)]
-pub struct EventSubscriber(broadcast::WeakSender<ConnectionEvent>);
+pub(crate) struct EventSubscriber(broadcast::WeakSender<ConnectionEvent>);
 
 impl EventSubscriber {
     /// A stream of the events sent from now on; already ended if the sender is gone.

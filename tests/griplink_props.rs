@@ -1,5 +1,6 @@
 //! Property tests of the pure GRIPLINK layers: float formatting, command encoding against the
 //! simulator's parser, reply parsing and the line codec.
+#![cfg(feature = "sim")]
 
 use std::time::Duration;
 

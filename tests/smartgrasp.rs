@@ -58,7 +58,7 @@ async fn opening_sequence_registers_and_sets_the_project() {
     };
     let client = Client::connect(server.local_addr(), config).await.unwrap();
     assert_eq!(server.registered_clients(), [RobotSystem::SiemensPlc]);
-    assert_eq!(server.state().active_project(), Some(0));
+    assert_eq!(server.with_state(|s| s.active_project()), Some(0));
     assert_eq!(client.get_protocol_version().await.unwrap(), 3);
     assert_eq!(client.get_state().await.unwrap(), ServerState::Operational);
 }
@@ -135,7 +135,7 @@ async fn every_message_type() {
         assert_eq!(g.pose.format(), format);
         let si = g.pose.to_si().unwrap();
         assert_eq!(g.pose.position_um(), reference.pose.position_um());
-        assert!(si.orientation.angle_to(&reference_si.orientation) < 5e-6);
+        assert!(si.orientation.angle_to_rad(&reference_si.orientation) < 5e-6);
     }
 
     // GRASP_FEEDBACK OK takes the object out of the scene; BAD leaves it.
@@ -157,15 +157,15 @@ async fn every_response_code() {
     // ERROR: no such project; feedback with no grasp to refer to.
     assert!(matches!(
         client.set_project(99).await,
-        Err(Error::Refused {
+        Err(Error::Device {
             message_type: MessageType::SetProject,
-            code: ResponseCode::Error
+            status: ResponseCode::Error
         })
     ));
     assert!(matches!(
         client.grasp_feedback(GraspFeedback::Ok).await,
-        Err(Error::Refused {
-            code: ResponseCode::Error,
+        Err(Error::Device {
+            status: ResponseCode::Error,
             ..
         })
     ));
@@ -187,13 +187,13 @@ async fn every_response_code() {
     );
     assert!(matches!(
         client.get_object_count(9).await,
-        Err(Error::Refused {
+        Err(Error::Device {
             message_type: MessageType::GetObjectCount,
-            code: ResponseCode::InvalidObjectClass
+            status: ResponseCode::InvalidObjectClass
         })
     ));
     // NO_OBJECT once the scene is empty.
-    server.state().projects_mut()[0].scene.clear();
+    server.with_state(|s| s.projects_mut()[0].scene.clear());
     assert_eq!(
         client
             .get_grasp(grasp_request(0, GraspMode::AutoGrasp, PoseFormat::Abc))
@@ -202,13 +202,13 @@ async fn every_response_code() {
         GetGraspOutcome::NoObject
     );
     // ERROR from a stopped server.
-    server.state().set_server_state(ServerState::Stopped);
+    server.with_state(|s| s.set_server_state(ServerState::Stopped));
     assert!(matches!(
         client
             .get_grasp(grasp_request(0, GraspMode::AutoGrasp, PoseFormat::Abc))
             .await,
-        Err(Error::Refused {
-            code: ResponseCode::Error,
+        Err(Error::Device {
+            status: ResponseCode::Error,
             ..
         })
     ));
@@ -300,7 +300,7 @@ async fn a_skipped_response_is_reported_to_its_caller_not_handed_to_the_next() {
     let client = open(&server).await;
     // Two calls in flight; the server processes the first and never answers it, so the second's
     // response arrives with a gap in the counter.
-    server.inject(Fault::SkipResponse);
+    server.inject(Fault::DropReply);
     let (first, second) = tokio::join!(client.get_protocol_version(), client.get_object_count(0));
     assert!(
         matches!(first, Err(Error::ResponseLost { expected, received }) if received == expected.wrapping_add(1)),
@@ -315,7 +315,7 @@ async fn a_skipped_response_is_reported_to_its_caller_not_handed_to_the_next() {
 async fn a_skipped_response_after_a_timeout_is_charged_to_the_abandoned_call() {
     let server = sim(SimConfig::default()).await;
     let client = open(&server).await;
-    server.inject(Fault::SkipResponse);
+    server.inject(Fault::DropReply);
     let err = client
         .with_timeout(Duration::from_millis(100))
         .get_state()
@@ -339,7 +339,7 @@ async fn a_skipped_response_after_a_timeout_is_charged_to_the_abandoned_call() {
 async fn a_late_reply_is_discarded_not_handed_to_the_next_caller() {
     let server = sim(SimConfig::default()).await;
     let client = open(&server).await;
-    server.inject(Fault::Delay(Duration::from_millis(300)));
+    server.inject(Fault::DelayReply(Duration::from_millis(300)));
     let err = client
         .with_timeout(Duration::from_millis(50))
         .get_protocol_version()
@@ -397,12 +397,15 @@ async fn a_corrupt_length_breaks_the_connection() {
     server.inject(Fault::CorruptLength(75));
     let err = client.get_state().await.unwrap_err();
     assert!(
-        matches!(err, Error::Malformed(Malformed::FrameLength { length: 75 })),
+        matches!(
+            err,
+            Error::MalformedReply(Malformed::FrameLength { length: 75 })
+        ),
         "{err}"
     );
     assert!(matches!(
         client.get_state().await,
-        Err(Error::ConnectionClosed { .. })
+        Err(Error::ConnectionLost { .. })
     ));
     assert!(client.is_closed());
 }
@@ -414,11 +417,11 @@ async fn the_server_closing_fails_the_call() {
     server.inject(Fault::Close);
     assert!(matches!(
         client.get_state().await,
-        Err(Error::ConnectionClosed { .. })
+        Err(Error::ConnectionLost { .. })
     ));
     assert!(matches!(
         client.get_state().await,
-        Err(Error::ConnectionClosed { .. })
+        Err(Error::ConnectionLost { .. })
     ));
 }
 
@@ -474,13 +477,13 @@ async fn a_hostile_4gb_length_is_refused() {
     assert!(
         matches!(
             err,
-            Error::Malformed(Malformed::FrameLength { length: u32::MAX })
+            Error::MalformedReply(Malformed::FrameLength { length: u32::MAX })
         ),
         "{err}"
     );
     assert!(matches!(
         client.get_state().await,
-        Err(Error::ConnectionClosed { .. })
+        Err(Error::ConnectionLost { .. })
     ));
 }
 
@@ -498,13 +501,13 @@ async fn wrong_message_type_or_communication_type_breaks_the_connection() {
     let err = err.unwrap_err();
     // The call that received the wrong type learns why; the other only lost the connection.
     assert!(
-        matches!(other, Err(Error::ConnectionClosed { .. })),
+        matches!(other, Err(Error::ConnectionLost { .. })),
         "{other:?}"
     );
     assert!(
         matches!(
             err,
-            Error::Malformed(Malformed::MessageType {
+            Error::MalformedReply(Malformed::MessageType {
                 expected: MessageType::GetObjectCount,
                 received: MessageType::GraspFeedback
             })
@@ -521,7 +524,7 @@ async fn wrong_message_type_or_communication_type_breaks_the_connection() {
     .await;
     let err = bare(addr).await.get_state().await.unwrap_err();
     assert!(
-        matches!(err, Error::Malformed(Malformed::CommunicationType(_))),
+        matches!(err, Error::MalformedReply(Malformed::CommunicationType(_))),
         "{err}"
     );
 }

@@ -133,7 +133,7 @@ async fn assert_healthy(client: &Client) {
 /// The old connection is broken for good, and a fresh one through the same proxy works.
 async fn assert_broken_then_fresh_works(rig: &Rig, client: &Client) {
     let err = state(client).await.unwrap_err();
-    assert!(matches!(err, Error::ConnectionClosed { .. }), "{err}");
+    assert!(matches!(err, Error::ConnectionLost { .. }), "{err}");
     assert!(client.is_closed());
     assert_healthy(&rig.client().await).await;
 }
@@ -267,7 +267,10 @@ fn corrupt(byte: usize, xor: u8) -> Rule {
 async fn corrupt_length_byte_is_malformed_and_breaks_the_connection() {
     let err = count_breaks(REPLIES, corrupt(at::LENGTH_LOW, 0x01)).await;
     assert!(
-        matches!(err, Error::Malformed(Malformed::FrameLength { length: 75 })),
+        matches!(
+            err,
+            Error::MalformedReply(Malformed::FrameLength { length: 75 })
+        ),
         "{err}"
     );
 }
@@ -276,7 +279,7 @@ async fn corrupt_length_byte_is_malformed_and_breaks_the_connection() {
 async fn corrupt_length_to_a_hostile_size_is_refused_without_reading_it() {
     let err = count_breaks(REPLIES, corrupt(at::LENGTH_HIGH, 0x80)).await;
     assert!(
-        matches!(err, Error::Malformed(Malformed::FrameLength { length }) if length == 0x8000_004A),
+        matches!(err, Error::MalformedReply(Malformed::FrameLength { length }) if length == 0x8000_004A),
         "{err}"
     );
 }
@@ -287,7 +290,10 @@ async fn corrupt_length_to_zero_is_malformed_not_server_too_old() {
     // "server too old (speaks v3)". Only an older server sends one (manual 1.3).
     let err = count_breaks(REPLIES, corrupt(at::LENGTH_LOW, 74)).await;
     assert!(
-        matches!(err, Error::Malformed(Malformed::FrameLength { length: 0 })),
+        matches!(
+            err,
+            Error::MalformedReply(Malformed::FrameLength { length: 0 })
+        ),
         "{err}"
     );
 }
@@ -296,7 +302,10 @@ async fn corrupt_length_to_zero_is_malformed_not_server_too_old() {
 async fn corrupt_version_byte_is_malformed() {
     let err = count_breaks(REPLIES, corrupt(at::VERSION_LOW, 0x04)).await;
     assert!(
-        matches!(err, Error::Malformed(Malformed::Version { version: 7 })),
+        matches!(
+            err,
+            Error::MalformedReply(Malformed::Version { version: 7 })
+        ),
         "{err}"
     );
 }
@@ -307,7 +316,7 @@ async fn corrupt_version_byte_is_malformed() {
 async fn corrupt_communication_type_is_malformed() {
     let err = count_breaks(REPLIES, corrupt(at::COMMUNICATION_TYPE, 0x03)).await;
     assert!(
-        matches!(err, Error::Malformed(Malformed::CommunicationType(_))),
+        matches!(err, Error::MalformedReply(Malformed::CommunicationType(_))),
         "{err}"
     );
 }
@@ -319,7 +328,7 @@ async fn corrupt_message_type_is_malformed() {
     assert!(
         matches!(
             err,
-            Error::Malformed(Malformed::MessageType {
+            Error::MalformedReply(Malformed::MessageType {
                 expected: MessageType::GetObjectCount,
                 received: MessageType::RobotPose
             })
@@ -353,9 +362,9 @@ async fn corrupt_response_code_is_a_refusal_where_the_call_expects_success() {
     assert!(
         matches!(
             err,
-            Error::Refused {
+            Error::Device {
                 message_type: MessageType::GetObjectCount,
-                code: ResponseCode::NoObject
+                status: ResponseCode::NoObject
             }
         ),
         "{err}"
@@ -394,7 +403,7 @@ async fn corrupt_echoed_object_class_is_caught() {
     assert!(
         matches!(
             err,
-            Error::Malformed(Malformed::Echo {
+            Error::MalformedReply(Malformed::Echo {
                 request: MessageType::GetObjectCount,
                 field: "object class"
             })
@@ -409,7 +418,7 @@ async fn corrupt_request_object_class_is_caught_by_the_echo() {
     // client sees that the answer is not for its request.
     let err = count_breaks(REQUESTS, corrupt(at::REQ_OBJECT_CLASS_LOW, 0x03)).await;
     assert!(
-        matches!(err, Error::Malformed(Malformed::Echo { .. })),
+        matches!(err, Error::MalformedReply(Malformed::Echo { .. })),
         "{err}"
     );
 }
@@ -424,7 +433,7 @@ async fn corrupt_grasp_pose_format_is_caught() {
     assert!(
         matches!(
             err,
-            Error::Malformed(Malformed::Echo {
+            Error::MalformedReply(Malformed::Echo {
                 field: "pose format",
                 ..
             })
@@ -632,7 +641,7 @@ fn cut(after_bytes: usize) -> Rule {
 }
 
 fn is_lost_connection(err: &Error) -> bool {
-    matches!(err, Error::ConnectionClosed { .. } | Error::Io(_))
+    matches!(err, Error::ConnectionLost { .. } | Error::Io(_))
 }
 
 #[tokio::test]
@@ -658,7 +667,7 @@ async fn cut_inside_the_reply_says_the_connection_closed_mid_frame() {
     // Found by this matrix: this was tokio-util's opaque "bytes remaining on stream" I/O error.
     let err = count_breaks(REPLIES, cut(40)).await;
     assert!(
-        matches!(&err, Error::ConnectionClosed { reason } if reason.contains("middle of a frame")),
+        matches!(&err, Error::ConnectionLost { reason } if reason.contains("middle of a frame")),
         "{err}"
     );
 }

@@ -11,7 +11,7 @@ use futures_util::StreamExt;
 use gripper::fault::{FaultProxy, Framing, ProxyConfig};
 use gripper::reconnect::{ConnectionEvent, ConnectionEvents, ReconnectPolicy};
 use gripper::smartgrasp::codec;
-use gripper::smartgrasp::sim::{SimConfig, SimProject, SimServer};
+use gripper::smartgrasp::sim::{Fault, SimConfig, SimProject, SimServer};
 use gripper::smartgrasp::{
     AbcPose, Client, ClientConfig, Error, GetGraspOutcome, GraspMode, GraspRequest, Pose,
     PoseFormat, RobotSystem, Tool,
@@ -138,7 +138,7 @@ async fn a_cut_is_reported_and_the_session_restored() {
         .await
         .unwrap();
     assert_eq!(
-        server.state().active_project(),
+        server.with_state(|s| s.active_project()),
         Some(0),
         "set by the other client"
     );
@@ -166,7 +166,11 @@ async fn a_cut_is_reported_and_the_session_restored() {
         ],
         "config, program, other client, restored"
     );
-    assert_eq!(server.state().active_project(), Some(1), "restored");
+    assert_eq!(
+        server.with_state(|s| s.active_project()),
+        Some(1),
+        "restored"
+    );
     // Project 1 is empty; back to the bin and pick.
     client.set_project(0).await.unwrap();
     assert_grasp_works(&client).await;
@@ -191,7 +195,7 @@ async fn calls_in_flight_fail_and_are_never_sent_again() {
     within("reply held", replies.wait_for(|s| s.held_bytes == 80)).await;
     proxy.cut_connections();
     let err = within("call", call).await.unwrap().unwrap_err();
-    assert!(matches!(err, Error::ConnectionClosed { .. }), "{err}");
+    assert!(matches!(err, Error::ConnectionLost { .. }), "{err}");
     assert!(matches!(
         next(&mut events).await,
         Some(ConnectionEvent::Lost { .. })
@@ -271,7 +275,7 @@ async fn gives_up_after_max_attempts_and_closes() {
         ]
     );
     let err = client.get_state().await.unwrap_err();
-    assert!(matches!(err, Error::ConnectionClosed { .. }), "{err}");
+    assert!(matches!(err, Error::ConnectionLost { .. }), "{err}");
     assert!(client.is_closed());
 }
 
@@ -289,6 +293,66 @@ async fn without_a_policy_the_loss_is_reported_and_the_client_closes() {
         "the stream ends with the client"
     );
     let err = client.get_state().await.unwrap_err();
-    assert!(matches!(err, Error::ConnectionClosed { .. }), "{err}");
+    assert!(matches!(err, Error::ConnectionLost { .. }), "{err}");
+    assert_eq!(proxy.stats().connections_accepted, 1, "no reconnect");
+}
+
+#[tokio::test]
+async fn close_ends_the_connection_and_fails_pending_and_later_calls() {
+    let (server, proxy, client, mut events) = setup(None).await;
+    let other = client.clone();
+    let opening = proxy.client_to_server().stats().frames;
+    // A request the server never answers is waiting when the client closes.
+    server.inject(Fault::DropReply);
+    let pending = tokio::spawn({
+        let client = client.clone();
+        async move { client.get_state().await }
+    });
+    within("the request reaches the server", async {
+        while proxy.client_to_server().stats().frames == opening {
+            tokio::time::sleep(Duration::from_millis(1)).await;
+        }
+    })
+    .await;
+    within("close", client.close()).await.unwrap();
+    let r = within("pending call", pending).await.unwrap();
+    assert!(matches!(r, Err(Error::Closed)), "{r:?}");
+    let r = other.get_state().await;
+    assert!(matches!(r, Err(Error::Closed)), "{r:?}");
+    assert!(matches!(client.close().await, Err(Error::Closed)));
+    assert!(client.is_closed());
+    // Closing is not a loss: no event, the stream just ends.
+    assert_eq!(next(&mut events).await, None);
+    within("the connection is closed", async {
+        while proxy.stats().connections_open != 0 {
+            tokio::time::sleep(Duration::from_millis(1)).await;
+        }
+    })
+    .await;
+}
+
+#[tokio::test]
+async fn close_stops_reconnecting() {
+    // A backoff far longer than the test: close() must not wait for it.
+    let policy = ReconnectPolicy {
+        initial_delay: Duration::from_secs(3600),
+        max_delay: Duration::from_secs(3600),
+        ..POLICY
+    };
+    let (_server, proxy, client, mut events) = setup(Some(policy)).await;
+    proxy.cut_connections();
+    assert!(matches!(
+        next(&mut events).await,
+        Some(ConnectionEvent::Lost { .. })
+    ));
+    assert!(matches!(
+        next(&mut events).await,
+        Some(ConnectionEvent::Reconnecting { attempt: 1, .. })
+    ));
+    within("close", client.close()).await.unwrap();
+    assert_eq!(next(&mut events).await, None, "no attempt after close");
+    let r = client.get_state().await;
+    assert!(matches!(r, Err(Error::Closed)), "{r:?}");
+    assert!(client.is_closed());
     assert_eq!(proxy.stats().connections_accepted, 1, "no reconnect");
 }

@@ -17,7 +17,7 @@ fn with_part() -> SimConfig {
 }
 
 async fn tcp(config: SimConfig) -> (SimServer, Client) {
-    let sim = SimServer::tcp(config, "127.0.0.1:0").await.unwrap();
+    let sim = SimServer::bind("127.0.0.1:0", config).await.unwrap();
     let client = Client::connect_tcp(sim.local_addr().unwrap())
         .await
         .unwrap();
@@ -71,7 +71,7 @@ async fn pick_over_tcp_and_close_gracefully() {
 
 #[tokio::test]
 async fn an_unannounced_tcp_close_puts_the_simulator_into_fast_stop() {
-    let sim = SimServer::tcp(with_part(), "127.0.0.1:0").await.unwrap();
+    let sim = SimServer::bind("127.0.0.1:0", with_part()).await.unwrap();
     let addr = sim.local_addr().unwrap();
     let raw = tokio::net::TcpStream::connect(addr).await.unwrap();
     drop(raw);
@@ -120,7 +120,9 @@ async fn close_sends_the_disconnect_announcement_to_a_raw_peer() {
 
 #[tokio::test]
 async fn pick_over_udp() {
-    let sim = SimServer::udp(with_part(), "127.0.0.1:0").await.unwrap();
+    let sim = SimServer::bind_udp("127.0.0.1:0", with_part())
+        .await
+        .unwrap();
     let client = Client::builder()
         .connect_udp(sim.local_addr().unwrap())
         .await
@@ -310,7 +312,7 @@ async fn a_dropped_call_does_not_desync_the_connection() {
 
 #[tokio::test]
 async fn a_lost_reply_releases_its_id_after_the_grace_period() {
-    let sim = SimServer::tcp(with_part(), "127.0.0.1:0").await.unwrap();
+    let sim = SimServer::bind("127.0.0.1:0", with_part()).await.unwrap();
     let client = Client::builder()
         .query_timeout(Duration::from_millis(50))
         .late_reply_grace(Duration::from_millis(50))
@@ -329,7 +331,7 @@ async fn a_lost_reply_releases_its_id_after_the_grace_period() {
 
 #[tokio::test]
 async fn a_corrupted_reply_is_dropped_not_misread() {
-    let sim = SimServer::tcp(with_part(), "127.0.0.1:0").await.unwrap();
+    let sim = SimServer::bind("127.0.0.1:0", with_part()).await.unwrap();
     // The dropped reply never comes: the id is released after timeout + grace.
     let client = Client::builder()
         .late_reply_grace(Duration::from_millis(100))
@@ -384,7 +386,7 @@ async fn connection_loss_fails_calls_and_later_calls() {
 
 #[tokio::test]
 async fn auto_update_stream_one_off_query_and_unsubscribe() {
-    let sim = SimServer::tcp(with_part(), "127.0.0.1:0").await.unwrap();
+    let sim = SimServer::bind("127.0.0.1:0", with_part()).await.unwrap();
     // A small buffer, so that reading more items than it holds proves new updates arrived.
     let client = Client::builder()
         .subscription_buffer(4)
@@ -466,7 +468,7 @@ async fn grip_state_stream_follows_a_grasp() {
 
 #[tokio::test]
 async fn the_simulator_answers_a_bad_checksum_with_e_checksum_error() {
-    let sim = SimServer::tcp(with_part(), "127.0.0.1:0").await.unwrap();
+    let sim = SimServer::bind("127.0.0.1:0", with_part()).await.unwrap();
     let mut raw = tokio::net::TcpStream::connect(sim.local_addr().unwrap())
         .await
         .unwrap();

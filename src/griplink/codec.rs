@@ -49,6 +49,8 @@ pub struct LineCodec {
     searched: usize,
     /// Inside an over-long line: drop bytes until the next LF.
     discarding: bool,
+    /// At the end of the stream, an unterminated last line is an error instead of a line.
+    reject_unterminated: bool,
 }
 
 impl Default for LineCodec {
@@ -64,7 +66,17 @@ impl LineCodec {
             max_len,
             searched: 0,
             discarding: false,
+            reject_unterminated: false,
         }
+    }
+
+    /// The same codec, but an unterminated line at the end of the stream is an
+    /// [`UnexpectedEof`](std::io::ErrorKind::UnexpectedEof) error instead of a line. The client
+    /// uses it: a reply cut off by a lost connection (`VALUE[0][0]=12` of `…=12345`) must not
+    /// be taken for a whole one.
+    pub fn reject_unterminated(mut self) -> Self {
+        self.reject_unterminated = true;
+        self
     }
 
     /// The longest line accepted.
@@ -136,6 +148,14 @@ impl Decoder for LineCodec {
         }
         // An unterminated last line: hand it on as a line (the peer closed after it).
         self.searched = 0;
+        if self.reject_unterminated && (self.discarding || !buf.is_empty()) {
+            self.discarding = false;
+            buf.clear();
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::UnexpectedEof,
+                "the connection ended in the middle of a line",
+            ));
+        }
         if buf.is_empty() {
             return Ok(if std::mem::take(&mut self.discarding) {
                 Some(Line::Discarded(Discarded::TooLong))
@@ -261,6 +281,16 @@ mod tests {
         let mut buf = BytesMut::from(&b"BYE()"[..]);
         assert_eq!(c.decode_eof(&mut buf).unwrap(), Some(text("BYE()")));
         assert_eq!(c.decode_eof(&mut buf).unwrap(), None);
+    }
+
+    #[test]
+    fn strict_eof_refuses_an_unterminated_line() {
+        let mut c = LineCodec::new(16).reject_unterminated();
+        let mut buf = BytesMut::from(&b"ACK\nVALUE[0][0]=12"[..]);
+        assert_eq!(c.decode_eof(&mut buf).unwrap(), Some(text("ACK")));
+        let err = c.decode_eof(&mut buf).unwrap_err();
+        assert_eq!(err.kind(), std::io::ErrorKind::UnexpectedEof);
+        assert_eq!(c.decode_eof(&mut BytesMut::new()).unwrap(), None);
     }
 
     #[test]

@@ -337,7 +337,7 @@ pub enum Expect {
 
 /// How long a command may legitimately take, which picks its default timeout.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Duty {
+pub(crate) enum Duty {
     /// Answered at once.
     Query,
     /// Holds its reply until a motion or state transition is done (HOME, blocking GRIP/RELEASE/
@@ -363,7 +363,7 @@ fn check_string(what: &'static str, text: &str) -> Result<()> {
 
 /// Formats a float argument: finite and within the controller's 32-bit float range (manual
 /// 2.1.1), as a plain decimal.
-pub fn float_arg(what: &'static str, value: f64) -> Result<String> {
+pub(crate) fn float_arg(what: &'static str, value: f64) -> Result<String> {
     if !value.is_finite() {
         return Err(Error::invalid(
             what,
@@ -706,7 +706,7 @@ impl Command {
     }
 
     /// How long the controller may legitimately hold the reply (picks the default timeout).
-    pub fn duty(&self) -> Duty {
+    pub(crate) fn duty(&self) -> Duty {
         use Command::*;
         match self {
             Home(_) | Wstr(_) => Duty::Motion,
@@ -730,7 +730,7 @@ fn blocking_duty(blocking: Blocking) -> Duty {
 
 /// Checks a raw command line for [`Client::command`](super::Client::command): printable ASCII
 /// only, no control characters (so no LF: one line is one command), not empty.
-pub fn check_raw_line(line: &str) -> Result<()> {
+pub(crate) fn check_raw_line(line: &str) -> Result<()> {
     if line.is_empty() {
         return Err(Error::invalid("command line", "empty"));
     }

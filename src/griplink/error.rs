@@ -12,7 +12,7 @@ pub type Result<T> = std::result::Result<T, Error>;
 /// Everything that can go wrong talking to a GRIPLINK controller.
 ///
 /// The variants keep apart who said no: the controller ([`Error::Device`]), the connection
-/// ([`Error::Io`], [`Error::Closed`], [`Error::Broken`]), the clock ([`Error::Timeout`]), the
+/// ([`Error::Io`], [`Error::ConnectionLost`], [`Error::Closed`]), the clock ([`Error::Timeout`]), the
 /// bytes on the wire ([`Error::MalformedReply`], [`Error::UnexpectedReply`]) and this crate
 /// before anything was sent ([`Error::InvalidArgument`]).
 #[derive(Debug, Clone, thiserror::Error)]
@@ -66,17 +66,21 @@ pub enum Error {
         /// What was expected instead.
         expected: String,
     },
-    /// Connecting, reading or writing failed.
+    /// Connecting failed (refused, or timed out), or reading or writing failed for another
+    /// reason than the controller ending the connection.
     #[error("connection error: {0}")]
     Io(#[source] Arc<io::Error>),
-    /// The connection is closed (by `close()`, by the controller, or because every handle was
-    /// dropped).
+    /// The connection is closed by this side: `close()` was called, or every handle was
+    /// dropped.
     #[error("connection closed")]
     Closed,
-    /// The client gave up on the connection: a reply stayed away so far past its timeout that
-    /// the in-order pairing of replies can no longer be trusted.
-    #[error("connection broken: {0}")]
-    Broken(String),
+    /// The connection was lost after it was open: the controller closed or reset it (possibly
+    /// in the middle of a reply line), or the client gave up on it because the in-order pairing of
+    /// replies can no longer be trusted (a reply stayed away far past its timeout, the
+    /// controller stopped reading, or a reply did not answer its command while other commands
+    /// were on the wire). Every later call gets it too, unless the client reconnects.
+    #[error("connection lost: {0}")]
+    ConnectionLost(String),
 }
 
 /// `ERR 19 E_STATE_CONFLICT: Invalid state`, plus the controller's own text when verbose mode

@@ -135,7 +135,7 @@ impl Decoder for ClientCodec {
             Some(frame) => Ok(Some(frame)),
             None if src.is_empty() => Ok(None),
             // Say what happened rather than the default "bytes remaining on stream".
-            None => Err(Error::ConnectionClosed {
+            None => Err(Error::ConnectionLost {
                 reason: format!(
                     "the server closed the connection in the middle of a frame ({} bytes of it)",
                     src.len()
@@ -269,7 +269,7 @@ mod tests {
         );
         assert!(matches!(
             ClientCodec.decode(&mut buf),
-            Err(Error::Malformed(Malformed::FrameLength { length: 0 }))
+            Err(Error::MalformedReply(Malformed::FrameLength { length: 0 }))
         ));
     }
 
@@ -279,7 +279,7 @@ mod tests {
         let mut buf = BytesMut::from(&bytes[..30]);
         assert!(matches!(
             ClientCodec.decode_eof(&mut buf),
-            Err(Error::ConnectionClosed { reason }) if reason.contains("30 bytes")
+            Err(Error::ConnectionLost { reason }) if reason.contains("30 bytes")
         ));
         let mut buf = BytesMut::from(&bytes[..]);
         assert_eq!(ClientCodec.decode_eof(&mut buf).unwrap(), Some(response(1)));
@@ -298,7 +298,7 @@ mod tests {
         let err = ClientCodec.decode(&mut buf).unwrap_err();
         assert!(matches!(
             err,
-            Error::Malformed(Malformed::FrameLength { length: u32::MAX })
+            Error::MalformedReply(Malformed::FrameLength { length: u32::MAX })
         ));
         assert!(buf.capacity() < 4096);
         let mut buf = BytesMut::from(

@@ -1,5 +1,6 @@
 //! The one error type of `smartgrasp`, keeping apart: the server said no, the server is too old,
-//! a response was lost, a malformed reply, I/O, timeout, and arguments refused before sending.
+//! a response was lost, a malformed reply, I/O, a lost or closed connection, timeout, and
+//! arguments refused before sending.
 
 use std::sync::Arc;
 use std::time::Duration;
@@ -12,17 +13,24 @@ pub type Result<T> = std::result::Result<T, Error>;
 
 /// Everything that can go wrong talking to a Smart Grasping server.
 ///
+/// The variants keep apart who said no: the server ([`Error::Device`], [`Error::ServerTooOld`],
+/// [`Error::NotOperational`]), the connection ([`Error::Io`], [`Error::ConnectionLost`],
+/// [`Error::Closed`], [`Error::ResponseLost`]), the clock ([`Error::Timeout`]), the bytes on the
+/// wire ([`Error::MalformedReply`]) and this crate before anything was sent
+/// ([`Error::InvalidArgument`], [`Error::Pose`]).
+///
 /// `Clone`, so the reason a connection broke can be handed to every call that was waiting on it.
 #[derive(Debug, Clone, thiserror::Error)]
+#[non_exhaustive]
 pub enum Error {
     /// The server answered with a response code other than SUCCESS where the call has no typed
     /// outcome for it (see [`GetGraspOutcome`](super::GetGraspOutcome) for the grasp call's).
-    #[error("the server refused {message_type}: {code}")]
-    Refused {
+    #[error("the server refused {message_type}: {status}")]
+    Device {
         /// The request's message type.
         message_type: MessageType,
         /// The response code the server sent.
-        code: ResponseCode,
+        status: ResponseCode,
     },
     /// The server speaks an older protocol version: it answered with an empty message (manual
     /// 1.3), or GET_PROTOCOL_VERSION reported a version below 3. The connection is closed.
@@ -61,22 +69,38 @@ pub enum Error {
     },
     /// The server sent something the protocol does not allow.
     #[error("malformed reply: {0}")]
-    Malformed(#[from] Malformed),
+    MalformedReply(#[from] Malformed),
     /// Reading from or writing to the socket failed, or connecting failed.
     #[error("I/O error: {0}")]
     Io(Arc<std::io::Error>),
-    /// The connection is closed (by the server, or after an earlier error broke it).
-    #[error("the connection is closed: {reason}")]
-    ConnectionClosed {
+    /// The connection was lost: the server closed it, it stopped reading requests, or an earlier
+    /// error broke it. Without [`ClientConfig::reconnect`](super::ClientConfig::reconnect) (or
+    /// once its policy gave up) every later call gets this too.
+    #[error("the connection is lost: {reason}")]
+    ConnectionLost {
         /// Why, as far as known.
         reason: Arc<str>,
     },
+    /// The client was closed with [`Client::close`](super::Client::close); later calls on any
+    /// clone get this too.
+    #[error("the client was closed")]
+    Closed,
     /// An argument was refused before anything was sent.
     #[error("invalid argument: {0}")]
     InvalidArgument(&'static str),
     /// A pose could not be converted.
     #[error("pose: {0}")]
     Pose(#[from] PoseError),
+}
+
+impl Error {
+    /// The server's response code, if the server refused the request ([`Error::Device`]).
+    pub fn status(&self) -> Option<ResponseCode> {
+        match self {
+            Error::Device { status, .. } => Some(*status),
+            _ => None,
+        }
+    }
 }
 
 impl From<std::io::Error> for Error {

@@ -15,10 +15,11 @@
 //!
 //! Every call has a timeout and fails with a typed [`Error`]; the fault matrix
 //! (`tests/smartgrasp_faults.rs`, through `gripper::fault::FaultProxy` framed with
-//! [`codec::frame_len`]) pins down what each wire fault becomes. Dropping a call's future is safe
+//! [`codec::proxy_frame_len`]) pins down what each wire fault becomes. Dropping a call's future is safe
 //! at any point (see [`Client`]: a request that was sent may still be acted on by the server).
 //! With [`ClientConfig::reconnect`] the client reconnects after a lost connection and restores
-//! registration and project; [`Client::connection_events`] reports it.
+//! registration and project; [`Client::connection_events`] reports it. [`Client::close`] ends the
+//! connection for good (no reconnecting), and every later call fails with [`Error::Closed`].
 //!
 //! What V3 cannot detect, and so neither can this client: frames carry no checksum and
 //! responses no request id. A corrupted byte that still reads as a valid value (a count, a pose
@@ -96,14 +97,19 @@ pub mod pose;
 pub mod sim;
 pub mod types;
 
+#[doc(inline)]
 pub use client::{Client, ClientConfig, GetGraspOutcome, DEFAULT_PORT};
+#[doc(inline)]
 pub use error::{Error, Malformed, Result};
+#[doc(inline)]
 pub use message::{
     Grasp, GraspRequest, ObjectCount, Request, RequestError, Response, ResponseBody,
 };
+#[doc(inline)]
 pub use pose::{
     AbcPose, AxisAnglePose, Pose, PoseError, QuaternionPose, SiPose, UnitQuaternion, WprPose,
 };
+#[doc(inline)]
 pub use types::{
     CommunicationType, GraspFeedback, GraspMode, MessageType, PoseFormat, ResponseCode,
     RobotSystem, ServerState, Tool,

@@ -94,7 +94,7 @@ impl UnitQuaternion {
     }
 
     /// The rotation vector in radians, angle in `[0, π]`.
-    pub fn to_rotation_vector(&self) -> [f64; 3] {
+    pub fn to_rotation_vector_rad(&self) -> [f64; 3] {
         // q and -q are the same rotation; w ≥ 0 picks the angle in [0, π].
         let q = if self.w < 0.0 { self.negated() } else { *self };
         let s = (q.x * q.x + q.y * q.y + q.z * q.z).sqrt();
@@ -118,7 +118,7 @@ impl UnitQuaternion {
     /// Roll, pitch, yaw in radians for `Rz(yaw)·Ry(pitch)·Rx(roll)`: roll and yaw in `(-π, π]`,
     /// pitch in `[-π/2, π/2]`. At pitch ±90° (gimbal lock) only yaw ∓ roll is defined; roll is
     /// then reported as 0.
-    pub fn to_rpy(&self) -> [f64; 3] {
+    pub fn to_rpy_rad(&self) -> [f64; 3] {
         let m = self.matrix();
         let r20 = m[2][0];
         let pitch = (-r20).atan2((m[0][0] * m[0][0] + m[1][0] * m[1][0]).sqrt());
@@ -155,7 +155,7 @@ impl UnitQuaternion {
 
     /// The angle in radians of the rotation that takes `self` to `other` (0 when they are the
     /// same rotation, whatever the quaternions' signs).
-    pub fn angle_to(&self, other: &UnitQuaternion) -> f64 {
+    pub fn angle_to_rad(&self, other: &UnitQuaternion) -> f64 {
         // The relative rotation conj(self)·other; atan2 keeps precision near 0, where acos of
         // the dot product would not.
         let (a, b) = (self, other);
@@ -379,21 +379,21 @@ impl SiPose {
                 })
             }
             PoseFormat::AxisAngle => {
-                let v = q.to_rotation_vector();
+                let v = q.to_rotation_vector_rad();
                 Pose::AxisAngle(AxisAnglePose {
                     position_um,
                     rotation_vector_urad: angles_to_wire(v.map(|r| r * 1e6))?,
                 })
             }
             PoseFormat::Wpr => {
-                let [roll, pitch, yaw] = q.to_rpy();
+                let [roll, pitch, yaw] = q.to_rpy_rad();
                 Pose::Wpr(WprPose {
                     position_um,
                     wpr_udeg: euler_to_wire([roll, pitch, yaw])?,
                 })
             }
             PoseFormat::Abc => {
-                let [roll, pitch, yaw] = q.to_rpy();
+                let [roll, pitch, yaw] = q.to_rpy_rad();
                 Pose::Abc(AbcPose {
                     position_um,
                     abc_udeg: euler_to_wire([yaw, pitch, roll])?,
@@ -561,14 +561,14 @@ mod tests {
         assert!(close3(k.rotate(Z), Y, EPS));
         assert!(close3(k.rotate(X), [0.0, 0.0, -1.0], EPS));
         // The same rotation with the angles in the other order is a different one.
-        assert!(orientation(wpr(0.0, 90.0, 90.0)).angle_to(&q) > 0.5);
+        assert!(orientation(wpr(0.0, 90.0, 90.0)).angle_to_rad(&q) > 0.5);
     }
 
     #[test]
     fn abc_is_wpr_with_the_angles_reversed() {
         let a = orientation(abc(10.0, -20.0, 30.0));
         let w = orientation(wpr(30.0, -20.0, 10.0));
-        assert!(a.angle_to(&w) < EPS);
+        assert!(a.angle_to_rad(&w) < EPS);
         let converted = abc(10.0, -20.0, 30.0).to_format(PoseFormat::Wpr).unwrap();
         assert_eq!(converted, wpr(30.0, -20.0, 10.0));
     }
@@ -611,7 +611,7 @@ mod tests {
             assert_eq!(back.position_um(), start.position_um());
             // Within the rounding of the intermediate format (10^-6 of a quaternion is coarser
             // than 1 µdeg).
-            let err = orientation(back).angle_to(&orientation(start));
+            let err = orientation(back).angle_to_rad(&orientation(start));
             assert!(err < 4e-6, "{format}: {err}");
         }
         // WPR → ABC → WPR is exact: only the angles' names change.
@@ -636,7 +636,7 @@ mod tests {
         let Pose::Wpr(p) = back else { unreachable!() };
         assert_eq!(p.wpr_udeg[0], 180_000_000);
         assert_eq!(p.wpr_udeg[2], -170_000_000);
-        assert!(orientation(back).angle_to(&orientation(wpr(-180.0, 0.0, 190.0))) < 1e-5);
+        assert!(orientation(back).angle_to_rad(&orientation(wpr(-180.0, 0.0, 190.0))) < 1e-5);
     }
 
     #[test]
@@ -648,7 +648,7 @@ mod tests {
             let Pose::Wpr(p) = back else { unreachable!() };
             assert_eq!(p.wpr_udeg[0], 0, "W is reported as 0 at the lock");
             assert!((p.wpr_udeg[1] - (pitch * 1e6) as i32).abs() <= 1);
-            let err = orientation(back).angle_to(&si.orientation);
+            let err = orientation(back).angle_to_rad(&si.orientation);
             assert!(err < 10.0 * UDEG, "pitch {pitch}: {err}");
         }
     }
@@ -661,14 +661,14 @@ mod tests {
         });
         let q = orientation(half_turn);
         assert!(close3(q.rotate(X), [-1.0, 0.0, 0.0], 1e-6));
-        let v = q.to_rotation_vector();
+        let v = q.to_rotation_vector_rad();
         assert!((norm3(v) - PI).abs() < 1e-6);
         let zero = Pose::AxisAngle(AxisAnglePose {
             position_um: [0; 3],
             rotation_vector_urad: [0; 3],
         });
         assert_eq!(orientation(zero), UnitQuaternion::IDENTITY);
-        assert_eq!(UnitQuaternion::IDENTITY.to_rotation_vector(), [0.0; 3]);
+        assert_eq!(UnitQuaternion::IDENTITY.to_rotation_vector_rad(), [0.0; 3]);
     }
 
     #[test]
@@ -710,7 +710,7 @@ mod tests {
             }
             let wpr = pose.to_format(PoseFormat::Wpr).unwrap();
             // Rounded to the µdeg: at most half a µdeg about each of three axes.
-            proptest::prop_assert!(orientation(wpr).angle_to(&orientation(pose)) < 2.0 * UDEG);
+            proptest::prop_assert!(orientation(wpr).angle_to_rad(&orientation(pose)) < 2.0 * UDEG);
         }
 
         /// Any non-degenerate quaternion survives a trip through every other format.
@@ -720,21 +720,21 @@ mod tests {
             let pose = Pose::Quaternion(QuaternionPose { position_um: [1, 2, 3], quaternion_e6: q });
             for format in [PoseFormat::AxisAngle, PoseFormat::Wpr, PoseFormat::Abc] {
                 let there = pose.to_format(format).unwrap();
-                let err = orientation(there).angle_to(&orientation(pose));
+                let err = orientation(there).angle_to_rad(&orientation(pose));
                 proptest::prop_assert!(err < 1e-5, "{format}: {err}");
             }
         }
     }
 
     #[test]
-    fn angle_to_measures_the_relative_rotation() {
+    fn angle_to_rad_measures_the_relative_rotation() {
         let a = UnitQuaternion::from_rpy(0.3, -0.2, 1.0);
         let turn = UnitQuaternion::from_axis_angle([1.0, 2.0, -0.5], 1e-7);
-        assert!((a.angle_to(&turn.then_after(a)) - 1e-7).abs() < 1e-12);
+        assert!((a.angle_to_rad(&turn.then_after(a)) - 1e-7).abs() < 1e-12);
         let big = UnitQuaternion::from_axis_angle([0.0, 1.0, 0.0], 2.5);
-        assert!((a.angle_to(&a.then_after(big)) - 2.5).abs() < 1e-12);
+        assert!((a.angle_to_rad(&a.then_after(big)) - 2.5).abs() < 1e-12);
         // -q is the same rotation.
         let [x, y, z, w] = a.xyzw();
-        assert!(a.angle_to(&UnitQuaternion::new(-x, -y, -z, -w).unwrap()) < 1e-15);
+        assert!(a.angle_to_rad(&UnitQuaternion::new(-x, -y, -z, -w).unwrap()) < 1e-15);
     }
 }

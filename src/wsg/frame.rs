@@ -206,6 +206,38 @@ fn find_preamble(src: &mut BytesMut) -> Option<usize> {
     None
 }
 
+/// The length of the frame at the front of `buf`, for the fault proxy's
+/// [`Framing::Custom`](crate::fault::Framing::Custom) (feature `sim`): lets a test drop,
+/// duplicate or corrupt whole WSG frames. Bytes before a preamble are garbage; within a run of
+/// `AA` bytes the last three are the preamble, as in [`decode`]. The checksum is not checked (a
+/// proxy forwards corrupt frames too).
+///
+/// ```
+/// use gripper::fault::{FrameLen, Framing, ProxyConfig};
+/// use gripper::wsg::frame::frame_len;
+///
+/// assert_eq!(frame_len(&[0xAA, 0xAA, 0xAA, 0x06, 0x02, 0x00]), FrameLen::Complete(10));
+/// assert_eq!(frame_len(&[0x00, 0xAA]), FrameLen::Garbage(1));
+/// let config = ProxyConfig::new().framing(Framing::Custom(frame_len));
+/// # let _ = config;
+/// ```
+#[cfg(feature = "sim")]
+pub fn frame_len(buf: &[u8]) -> crate::fault::FrameLen {
+    use crate::fault::FrameLen;
+    let run = buf.iter().take_while(|&&b| b == 0xAA).count();
+    match buf {
+        _ if run == 0 => FrameLen::Garbage(1),
+        // More than three AA: the first ones are noise before the preamble.
+        _ if run > 3 => FrameLen::Garbage(run - 3),
+        [_, _, _, _, lo, hi, ..] if run == 3 => FrameLen::Complete(
+            HEADER_LEN + usize::from(u16::from_le_bytes([*lo, *hi])) + CHECKSUM_LEN,
+        ),
+        // A run shorter than three that is followed by another byte cannot be a preamble.
+        _ if run < 3 && buf.len() > run => FrameLen::Garbage(run),
+        _ => FrameLen::NeedMore,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -8,7 +8,7 @@ use bytes::BytesMut;
 use futures_core::Stream;
 use tokio::io::{AsyncRead, AsyncWrite};
 use tokio::net::UdpSocket;
-use tokio_util::codec::Framed;
+use tokio_util::codec::{Decoder, Framed};
 
 use super::codec::WsgCodec;
 use super::frame::{self, Decoded, Frame};
@@ -42,7 +42,22 @@ pub(crate) enum Link {
         socket: UdpSocket,
         peer: SocketAddr,
         max_payload_len: usize,
+        /// One datagram: a frame of `max_payload_len` (longer datagrams are cut to this and fail
+        /// their checksum). Allocated once per client.
+        buf: Vec<u8>,
     },
+}
+
+impl Link {
+    /// A UDP link to `peer`, accepting replies of up to `max_payload_len` bytes.
+    pub(crate) fn udp(socket: UdpSocket, peer: SocketAddr, max_payload_len: usize) -> Link {
+        Link::Udp {
+            socket,
+            peer,
+            max_payload_len,
+            buf: vec![0u8; frame::HEADER_LEN + max_payload_len + frame::CHECKSUM_LEN],
+        }
+    }
 }
 
 impl Link {
@@ -56,8 +71,8 @@ impl Link {
                 socket,
                 peer,
                 max_payload_len,
+                buf,
             } => {
-                let mut buf = vec![0u8; frame::HEADER_LEN + *max_payload_len + 2];
                 loop {
                     let (n, from) = match socket.recv_from(&mut buf[..]).await {
                         Ok(x) => x,
@@ -96,6 +111,35 @@ impl Link {
                 socket.send_to(&b, *peer).await.map(drop)
             }
         }
+    }
+
+    /// Bytes received but not decoded yet: the start of a frame still arriving (or a corrupted
+    /// header waiting for bytes that will never come). Always 0 on UDP.
+    pub(crate) fn partial_len(&self) -> usize {
+        match self {
+            Link::Stream(framed) => framed.read_buffer().len(),
+            Link::Udp { .. } => 0,
+        }
+    }
+
+    /// Gives up on the partial frame held by the decoder (called after a silence on the line):
+    /// skips its header as noise and returns the frames found in the bytes after it. Without
+    /// this, a corrupted length field (below the maximum) would hold every later reply until
+    /// that many bytes had arrived.
+    pub(crate) fn resync(&mut self) -> Vec<Frame> {
+        let Link::Stream(framed) = self else {
+            return Vec::new();
+        };
+        let mut buf = std::mem::take(framed.read_buffer_mut());
+        let mut frames = Vec::new();
+        while let Ok(Some(f)) = framed.codec_mut().decode_eof(&mut buf) {
+            frames.push(f);
+        }
+        tracing::warn!(
+            frames = frames.len(),
+            "WSG partial frame stalled: dropped as noise"
+        );
+        frames
     }
 
     /// Flushes and shuts down the write side.

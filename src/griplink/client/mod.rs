@@ -23,15 +23,47 @@
 //!
 //! If a reply stays away [`ClientConfig::give_up_after`] beyond its call's timeout, the
 //! controller is not answering the way the protocol promises, and no later reply could be
-//! paired with confidence: the client then reports [`Error::Broken`] to every pending and
-//! future call and closes the connection. Reconnecting is left to the caller (connect a new
-//! [`Client`]).
+//! paired with confidence: the client then reports [`Error::ConnectionLost`] to every pending and
+//! future call and closes the connection. It then reconnects if [`ClientConfig::reconnect`] is
+//! set; otherwise reconnecting is left to the caller (connect a new [`Client`]).
+//!
+//! # Replies out of step
+//! GRIPLINK replies carry no request id and no checksum (manual 2.1): order is the only
+//! pairing. An extra line on the wire (a duplicated reply, a command duplicated by the network
+//! and answered twice, a byte corrupted into LF) would hand every later caller the reply of the
+//! call before it. So a reply that does not answer its command (another key, port or index,
+//! `ACK` for a query, a value for a command that answers `ACK`, or not GRIPLINK at all) is
+//! never skipped silently: the call fails with [`Error::UnexpectedReply`] or
+//! [`Error::MalformedReply`], and before it returns the client resynchronises: it sends a
+//! harmless probe (`ID?`, or `SN?` after an `ID?`), skips every line until the probe's answer,
+//! and only then sends the next command. If other commands were on the wire at that moment
+//! (pipelining), their replies could be anyone's: the connection is given up
+//! ([`Error::ConnectionLost`]).
+//!
+//! What cannot be detected at the protocol level: a changed digit in a value or in a command's
+//! argument (`DEVPID[0]=20` read as 30, `LED(0,1)` run as `LED(0,3)`), and an extra reply taken
+//! by a next command that expects the same shape (two identical `ACK`s: a blocking `HOME` may
+//! then return at once; two replies to the same query: the second caller gets the first's
+//! value). The shift is detected, and repaired as above, at the first later command that
+//! expects another shape. A reply cut off by a lost connection is never taken for a whole one
+//! (it fails with [`Error::ConnectionLost`]).
+//!
+//! # Cancellation
+//! Every async method is cancel-safe for the connection: dropping its future (a `select!`,
+//! a timeout, an aborted task) at any await point never hands its reply to another caller. A
+//! command still queued when its call is dropped is never sent. A command already sent,
+//! though, runs on the controller: a cancelled GRIP still grips, a cancelled HOME still homes
+//! (a motion keeps moving until it ends or is stopped, e.g. with [`Port::disable`]); and a
+//! cancelled blocking call (HOME, [`Blocking::UntilDone`], WSTR, WAITVAL) still holds this
+//! connection on the controller until it answers, so later calls wait behind it. Nothing is
+//! ever re-sent by the library.
 
 mod pipeline;
 mod port;
 mod task;
 mod watch;
 
+use std::net::SocketAddr;
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -42,7 +74,7 @@ use tokio::time::Instant;
 pub use port::Port;
 pub use watch::{GripOutcome, ReleaseOutcome, WaitBy, Watch};
 
-use self::task::{Request, Shared, TaskConfig};
+use self::task::{Request, Shared, Task, TaskConfig};
 use super::codec::DEFAULT_MAX_LINE_LEN;
 #[cfg(doc)]
 use super::command::Blocking;
@@ -51,6 +83,10 @@ use super::error::{Error, Result};
 use super::reply::{Answer, Data};
 use super::state::DeviceState;
 use super::value::Value;
+use crate::reconnect::{ConnectionEvents, EventSender, EventSubscriber, ReconnectPolicy};
+
+/// Connection events each [`Client::connection_events`] stream buffers, at most.
+const EVENT_BUFFER: usize = 32;
 
 /// The controller's default TCP port (manual 2.5.1).
 pub const DEFAULT_PORT: u16 = 10001;
@@ -78,6 +114,24 @@ pub struct ClientConfig {
     /// buffer is not documented, and a command still in our queue can be withdrawn when its
     /// caller gives up, one already sent cannot.
     pub pipeline_depth: usize,
+    /// Reconnect after a lost connection (`None`, the default: a lost connection stays closed
+    /// and every later call fails with the reason).
+    ///
+    /// With a policy, when the connection is lost (the controller closed it, I/O failed, or
+    /// the client gave up on it, [`Error::ConnectionLost`]):
+    /// - the calls in flight fail with the reason; they are **never sent again** by the client:
+    ///   a GRIP may have run, and only the program can tell whether to repeat it;
+    /// - the client reconnects to the same address with the policy's backoff and restores what
+    ///   the program set up: the last [`Client::set_verbose`] the controller accepted (a
+    ///   `VERBOSE=` sent with [`Client::command`] is not tracked);
+    /// - calls still queued (not yet sent) and calls made meanwhile **wait** in the queue within
+    ///   their own timeouts and go out once the session is restored; a call that times out
+    ///   while waiting was never sent;
+    /// - each step is reported through [`Client::connection_events`] and `tracing`.
+    ///
+    /// After [`Client::close`], or when every handle is dropped, nothing reconnects. When the
+    /// policy gives up, the client is closed like one without a policy.
+    pub reconnect: Option<ReconnectPolicy>,
 }
 
 impl Default for ClientConfig {
@@ -91,6 +145,7 @@ impl Default for ClientConfig {
             max_line_len: DEFAULT_MAX_LINE_LEN,
             queue_len: 64,
             pipeline_depth: 1,
+            reconnect: None,
         }
     }
 }
@@ -114,6 +169,7 @@ impl ClientConfig {
 pub struct Client {
     requests: mpsc::Sender<Request>,
     shared: Arc<Shared>,
+    events: EventSubscriber,
     config: Arc<ClientConfig>,
     timeout: Option<Duration>,
 }
@@ -196,41 +252,118 @@ impl Reading {
 
 impl Client {
     /// Connects to a controller (`"192.168.1.40:10001"`) with the default configuration.
+    ///
+    /// Cancel-safe: dropped, nothing is left running.
     pub async fn connect(addr: impl ToSocketAddrs) -> Result<Client> {
         Client::connect_with(addr, ClientConfig::default()).await
     }
 
-    /// Connects with the given configuration.
+    /// Connects with the given configuration. A reconnect ([`ClientConfig::reconnect`]) goes
+    /// to the addresses `addr` resolved to now. A failure here is returned whatever the
+    /// reconnect policy says.
+    ///
+    /// Cancel-safe: dropped, nothing is left running.
     pub async fn connect_with(addr: impl ToSocketAddrs, config: ClientConfig) -> Result<Client> {
-        let stream = tokio::time::timeout(config.connect_timeout, TcpStream::connect(addr))
-            .await
-            .map_err(|_| {
-                Error::from(std::io::Error::new(
-                    std::io::ErrorKind::TimedOut,
-                    "connecting to the controller timed out",
-                ))
-            })??;
-        // Lines are small and each waits for an answer: send them at once.
-        stream.set_nodelay(true)?;
-        Ok(Client::from_stream(stream, config))
+        let addrs: Vec<SocketAddr> =
+            tokio::time::timeout(config.connect_timeout, tokio::net::lookup_host(addr))
+                .await
+                .map_err(|_| {
+                    Error::from(std::io::Error::new(
+                        std::io::ErrorKind::TimedOut,
+                        "resolving the controller's address timed out",
+                    ))
+                })??
+                .collect();
+        let stream = task::connect_any(&addrs, config.connect_timeout).await?;
+        Ok(Client::spawn(stream, addrs, config))
     }
 
     /// Runs the client over an already connected stream. Must be called inside a tokio runtime.
+    /// A reconnect ([`ClientConfig::reconnect`]) goes to the stream's peer address.
     pub fn from_stream(stream: TcpStream, config: ClientConfig) -> Client {
+        let addrs = stream.peer_addr().into_iter().collect();
+        Client::spawn(stream, addrs, config)
+    }
+
+    fn spawn(stream: TcpStream, addrs: Vec<SocketAddr>, config: ClientConfig) -> Client {
         let (requests, rx) = mpsc::channel(config.queue_len.max(1));
         let shared = Arc::new(Shared::default());
-        let task_config = TaskConfig {
-            pipeline_depth: config.pipeline_depth,
-            give_up_after: config.give_up_after,
-            max_line_len: config.max_line_len,
+        let events = EventSender::new("griplink", EVENT_BUFFER);
+        let task = Task {
+            requests: rx,
+            config: TaskConfig {
+                pipeline_depth: config.pipeline_depth,
+                give_up_after: config.give_up_after,
+                max_line_len: config.max_line_len,
+                probe_timeout: config.query_timeout.saturating_add(config.give_up_after),
+                query_timeout: config.query_timeout,
+                connect_timeout: config.connect_timeout,
+            },
+            shared: Arc::clone(&shared),
+            reconnect: config.reconnect,
+            events: events.clone(),
+            addrs,
         };
-        tokio::spawn(task::run(stream, rx, task_config, Arc::clone(&shared)));
+        tokio::spawn(task::run(stream, task));
         Client {
             requests,
             shared,
+            events: events.subscriber(),
             config: Arc::new(config),
             timeout: None,
         }
+    }
+
+    /// Whether the connection is closed for good (every call fails). While the client
+    /// reconnects it is not closed.
+    pub fn is_closed(&self) -> bool {
+        self.requests.is_closed()
+    }
+
+    /// The connection's events from now on: each loss, reconnect attempt and recovery (see
+    /// [`ClientConfig::reconnect`]); without a reconnect policy, only the loss. The stream ends
+    /// when the connection is closed for good. It buffers at most 32 events: a reader that falls
+    /// further behind loses the oldest and gets a
+    /// [`ConnectionEvent::Missed`](crate::reconnect::ConnectionEvent::Missed) instead.
+    ///
+    /// ```
+    /// # #[cfg(not(feature = "sim"))]
+    /// # fn main() {}
+    /// # #[cfg(feature = "sim")]
+    /// # #[tokio::main(flavor = "current_thread")]
+    /// # async fn main() -> Result<(), Box<dyn std::error::Error>> {
+    /// use futures_util::StreamExt;
+    /// use gripper::fault::{FaultProxy, Framing, ProxyConfig};
+    /// use gripper::griplink::sim::{SimConfig, SimServer};
+    /// use gripper::griplink::{Client, ClientConfig};
+    /// use gripper::reconnect::{ConnectionEvent, ReconnectPolicy};
+    ///
+    /// let server = SimServer::bind("127.0.0.1:0", SimConfig::et4().time_scale(0.0)).await?;
+    /// // A proxy to pull the cable with.
+    /// let lines = ProxyConfig::new().framing(Framing::Delimited(b'\n'));
+    /// let proxy = FaultProxy::start_with(server.local_addr(), lines).await?;
+    /// let config = ClientConfig {
+    ///     reconnect: Some(ReconnectPolicy::default()),
+    ///     ..ClientConfig::default()
+    /// };
+    /// let client = Client::connect_with(proxy.local_addr(), config).await?;
+    /// client.set_verbose(true).await?;
+    /// let mut events = client.connection_events();
+    ///
+    /// proxy.cut_connections();
+    /// while let Some(event) = events.next().await {
+    ///     println!("{event}");
+    ///     if let ConnectionEvent::Restored { .. } = event {
+    ///         break;
+    ///     }
+    /// }
+    /// // A new connection, verbose again.
+    /// assert_eq!(client.id().await?, "GRIPLINK-ET4");
+    /// # Ok(())
+    /// # }
+    /// ```
+    pub fn connection_events(&self) -> ConnectionEvents {
+        self.events.subscribe()
     }
 
     /// A handle whose calls all use `timeout` instead of the defaults. Shares the connection.
@@ -285,17 +418,31 @@ impl Client {
     }
 
     /// Sends a typed command and returns its checked reply.
+    ///
+    /// [Cancel-safe](self#cancellation) for the connection; once sent, the command runs on the
+    /// controller even if the call is dropped (a motion keeps moving).
     pub async fn execute(&self, command: &Command) -> Result<Answer> {
         let line = command.encode()?;
         let bye = matches!(command, Command::Bye);
-        self.submit(line, command.expect(), command.duty(), bye)
-            .await
+        let answer = self
+            .submit(line, command.expect(), command.duty(), bye)
+            .await?;
+        // What a reconnect restores: the mode the controller reports.
+        if let (Command::SetVerbose(_), Answer::Data(data)) = (command, &answer) {
+            if let Some(mode) = data.value.as_int() {
+                self.shared.set_verbose(mode != 0);
+            }
+        }
+        Ok(answer)
     }
 
     /// Sends a raw command line (without LF) the crate has no type for, and returns its reply:
     /// `ACK` or `KEY[…]=value`; `ERR` becomes [`Error::Device`]. The line must be printable
     /// ASCII without control characters. Uses the query timeout unless overridden with
     /// [`Client::with_timeout`]; do not send `BYE()` this way, use [`Client::close`].
+    ///
+    /// [Cancel-safe](self#cancellation) for the connection; once sent, the command runs on the
+    /// controller even if the call is dropped (a motion keeps moving).
     pub async fn command(&self, line: &str) -> Result<Answer> {
         check_raw_line(line)?;
         self.submit(line.to_owned(), Expect::Any, Duty::Query, false)
@@ -354,17 +501,23 @@ impl Client {
     }
 
     /// `ID?`: the controller's identification, e.g. `GRIPLINK-ET4` (manual 3.1.1).
+    ///
+    /// [Cancel-safe](self#cancellation): dropped, its reply is discarded when it comes.
     pub async fn id(&self) -> Result<String> {
         self.read_string(Command::Id).await
     }
 
     /// `PROTOCOL?`: the protocol version string, e.g. `GRIPLINK-V3` (manual 3.1.2).
+    ///
+    /// [Cancel-safe](self#cancellation): dropped, its reply is discarded when it comes.
     pub async fn protocol(&self) -> Result<String> {
         self.read_string(Command::Protocol).await
     }
 
     /// `PROTASSERT`: fails with [`Status::NotSupported`](super::Status::NotSupported) unless the
     /// controller runs `identifier` in at least `min_version` (manual 3.1.3).
+    ///
+    /// [Cancel-safe](self#cancellation): dropped, its reply is discarded when it comes.
     pub async fn protocol_assert(&self, identifier: &str, min_version: u32) -> Result<()> {
         self.ack(Command::ProtAssert {
             identifier: identifier.to_owned(),
@@ -374,28 +527,40 @@ impl Client {
     }
 
     /// `SN?`: the controller's serial number (manual 3.1.4).
+    ///
+    /// [Cancel-safe](self#cancellation): dropped, its reply is discarded when it comes.
     pub async fn serial_number(&self) -> Result<String> {
         self.read_string(Command::SerialNumber).await
     }
 
     /// `LABEL?` (manual 3.1.5).
+    ///
+    /// [Cancel-safe](self#cancellation): dropped, its reply is discarded when it comes.
     pub async fn label(&self) -> Result<String> {
         self.read_string(Command::Label).await
     }
 
     /// `LABEL="…"`: at most 32 printable ASCII characters without `'` `"` `\` (checked before
     /// sending). Returns the label the controller reports back (manual 3.1.5).
+    ///
+    /// [Cancel-safe](self#cancellation) for the connection; dropped after it was sent, the change
+    /// still takes effect on the controller.
     pub async fn set_label(&self, label: &str) -> Result<String> {
         self.read_string(Command::SetLabel(label.to_owned())).await
     }
 
     /// `VER?`: the controller's firmware version (manual 3.1.6).
+    ///
+    /// [Cancel-safe](self#cancellation): dropped, its reply is discarded when it comes.
     pub async fn version(&self) -> Result<String> {
         self.read_string(Command::Version).await
     }
 
     /// `VERBOSE=0|1`: whether `ERR` replies carry a description (manual 3.1.7). Returns the
     /// mode the controller reports back.
+    ///
+    /// [Cancel-safe](self#cancellation) for the connection; dropped after it was sent, the change
+    /// still takes effect on the controller.
     pub async fn set_verbose(&self, on: bool) -> Result<bool> {
         Ok(self.read_int::<i64>(Command::SetVerbose(on)).await? != 0)
     }
@@ -403,6 +568,9 @@ impl Client {
     /// `BYE()`: ends the session gracefully; waits for the `ACK` (manual 3.3.1). The connection
     /// is closed once the reply is in, whatever it says; calls made afterwards, on any clone,
     /// fail with [`Error::Closed`].
+    ///
+    /// [Cancel-safe](self#cancellation): once `BYE()` was sent the connection closes whether or not
+    /// the call is still waiting.
     pub async fn close(&self) -> Result<()> {
         self.ack(Command::Bye).await
     }

@@ -4,8 +4,18 @@
 //! A caller that timed out or dropped its future keeps its slot: the reply that eventually
 //! comes for its command is consumed here and discarded, so the next caller gets its own reply
 //! and never a stale one.
+//!
+//! A line that does not answer its command (another key, port or index, `ACK` for a query, a
+//! value for an `ACK` command, or not GRIPLINK at all) may be a wrong reply, but it may as well
+//! be an extra line (a duplicated reply, a reply split in two by a corrupted byte) that shifts
+//! every later reply by one. The pairing is then resynchronised with a probe, a harmless query
+//! of our own ([`Delivery::Resync`]): every line is skipped until the probe's answer arrives, and
+//! only then does the caller get its error, so that whatever it does next happens on a
+//! connection in step again. If other commands are on the wire, their replies could be anyone's:
+//! the connection is given up ([`Delivery::Lost`]).
 
 use std::collections::VecDeque;
+use std::time::Duration;
 
 use tokio::sync::oneshot;
 use tokio::time::Instant;
@@ -29,6 +39,10 @@ pub(crate) struct Slot {
     pub waiter: Waiter,
     /// When a missing reply means the pairing can no longer be trusted.
     pub give_up_at: Instant,
+    /// `Some` for a resynchronisation probe: lines that do not answer it are skipped (they are
+    /// leftovers of the shift); when its answer comes, `waiter` (the caller whose reply was out
+    /// of step) gets this error.
+    pub probe: Option<Error>,
 }
 
 /// What happened to a received line.
@@ -38,8 +52,37 @@ pub(crate) enum Delivery {
     Delivered,
     /// The reply of a caller that timed out or went away: consumed and dropped.
     Discarded,
-    /// No command was outstanding.
+    /// No command was outstanding: an extra line, dropped (the pairing is in step after it, as
+    /// nothing was waiting).
     Unsolicited,
+    /// The line did not answer its command: send this probe line (its slot is queued already).
+    Resync(&'static str),
+    /// The answer to a probe: the pairing is in step again.
+    Resynced,
+    /// The line did not answer its command while other commands were on the wire: the pairing
+    /// is lost, the connection must be given up.
+    Lost,
+}
+
+/// How long a resynchronisation probe may take, by default.
+const PROBE_TIMEOUT: Duration = Duration::from_secs(10);
+
+/// The probe after `suspect`'s reply was out of step: `ID?`, or `SN?` if the suspect was an
+/// `ID` query itself (its own late reply must not be taken for the probe's answer).
+fn probe_for(suspect: &str) -> (&'static str, Expect) {
+    let data = |key| Expect::Data {
+        key,
+        port: None,
+        index: None,
+    };
+    if suspect
+        .get(..2)
+        .is_some_and(|k| k.eq_ignore_ascii_case("ID"))
+    {
+        ("SN?", data("SN"))
+    } else {
+        ("ID?", data("ID"))
+    }
 }
 
 /// The FIFO of outstanding commands.
@@ -47,6 +90,7 @@ pub(crate) enum Delivery {
 pub(crate) struct Pipeline {
     slots: VecDeque<Slot>,
     depth: usize,
+    probe_timeout: Duration,
 }
 
 impl Pipeline {
@@ -55,11 +99,19 @@ impl Pipeline {
         Pipeline {
             slots: VecDeque::new(),
             depth: depth.max(1),
+            probe_timeout: PROBE_TIMEOUT,
         }
     }
 
+    /// How long a probe may take before the connection is given up.
+    pub(crate) fn with_probe_timeout(mut self, timeout: Duration) -> Self {
+        self.probe_timeout = timeout;
+        self
+    }
+
+    /// Whether another command may be sent: not while resynchronising.
     pub(crate) fn has_room(&self) -> bool {
-        self.slots.len() < self.depth
+        self.slots.len() < self.depth && !self.slots.iter().any(|s| s.probe.is_some())
     }
 
     pub(crate) fn is_empty(&self) -> bool {
@@ -90,21 +142,54 @@ impl Pipeline {
             );
             return Delivery::Unsolicited;
         };
-        if slot.waiter.is_closed() {
-            tracing::debug!(command = %slot.line, ?line, "griplink: discarding the late reply of an abandoned call");
-            return Delivery::Discarded;
-        }
-        let result = match line {
-            Line::Text(text) => interpret(&slot.line, slot.expect, &text),
+        let result = match &line {
+            Line::Text(text) => interpret(&slot.line, slot.expect, text),
             Line::Discarded(why) => Err(Error::MalformedReply {
                 command: slot.line.clone(),
                 line: String::new(),
                 reason: why.to_string(),
             }),
         };
-        match slot.waiter.send(result) {
-            Ok(()) => Delivery::Delivered,
-            Err(_) => Delivery::Discarded,
+        if let Some(error) = slot.probe {
+            // Only the probe's own answer ends the resynchronisation: even an `ERR` could be
+            // the leftover reply of the command that was out of step.
+            if result.is_err() {
+                tracing::debug!(?line, "griplink: skipping a line while resynchronising");
+                self.slots.push_front(Slot {
+                    probe: Some(error),
+                    ..slot
+                });
+                return Delivery::Discarded;
+            }
+            tracing::info!("griplink: replies are in step again");
+            let _ = slot.waiter.send(Err(error));
+            return Delivery::Resynced;
+        }
+        match result {
+            Err(error @ (Error::MalformedReply { .. } | Error::UnexpectedReply { .. })) => {
+                tracing::warn!(command = %slot.line, ?line, "griplink: the reply does not answer its command");
+                if !self.slots.is_empty() {
+                    let _ = slot.waiter.send(Err(error));
+                    return Delivery::Lost;
+                }
+                let (probe, expect) = probe_for(&slot.line);
+                self.slots.push_back(Slot {
+                    line: probe.to_owned(),
+                    expect,
+                    waiter: slot.waiter,
+                    give_up_at: Instant::now() + self.probe_timeout,
+                    probe: Some(error),
+                });
+                Delivery::Resync(probe)
+            }
+            _ if slot.waiter.is_closed() => {
+                tracing::debug!(command = %slot.line, ?line, "griplink: discarding the late reply of an abandoned call");
+                Delivery::Discarded
+            }
+            result => match slot.waiter.send(result) {
+                Ok(()) => Delivery::Delivered,
+                Err(_) => Delivery::Discarded,
+            },
         }
     }
 
@@ -129,6 +214,7 @@ mod tests {
                 expect,
                 waiter: tx,
                 give_up_at: Instant::now(),
+                probe: None,
             },
             rx,
         )
@@ -184,5 +270,59 @@ mod tests {
         p.fail_all(&Error::Closed);
         assert!(matches!(rx_a.try_recv(), Ok(Err(Error::Closed))));
         assert!(p.is_empty() && p.has_room());
+    }
+
+    #[tokio::test]
+    async fn out_of_step_reply_resynchronises_before_the_caller_hears() {
+        let mut p = Pipeline::new(1);
+        let sn = Expect::Data {
+            key: "SN",
+            port: None,
+            index: None,
+        };
+        let (b, mut rx_b) = slot("SN?", sn);
+        p.push(b);
+        // A duplicate of the previous `ID?` reply arrives for `SN?`.
+        let d = p.on_line(text("ID=\"GRIPLINK-ET4\""));
+        assert!(matches!(d, Delivery::Resync("ID?")), "{d:?}");
+        assert!(rx_b.try_recv().is_err(), "told before the probe answered");
+        assert!(!p.has_room(), "nothing is sent while resynchronising");
+        // SN?'s own reply, then an ERR: leftovers, skipped.
+        assert!(matches!(p.on_line(text("SN=\"1\"")), Delivery::Discarded));
+        assert!(matches!(p.on_line(text("ERR 04")), Delivery::Discarded));
+        assert!(matches!(
+            p.on_line(text("ID=\"GRIPLINK-ET4\"")),
+            Delivery::Resynced
+        ));
+        assert!(matches!(
+            rx_b.try_recv(),
+            Ok(Err(Error::UnexpectedReply { .. }))
+        ));
+        assert!(p.is_empty() && p.has_room());
+    }
+
+    #[tokio::test]
+    async fn probe_after_an_id_query_is_sn() {
+        let mut p = Pipeline::new(1);
+        let (a, _rx) = slot("ID?", Expect::Any);
+        p.push(a);
+        assert!(matches!(
+            p.on_line(Line::Discarded(crate::griplink::codec::Discarded::NotAscii)),
+            Delivery::Resync("SN?")
+        ));
+    }
+
+    #[tokio::test]
+    async fn out_of_step_with_others_on_the_wire_is_lost() {
+        let mut p = Pipeline::new(2);
+        let (a, mut rx_a) = slot("HOME(0)", Expect::Ack);
+        let (b, _rx_b) = slot("LED(0,1)", Expect::Ack);
+        p.push(a);
+        p.push(b);
+        assert!(matches!(p.on_line(text("ID=\"x\"")), Delivery::Lost));
+        assert!(matches!(
+            rx_a.try_recv(),
+            Ok(Err(Error::UnexpectedReply { .. }))
+        ));
     }
 }

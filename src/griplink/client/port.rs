@@ -40,6 +40,8 @@ impl Port {
 
     /// `DEVVID[p]?`: the IO-Link vendor id, `None` when no device is connected (the controller
     /// answers -1) (manual 3.2.1). Weiss Robotics is 815.
+    ///
+    /// [Cancel-safe](super#cancellation): dropped, its reply is discarded when it comes.
     pub async fn vendor_id(&self) -> Result<Option<u32>> {
         let vid: i64 = self.client.read_int(Command::DevVid(self.port)).await?;
         match vid {
@@ -55,12 +57,16 @@ impl Port {
     }
 
     /// `DEVPID[p]?`: the product id (manual 3.2.2, chapter 7).
+    ///
+    /// [Cancel-safe](super#cancellation): dropped, its reply is discarded when it comes.
     pub async fn product_id(&self) -> Result<u32> {
         self.client.read_int(Command::DevPid(self.port)).await
     }
 
     /// `DEVASSERT(p,vid,pid)`: fails with `E_CMD_FAILED` unless that device is connected
     /// (manual 3.2.3).
+    ///
+    /// [Cancel-safe](super#cancellation): dropped, its reply is discarded when it comes.
     pub async fn assert_device(&self, vendor_id: u32, product_id: u32) -> Result<()> {
         self.client
             .ack(Command::DevAssert {
@@ -72,27 +78,38 @@ impl Port {
     }
 
     /// `DEVNAME[p]?`: the product name, e.g. `IEG 55-020` (manual 3.2.4).
+    ///
+    /// [Cancel-safe](super#cancellation): dropped, its reply is discarded when it comes.
     pub async fn name(&self) -> Result<String> {
         self.client.read_string(Command::DevName(self.port)).await
     }
 
     /// `DEVVENDOR[p]?`: the vendor name (manual 3.2.5).
+    ///
+    /// [Cancel-safe](super#cancellation): dropped, its reply is discarded when it comes.
     pub async fn vendor(&self) -> Result<String> {
         self.client.read_string(Command::DevVendor(self.port)).await
     }
 
     /// `DEVSN[p]?`: the device's serial number (manual 3.2.6).
+    ///
+    /// [Cancel-safe](super#cancellation): dropped, its reply is discarded when it comes.
     pub async fn serial_number(&self) -> Result<String> {
         self.client.read_string(Command::DevSn(self.port)).await
     }
 
     /// `DEVTAG[p]?`: the application tag (manual 3.2.7).
+    ///
+    /// [Cancel-safe](super#cancellation): dropped, its reply is discarded when it comes.
     pub async fn tag(&self) -> Result<String> {
         self.client.read_string(Command::DevTag(self.port)).await
     }
 
     /// `DEVTAG[p]="…"`: at most 32 printable ASCII characters without `'` `"` `\` (checked
     /// before sending). Returns the tag the controller reports back (manual 3.2.7).
+    ///
+    /// [Cancel-safe](super#cancellation) for the connection; dropped after it was sent, the change
+    /// still takes effect on the controller.
     pub async fn set_tag(&self, tag: &str) -> Result<String> {
         self.client
             .read_string(Command::SetDevTag(self.port, tag.to_owned()))
@@ -100,21 +117,33 @@ impl Port {
     }
 
     /// `DEVVER[p]?`: the device's firmware version (manual 3.2.8).
+    ///
+    /// [Cancel-safe](super#cancellation): dropped, its reply is discarded when it comes.
     pub async fn version(&self) -> Result<String> {
         self.client.read_string(Command::DevVer(self.port)).await
     }
 
     /// `ENABLE(p)` (manual 3.4.1).
+    ///
+    /// [Cancel-safe](super#cancellation) for the connection; dropped after it was sent, the change
+    /// still takes effect on the controller.
     pub async fn enable(&self) -> Result<()> {
         self.client.ack(Command::Enable(self.port)).await
     }
 
     /// `DISABLE(p)`: on grippers, frees the fingers (manual 3.4.2).
+    ///
+    /// [Cancel-safe](super#cancellation) for the connection; dropped after it was sent, the change
+    /// still takes effect on the controller.
     pub async fn disable(&self) -> Result<()> {
         self.client.ack(Command::Disable(self.port)).await
     }
 
     /// `HOME(p)`: reference drive; returns when it is done (motion timeout) (manual 3.4.3).
+    ///
+    /// [Cancel-safe](super#cancellation) for the connection, but once sent the homing runs to its
+    /// end even if the call is dropped, and the controller holds this connection until then: later
+    /// calls on it wait.
     pub async fn home(&self) -> Result<()> {
         self.client.ack(Command::Home(self.port)).await
     }
@@ -122,6 +151,10 @@ impl Port {
     /// `GRIP(p,index[,1])` with grip recipe `index` (manual 3.4.4). With
     /// [`Blocking::Immediate`] it returns when the motion starts; see
     /// [`Port::grip_and_wait`] for the outcome.
+    ///
+    /// [Cancel-safe](super#cancellation), but once sent the motion runs even if the call is
+    /// dropped (a cancelled GRIP still grips), and with `Blocking::UntilDone` it holds this
+    /// connection until it ends.
     pub async fn grip(&self, index: u32, blocking: Blocking) -> Result<()> {
         self.client
             .ack(Command::Grip {
@@ -133,6 +166,10 @@ impl Port {
     }
 
     /// `RELEASE(p,index[,1])` with grip recipe `index` (manual 3.4.5).
+    ///
+    /// [Cancel-safe](super#cancellation), but once sent the motion runs even if the call is
+    /// dropped (a cancelled GRIP still grips), and with `Blocking::UntilDone` it holds this
+    /// connection until it ends.
     pub async fn release(&self, index: u32, blocking: Blocking) -> Result<()> {
         self.client
             .ack(Command::Release {
@@ -144,6 +181,10 @@ impl Port {
     }
 
     /// `FLEXGRIPF(…)`: grip with explicit parameters in mm, N, mm/s, mm/s² (manual 3.4.6).
+    ///
+    /// [Cancel-safe](super#cancellation), but once sent the motion runs even if the call is
+    /// dropped (a cancelled GRIP still grips), and with `Blocking::UntilDone` it holds this
+    /// connection until it ends.
     pub async fn flex_grip(&self, params: FlexGrip, blocking: Blocking) -> Result<()> {
         self.client
             .ack(Command::FlexGripF(self.port, params, blocking))
@@ -151,6 +192,10 @@ impl Port {
     }
 
     /// `FLEXGRIP(…)`: grip with explicit parameters in µm, mN, µm/s, µm/s² (manual 3.4.6).
+    ///
+    /// [Cancel-safe](super#cancellation), but once sent the motion runs even if the call is
+    /// dropped (a cancelled GRIP still grips), and with `Blocking::UntilDone` it holds this
+    /// connection until it ends.
     pub async fn flex_grip_scaled(&self, params: FlexGripScaled, blocking: Blocking) -> Result<()> {
         self.client
             .ack(Command::FlexGrip(self.port, params, blocking))
@@ -158,6 +203,10 @@ impl Port {
     }
 
     /// `FLEXRELEASEF(…)`: release or pre-position, in mm, mm/s, mm/s² (manual 3.4.7).
+    ///
+    /// [Cancel-safe](super#cancellation), but once sent the motion runs even if the call is
+    /// dropped (a cancelled GRIP still grips), and with `Blocking::UntilDone` it holds this
+    /// connection until it ends.
     pub async fn flex_release(&self, params: FlexRelease, blocking: Blocking) -> Result<()> {
         self.client
             .ack(Command::FlexReleaseF(self.port, params, blocking))
@@ -165,6 +214,10 @@ impl Port {
     }
 
     /// `FLEXRELEASE(…)`: release or pre-position, in µm, µm/s, µm/s² (manual 3.4.7).
+    ///
+    /// [Cancel-safe](super#cancellation), but once sent the motion runs even if the call is
+    /// dropped (a cancelled GRIP still grips), and with `Blocking::UntilDone` it holds this
+    /// connection until it ends.
     pub async fn flex_release_scaled(
         &self,
         params: FlexReleaseScaled,
@@ -176,6 +229,9 @@ impl Port {
     }
 
     /// `LED(p,index)`: show LED animation `index` (manual 3.4.8).
+    ///
+    /// [Cancel-safe](super#cancellation) for the connection; dropped after it was sent, the change
+    /// still takes effect on the controller.
     pub async fn led(&self, index: u32) -> Result<()> {
         self.client
             .ack(Command::Led {
@@ -186,6 +242,9 @@ impl Port {
     }
 
     /// `CLAMP(p,0|1)`: force retention on or off (manual 3.4.9).
+    ///
+    /// [Cancel-safe](super#cancellation) for the connection; dropped after it was sent, the change
+    /// still takes effect on the controller.
     pub async fn clamp(&self, enable: bool) -> Result<()> {
         self.client
             .ack(Command::Clamp {
@@ -197,11 +256,17 @@ impl Port {
 
     /// `WSTR[p]?`: waits for the next device state transition and returns the new state
     /// (motion timeout) (manual 3.4.10).
+    ///
+    /// [Cancel-safe](super#cancellation) for the connection, but once sent the controller holds
+    /// this connection until it answers, even if the call is dropped: later calls on it wait.
     pub async fn wait_for_transition(&self) -> Result<DeviceState> {
         self.client.read_state(Command::Wstr(self.port)).await
     }
 
     /// `SETVAL(p,index,value)` with a scaled integer (manual 3.4.11). May move an actuator.
+    ///
+    /// [Cancel-safe](super#cancellation) for the connection; dropped after it was sent, the change
+    /// still takes effect on the controller.
     pub async fn set_value(&self, index: u32, value: i32) -> Result<()> {
         self.client
             .ack(Command::SetVal {
@@ -213,6 +278,9 @@ impl Port {
     }
 
     /// `SETVALF(p,index,value)` in the device's unit (manual 3.4.11). May move an actuator.
+    ///
+    /// [Cancel-safe](super#cancellation) for the connection; dropped after it was sent, the change
+    /// still takes effect on the controller.
     pub async fn set_value_f(&self, index: u32, value: f64) -> Result<()> {
         self.client
             .ack(Command::SetValF {
@@ -225,6 +293,9 @@ impl Port {
 
     /// `WAITVAL(…)`: waits until value `index` enters `threshold ± window/2` (scaled
     /// integers); the controller answers `E_TIMEOUT` after `timeout` (manual 3.4.12).
+    ///
+    /// [Cancel-safe](super#cancellation) for the connection, but once sent the controller holds
+    /// this connection until it answers, even if the call is dropped: later calls on it wait.
     pub async fn wait_value(
         &self,
         index: u32,
@@ -244,6 +315,9 @@ impl Port {
     }
 
     /// `WAITVALF(…)`: as [`Port::wait_value`], in the device's unit (manual 3.4.12).
+    ///
+    /// [Cancel-safe](super#cancellation) for the connection, but once sent the controller holds
+    /// this connection until it answers, even if the call is dropped: later calls on it wait.
     pub async fn wait_value_f(
         &self,
         index: u32,
@@ -263,12 +337,16 @@ impl Port {
     }
 
     /// `DEVSTATE[p]?` (manual 3.5.1).
+    ///
+    /// [Cancel-safe](super#cancellation): dropped, its reply is discarded when it comes.
     pub async fn state(&self) -> Result<DeviceState> {
         self.client.read_state(Command::DevState(self.port)).await
     }
 
     /// `VALUE[p][index]?`: a scaled integer; out of range reads as `i32::MAX`/`i32::MIN`
     /// (manual 3.5.2).
+    ///
+    /// [Cancel-safe](super#cancellation): dropped, its reply is discarded when it comes.
     pub async fn value(&self, index: u32) -> Result<i32> {
         self.client
             .read_int(Command::Value {
@@ -280,6 +358,8 @@ impl Port {
 
     /// `VALUEF[p][index]?`: in the device's unit; out of range reads as ±infinity (manual
     /// 3.5.2).
+    ///
+    /// [Cancel-safe](super#cancellation): dropped, its reply is discarded when it comes.
     pub async fn value_f(&self, index: u32) -> Result<f64> {
         self.client
             .read_float(Command::ValueF {
@@ -290,16 +370,22 @@ impl Port {
     }
 
     /// A gripper's finger position in µm (`VALUE[p][0]?`).
+    ///
+    /// [Cancel-safe](super#cancellation): dropped, its reply is discarded when it comes.
     pub async fn position_um(&self) -> Result<i32> {
         self.value(0).await
     }
 
     /// A gripper's finger position in mm (`VALUEF[p][0]?`).
+    ///
+    /// [Cancel-safe](super#cancellation): dropped, its reply is discarded when it comes.
     pub async fn position_mm(&self) -> Result<f64> {
         self.value_f(0).await
     }
 
     /// `GRIPCFG[p][index]?`: grip recipe `index`, scaled integers (manual 3.6.1).
+    ///
+    /// [Cancel-safe](super#cancellation): dropped, its reply is discarded when it comes.
     pub async fn grip_config(&self, index: u32) -> Result<GripConfig> {
         self.client
             .read_grip_config(Command::GripCfg {
@@ -310,6 +396,9 @@ impl Port {
     }
 
     /// `GRIPCFG[p][index]=[…]`: writes a recipe; returns what the controller reports back.
+    ///
+    /// [Cancel-safe](super#cancellation) for the connection; dropped after it was sent, the change
+    /// still takes effect on the controller.
     pub async fn set_grip_config(&self, index: u32, config: &GripConfig) -> Result<GripConfig> {
         self.client
             .read_grip_config(Command::SetGripCfg {
@@ -321,6 +410,8 @@ impl Port {
     }
 
     /// `GRIPCFGF[p][index]?`: grip recipe `index`, floats (manual 3.6.1).
+    ///
+    /// [Cancel-safe](super#cancellation): dropped, its reply is discarded when it comes.
     pub async fn grip_config_f(&self, index: u32) -> Result<GripConfigF> {
         self.client
             .read_grip_config_f(Command::GripCfgF {
@@ -331,6 +422,9 @@ impl Port {
     }
 
     /// `GRIPCFGF[p][index]=[…]`: writes a recipe; returns what the controller reports back.
+    ///
+    /// [Cancel-safe](super#cancellation) for the connection; dropped after it was sent, the change
+    /// still takes effect on the controller.
     pub async fn set_grip_config_f(&self, index: u32, config: &GripConfigF) -> Result<GripConfigF> {
         self.client
             .read_grip_config_f(Command::SetGripCfgF {

@@ -1,7 +1,12 @@
 //! The background task that owns the connection: it writes commands in the order callers
-//! submit them and pairs each reply line with the oldest outstanding command.
+//! submit them and pairs each reply line with the oldest outstanding command. When the
+//! connection is lost it either closes for good or, with [`ClientConfig::reconnect`], connects
+//! again with backoff and restores the session before serving the calls that queued meanwhile.
+//!
+//! [`ClientConfig::reconnect`]: super::ClientConfig::reconnect
 
 use std::future::poll_fn;
+use std::net::SocketAddr;
 use std::pin::Pin;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
@@ -9,16 +14,18 @@ use std::time::Duration;
 use bytes::BytesMut;
 use futures_core::Stream;
 use tokio::io::AsyncWriteExt;
-use tokio::net::tcp::OwnedReadHalf;
+use tokio::net::tcp::{OwnedReadHalf, OwnedWriteHalf};
 use tokio::net::TcpStream;
 use tokio::sync::mpsc;
 use tokio::time::Instant;
 use tokio_util::codec::{Encoder, FramedRead};
 
-use super::pipeline::{Pipeline, Slot, Waiter};
+use super::pipeline::{Delivery, Pipeline, Slot, Waiter};
 use crate::griplink::codec::{Line, LineCodec};
-use crate::griplink::command::Expect;
+use crate::griplink::command::{Command, Expect};
 use crate::griplink::error::Error;
+use crate::griplink::reply::interpret;
+use crate::reconnect::{self, ConnectionEvent, EventSender, ReconnectPolicy};
 
 /// A caller's command, on its way to the task.
 #[derive(Debug)]
@@ -34,10 +41,13 @@ pub(crate) struct Request {
     pub bye: bool,
 }
 
-/// What the handles and the task share: why the connection ended.
+/// What the handles and the task share: why the connection ended, and what the program set up
+/// that a reconnect restores.
 #[derive(Debug, Default)]
 pub(crate) struct Shared {
     failure: Mutex<Option<Error>>,
+    /// The last `VERBOSE` mode the controller accepted.
+    verbose: Mutex<Option<bool>>,
 }
 
 impl Shared {
@@ -48,6 +58,16 @@ impl Shared {
             .ok()
             .and_then(|f| f.clone())
             .unwrap_or(Error::Closed)
+    }
+
+    pub(crate) fn set_verbose(&self, on: bool) {
+        if let Ok(mut v) = self.verbose.lock() {
+            *v = Some(on);
+        }
+    }
+
+    fn verbose(&self) -> Option<bool> {
+        self.verbose.lock().ok().and_then(|v| *v)
     }
 
     fn record(&self, error: &Error) {
@@ -63,6 +83,143 @@ pub(crate) struct TaskConfig {
     pub pipeline_depth: usize,
     pub give_up_after: Duration,
     pub max_line_len: usize,
+    /// How long a resynchronisation probe may take before the connection is given up.
+    pub probe_timeout: Duration,
+    /// Timeout of the commands that restore the session after a reconnect.
+    pub query_timeout: Duration,
+    pub connect_timeout: Duration,
+}
+
+/// Everything the task needs besides the first connection.
+pub(crate) struct Task {
+    pub requests: mpsc::Receiver<Request>,
+    pub config: TaskConfig,
+    pub shared: Arc<Shared>,
+    pub events: EventSender,
+    /// Reconnect with this backoff (`None`: a lost connection stays closed).
+    pub reconnect: Option<ReconnectPolicy>,
+    /// Where to reconnect to (resolved once, when the client connected).
+    pub addrs: Vec<SocketAddr>,
+}
+
+/// One connection: the reply reader and the command writer.
+struct Conn {
+    reader: FramedRead<OwnedReadHalf, LineCodec>,
+    write: OwnedWriteHalf,
+    encoder: LineCodec,
+}
+
+impl Conn {
+    fn new(stream: TcpStream, max_line_len: usize) -> Conn {
+        let (read, write) = stream.into_split();
+        // A line cut off by the end of the connection is not a reply: `VALUE[0][0]=12` may be
+        // the first half of `VALUE[0][0]=12345`.
+        let codec = LineCodec::new(max_line_len).reject_unterminated();
+        Conn {
+            reader: FramedRead::new(read, codec),
+            write,
+            encoder: LineCodec::new(max_line_len),
+        }
+    }
+
+    /// Connects to the first of `addrs` that answers.
+    async fn connect(addrs: &[SocketAddr], config: &TaskConfig) -> Result<Conn, Error> {
+        let stream = connect_any(addrs, config.connect_timeout).await?;
+        Ok(Conn::new(stream, config.max_line_len))
+    }
+
+    /// One command and its reply, before any caller's command is served (restoring the
+    /// session on a new connection).
+    async fn exchange(&mut self, command: Command, timeout: Duration) -> Result<(), Error> {
+        let line = command.encode()?;
+        let deadline = Instant::now() + timeout;
+        send_line(&mut self.write, &mut self.encoder, &line, deadline).await?;
+        let reply = match tokio::time::timeout_at(deadline, next_line(&mut self.reader)).await {
+            Err(_) => {
+                return Err(Error::Timeout {
+                    command: line,
+                    timeout,
+                })
+            }
+            Ok(None) => return Err(controller_closed()),
+            Ok(Some(reply)) => reply.map_err(io_error)?,
+        };
+        match reply {
+            Line::Text(text) => interpret(&line, command.expect(), &text).map(drop),
+            Line::Discarded(why) => Err(Error::MalformedReply {
+                command: line,
+                line: String::new(),
+                reason: why.to_string(),
+            }),
+        }
+    }
+}
+
+/// Connects to the first of `addrs` that answers, each within `timeout`, with Nagle off:
+/// lines are small and each waits for an answer.
+pub(crate) async fn connect_any(
+    addrs: &[SocketAddr],
+    timeout: Duration,
+) -> Result<TcpStream, Error> {
+    let mut last = Error::from(std::io::Error::new(
+        std::io::ErrorKind::InvalidInput,
+        "the address resolved to nothing",
+    ));
+    for addr in addrs {
+        match tokio::time::timeout(timeout, TcpStream::connect(addr)).await {
+            Ok(Ok(stream)) => {
+                stream.set_nodelay(true)?;
+                return Ok(stream);
+            }
+            Ok(Err(e)) => last = Error::from(e),
+            Err(_) => {
+                last = Error::from(std::io::Error::new(
+                    std::io::ErrorKind::TimedOut,
+                    "connecting to the controller timed out",
+                ))
+            }
+        }
+    }
+    Err(last)
+}
+
+/// Writes one command line, giving up on the connection if the controller stops reading.
+async fn send_line(
+    write: &mut OwnedWriteHalf,
+    encoder: &mut LineCodec,
+    line: &str,
+    limit: Instant,
+) -> Result<(), Error> {
+    let mut out = BytesMut::new();
+    encoder
+        .encode(line, &mut out)
+        .map_err(|e| Error::invalid("command line", e.to_string()))?;
+    match tokio::time::timeout_at(limit, write.write_all(&out)).await {
+        Ok(Ok(())) => Ok(()),
+        Ok(Err(e)) => Err(io_error(e)),
+        Err(_) => Err(Error::ConnectionLost(
+            "the controller stopped reading commands".into(),
+        )),
+    }
+}
+
+/// The controller ended the connection (EOF after it was open): the connection is lost, not
+/// closed by this client.
+fn controller_closed() -> Error {
+    Error::ConnectionLost("the controller closed the connection".into())
+}
+
+/// An I/O error on an open connection. The peer ending it — an EOF (the codec reports a line
+/// cut off by it as `UnexpectedEof`), a reset, a broken pipe — is a lost connection, whichever
+/// way the socket happened to see it; anything else is the socket's own error.
+fn io_error(e: std::io::Error) -> Error {
+    use std::io::ErrorKind::{BrokenPipe, ConnectionAborted, ConnectionReset, UnexpectedEof};
+    match e.kind() {
+        UnexpectedEof | ConnectionReset | ConnectionAborted | BrokenPipe => {
+            Error::ConnectionLost(format!("the controller closed the connection: {e}"))
+        }
+        _ => Error::from(e),
+    }
 }
 
 async fn next_line(
@@ -71,18 +228,68 @@ async fn next_line(
     poll_fn(|cx| Pin::new(&mut *reader).poll_next(cx)).await
 }
 
-/// Runs the connection until it closes, fails or every handle is dropped.
-pub(crate) async fn run(
-    stream: TcpStream,
-    mut requests: mpsc::Receiver<Request>,
-    config: TaskConfig,
-    shared: Arc<Shared>,
-) {
-    let (read, mut write) = stream.into_split();
-    let mut reader = FramedRead::new(read, LineCodec::new(config.max_line_len));
-    let mut encoder = LineCodec::new(config.max_line_len);
-    let mut pipeline = Pipeline::new(config.pipeline_depth);
-    let mut out = BytesMut::new();
+/// Runs until every handle is dropped, the program closes the connection, or it is lost for
+/// good.
+pub(crate) async fn run(stream: TcpStream, mut task: Task) {
+    let mut conn = Conn::new(stream, task.config.max_line_len);
+    let end = loop {
+        let end = serve(conn, &mut task.requests, &task.config).await;
+        // `Closed`: BYE, or nobody left to call; nothing to report or restore.
+        if matches!(end, Error::Closed) {
+            break end;
+        }
+        task.events.send(ConnectionEvent::Lost {
+            reason: end.to_string(),
+        });
+        let Some(policy) = task.reconnect else {
+            break end;
+        };
+        // Calls made meanwhile wait in the queue, within their own timeouts.
+        let Task {
+            requests,
+            config,
+            shared,
+            events,
+            addrs,
+            ..
+        } = &task;
+        let restored = reconnect::retry(
+            &policy,
+            events,
+            || requests.is_closed(),
+            |_| async {
+                let mut conn = Conn::connect(addrs, config).await?;
+                events.send(ConnectionEvent::Connected);
+                if let Some(on) = shared.verbose() {
+                    conn.exchange(Command::SetVerbose(on), config.query_timeout)
+                        .await?;
+                }
+                Ok::<_, Error>(conn)
+            },
+        )
+        .await;
+        match restored {
+            Some(restored) => conn = restored,
+            None => break end,
+        }
+    };
+    task.shared.record(&end);
+    task.requests.close();
+    while let Ok(request) = task.requests.try_recv() {
+        let _ = request.waiter.send(Err(end.clone()));
+    }
+}
+
+/// Serves calls over one connection until it closes, fails or every handle is dropped; fails
+/// the calls in flight with the reason, which it returns.
+async fn serve(conn: Conn, requests: &mut mpsc::Receiver<Request>, config: &TaskConfig) -> Error {
+    let Conn {
+        mut reader,
+        mut write,
+        mut encoder,
+    } = conn;
+    let mut pipeline =
+        Pipeline::new(config.pipeline_depth).with_probe_timeout(config.probe_timeout);
     let mut closing = false;
 
     let end: Error = loop {
@@ -91,23 +298,29 @@ pub(crate) async fn run(
             // Replies first: they free slots and callers.
             biased;
             line = next_line(&mut reader) => match line {
-                Some(Ok(line)) => {
-                    pipeline.on_line(line);
-                    if closing && pipeline.is_empty() {
-                        break Error::Closed;
+                Some(Ok(line)) => match pipeline.on_line(line) {
+                    Delivery::Resync(probe) if !closing => {
+                        tracing::warn!(%probe, "griplink: a reply was out of step, resynchronising");
+                        let limit = pipeline.give_up_at().unwrap_or_else(Instant::now);
+                        if let Err(e) = send_line(&mut write, &mut encoder, probe, limit).await {
+                            break e;
+                        }
                     }
-                }
-                Some(Err(e)) => break Error::from(e),
+                    Delivery::Lost => break Error::ConnectionLost(
+                        "a reply did not answer its command while others were on the wire; \
+                         replies can no longer be paired".into(),
+                    ),
+                    _ if closing && pipeline.is_empty() => break Error::Closed,
+                    _ => {}
+                },
+                Some(Err(e)) => break io_error(e),
                 None if closing => break Error::Closed,
-                None => break Error::from(std::io::Error::new(
-                    std::io::ErrorKind::UnexpectedEof,
-                    "the controller closed the connection",
-                )),
+                None => break controller_closed(),
             },
             () = tokio::time::sleep_until(give_up.unwrap_or_else(Instant::now)), if give_up.is_some() => {
                 let command = pipeline.oldest().unwrap_or_default().to_owned();
                 tracing::error!(%command, "griplink: reply overdue, giving up on the connection");
-                break Error::Broken(format!(
+                break Error::ConnectionLost(format!(
                     "no reply to {command} long after its timeout; replies can no longer be paired"
                 ));
             },
@@ -126,21 +339,14 @@ pub(crate) async fn run(
                     }));
                     continue;
                 }
-                out.clear();
-                if let Err(e) = encoder.encode(request.line.as_str(), &mut out) {
-                    let _ = request.waiter.send(Err(Error::invalid("command line", e.to_string())));
-                    continue;
-                }
-                let write_limit = request.deadline + config.give_up_after;
-                match tokio::time::timeout_at(write_limit, write.write_all(&out)).await {
-                    Ok(Ok(())) => {}
-                    Ok(Err(e)) => {
-                        let err = Error::from(e);
-                        let _ = request.waiter.send(Err(err.clone()));
-                        break err;
+                let give_up_at = request.deadline + config.give_up_after;
+                match send_line(&mut write, &mut encoder, &request.line, give_up_at).await {
+                    Ok(()) => {}
+                    Err(err @ Error::InvalidArgument { .. }) => {
+                        let _ = request.waiter.send(Err(err));
+                        continue;
                     }
-                    Err(_) => {
-                        let err = Error::Broken("the controller stopped reading commands".into());
+                    Err(err) => {
                         let _ = request.waiter.send(Err(err.clone()));
                         break err;
                     }
@@ -151,17 +357,19 @@ pub(crate) async fn run(
                     line: request.line,
                     expect: request.expect,
                     waiter: request.waiter,
-                    give_up_at: request.deadline + config.give_up_after,
+                    give_up_at,
+                    probe: None,
                 });
             }
         }
     };
 
-    shared.record(&end);
     pipeline.fail_all(&end);
-    requests.close();
-    while let Ok(request) = requests.try_recv() {
-        let _ = request.waiter.send(Err(end.clone()));
-    }
     let _ = write.shutdown().await;
+    // After BYE the program is done with the connection, however it ended.
+    if closing {
+        Error::Closed
+    } else {
+        end
+    }
 }

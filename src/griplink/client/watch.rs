@@ -10,7 +10,7 @@ use futures_core::Stream;
 use tokio::sync::mpsc;
 use tokio::time::{Instant, MissedTickBehavior};
 
-use super::Port;
+use super::{Client, Port};
 use crate::griplink::command::Blocking;
 use crate::griplink::error::{Error, Result};
 use crate::griplink::state::DeviceState;
@@ -114,6 +114,10 @@ impl Port {
 
     /// Starts `GRIP(p,index)` and waits for its outcome: holding, no part, or fault. The whole
     /// wait is bounded by the motion timeout (or the handle's timeout).
+    ///
+    /// Not atomic: dropped after the command was sent, the motion still runs and only the wait is
+    /// abandoned (with [`WaitBy::Transition`] a `WSTR` in flight still holds the connection until
+    /// the next state change). Each step is [cancel-safe](super#cancellation).
     pub async fn grip_and_wait(&self, index: u32, by: WaitBy) -> Result<GripOutcome> {
         self.grip(index, Blocking::Immediate).await?;
         self.wait_until("waiting for the grip", by, grip_outcome)
@@ -121,6 +125,10 @@ impl Port {
     }
 
     /// Starts `RELEASE(p,index)` and waits for its outcome: released or fault.
+    ///
+    /// Not atomic: dropped after the command was sent, the motion still runs and only the wait is
+    /// abandoned (with [`WaitBy::Transition`] a `WSTR` in flight still holds the connection until
+    /// the next state change). Each step is [cancel-safe](super#cancellation).
     pub async fn release_and_wait(&self, index: u32, by: WaitBy) -> Result<ReleaseOutcome> {
         self.release(index, Blocking::Immediate).await?;
         self.wait_until("waiting for the release", by, release_outcome)
@@ -128,10 +136,11 @@ impl Port {
     }
 
     /// A stream of the device state (`DEVSTATE[p]?`), polled every `interval`. Ends when the
-    /// connection ends; dropping it stops the polling.
+    /// connection is closed for good (with a reconnect policy, a lost connection yields its
+    /// error and polling goes on once it is restored); dropping it stops the polling.
     pub fn watch_state(&self, interval: Duration) -> Watch<DeviceState> {
         let port = self.clone();
-        Watch::spawn(interval, move || {
+        Watch::spawn(self.client.clone(), interval, move || {
             let port = port.clone();
             async move { port.state().await }
         })
@@ -141,7 +150,7 @@ impl Port {
     /// gripper's finger position in mm), polled every `interval`.
     pub fn watch_value(&self, index: u32, interval: Duration) -> Watch<f64> {
         let port = self.clone();
-        Watch::spawn(interval, move || {
+        Watch::spawn(self.client.clone(), interval, move || {
             let port = port.clone();
             async move { port.value_f(index).await }
         })
@@ -149,7 +158,7 @@ impl Port {
 }
 
 /// A [`Stream`] of polled readings. Errors are yielded as items; the stream ends when the
-/// connection is gone. Dropping it stops the polling task.
+/// connection is closed for good. Dropping it stops the polling task.
 #[derive(Debug)]
 pub struct Watch<T> {
     readings: mpsc::Receiver<Result<T>>,
@@ -157,7 +166,7 @@ pub struct Watch<T> {
 }
 
 impl<T: Send + 'static> Watch<T> {
-    fn spawn<F, Fut>(interval: Duration, mut poll: F) -> Watch<T>
+    fn spawn<F, Fut>(client: Client, interval: Duration, mut poll: F) -> Watch<T>
     where
         F: FnMut() -> Fut + Send + 'static,
         Fut: Future<Output = Result<T>> + Send,
@@ -170,10 +179,11 @@ impl<T: Send + 'static> Watch<T> {
             loop {
                 ticker.tick().await;
                 let reading = poll().await;
+                // A lost connection that is being restored is not the end.
                 let gone = matches!(
                     reading,
-                    Err(Error::Closed | Error::Broken(_) | Error::Io(_))
-                );
+                    Err(Error::Closed | Error::ConnectionLost(_) | Error::Io(_))
+                ) && client.is_closed();
                 if tx.send(reading).await.is_err() || gone {
                     break;
                 }

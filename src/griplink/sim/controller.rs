@@ -180,7 +180,8 @@ impl SimConfig {
     }
 
     /// The same configuration with `device` on `port` (growing the port list if needed).
-    pub fn device(mut self, port: usize, device: Option<SimDevice>) -> Self {
+    pub fn device(mut self, port: PortNumber, device: Option<SimDevice>) -> Self {
+        let port = usize::from(port);
         if self.ports.len() <= port {
             self.ports.resize(port + 1, None);
         }

@@ -2,7 +2,7 @@
 //!
 //! - [`parse`]: the controller's command parser (pure);
 //! - [`controller`]: the controller and device state machines (pure, time passed in);
-//! - [`server`]: serves it over TCP, with fault injection.
+//! - [`SimServer`]: serves it over TCP, with fault injection ([`Fault`]).
 //!
 //! Simulated motion takes `distance / speed × time_scale` of wall time: use
 //! [`SimConfig::time_scale`]`(0.0)` in tests so that motion costs no time (every motion is done
@@ -11,7 +11,9 @@
 
 pub mod controller;
 pub mod parse;
-pub mod server;
+mod server;
 
+// Inlined, so that this page lists them with their summaries.
+#[doc(inline)]
 pub use controller::{Controller, Role, SimConfig, SimDevice};
 pub use server::{Fault, ReplyGate, SimServer};

@@ -22,7 +22,7 @@ use tokio_util::codec::FramedRead;
 use super::controller::{error_line, Controller, Outcome, Session, SimConfig, Wait};
 use super::parse::{clean_line, parse_command};
 use crate::griplink::codec::{Discarded, Line, LineCodec, DEFAULT_MAX_LINE_LEN};
-use crate::griplink::command::Command;
+use crate::griplink::command::{Command, PortNumber};
 use crate::griplink::state::DeviceState;
 use crate::griplink::status::Status;
 
@@ -101,7 +101,7 @@ impl Shared {
 /// # #[tokio::main(flavor = "current_thread")]
 /// # async fn main() -> std::io::Result<()> {
 /// use gripper::griplink::sim::{SimConfig, SimServer};
-/// let server = SimServer::start("127.0.0.1:0", SimConfig::et4().time_scale(0.0)).await?;
+/// let server = SimServer::bind("127.0.0.1:0", SimConfig::et4().time_scale(0.0)).await?;
 /// println!("controller at {}", server.local_addr());
 /// # Ok(()) }
 /// ```
@@ -121,7 +121,7 @@ impl std::fmt::Debug for SimServer {
 
 impl SimServer {
     /// Binds `addr` (port 0 picks a free port) and serves `config` until shut down.
-    pub async fn start(addr: impl ToSocketAddrs, config: SimConfig) -> io::Result<SimServer> {
+    pub async fn bind(addr: impl ToSocketAddrs, config: SimConfig) -> io::Result<SimServer> {
         let listener = TcpListener::bind(addr).await?;
         let addr = listener.local_addr()?;
         let shared = Arc::new(Shared {
@@ -145,9 +145,9 @@ impl SimServer {
         self.addr
     }
 
-    /// Stops accepting and closes every connection.
-    pub fn shutdown(&self) {
-        let _ = self.shutdown.send(true);
+    /// Stops accepting and closes every connection (dropping the server does the same).
+    pub fn shutdown(self) {
+        // Drop does it.
     }
 
     /// Queues a fault for the next command line received (faults apply in queue order, one
@@ -172,29 +172,29 @@ impl SimServer {
     }
 
     /// The device state on `port` (`None` if the port does not exist).
-    pub fn device_state(&self, port: usize) -> Option<DeviceState> {
-        self.with_controller(|c, now| c.state(port, now))
+    pub fn device_state(&self, port: PortNumber) -> Option<DeviceState> {
+        self.with_controller(|c, now| c.state(usize::from(port), now))
     }
 
     /// Puts a part of `width_mm` between the fingers on `port` (`None`: take it away).
-    pub fn set_part(&self, port: usize, width_mm: Option<f64>) {
-        self.with_controller(|c, _| c.set_part(port, width_mm));
+    pub fn set_part(&self, port: PortNumber, width_mm: Option<f64>) {
+        self.with_controller(|c, _| c.set_part(usize::from(port), width_mm));
     }
 
     /// Faults the device on `port` now.
-    pub fn inject_device_fault(&self, port: usize) {
-        self.with_controller(|c, now| c.inject_fault(port, now));
+    pub fn inject_device_fault(&self, port: PortNumber) {
+        self.with_controller(|c, now| c.inject_fault(usize::from(port), now));
     }
 
     /// Makes the next motion on `port` end in `DS_FAULT`.
-    pub fn fault_next_motion(&self, port: usize) {
-        self.with_controller(|c, _| c.fault_next_motion(port));
+    pub fn fault_next_motion(&self, port: PortNumber) {
+        self.with_controller(|c, _| c.fault_next_motion(usize::from(port)));
     }
 }
 
 impl Drop for SimServer {
     fn drop(&mut self) {
-        self.shutdown();
+        let _ = self.shutdown.send(true);
     }
 }
 
@@ -229,7 +229,10 @@ async fn serve(stream: TcpStream, shared: Arc<Shared>) {
 
 async fn serve_lines(stream: TcpStream, shared: &Shared) -> io::Result<()> {
     let (read, mut write) = stream.into_split();
-    let mut reader = FramedRead::new(read, LineCodec::new(shared.max_line_len));
+    // A command is a line ended by LF (manual 2.1): one cut off by a lost connection is not
+    // executed (`GRIP(0,1)` without its LF must not grip).
+    let codec = LineCodec::new(shared.max_line_len).reject_unterminated();
+    let mut reader = FramedRead::new(read, codec);
     let mut session = Session::default();
     while let Some(line) = poll_fn(|cx| Pin::new(&mut reader).poll_next(cx)).await {
         let command = match line? {

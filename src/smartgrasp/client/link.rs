@@ -15,10 +15,11 @@ use tokio::net::tcp::{OwnedReadHalf, OwnedWriteHalf};
 use tokio::net::TcpStream;
 use tokio::sync::{mpsc, oneshot};
 use tokio_util::codec::FramedRead;
+use tokio_util::sync::CancellationToken;
 
 use super::pairing::{check_response, Pairing};
 use super::session::Session;
-use super::ClientConfig;
+use super::{ClientConfig, Timeouts};
 use crate::smartgrasp::codec::ClientCodec;
 use crate::smartgrasp::error::{Error, Malformed, Result};
 use crate::smartgrasp::frame::{RequestFrame, ResponseFrame};
@@ -51,13 +52,17 @@ pub(crate) struct Link {
     pairing: Pairing,
     /// The last response paired, to recognise an exact repeat of it (see `on_response`).
     last_response: Option<ResponseFrame>,
+    /// The configured timeouts, which also bound each write (see `send`).
+    timeouts: Timeouts,
 }
 
 impl Link {
-    /// Connects within `timeout`.
-    pub(crate) async fn connect(addrs: &[SocketAddr], timeout: Duration) -> Result<Link> {
-        let stream =
-            within_connect_timeout(timeout, async { Ok(TcpStream::connect(addrs).await?) }).await?;
+    /// Connects within the configured connect timeout.
+    pub(crate) async fn connect(addrs: &[SocketAddr], config: &ClientConfig) -> Result<Link> {
+        let stream = within_connect_timeout(config.connect_timeout, async {
+            Ok(TcpStream::connect(addrs).await?)
+        })
+        .await?;
         // Requests are single 80-byte writes waiting for an answer: do not let Nagle hold them.
         stream.set_nodelay(true)?;
         let (read, write) = stream.into_split();
@@ -67,6 +72,7 @@ impl Link {
             waiting: VecDeque::with_capacity(MAX_IN_FLIGHT),
             pairing: Pairing::default(),
             last_response: None,
+            timeouts: config.timeouts(),
         })
     }
 
@@ -99,17 +105,21 @@ impl Link {
     }
 
     /// Serves calls until the connection breaks (`Some(reason)`; every call that was waiting on
-    /// it has been answered with an error) or every handle is gone (`None`). Records the set-up
-    /// requests the server accepts in `session`.
+    /// it has been answered with an error), the program closes the client (`shutdown`, then the
+    /// reason is [`Error::Closed`]) or every handle is gone (`None`). Records the set-up requests
+    /// the server accepts in `session`.
     pub(crate) async fn serve(
         &mut self,
         calls: &mut mpsc::Receiver<Call>,
         session: &mut Session,
+        shutdown: &CancellationToken,
     ) -> Option<Error> {
         let reason = loop {
             tokio::select! {
-                // Responses first: each frees a slot.
+                // Closing first: `close()` must not wait behind a busy connection. Then
+                // responses: each frees a slot.
                 biased;
+                () = shutdown.cancelled() => break Error::Closed,
                 item = self.next_response() => match item {
                     None => break server_closed(),
                     Some(Err(e)) => break e,
@@ -150,18 +160,33 @@ impl Link {
     }
 
     /// Writes a request and queues its reply slot. On a write error the call gets it too.
+    ///
+    /// The write is bounded by the timeout of the request's type: a server that stops reading
+    /// (its receive window full) must not wedge the task, which also reads the responses and
+    /// serves `close()`. A write cut short leaves part of a frame on the wire, so on expiry the
+    /// connection is given up as lost.
     async fn send(
         &mut self,
         request: RequestFrame,
         reply: oneshot::Sender<Result<ResponseFrame>>,
     ) -> Result<()> {
-        if let Err(e) = self.write.write_all(&request.encode()).await {
-            let e = Error::from(e);
-            let _ = reply.send(Err(e.clone()));
-            return Err(e);
-        }
-        self.waiting.push_back(Waiting { request, reply });
-        Ok(())
+        let limit = self.timeouts.for_type(request.header.message_type);
+        let error = match tokio::time::timeout(limit, self.write.write_all(&request.encode())).await
+        {
+            Ok(Ok(())) => {
+                self.waiting.push_back(Waiting { request, reply });
+                return Ok(());
+            }
+            Ok(Err(e)) => Error::from(e),
+            Err(_) => Error::ConnectionLost {
+                reason: format!(
+                    "the server stopped reading requests (a write took over {limit:?})"
+                )
+                .into(),
+            },
+        };
+        let _ = reply.send(Err(error.clone()));
+        Err(error)
     }
 
     /// Responses carry no request id. Right behind a request whose caller gave up, the response
@@ -256,7 +281,7 @@ pub(crate) async fn within_connect_timeout<T>(
 }
 
 fn server_closed() -> Error {
-    Error::ConnectionClosed {
+    Error::ConnectionLost {
         reason: "the server closed the connection".into(),
     }
 }
@@ -265,7 +290,7 @@ fn server_closed() -> Error {
 /// was already given to the call whose response carried it; the others only lost the connection.
 fn waiting_error(reason: &Error) -> Error {
     match reason {
-        Error::Malformed(
+        Error::MalformedReply(
             Malformed::MessageType { .. }
             | Malformed::CommunicationType(_)
             | Malformed::Version { .. }
@@ -280,15 +305,15 @@ fn waiting_error(reason: &Error) -> Error {
 /// What a call gets on a connection that is already gone (or never got to send its request).
 pub(crate) fn closed_error(reason: Option<&Error>) -> Error {
     match reason {
-        Some(Error::ConnectionClosed { reason }) => Error::ConnectionClosed {
+        Some(Error::ConnectionLost { reason }) => Error::ConnectionLost {
             reason: Arc::clone(reason),
         },
         // Still the answer to every later call, and typed so a program can tell the user.
-        Some(e @ Error::ServerTooOld { .. }) => e.clone(),
-        Some(reason) => Error::ConnectionClosed {
+        Some(e @ (Error::ServerTooOld { .. } | Error::Closed)) => e.clone(),
+        Some(reason) => Error::ConnectionLost {
             reason: reason.to_string().into(),
         },
-        None => Error::ConnectionClosed {
+        None => Error::ConnectionLost {
             reason: "the connection task has ended".into(),
         },
     }

@@ -6,11 +6,13 @@ mod session;
 mod task;
 
 use std::net::SocketAddr;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, OnceLock};
 use std::time::Duration;
 
 use tokio::net::ToSocketAddrs;
 use tokio::sync::{mpsc, oneshot};
+use tokio_util::sync::CancellationToken;
 
 use super::error::{Error, Result};
 use super::frame::ResponseFrame;
@@ -49,11 +51,11 @@ pub struct ClientConfig {
     /// Project to activate in the opening sequence (`None`: keep the server's active project).
     pub project_index: Option<u32>,
     /// Reconnect after a lost connection (`None`, the default: a lost connection stays closed
-    /// and every later call fails with [`Error::ConnectionClosed`]).
+    /// and every later call fails with [`Error::ConnectionLost`]).
     ///
     /// With a policy, when the connection breaks (the server closed it, I/O failed, or a reply
     /// broke the protocol):
-    /// - the calls in flight fail ([`Error::ConnectionClosed`], or the error that broke it); they
+    /// - the calls in flight fail ([`Error::ConnectionLost`], or the error that broke it); they
     ///   are **never sent again** by the client: a GET_GRASP or GRASP_FEEDBACK may have been
     ///   acted on by the server, and only the program can tell whether to repeat it;
     /// - the client reconnects with the policy's backoff and runs the opening sequence again:
@@ -64,7 +66,8 @@ pub struct ClientConfig {
     ///   times out while waiting was never sent;
     /// - each step is reported through [`Client::connection_events`] and `tracing`.
     ///
-    /// When the policy gives up, the client is closed like one without a policy.
+    /// When the policy gives up, the client is closed like one without a policy. After
+    /// [`Client::close`], nothing reconnects.
     pub reconnect: Option<ReconnectPolicy>,
 }
 
@@ -82,7 +85,7 @@ impl Default for ClientConfig {
 }
 
 impl ClientConfig {
-    fn timeouts(&self) -> Timeouts {
+    pub(crate) fn timeouts(&self) -> Timeouts {
         Timeouts {
             query: self.query_timeout,
             detection: self.detection_timeout,
@@ -92,13 +95,13 @@ impl ClientConfig {
 
 /// The two call timeouts, and the one place a call is bounded by its timeout.
 #[derive(Debug, Clone, Copy)]
-struct Timeouts {
+pub(crate) struct Timeouts {
     query: Duration,
     detection: Duration,
 }
 
 impl Timeouts {
-    fn for_type(self, message_type: MessageType) -> Duration {
+    pub(crate) fn for_type(self, message_type: MessageType) -> Duration {
         match message_type {
             MessageType::GetGrasp | MessageType::GetObjectCount | MessageType::SetProject => {
                 self.detection
@@ -127,7 +130,7 @@ impl Timeouts {
 
 /// The outcome of GET_GRASP. NO_OBJECT and NO_GRASP are normal results in a picking loop (the
 /// bin is empty, or nothing is graspable right now), so they are values, not errors; ERROR and
-/// undefined codes are [`Error::Refused`].
+/// undefined codes are [`Error::Device`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[must_use]
 pub enum GetGraspOutcome {
@@ -168,6 +171,16 @@ pub struct Client {
     closed: Arc<OnceLock<Error>>,
     events: EventSubscriber,
     timeouts: Timeouts,
+    close: Arc<Close>,
+}
+
+/// What [`Client::close`] shares between the handles and the task.
+#[derive(Debug, Default)]
+struct Close {
+    /// Set by the first `close()`: later calls fail with [`Error::Closed`].
+    requested: AtomicBool,
+    /// Tells the task to end (see `task.rs`).
+    shutdown: CancellationToken,
 }
 
 impl Client {
@@ -180,7 +193,7 @@ impl Client {
     /// a session that was open. Cancel-safe: dropping the future closes the new connection.
     pub async fn connect(addr: impl ToSocketAddrs, config: ClientConfig) -> Result<Client> {
         let addrs = link::within_connect_timeout(config.connect_timeout, resolve(addr)).await?;
-        let mut link = Link::connect(&addrs, config.connect_timeout).await?;
+        let mut link = Link::connect(&addrs, &config).await?;
         let session = Session::from_config(&config);
         let server_version = session.open(&mut link, &config).await?;
         tracing::info!(server_version, "smartgrasp session open");
@@ -195,7 +208,7 @@ impl Client {
         config: ClientConfig,
     ) -> Result<Client> {
         let addrs = link::within_connect_timeout(config.connect_timeout, resolve(addr)).await?;
-        let link = Link::connect(&addrs, config.connect_timeout).await?;
+        let link = Link::connect(&addrs, &config).await?;
         Ok(Client::spawn(link, addrs, Session::default(), config))
     }
 
@@ -203,11 +216,13 @@ impl Client {
         let (calls, rx) = mpsc::channel(CALL_QUEUE);
         let closed = Arc::new(OnceLock::new());
         let events = EventSender::new("smartgrasp", EVENT_BUFFER);
+        let close = Arc::new(Close::default());
         let client = Client {
             calls,
             closed: Arc::clone(&closed),
             events: events.subscriber(),
             timeouts: config.timeouts(),
+            close: Arc::clone(&close),
         };
         let task = task::Task {
             calls: rx,
@@ -216,6 +231,7 @@ impl Client {
             config,
             addrs,
             events,
+            shutdown: close.shutdown.clone(),
         };
         tokio::spawn(task::run(link, task));
         client
@@ -236,6 +252,23 @@ impl Client {
     /// reconnects it is not closed.
     pub fn is_closed(&self) -> bool {
         self.calls.is_closed()
+    }
+
+    /// Ends the connection for every clone of this handle, and stops any reconnecting. Calls
+    /// waiting for a response and calls queued fail with [`Error::Closed`], and so does every
+    /// later call. None of V3's eight message types ends a session (manual 3.3): the TCP
+    /// connection is simply closed. Returns once the connection is released; [`Error::Closed`]
+    /// if the client was already closed with `close()`.
+    ///
+    /// Cancel-safe: dropping the future after its first poll does not undo the close.
+    pub async fn close(&self) -> Result<()> {
+        if self.close.requested.swap(true, Ordering::SeqCst) {
+            return Err(Error::Closed);
+        }
+        self.close.shutdown.cancel();
+        // The task closes the channel (or drops it) when it ends, and the socket with it.
+        self.calls.closed().await;
+        Ok(())
     }
 
     /// The connection's events from now on: each loss, reconnect attempt and recovery (see
@@ -339,9 +372,9 @@ impl Client {
             (ResponseCode::NoGrasp, _) => Ok(GetGraspOutcome::NoGrasp),
             (ResponseCode::InvalidObjectClass, _) => Ok(GetGraspOutcome::InvalidObjectClass),
             (ResponseCode::Success, other) => Err(unexpected_body(other)),
-            (code, _) => Err(Error::Refused {
+            (code, _) => Err(Error::Device {
                 message_type: MessageType::GetGrasp,
-                code,
+                status: code,
             }),
         }
     }
@@ -357,7 +390,7 @@ impl Client {
     }
 
     /// GET_OBJECT_COUNT: counts the objects of the scene, and those of `object_class` (0 = all)
-    /// (manual 3.3.4.1). INVALID_OBJECT_CLASS is [`Error::Refused`].
+    /// (manual 3.3.4.1). INVALID_OBJECT_CLASS is [`Error::Device`].
     /// Cancel-safe; a cancelled call has no effect on the server.
     pub async fn get_object_count(&self, object_class: u16) -> Result<ObjectCount> {
         match self
@@ -400,6 +433,9 @@ impl Client {
 
     /// The error of a call on a connection that is gone.
     fn closed(&self) -> Error {
+        if self.close.requested.load(Ordering::SeqCst) {
+            return Error::Closed;
+        }
         link::closed_error(self.closed.get())
     }
 }

@@ -169,7 +169,7 @@ mod tests {
     fn unsolicited_responses_are_refused() {
         assert!(matches!(
             Pairing::default().counter(0, 0),
-            Err(Error::Malformed(Malformed::Unsolicited { counter: 0 }))
+            Err(Error::MalformedReply(Malformed::Unsolicited { counter: 0 }))
         ));
     }
 

@@ -70,12 +70,12 @@ impl Session {
     }
 }
 
-/// The body of a SUCCESS response; any other code is [`Error::Refused`].
+/// The body of a SUCCESS response; any other code is [`Error::Device`].
 pub(crate) fn success(response: Response) -> Result<ResponseBody> {
     if response.code != ResponseCode::Success {
-        return Err(Error::Refused {
+        return Err(Error::Device {
             message_type: response.message_type,
-            code: response.code,
+            status: response.code,
         });
     }
     Ok(response.body)
@@ -85,5 +85,5 @@ pub(crate) fn success(response: Response) -> Result<ResponseBody> {
 /// checks (the body is read by message type); reported as malformed rather than trusted.
 pub(crate) fn unexpected_body(body: ResponseBody) -> Error {
     tracing::error!(?body, "response body does not match its message type");
-    Error::Malformed(Malformed::MissingBody)
+    Error::MalformedReply(Malformed::MissingBody)
 }

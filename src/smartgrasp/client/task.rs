@@ -3,12 +3,14 @@
 //! the opening sequence again before serving the calls that queued meanwhile.
 //!
 //! When it closes for good, every queued call gets the reason, and so does every later call
-//! (through `closed`).
+//! (through `closed`). [`Client::close`](super::Client::close) ends it at any point, reconnecting
+//! included: the reason is then [`Error::Closed`].
 
 use std::net::SocketAddr;
 use std::sync::{Arc, OnceLock};
 
 use tokio::sync::mpsc;
+use tokio_util::sync::CancellationToken;
 
 use super::link::{closed_error, Call, Link};
 use super::session::Session;
@@ -25,15 +27,25 @@ pub(crate) struct Task {
     /// Where to reconnect to (resolved once, by the first connect).
     pub addrs: Vec<SocketAddr>,
     pub events: EventSender,
+    /// Cancelled by `Client::close`.
+    pub shutdown: CancellationToken,
 }
 
-/// Runs until every handle is dropped, or the connection is lost for good.
+/// Runs until every handle is dropped, the program closes the client, or the connection is lost
+/// for good.
 pub(crate) async fn run(mut link: Link, mut task: Task) {
     let reason = loop {
-        let Some(reason) = link.serve(&mut task.calls, &mut task.session).await else {
+        let served = link
+            .serve(&mut task.calls, &mut task.session, &task.shutdown)
+            .await;
+        let Some(reason) = served else {
             return;
         };
         drop(link);
+        // Closed by the program: nothing to report or restore.
+        if matches!(reason, Error::Closed) {
+            break reason;
+        }
         task.events.send(ConnectionEvent::Lost {
             reason: reason.to_string(),
         });
@@ -47,22 +59,28 @@ pub(crate) async fn run(mut link: Link, mut task: Task) {
             config,
             addrs,
             events,
+            shutdown,
             ..
         } = &task;
-        let restored = reconnect::retry(
+        let retry = reconnect::retry(
             &policy,
             events,
             || calls.is_closed(),
             |_| async {
-                let mut link = Link::connect(addrs, config.connect_timeout).await?;
+                let mut link = Link::connect(addrs, config).await?;
                 events.send(ConnectionEvent::Connected);
                 session.open(&mut link, config).await?;
                 Ok::<_, Error>(link)
             },
-        )
-        .await;
+        );
+        // `close()` stops reconnecting, in a backoff wait or in the middle of an attempt.
+        let restored = tokio::select! {
+            restored = retry => restored,
+            () = shutdown.cancelled() => None,
+        };
         match restored {
             Some(restored) => link = restored,
+            None if shutdown.is_cancelled() => break Error::Closed,
             None => break reason,
         }
     };

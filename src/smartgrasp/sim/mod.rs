@@ -6,10 +6,10 @@
 //! scene on GRASP_FEEDBACK OK; REGISTER_CLIENT and ROBOT_POSE recorded; a response counter per
 //! connection that wraps (configurable start); a configurable protocol version (below 3 it
 //! answers "too old"); and [`Fault`]s to inject. Nothing in it moves, so it costs no wall time,
-//! except a [`Fault::Delay`] a test asks for.
+//! except a [`Fault::DelayReply`] a test asks for.
 
 mod server;
-pub mod state;
+mod state;
 
 pub use server::SimServer;
 pub use state::{

@@ -50,23 +50,23 @@ impl SimServer {
     /// Queues a fault; each replaces one upcoming response (on whichever connection answers
     /// next), in order.
     pub fn inject(&self, fault: Fault) {
-        self.state().inject(fault);
+        self.with_state(|s| s.inject(fault));
     }
 
     /// The robot systems REGISTER_CLIENT reported so far.
     pub fn registered_clients(&self) -> Vec<RobotSystem> {
-        self.state().registered_clients().to_vec()
+        self.with_state(|s| s.registered_clients().to_vec())
     }
 
     /// The poses ROBOT_POSE reported so far.
     pub fn robot_poses(&self) -> Vec<Pose> {
-        self.state().robot_poses().to_vec()
+        self.with_state(|s| s.robot_poses().to_vec())
     }
 
-    /// Locks the state to inspect or change it (scenes, server state). Do not hold the guard
-    /// across an `.await`: the server needs it to answer.
-    pub fn state(&self) -> MutexGuard<'_, SimState> {
-        lock(&self.state)
+    /// Runs `f` on the state to inspect or change it (scenes, server state, faults). The server
+    /// waits while `f` runs, so no lock can be held across an `.await`.
+    pub fn with_state<R>(&self, f: impl FnOnce(&mut SimState) -> R) -> R {
+        f(&mut lock(&self.state))
     }
 
     /// Stops the server and closes every connection.

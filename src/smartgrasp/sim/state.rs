@@ -68,12 +68,13 @@ impl SimProject {
 
 /// A fault to inject in place of the next response, for users' tests.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
 pub enum Fault {
     /// Process the request but send no response; the response counter still advances, so the
     /// next response shows a gap.
-    SkipResponse,
+    DropReply,
     /// Send the response after this wall-clock delay (responses stay in order).
-    Delay(Duration),
+    DelayReply(Duration),
     /// Send the response with this value in the prefix's length field.
     CorruptLength(u32),
     /// Close the connection instead of answering.
@@ -169,7 +170,7 @@ pub enum Action {
     Respond(ResponseFrame),
     /// Send the empty "too old" message: a prefix with length 0 and the server's version.
     RespondEmpty(Prefix),
-    /// Send nothing (an injected [`Fault::SkipResponse`]).
+    /// Send nothing (an injected [`Fault::DropReply`]).
     Skip,
     /// Send this response after the delay.
     Delay(Duration, ResponseFrame),
@@ -302,8 +303,8 @@ impl SimState {
         .to_frame(frame.version);
         match self.faults.pop_front() {
             None => Action::Respond(response),
-            Some(Fault::SkipResponse) => Action::Skip,
-            Some(Fault::Delay(d)) => Action::Delay(d, response),
+            Some(Fault::DropReply) => Action::Skip,
+            Some(Fault::DelayReply(d)) => Action::Delay(d, response),
             Some(Fault::CorruptLength(length)) => {
                 let mut bytes = response.encode();
                 bytes[2..6].copy_from_slice(&length.to_be_bytes());

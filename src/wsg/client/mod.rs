@@ -1,19 +1,21 @@
 //! The async client: a cheap, cloneable handle to a background task that owns the connection.
 
+mod connector;
 mod pairing;
 mod task;
 
 use std::net::SocketAddr;
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, OnceLock};
 use std::time::Duration;
 
 use bytes::Bytes;
-use tokio::net::{TcpStream, ToSocketAddrs, UdpSocket};
+use tokio::net::{ToSocketAddrs, UdpSocket};
 use tokio::sync::{mpsc, oneshot};
 use tokio::time::{timeout_at, Instant};
 use tokio_util::codec::Framed;
 
+use self::connector::{Connector, ConnectorKind, Reconnect};
 use self::task::{Msg, Task};
 use super::command::{id, Command, HomingDirection, UpdateMode};
 use super::subscription::{Subscriber, Subscription, UpdateOptions};
@@ -23,6 +25,7 @@ use super::{
     Error, Finger, FingerFlags, FingerInfo, Frame, GraspingStatistics, GripState, Reply, Result,
     SoftLimits, Status, SystemInfo, SystemLimits, SystemState, WsgCodec,
 };
+use crate::reconnect::{ConnectionEvents, EventSubscriber, ReconnectPolicy};
 
 /// Default timeout of queries and settings.
 pub const DEFAULT_QUERY_TIMEOUT: Duration = Duration::from_secs(1);
@@ -31,6 +34,14 @@ pub const DEFAULT_QUERY_TIMEOUT: Duration = Duration::from_secs(1);
 pub const DEFAULT_MOTION_TIMEOUT: Duration = Duration::from_secs(30);
 /// Default time an unanswered request keeps its command id after its caller's deadline.
 pub const DEFAULT_LATE_REPLY_GRACE: Duration = Duration::from_secs(2);
+/// Default timeout of a TCP connect (see [`ClientBuilder::connect_timeout`]).
+pub const DEFAULT_CONNECT_TIMEOUT: Duration = Duration::from_secs(5);
+/// Default silence after which a partial frame is dropped as noise (see
+/// [`ClientBuilder::partial_frame_timeout`]).
+pub const DEFAULT_PARTIAL_FRAME_TIMEOUT: Duration = Duration::from_millis(500);
+/// Connection events each [`Client::connection_events`] stream buffers, at most (a slower
+/// reader gets [`ConnectionEvent::Missed`](crate::reconnect::ConnectionEvent::Missed)).
+pub const EVENT_BUFFER: usize = 32;
 /// Default buffer of each subscription, in updates.
 pub const DEFAULT_SUBSCRIPTION_BUFFER: usize = 64;
 
@@ -45,6 +56,9 @@ pub struct ClientBuilder {
     max_payload_len: usize,
     announce_disconnect: Option<bool>,
     serial_exclusive: bool,
+    partial_frame_timeout: Duration,
+    connect_timeout: Duration,
+    reconnect: Option<ReconnectPolicy>,
 }
 
 impl Default for ClientBuilder {
@@ -58,6 +72,9 @@ impl Default for ClientBuilder {
             max_payload_len: super::frame::DEFAULT_MAX_PAYLOAD_LEN,
             announce_disconnect: None,
             serial_exclusive: true,
+            partial_frame_timeout: DEFAULT_PARTIAL_FRAME_TIMEOUT,
+            connect_timeout: DEFAULT_CONNECT_TIMEOUT,
+            reconnect: None,
         }
     }
 }
@@ -103,6 +120,47 @@ impl ClientBuilder {
         self
     }
 
+    /// How long the start of a frame may wait for its next byte before the decoder drops it as
+    /// noise and looks for a frame after it (default 500 ms). A corrupted length field (below
+    /// [`max_payload_len`](Self::max_payload_len)) would otherwise hold back every later reply
+    /// until that many bytes had arrived. Keep it above the longest pause a sound link can have
+    /// inside one frame (a TCP retransmission takes 200 ms or more).
+    pub fn partial_frame_timeout(mut self, t: Duration) -> Self {
+        self.partial_frame_timeout = t;
+        self
+    }
+
+    /// Timeout of a TCP connect, address resolution included, for the first connect and each
+    /// reconnect attempt (default 5 s). Without it a connect to a host that is gone would take
+    /// the operating system's retries, minutes.
+    pub fn connect_timeout(mut self, t: Duration) -> Self {
+        self.connect_timeout = t;
+        self
+    }
+
+    /// Reconnect after a lost connection, with this backoff (default: off, the client then fails
+    /// every later call with [`Error::ConnectionLost`]). TCP and serial only.
+    ///
+    /// With a policy:
+    /// - calls in flight when the link drops fail with [`Error::ConnectionLost`] and are never
+    ///   sent again on their own, motion commands included; calls made while the client
+    ///   reconnects wait for the new connection within their own timeouts;
+    /// - each attempt reopens the same address or port (a TCP connect within
+    ///   [`connect_timeout`](Self::connect_timeout));
+    /// - the auto-update streams that still have a [`Subscription`] are switched on again, and
+    ///   the streams go on; dropped ones are not restored;
+    /// - each loss, attempt and recovery is reported through [`Client::connection_events`] and
+    ///   `tracing`; after the policy's last attempt the client gives up and later calls fail.
+    ///
+    /// An unannounced TCP loss puts the gripper into FAST STOP (manual 1.4.2): after a
+    /// reconnect, motion is refused (E_ACCESS_DENIED) until the program calls
+    /// [`Client::acknowledge_fast_stop`]. The client never acknowledges it on its own; the
+    /// `Lost` event says so.
+    pub fn reconnect(mut self, policy: ReconnectPolicy) -> Self {
+        self.reconnect = Some(policy);
+        self
+    }
+
     /// Whether [`Client::close`] sends the disconnect announcement (0x07) first. Default: on for
     /// TCP (manual 1.4.2: an unannounced close puts the gripper into FAST STOP), off otherwise
     /// (other transports answer E_NOT_AVAILABLE).
@@ -118,14 +176,27 @@ impl ClientBuilder {
         self
     }
 
-    /// Connects over TCP (the WSG listens on port 1000 by default).
+    /// Connects over TCP (the WSG listens on port [`DEFAULT_PORT`](crate::wsg::DEFAULT_PORT),
+    /// 1000, by default), within [`connect_timeout`](Self::connect_timeout).
+    ///
+    /// Cancel-safe: a dropped call leaves nothing behind.
     pub async fn connect_tcp(self, addr: impl ToSocketAddrs) -> Result<Client> {
-        let stream = TcpStream::connect(addr).await?;
-        stream.set_nodelay(true)?;
-        Ok(self.start(Box::new(stream), TransportKind::Tcp))
+        let timeout = self.connect_timeout;
+        let deadline = Instant::now() + timeout;
+        // Resolved once: a reconnect goes to the same addresses.
+        let addrs: Vec<SocketAddr> = timeout_at(deadline, tokio::net::lookup_host(addr))
+            .await
+            .map_err(|_| connector::timed_out())??
+            .collect();
+        let stream =
+            connector::tcp(&addrs, deadline.saturating_duration_since(Instant::now())).await?;
+        let reconnect = ConnectorKind::Tcp(addrs);
+        Ok(self.start(Box::new(stream), TransportKind::Tcp, Some(reconnect)))
     }
 
     /// Talks over UDP to `remote`, from an ephemeral local port (each datagram is one frame).
+    ///
+    /// Cancel-safe: a dropped call leaves nothing behind.
     pub async fn connect_udp(self, remote: SocketAddr) -> Result<Client> {
         let local: SocketAddr = if remote.is_ipv4() {
             (std::net::Ipv4Addr::UNSPECIFIED, 0).into()
@@ -138,50 +209,55 @@ impl ClientBuilder {
     /// Talks over UDP to `remote` from the local address `local` (use the port the gripper is
     /// configured to send its replies to). Datagrams are accepted from `remote`'s IP address,
     /// whatever their source port; others are dropped with a trace.
+    ///
+    /// Cancel-safe: a dropped call leaves nothing behind.
     pub async fn connect_udp_from(self, local: SocketAddr, remote: SocketAddr) -> Result<Client> {
         let socket = UdpSocket::bind(local).await?;
-        let link = Link::Udp {
-            socket,
-            peer: remote,
-            max_payload_len: self.max_payload_len,
-        };
-        Ok(self.start_link(link, TransportKind::Udp))
+        let link = Link::udp(socket, remote, self.max_payload_len);
+        Ok(self.start_link(link, TransportKind::Udp, None))
     }
 
     /// Opens a serial port (8N1, no flow control) at `baud_rate` (the WSG default is 115200).
     #[cfg(feature = "serial")]
     pub fn open_serial(self, path: &str, baud_rate: u32) -> Result<Client> {
-        use tokio_serial::SerialPortBuilderExt;
-        let port = tokio_serial::new(path, baud_rate)
-            .data_bits(tokio_serial::DataBits::Eight)
-            .parity(tokio_serial::Parity::None)
-            .stop_bits(tokio_serial::StopBits::One)
-            .flow_control(tokio_serial::FlowControl::None)
-            .exclusive(self.serial_exclusive)
-            .open_native_async()
-            .map_err(|e| Error::Io(std::io::Error::other(e)))?;
-        Ok(self.start(Box::new(port), TransportKind::Serial))
+        let port = connector::serial(path, baud_rate, self.serial_exclusive)?;
+        let reconnect = ConnectorKind::Serial {
+            path: path.to_owned(),
+            baud_rate,
+            exclusive: self.serial_exclusive,
+        };
+        Ok(self.start(Box::new(port), TransportKind::Serial, Some(reconnect)))
     }
 
     /// Uses a byte stream the caller already has (a serial port, a TLS tunnel, a test pipe).
     pub fn attach(self, io: impl AsyncReadWrite) -> Client {
-        self.start(Box::new(io), TransportKind::Attached)
+        self.start(Box::new(io), TransportKind::Attached, None)
     }
 
     /// Spawns the task on the current tokio runtime.
-    fn start(self, io: Box<dyn AsyncReadWrite>, kind: TransportKind) -> Client {
+    fn start(
+        self,
+        io: Box<dyn AsyncReadWrite>,
+        kind: TransportKind,
+        reconnect: Option<ConnectorKind>,
+    ) -> Client {
         let link = stream_link(io, self.max_payload_len);
-        self.start_link(link, kind)
+        self.start_link(link, kind, reconnect)
     }
 
-    fn start_link(self, link: Link, kind: TransportKind) -> Client {
+    fn start_link(
+        self,
+        link: Link,
+        kind: TransportKind,
+        reconnect: Option<ConnectorKind>,
+    ) -> Client {
         let (tx, rx) = mpsc::channel(self.request_queue);
         let (unsub_tx, unsub_rx) = mpsc::unbounded_channel();
         let announce = self
             .announce_disconnect
             .unwrap_or(kind == TransportKind::Tcp);
         let lost = Arc::new(OnceLock::new());
-        let task = Task::new(
+        let mut task = Task::new(
             link,
             rx,
             unsub_rx,
@@ -190,6 +266,21 @@ impl ClientBuilder {
             announce,
             lost.clone(),
         );
+        task.partial_frame_timeout = self.partial_frame_timeout;
+        task.tcp = kind == TransportKind::Tcp;
+        task.reconnect = self
+            .reconnect
+            .zip(reconnect)
+            .map(|(policy, kind)| Reconnect {
+                policy,
+                connector: Connector {
+                    kind,
+                    max_payload_len: self.max_payload_len,
+                    connect_timeout: self.connect_timeout,
+                },
+            });
+        let events = task.events.subscriber();
+        let closing = task.closing.clone();
         tokio::spawn(task.run());
         Client {
             shared: Arc::new(Shared {
@@ -199,6 +290,8 @@ impl ClientBuilder {
                 next_key: AtomicU64::new(0),
                 kind,
                 lost,
+                events,
+                closing,
             }),
             query_timeout: self.query_timeout,
             motion_timeout: self.motion_timeout,
@@ -220,8 +313,11 @@ struct Shared {
     subscription_buffer: usize,
     next_key: AtomicU64,
     kind: TransportKind,
-    /// Why the connection broke, once it did.
+    /// Why the connection broke for good, once it did.
     lost: Arc<OnceLock<String>>,
+    events: EventSubscriber,
+    /// Set when a handle asks to close: the task stops reconnecting.
+    closing: Arc<AtomicBool>,
 }
 
 impl Shared {
@@ -250,10 +346,43 @@ impl Shared {
 /// be taken for the next request of the same id. Acknowledged motion commands hold their id until
 /// their final reply.
 ///
+/// # A misbehaving wire
+/// What the client does about each fault (each one is tested through the fault proxy in
+/// `tests/wsg_faults.rs`):
+/// - a frame with a bad checksum is dropped; its call ends in a timeout (or, when the device
+///   rejected a corrupted request, [`Error::Device`] with E_CHECKSUM_ERROR);
+/// - a header whose bytes stop coming (a corrupted length) is dropped after
+///   [`ClientBuilder::partial_frame_timeout`], and the frames behind it are decoded;
+/// - a lost reply ends its call in a timeout; a lost E_CMD_PENDING changes nothing (the final
+///   reply ends the call); a lost final reply of a move times its call out, and the next move
+///   of that id asks the device whether it still moves before taking the id back;
+/// - a duplicated reply is dropped when no request of its id is on the wire. Frames already
+///   received are paired before the next request goes out, and a loop reply must echo its own
+///   payload; otherwise, without sequence numbers, a copy arriving after the next request of
+///   its id went out would be taken as its answer (it carries the same value unless the device
+///   changed in between);
+/// - a duplicated motion request while the first still moves is refused by the device with
+///   E_ALREADY_RUNNING, which cannot be the final reply of an acknowledged move and is
+///   dropped; a move that already ended runs a second time (to the same target), and its second
+///   pair of replies is dropped as unsolicited;
+/// - a cut connection fails the calls in flight with [`Error::ConnectionLost`] (see
+///   [`ClientBuilder::reconnect`]).
+///
 /// While a value is streamed ([`Client::subscribe_width_mm`] and friends), a one-off query of
 /// it is sent with the stream's flags, so it does not switch the device's updates off (FLAGS bit0
 /// clear would); it is answered by the next frame of that value, the reply or an update, which
 /// is at most one period older than the query.
+///
+/// # Cancellation
+/// Every method is cancel-safe for the connection: dropping its future at any await point (a
+/// `select!`, a timeout, an aborted task) never desyncs the client. A request not sent yet
+/// (waiting in the request queue or behind a request of the same id) is never sent. A request
+/// already sent keeps its command id until its reply arrives; that reply is consumed and
+/// discarded, never handed to another call. Cancelling does **not** undo the command on the
+/// device: a setting that was sent takes effect, and a motion command that was sent keeps the
+/// fingers moving to its end — send [`Client::stop`] (or [`Client::fast_stop`]) to stop them.
+/// Whether a dropped call had been sent cannot be told from outside: query the state (e.g.
+/// [`Client::system_state`]) when it matters.
 ///
 /// The connection closes when [`Client::close`] is called or the last handle is dropped (with the
 /// disconnect announcement on TCP either way). Call [`Client::close`] before the runtime shuts
@@ -272,6 +401,8 @@ impl Client {
     }
 
     /// Connects over TCP with the default configuration.
+    ///
+    /// Cancel-safe: a dropped call leaves nothing behind.
     pub async fn connect_tcp(addr: impl ToSocketAddrs) -> Result<Client> {
         ClientBuilder::default().connect_tcp(addr).await
     }
@@ -284,6 +415,16 @@ impl Client {
             query_timeout: query,
             motion_timeout: motion,
         }
+    }
+
+    /// The connection's events from now on: each loss, and with
+    /// [`ClientBuilder::reconnect`] each attempt and recovery (each is also logged with
+    /// `tracing`). The stream ends when the client has closed or given up. It buffers
+    /// [`EVENT_BUFFER`] events; a slower reader gets
+    /// [`ConnectionEvent::Missed`](crate::reconnect::ConnectionEvent::Missed) instead of the
+    /// oldest ones.
+    pub fn connection_events(&self) -> ConnectionEvents {
+        self.shared.events.subscribe()
     }
 
     /// The transport this client uses.
@@ -330,6 +471,9 @@ impl Client {
 
     /// Sends a typed command and returns the data of its E_SUCCESS reply; any other final status
     /// is [`Error::Device`].
+    ///
+    /// Cancel-safe for the connection; a command that was sent takes effect (a motion keeps moving)
+    /// even if the call is dropped (see [Cancellation](Client#cancellation)).
     pub async fn command(&self, command: Command) -> Result<Bytes> {
         command.validate().map_err(Error::InvalidArgument)?;
         let timeout = if command.is_async() {
@@ -344,12 +488,18 @@ impl Client {
     /// Sends a command the crate has no type for (e.g. scripting commands) and returns its final
     /// reply (after E_CMD_PENDING, if the device sends one) with whatever status it has, within
     /// the query timeout.
+    ///
+    /// Cancel-safe for the connection; a command that was sent takes effect (a motion keeps moving)
+    /// even if the call is dropped (see [Cancellation](Client#cancellation)).
     pub async fn request(&self, id: u8, payload: impl Into<Bytes>) -> Result<Reply> {
         self.request_with_timeout(id, payload, self.query_timeout)
             .await
     }
 
     /// [`Client::request`] with an explicit timeout.
+    ///
+    /// Cancel-safe for the connection; a command that was sent takes effect (a motion keeps moving)
+    /// even if the call is dropped (see [Cancellation](Client#cancellation)).
     pub async fn request_with_timeout(
         &self,
         id: u8,
@@ -391,16 +541,24 @@ impl Client {
     }
 
     /// Loop (0x06): the device echoes up to 256 bytes.
+    ///
+    /// Cancel-safe (see [Cancellation](Client#cancellation)).
     pub async fn loop_back(&self, data: impl Into<Bytes>) -> Result<Bytes> {
         self.command(Command::Loop(data.into())).await
     }
 
     /// Homing (0x20): references the fingers; needed before any other motion.
+    ///
+    /// Cancel-safe for the connection, but dropping the call does **not** stop the fingers: once
+    /// sent, the move runs to its end; send [`Client::stop`] (see [Cancellation](Client#cancellation)).
     pub async fn home(&self, direction: HomingDirection) -> Result<()> {
         self.no_data(Command::Homing(direction)).await
     }
 
     /// Pre-position (0x21) to an absolute width, stopping if blocked.
+    ///
+    /// Cancel-safe for the connection, but dropping the call does **not** stop the fingers: once
+    /// sent, the move runs to its end; send [`Client::stop`] (see [Cancellation](Client#cancellation)).
     pub async fn pre_position(&self, width_mm: f32, speed_mm_per_s: f32) -> Result<()> {
         self.no_data(Command::PrePosition {
             relative: false,
@@ -412,6 +570,9 @@ impl Client {
     }
 
     /// Pre-position (0x21) by a distance relative to the current width, stopping if blocked.
+    ///
+    /// Cancel-safe for the connection, but dropping the call does **not** stop the fingers: once
+    /// sent, the move runs to its end; send [`Client::stop`] (see [Cancellation](Client#cancellation)).
     pub async fn pre_position_relative(&self, distance_mm: f32, speed_mm_per_s: f32) -> Result<()> {
         self.no_data(Command::PrePosition {
             relative: true,
@@ -423,22 +584,34 @@ impl Client {
     }
 
     /// Stop (0x22): stops any motion (a pending motion fails with E_CMD_ABORTED).
+    ///
+    /// Cancel-safe for the connection; once sent, the command takes effect even if the call is
+    /// dropped (see [Cancellation](Client#cancellation)).
     pub async fn stop(&self) -> Result<()> {
         self.no_data(Command::Stop).await
     }
 
     /// Fast stop (0x23): stops and refuses motion until [`Client::acknowledge_fast_stop`].
+    ///
+    /// Cancel-safe for the connection; once sent, the command takes effect even if the call is
+    /// dropped (see [Cancellation](Client#cancellation)).
     pub async fn fast_stop(&self) -> Result<()> {
         self.no_data(Command::FastStop).await
     }
 
     /// Acknowledge a fast stop or fault (0x24).
+    ///
+    /// Cancel-safe for the connection; once sent, the command takes effect even if the call is
+    /// dropped (see [Cancellation](Client#cancellation)).
     pub async fn acknowledge_fast_stop(&self) -> Result<()> {
         self.no_data(Command::AckFastStop).await
     }
 
     /// Grasp a part (0x25) of nominal width `width_mm`. No part found is
     /// `Error::Device { status: Status::CmdFailed, .. }`.
+    ///
+    /// Cancel-safe for the connection, but dropping the call does **not** stop the fingers: once
+    /// sent, the move runs to its end; send [`Client::stop`] (see [Cancellation](Client#cancellation)).
     pub async fn grasp(&self, width_mm: f32, speed_mm_per_s: f32) -> Result<()> {
         self.no_data(Command::Grasp {
             width_mm,
@@ -448,6 +621,9 @@ impl Client {
     }
 
     /// Release the part (0x26), opening to `width_mm`.
+    ///
+    /// Cancel-safe for the connection, but dropping the call does **not** stop the fingers: once
+    /// sent, the move runs to its end; send [`Client::stop`] (see [Cancellation](Client#cancellation)).
     pub async fn release(&self, width_mm: f32, speed_mm_per_s: f32) -> Result<()> {
         self.no_data(Command::Release {
             width_mm,
@@ -457,63 +633,93 @@ impl Client {
     }
 
     /// Set the acceleration (0x30); the device clamps it to its limits.
+    ///
+    /// Cancel-safe for the connection; once sent, the command takes effect even if the call is
+    /// dropped (see [Cancellation](Client#cancellation)).
     pub async fn set_acceleration(&self, mm_per_s2: f32) -> Result<()> {
         self.no_data(Command::SetAcceleration(mm_per_s2)).await
     }
 
     /// The acceleration (0x31), mm/s².
+    ///
+    /// Cancel-safe (see [Cancellation](Client#cancellation)).
     pub async fn acceleration_mm_per_s2(&self) -> Result<f32> {
         self.query(Command::GetAcceleration, decode_f32).await
     }
 
     /// Set the grasping force (0x32); the device clamps it to its limits.
+    ///
+    /// Cancel-safe for the connection; once sent, the command takes effect even if the call is
+    /// dropped (see [Cancellation](Client#cancellation)).
     pub async fn set_grasping_force(&self, force_n: f32) -> Result<()> {
         self.no_data(Command::SetForce(force_n)).await
     }
 
     /// The grasping force limit (0x33), N.
+    ///
+    /// Cancel-safe (see [Cancellation](Client#cancellation)).
     pub async fn grasping_force_n(&self) -> Result<f32> {
         self.query(Command::GetForce, decode_f32).await
     }
 
     /// Set soft limits (0x34).
+    ///
+    /// Cancel-safe for the connection; once sent, the command takes effect even if the call is
+    /// dropped (see [Cancellation](Client#cancellation)).
     pub async fn set_soft_limits(&self, limits: SoftLimits) -> Result<()> {
         self.no_data(Command::SetSoftLimits(limits)).await
     }
 
     /// The soft limits (0x35); `None` when none are set (E_NOT_AVAILABLE).
+    ///
+    /// Cancel-safe (see [Cancellation](Client#cancellation)).
     pub async fn soft_limits(&self) -> Result<Option<SoftLimits>> {
         not_available_as_none(self.query(Command::GetSoftLimits, SoftLimits::decode).await)
     }
 
     /// Clear the soft limits (0x36).
+    ///
+    /// Cancel-safe for the connection; once sent, the command takes effect even if the call is
+    /// dropped (see [Cancellation](Client#cancellation)).
     pub async fn clear_soft_limits(&self) -> Result<()> {
         self.no_data(Command::ClearSoftLimits).await
     }
 
     /// Overdrive mode on or off (0x37).
+    ///
+    /// Cancel-safe for the connection; once sent, the command takes effect even if the call is
+    /// dropped (see [Cancellation](Client#cancellation)).
     pub async fn set_overdrive(&self, on: bool) -> Result<()> {
         self.no_data(Command::Overdrive(on)).await
     }
 
     /// Tare the force sensor (0x38); refused (E_ACCESS_DENIED) while holding a part.
+    ///
+    /// Cancel-safe for the connection; once sent, the command takes effect even if the call is
+    /// dropped (see [Cancellation](Client#cancellation)).
     pub async fn tare_force_sensor(&self) -> Result<()> {
         self.no_data(Command::Tare).await
     }
 
     /// The system state flags (0x40).
+    ///
+    /// Cancel-safe (see [Cancellation](Client#cancellation)).
     pub async fn system_state(&self) -> Result<SystemState> {
         self.query(Command::SystemState(UpdateMode::ONCE), SystemState::decode)
             .await
     }
 
     /// The grip state (0x41).
+    ///
+    /// Cancel-safe (see [Cancellation](Client#cancellation)).
     pub async fn grip_state(&self) -> Result<GripState> {
         self.query(Command::GripState(UpdateMode::ONCE), GripState::decode)
             .await
     }
 
     /// The grasping statistics (0x42), reset after reading when `reset`.
+    ///
+    /// Cancel-safe (see [Cancellation](Client#cancellation)).
     pub async fn grasping_statistics(&self, reset: bool) -> Result<GraspingStatistics> {
         self.query(
             Command::GraspingStatistics { reset },
@@ -523,40 +729,55 @@ impl Client {
     }
 
     /// The opening width (0x43), mm.
+    ///
+    /// Cancel-safe (see [Cancellation](Client#cancellation)).
     pub async fn width_mm(&self) -> Result<f32> {
         self.query(Command::Width(UpdateMode::ONCE), decode_f32)
             .await
     }
 
     /// The finger speed (0x44), mm/s.
+    ///
+    /// Cancel-safe (see [Cancellation](Client#cancellation)).
     pub async fn speed_mm_per_s(&self) -> Result<f32> {
         self.query(Command::Speed(UpdateMode::ONCE), decode_f32)
             .await
     }
 
     /// The finger force (0x45), N.
+    ///
+    /// Cancel-safe (see [Cancellation](Client#cancellation)).
     pub async fn force_n(&self) -> Result<f32> {
         self.query(Command::Force(UpdateMode::ONCE), decode_f32)
             .await
     }
 
     /// The temperature inside the gripper (0x46), °C.
+    ///
+    /// Cancel-safe (see [Cancellation](Client#cancellation)).
     pub async fn temperature_c(&self) -> Result<f32> {
         self.query(Command::Temperature, types::decode_temperature_c)
             .await
     }
 
     /// System information (0x50).
+    ///
+    /// Cancel-safe (see [Cancellation](Client#cancellation)).
     pub async fn system_info(&self) -> Result<SystemInfo> {
         self.query(Command::SystemInfo, SystemInfo::decode).await
     }
 
     /// Set the device tag (0x51): printable ASCII, at most 64 characters.
+    ///
+    /// Cancel-safe for the connection; once sent, the command takes effect even if the call is
+    /// dropped (see [Cancellation](Client#cancellation)).
     pub async fn set_device_tag(&self, tag: &str) -> Result<()> {
         self.no_data(Command::SetTag(tag.to_owned())).await
     }
 
     /// The device tag (0x52); `None` when none is set (E_NOT_AVAILABLE).
+    ///
+    /// Cancel-safe (see [Cancellation](Client#cancellation)).
     pub async fn device_tag(&self) -> Result<Option<String>> {
         let decode = |d: &[u8]| -> std::result::Result<String, String> {
             std::str::from_utf8(d)
@@ -567,29 +788,40 @@ impl Client {
     }
 
     /// The system limits (0x53).
+    ///
+    /// Cancel-safe (see [Cancellation](Client#cancellation)).
     pub async fn system_limits(&self) -> Result<SystemLimits> {
         self.query(Command::SystemLimits, SystemLimits::decode)
             .await
     }
 
     /// Finger information (0x60 / 0x70).
+    ///
+    /// Cancel-safe (see [Cancellation](Client#cancellation)).
     pub async fn finger_info(&self, finger: Finger) -> Result<FingerInfo> {
         self.query(Command::FingerInfo(finger), FingerInfo::decode)
             .await
     }
 
     /// Finger flags (0x61 / 0x71).
+    ///
+    /// Cancel-safe (see [Cancellation](Client#cancellation)).
     pub async fn finger_flags(&self, finger: Finger) -> Result<FingerFlags> {
         self.query(Command::FingerFlags(finger), FingerFlags::decode)
             .await
     }
 
     /// Finger power (0x62 / 0x72); switching on waits for the final reply (about 500 ms).
+    ///
+    /// Cancel-safe for the connection, but dropping the call does **not** stop the fingers: once
+    /// sent, the move runs to its end; send [`Client::stop`] (see [Cancellation](Client#cancellation)).
     pub async fn set_finger_power(&self, finger: Finger, on: bool) -> Result<()> {
         self.no_data(Command::FingerPower(finger, on)).await
     }
 
     /// Finger data (0x63 / 0x73), finger-specific bytes.
+    ///
+    /// Cancel-safe (see [Cancellation](Client#cancellation)).
     pub async fn finger_data(&self, finger: Finger) -> Result<Bytes> {
         self.command(Command::FingerData(finger)).await
     }
@@ -630,6 +862,9 @@ impl Client {
     }
 
     /// A stream of the system state flags (0x40 with auto-update).
+    ///
+    /// Cancel-safe: a dropped call leaves no subscriber behind (the device's updates are turned off
+    /// again if nobody else streams the value).
     pub async fn subscribe_system_state(
         &self,
         options: UpdateOptions,
@@ -639,6 +874,9 @@ impl Client {
     }
 
     /// A stream of the grip state (0x41 with auto-update).
+    ///
+    /// Cancel-safe: a dropped call leaves no subscriber behind (the device's updates are turned off
+    /// again if nobody else streams the value).
     pub async fn subscribe_grip_state(
         &self,
         options: UpdateOptions,
@@ -648,11 +886,17 @@ impl Client {
     }
 
     /// A stream of the opening width in mm (0x43 with auto-update).
+    ///
+    /// Cancel-safe: a dropped call leaves no subscriber behind (the device's updates are turned off
+    /// again if nobody else streams the value).
     pub async fn subscribe_width_mm(&self, options: UpdateOptions) -> Result<Subscription<f32>> {
         self.subscribe(id::WIDTH, options, decode_f32).await
     }
 
     /// A stream of the finger speed in mm/s (0x44 with auto-update).
+    ///
+    /// Cancel-safe: a dropped call leaves no subscriber behind (the device's updates are turned off
+    /// again if nobody else streams the value).
     pub async fn subscribe_speed_mm_per_s(
         &self,
         options: UpdateOptions,
@@ -661,6 +905,9 @@ impl Client {
     }
 
     /// A stream of the finger force in N (0x45 with auto-update).
+    ///
+    /// Cancel-safe: a dropped call leaves no subscriber behind (the device's updates are turned off
+    /// again if nobody else streams the value).
     pub async fn subscribe_force_n(&self, options: UpdateOptions) -> Result<Subscription<f32>> {
         self.subscribe(id::FORCE, options, decode_f32).await
     }
@@ -668,8 +915,15 @@ impl Client {
     /// Closes the connection: on TCP, announces the disconnect (0x07) and waits for its reply
     /// first, so the gripper does not go into FAST STOP. Calls still waiting fail with
     /// [`Error::Closed`], streams end, and every other handle's calls fail with
-    /// [`Error::Closed`] (or [`Error::ConnectionLost`] if the connection had broken).
+    /// [`Error::Closed`] (or [`Error::ConnectionLost`] if the connection had broken). While the
+    /// client reconnects ([`ClientBuilder::reconnect`]), it gives up before its next attempt
+    /// and this returns [`Error::ConnectionLost`].
+    ///
+    /// Cancel-safe: once the request reached the task, the close completes even if this call is
+    /// dropped.
     pub async fn close(&self) -> Result<()> {
+        // Seen by a reconnecting task before its next attempt: it gives up instead.
+        self.shared.closing.store(true, Ordering::Release);
         let (done, rx) = oneshot::channel();
         self.shared
             .tx

@@ -16,12 +16,20 @@
 //! command (E_CMD_PENDING) it always sends a final reply (manual 1.3; a stop ends a motion with
 //! E_CMD_ABORTED), so an acknowledged request is never released early: the next motion command of
 //! that id waits for the final reply of the previous one, whatever the callers' timeouts.
+//! (If that reply is lost on the wire, the task, not this state machine, finds out by asking the
+//! device whether it still moves, and [`Pairing::abandon`]s the request.)
+//!
+//! Two kinds of reply provably answer another request of the same id and are treated as
+//! unsolicited: a loop reply that does not echo the payload on the wire, and E_ALREADY_RUNNING
+//! for an acknowledged request (the device's refusal of a duplicate of it).
 
 use std::collections::{HashMap, VecDeque};
 use std::time::Duration;
 
+use bytes::Bytes;
 use tokio::time::Instant;
 
+use crate::wsg::command::id;
 use crate::wsg::{Frame, Reply, Status};
 
 /// Identifies one request for the task.
@@ -42,6 +50,32 @@ struct InFlight {
     /// E_CMD_PENDING seen: a final reply is guaranteed to follow.
     acknowledged: bool,
     release_at: Instant,
+    /// The payload sent: a loop reply (0x06) must echo it.
+    payload: Bytes,
+}
+
+impl InFlight {
+    fn new(req: &Request, grace: Duration) -> Self {
+        Self {
+            token: req.token,
+            acknowledged: false,
+            release_at: req.deadline + grace,
+            payload: req.frame.payload.clone(),
+        }
+    }
+
+    /// Whether `reply` provably answers some other request of the same id: a duplicate of an
+    /// earlier reply, or the device's answer to a duplicated request (faults seen on UDP and by
+    /// the fault matrix). Such a reply is consumed as unsolicited instead of ending this request.
+    fn rejects(&self, reply: &Reply) -> bool {
+        // A loop reply carries the payload it echoes (3.1.1): another payload is not ours.
+        let foreign_echo =
+            reply.id == id::LOOP && reply.status == Status::Success && reply.data != self.payload;
+        // Once the device has acknowledged this command, E_ALREADY_RUNNING cannot be its final
+        // reply (1.3: that code is only ever an immediate refusal): it refuses a duplicate of it.
+        let refused_duplicate = self.acknowledged && reply.status == Status::AlreadyRunning;
+        foreign_echo || refused_duplicate
+    }
 }
 
 #[derive(Debug, Default)]
@@ -82,16 +116,30 @@ impl Pairing {
     pub(crate) fn submit(&mut self, req: Request) -> Option<Request> {
         let st = self.ids.entry(req.frame.id).or_default();
         if st.in_flight.is_none() && st.queue.is_empty() {
-            st.in_flight = Some(InFlight {
-                token: req.token,
-                acknowledged: false,
-                release_at: req.deadline + self.grace,
-            });
+            st.in_flight = Some(InFlight::new(&req, self.grace));
             Some(req)
         } else {
             st.queue.push_back(req);
             None
         }
+    }
+
+    /// Drops the queued (never sent) requests of `id` whose caller is gone; returns their
+    /// tokens. Called before queueing another, so that callers who keep timing out behind a
+    /// long move cannot grow the queue: it holds at most one request per live caller.
+    pub(crate) fn prune(&mut self, id: u8, alive: impl Fn(Token) -> bool) -> Vec<Token> {
+        let Some(st) = self.ids.get_mut(&id) else {
+            return Vec::new();
+        };
+        let mut gone = Vec::new();
+        st.queue.retain(|r| {
+            let keep = alive(r.token);
+            if !keep {
+                gone.push(r.token);
+            }
+            keep
+        });
+        gone
     }
 
     /// Pairs a received reply.
@@ -103,6 +151,11 @@ impl Pairing {
         else {
             return Event::Unsolicited(reply);
         };
+        if f.rejects(&reply) {
+            tracing::warn!(id = reply.id, status = %reply.status,
+                "WSG reply that cannot answer the request on the wire: dropped");
+            return Event::Unsolicited(reply);
+        }
         if reply.status == Status::CmdPending {
             f.acknowledged = true;
             return Event::Accepted(f.token);
@@ -137,17 +190,33 @@ impl Pairing {
         }
         while let Some(req) = st.queue.pop_front() {
             if alive(req.token) {
-                st.in_flight = Some(InFlight {
-                    token: req.token,
-                    acknowledged: false,
-                    release_at: req.deadline + self.grace,
-                });
+                st.in_flight = Some(InFlight::new(&req, self.grace));
                 return (Some(req), skipped);
             }
             skipped.push(req.token);
         }
         self.ids.remove(&id);
         (None, skipped)
+    }
+
+    /// The token of the acknowledged request of `id` on the wire, if there is one.
+    pub(crate) fn acknowledged(&self, id: u8) -> Option<Token> {
+        let f = self.ids.get(&id)?.in_flight.as_ref()?;
+        f.acknowledged.then_some(f.token)
+    }
+
+    /// Gives up on request `token` of `id` (still on the wire) because its final reply is known
+    /// to be lost; returns whether it was. Call [`Pairing::next`] for `id` afterwards.
+    pub(crate) fn abandon(&mut self, id: u8, token: Token) -> bool {
+        let Some(st) = self.ids.get_mut(&id) else {
+            return false;
+        };
+        if st.in_flight.as_ref().is_some_and(|f| f.token == token) {
+            st.in_flight = None;
+            true
+        } else {
+            false
+        }
     }
 
     /// When the next unanswered, unacknowledged request is released.
@@ -189,7 +258,6 @@ impl Pairing {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use bytes::Bytes;
 
     fn req(token: Token, id: u8, deadline: Instant) -> Request {
         Request {
@@ -290,6 +358,64 @@ mod tests {
             Event::Resolved(1, _)
         ));
         assert_eq!(p.drain(), vec![2]);
+    }
+
+    #[test]
+    fn replies_that_cannot_answer_the_request_on_the_wire_are_unsolicited() {
+        let t = Instant::now() + Duration::from_secs(1);
+        let mut p = Pairing::new(Duration::from_secs(1));
+        let looped = |data: &'static [u8]| Reply::new(id::LOOP, Status::Success, data);
+        let mut echo = req(1, id::LOOP, t);
+        echo.frame.payload = Bytes::from_static(b"mine");
+        assert!(p.submit(echo).is_some());
+        // A copy of an earlier loop reply: another payload.
+        assert_eq!(
+            p.on_reply(looped(b"old")),
+            Event::Unsolicited(looped(b"old"))
+        );
+        assert_eq!(
+            p.on_reply(looped(b"mine")),
+            Event::Resolved(1, looped(b"mine"))
+        );
+        // An acknowledged move refuses a duplicate of itself; its final reply still ends it.
+        assert!(p.submit(req(2, 0x21, t)).is_some());
+        assert_eq!(
+            p.on_reply(reply(0x21, Status::CmdPending)),
+            Event::Accepted(2)
+        );
+        assert!(matches!(
+            p.on_reply(reply(0x21, Status::AlreadyRunning)),
+            Event::Unsolicited(_)
+        ));
+        assert_eq!(
+            p.on_reply(reply(0x21, Status::Success)),
+            Event::Resolved(2, reply(0x21, Status::Success))
+        );
+        // Not acknowledged: E_ALREADY_RUNNING is this request's own refusal.
+        assert!(p.submit(req(3, 0x21, t)).is_some());
+        assert!(matches!(
+            p.on_reply(reply(0x21, Status::AlreadyRunning)),
+            Event::Resolved(3, _)
+        ));
+    }
+
+    #[test]
+    fn prune_drops_only_queued_dead_callers() {
+        let t = Instant::now() + Duration::from_secs(1);
+        let mut p = Pairing::new(Duration::from_secs(1));
+        assert!(p.submit(req(1, 0x21, t)).is_some());
+        for token in 2..=5 {
+            assert!(p.submit(req(token, 0x21, t)).is_none());
+        }
+        assert_eq!(p.prune(0x21, |t| t == 1 || t == 4), vec![2, 3, 5]);
+        assert!(matches!(
+            p.on_reply(reply(0x21, Status::Success)),
+            Event::Resolved(1, _)
+        ));
+        let (next, skipped) = p.next(0x21, |_| true);
+        assert_eq!(next.map(|r| r.token), Some(4));
+        assert!(skipped.is_empty());
+        assert_eq!(p.drain(), vec![4]);
     }
 
     proptest::proptest! {

@@ -4,18 +4,21 @@
 
 use std::collections::HashMap;
 use std::io;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, OnceLock};
 use std::time::Duration;
 
 use bytes::Bytes;
 use tokio::sync::{mpsc, oneshot};
-use tokio::time::{sleep_until, Instant};
+use tokio::time::{sleep_until, timeout, Instant};
 
 use super::pairing::{Event, Pairing, Request, Token};
+use super::Reconnect;
+use crate::reconnect::{self, ConnectionEvent, EventSender};
 use crate::wsg::command::{id, Command, UpdateMode};
 use crate::wsg::subscription::Subscriber;
 use crate::wsg::transport::Link;
-use crate::wsg::{Error, Frame, Reply, Result, Status};
+use crate::wsg::{Error, Frame, Reply, Result, Status, SystemState};
 
 /// A request from a handle to the task.
 pub(crate) enum Msg {
@@ -44,6 +47,12 @@ enum Waiter {
     Caller(oneshot::Sender<Result<Reply>>),
     /// A request the task made itself (turning updates off): its reply is discarded.
     Internal,
+    /// A system-state query asking whether the acknowledged motion `token` of command `id`,
+    /// whose caller is gone, is still running (see [`Task::probe_if_orphaned`]).
+    Probe {
+        id: u8,
+        token: Token,
+    },
 }
 
 struct StreamState {
@@ -57,9 +66,25 @@ pub(crate) struct Task {
     pub(crate) unsubscribe: mpsc::UnboundedReceiver<(u8, u64)>,
     pub(crate) pairing: Pairing,
     pub(crate) query_timeout: Duration,
+    /// Bounds each write and the transport's shutdown: the query timeout plus the late-reply
+    /// grace, generous for a slow serial line, short enough that a gripper which stopped
+    /// reading cannot hold the task.
+    write_timeout: Duration,
     pub(crate) announce_on_close: bool,
-    /// Set to the reason when the connection breaks, so later calls can say why.
+    /// How long a partial frame may wait for its next byte before it is dropped as noise.
+    pub(crate) partial_frame_timeout: Duration,
+    /// Bytes of the partial frame held by the decoder, and since when that count is unchanged.
+    partial: (usize, Instant),
+    /// Set to the reason when the connection breaks for good, so later calls can say why.
     lost: Arc<OnceLock<String>>,
+    /// Where connection losses (and reconnects) are reported.
+    pub(crate) events: EventSender,
+    /// How to reconnect after a loss; `None`: the client ends with the connection.
+    pub(crate) reconnect: Option<Reconnect>,
+    /// Set by [`Client::close`](super::Client::close) before it asks: stops reconnecting.
+    pub(crate) closing: Arc<AtomicBool>,
+    /// The transport is TCP: a loss puts the gripper into FAST STOP.
+    pub(crate) tcp: bool,
     waiters: HashMap<Token, Waiter>,
     streams: HashMap<u8, StreamState>,
     next_token: Token,
@@ -87,12 +112,19 @@ impl Task {
         lost: Arc<OnceLock<String>>,
     ) -> Self {
         Self {
+            partial_frame_timeout: super::DEFAULT_PARTIAL_FRAME_TIMEOUT,
+            partial: (0, Instant::now()),
+            events: EventSender::new("wsg", super::EVENT_BUFFER),
+            reconnect: None,
+            closing: Arc::new(AtomicBool::new(false)),
+            tcp: false,
             lost,
             link,
             rx,
             unsubscribe,
             pairing: Pairing::new(grace),
             query_timeout,
+            write_timeout: query_timeout.saturating_add(grace),
             announce_on_close,
             waiters: HashMap::new(),
             streams: HashMap::new(),
@@ -101,29 +133,114 @@ impl Task {
     }
 
     pub(crate) async fn run(mut self) {
-        let (lost, done) = match self.serve().await {
-            Ok(done) => (None, done),
-            Err(reason) => {
-                tracing::warn!(%reason, "WSG connection lost");
-                let _ = self.lost.set(reason.clone());
-                (Some(reason), None)
+        let (lost, done) = loop {
+            match self.serve().await {
+                Ok(done) => break (None, done),
+                Err(reason) => {
+                    self.events.send(ConnectionEvent::Lost {
+                        reason: self.loss_report(&reason),
+                    });
+                    // Calls in flight fail; nothing is sent again on its own (a move that was
+                    // cut off must not start again without the program deciding so).
+                    self.fail_waiters(&Error::ConnectionLost(reason.clone()));
+                    if self.reconnect_link().await {
+                        continue;
+                    }
+                    let _ = self.lost.set(reason.clone());
+                    break (Some(reason), None);
+                }
             }
         };
-        for (_, w) in self.waiters.drain() {
-            if let Waiter::Caller(tx) = w {
-                let e = match &lost {
-                    Some(reason) => Error::ConnectionLost(reason.clone()),
-                    None => Error::Closed,
-                };
-                let _ = tx.send(Err(e));
-            }
-        }
-        self.pairing.drain();
-        // Dropping the subscribers' senders ends their streams.
+        let e = match lost {
+            Some(reason) => Error::ConnectionLost(reason),
+            None => Error::Closed,
+        };
+        self.fail_waiters(&e);
+        // Dropping the subscribers' senders ends their streams; dropping the request channel
+        // fails the calls still in it (with the reason set above).
         self.streams.clear();
         if let Some((done, result)) = done {
             let _ = done.send(result);
         }
+    }
+
+    /// Fails every call in flight or queued behind one (internal requests are forgotten).
+    fn fail_waiters(&mut self, e: &Error) {
+        for (_, w) in self.waiters.drain() {
+            if let Waiter::Caller(tx) = w {
+                let again = match e {
+                    Error::ConnectionLost(reason) => Error::ConnectionLost(reason.clone()),
+                    _ => Error::Closed,
+                };
+                let _ = tx.send(Err(again));
+            }
+        }
+        self.pairing.drain();
+    }
+
+    /// What the connection events say about a loss: on TCP, that the gripper is now in FAST
+    /// STOP, which the client never acknowledges on its own.
+    fn loss_report(&self, reason: &str) -> String {
+        if self.tcp {
+            format!(
+                "{reason}; the gripper goes into FAST STOP on an unannounced TCP close (manual \
+                 1.4.2): motion is refused until the program calls acknowledge_fast_stop"
+            )
+        } else {
+            reason.to_owned()
+        }
+    }
+
+    /// Reconnects with the policy's backoff (if there is one) and restores the auto-update
+    /// streams that still have subscribers. Returns false when the client gives up (or has
+    /// no policy): the task then ends.
+    async fn reconnect_link(&mut self) -> bool {
+        let Some(reconnect) = &self.reconnect else {
+            return false;
+        };
+        for st in self.streams.values_mut() {
+            st.subscribers.retain(|s| !s.tx.is_closed());
+        }
+        self.streams.retain(|_, st| !st.subscribers.is_empty());
+        let restore: Vec<Frame> = self
+            .streams
+            .iter()
+            .map(|(id, st)| stream_command(*id, st.mode))
+            .collect();
+        let (rx, closing, events) = (&self.rx, &self.closing, &self.events);
+        let write_timeout = self.write_timeout;
+        let link = reconnect::retry(
+            &reconnect.policy,
+            events,
+            || rx.is_closed() || closing.load(Ordering::Acquire),
+            |_| async {
+                let mut link = reconnect.connector.connect().await?;
+                events.send(ConnectionEvent::Connected);
+                // The new connection starts without auto-updates: ask for them again.
+                for frame in &restore {
+                    send_within(&mut link, frame, write_timeout).await?;
+                }
+                Ok::<_, io::Error>(link)
+            },
+        )
+        .await;
+        let Some(link) = link else {
+            return false;
+        };
+        self.link = link;
+        self.partial = (0, Instant::now());
+        // Their replies (the current values) go to the subscribers like any update.
+        let deadline = Instant::now() + self.query_timeout;
+        for frame in restore {
+            let token = self.waiter(Waiter::Internal);
+            // The ids are all free on a fresh connection: this only records what was sent.
+            let _ = self.pairing.submit(Request {
+                token,
+                frame,
+                deadline,
+            });
+        }
+        true
     }
 
     /// Runs until closed (returns who to tell and how it went) or the connection breaks
@@ -131,7 +248,24 @@ impl Task {
     async fn serve(&mut self) -> std::result::Result<Closing, String> {
         loop {
             let release = self.pairing.next_release();
+            let stale = self.partial_frame_deadline();
             tokio::select! {
+                // Input first: a frame already received cannot answer a request sent after it,
+                // so it is paired before the next request of its id goes out (a duplicated
+                // reply sitting in the buffer is then dropped as unsolicited).
+                biased;
+                received = self.link.recv() => match received {
+                    Some(Ok(frame)) => self.on_frame(frame).await.map_err(io_reason)?,
+                    Some(Err(e)) => return Err(e.to_string()),
+                    None => return Err("the gripper closed the connection".into()),
+                },
+                _ = sleep_until(stale.unwrap_or_else(Instant::now)), if stale.is_some() => {
+                    if self.link.partial_len() == self.partial.0 {
+                        for frame in self.link.resync() {
+                            self.on_frame(frame).await.map_err(io_reason)?;
+                        }
+                    }
+                }
                 msg = self.rx.recv() => match msg {
                     // A caller that gave up while its request waited in the channel: never sent.
                     Some(Msg::Call { reply, .. }) if reply.is_closed() => {}
@@ -160,11 +294,6 @@ impl Task {
                 Some((id, key)) = self.unsubscribe.recv() => {
                     self.unsubscribe(id, key).await.map_err(io_reason)?;
                 }
-                received = self.link.recv() => match received {
-                    Some(Ok(frame)) => self.on_frame(frame).await.map_err(io_reason)?,
-                    Some(Err(e)) => return Err(e.to_string()),
-                    None => return Err("the gripper closed the connection".into()),
-                },
                 _ = sleep_until(release.unwrap_or_else(Instant::now)), if release.is_some() => {
                     for (id, token) in self.pairing.release_expired(Instant::now()) {
                         tracing::warn!(id, "no reply within timeout + grace: command id released; \
@@ -177,6 +306,17 @@ impl Task {
         }
     }
 
+    /// When the partial frame held by the decoder (if any) counts as stalled: no new byte for
+    /// `partial_frame_timeout`. The count is compared when the timer fires, so bytes that arrive
+    /// while the task waits restart the wait instead of ending the frame.
+    fn partial_frame_deadline(&mut self) -> Option<Instant> {
+        let len = self.link.partial_len();
+        if len != self.partial.0 {
+            self.partial = (len, Instant::now());
+        }
+        (len > 0).then(|| self.partial.1 + self.partial_frame_timeout)
+    }
+
     fn waiter(&mut self, w: Waiter) -> Token {
         self.next_token += 1;
         self.waiters.insert(self.next_token, w);
@@ -184,10 +324,65 @@ impl Task {
     }
 
     async fn submit(&mut self, req: Request) -> io::Result<()> {
+        let id = req.frame.id;
+        let waiters = &self.waiters;
+        for gone in self.pairing.prune(id, |t| alive(waiters, t)) {
+            self.waiters.remove(&gone);
+        }
+        match self.pairing.submit(req) {
+            Some(req) => self.transmit(req).await,
+            None => self.probe_if_orphaned(id).await,
+        }
+    }
+
+    /// A request of motion command `id` waits behind an acknowledged one whose caller is gone.
+    /// The pairing holds an acknowledged request until its final reply (manual 1.3 promises
+    /// one), but a lossy link can lose it, which would block the id for good. So the task asks
+    /// the device whether it is still moving: the final reply of a move is sent before the
+    /// answer to a later query, so on an ordered link (TCP, serial) "not moving" proves that
+    /// reply lost, and the id is released.
+    async fn probe_if_orphaned(&mut self, id: u8) -> io::Result<()> {
+        if !matches!(id, id::HOMING | id::PRE_POSITION | id::GRASP | id::RELEASE) {
+            return Ok(());
+        }
+        let Some(token) = self.pairing.acknowledged(id) else {
+            return Ok(());
+        };
+        let orphaned = match self.waiters.get(&token) {
+            Some(Waiter::Caller(tx)) => tx.is_closed(),
+            _ => true,
+        };
+        let probing = self
+            .waiters
+            .values()
+            .any(|w| matches!(w, Waiter::Probe { id: p, .. } if *p == id));
+        if !orphaned || probing {
+            return Ok(());
+        }
+        let probe = self.waiter(Waiter::Probe { id, token });
+        let req = Request {
+            token: probe,
+            frame: Command::SystemState(UpdateMode::ONCE).to_frame(),
+            deadline: Instant::now() + self.query_timeout,
+        };
         match self.pairing.submit(req) {
             Some(req) => self.transmit(req).await,
             None => Ok(()),
         }
+    }
+
+    async fn on_probe(&mut self, id: u8, token: Token, reply: &Reply) -> io::Result<()> {
+        let still_moving = reply.status != Status::Success
+            || SystemState::decode(&reply.data).map_or(true, |s| s.contains(SystemState::MOVING));
+        if still_moving || !self.pairing.abandon(id, token) {
+            return Ok(());
+        }
+        tracing::warn!(
+            id,
+            "the final reply of a motion command was lost (the device is not moving): id released"
+        );
+        self.waiters.remove(&token);
+        self.send_next(id).await
     }
 
     async fn transmit(&mut self, req: Request) -> io::Result<()> {
@@ -201,16 +396,12 @@ impl Task {
             }
         }
         tracing::trace!(id = frame.id, len = frame.payload.len(), "WSG send");
-        self.link.send(&frame).await
+        send_within(&mut self.link, &frame, self.write_timeout).await
     }
 
     async fn send_next(&mut self, id: u8) -> io::Result<()> {
         let waiters = &self.waiters;
-        let (next, skipped) = self.pairing.next(id, |t| match waiters.get(&t) {
-            Some(Waiter::Caller(tx)) => !tx.is_closed(),
-            Some(Waiter::Internal) => true,
-            None => false,
-        });
+        let (next, skipped) = self.pairing.next(id, |t| alive(waiters, t));
         for t in skipped {
             self.waiters.remove(&t);
         }
@@ -252,6 +443,9 @@ impl Task {
                                 "late reply of a timed-out or dropped call: discarded"
                             );
                         }
+                    }
+                    Some(Waiter::Probe { id: motion, token }) => {
+                        self.on_probe(motion, token, &reply).await?;
                     }
                     Some(Waiter::Internal) | None => {}
                 }
@@ -348,8 +542,35 @@ impl Task {
                 }
             };
         }
-        self.link.shutdown().await;
+        // Bounded like a write: a gripper that stopped reading must not hold close() forever.
+        if timeout(self.write_timeout, self.link.shutdown())
+            .await
+            .is_err()
+        {
+            tracing::warn!("WSG transport shutdown timed out; the connection is dropped");
+        }
         result
+    }
+}
+
+/// Sends one frame within `limit`. A gripper (or a link) that stops reading fills the socket's
+/// buffer and would block the write, and with it the task that also reads replies and serves
+/// `close()`; on expiry the connection is given up as lost (a frame may be half written).
+async fn send_within(link: &mut Link, frame: &Frame, limit: Duration) -> io::Result<()> {
+    timeout(limit, link.send(frame)).await.unwrap_or_else(|_| {
+        Err(io::Error::new(
+            io::ErrorKind::TimedOut,
+            format!("the gripper stopped reading commands (a write took over {limit:?})"),
+        ))
+    })
+}
+
+/// Whether anyone still waits for request `token`.
+fn alive(waiters: &HashMap<Token, Waiter>, token: Token) -> bool {
+    match waiters.get(&token) {
+        Some(Waiter::Caller(tx)) => !tx.is_closed(),
+        Some(Waiter::Internal | Waiter::Probe { .. }) => true,
+        None => false,
     }
 }
 

@@ -3,7 +3,7 @@
 //!
 //! [`device`] is the pure state machine (homing, moves with trapezoidal profiles within the
 //! model's limits, the grip states of Anhang C, stop and FAST STOP, soft limits, force,
-//! overdrive, auto-updates, tag, statistics, finger interface); [`server`] serves it.
+//! overdrive, auto-updates, tag, statistics, finger interface); [`SimServer`] serves it.
 //!
 //! Simulated motion costs no wall time with [`SimConfig::time_scale`] = 0 (the default): a move's
 //! final reply follows its E_CMD_PENDING at once. Give it a large scale (e.g. 1000) to have a move
@@ -11,8 +11,10 @@
 
 pub mod device;
 mod model;
-pub mod server;
+mod server;
 
+// Inlined, so that this page lists them with their summaries.
+#[doc(inline)]
 pub use device::{Device, Out, SessionId, SessionKind};
 pub use model::{Model, Part, SimConfig, SimFinger};
 pub use server::{SimServer, SimSnapshot};

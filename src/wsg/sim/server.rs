@@ -369,7 +369,7 @@ impl SimServer {
 
     /// Serves the simulator over TCP on `addr` (port 0 picks a free port; see
     /// [`SimServer::local_addr`]). Any number of connections share the one simulated gripper.
-    pub async fn tcp(config: SimConfig, addr: impl ToSocketAddrs) -> io::Result<SimServer> {
+    pub async fn bind(addr: impl ToSocketAddrs, config: SimConfig) -> io::Result<SimServer> {
         let listener = TcpListener::bind(addr).await?;
         let (mut server, parts) = Self::start(config);
         server.local_addr = Some(listener.local_addr()?);
@@ -379,7 +379,7 @@ impl SimServer {
 
     /// Serves the simulator over UDP on `addr`: each datagram carries one frame; replies go to
     /// the sender's address.
-    pub async fn udp(config: SimConfig, addr: impl ToSocketAddrs) -> io::Result<SimServer> {
+    pub async fn bind_udp(addr: impl ToSocketAddrs, config: SimConfig) -> io::Result<SimServer> {
         let socket = Arc::new(UdpSocket::bind(addr).await?);
         let (mut server, parts) = Self::start(config);
         server.local_addr = Some(socket.local_addr()?);

@@ -1,0 +1,333 @@
+//! Round-trip latency of one query over loopback TCP against each simulator, through the crate's
+//! client, side by side in the same run with the floor: a minimal blocking client on a plain
+//! `std::net::TcpStream` that writes the same pre-encoded request bytes and reads the reply.
+//!
+//! Queries: WSG width (0x43), GRIPLINK `VALUE[0][0]?`, SmartGrasp GET_STATE.
+//!
+//! ```text
+//! cargo bench --bench roundtrip                 # quick: 10 rounds of 100 queries per variant
+//! cargo bench --bench roundtrip -- --long       # 100 rounds (10,000 queries per variant)
+//! cargo bench --bench roundtrip -- --rounds N
+//! ```
+//!
+//! Runtimes, chosen deliberately:
+//! - the three simulators share one multi-thread runtime with **one** worker thread (`sim`),
+//!   so the server side costs the same for every variant;
+//! - `client current_thread`: the client's background task and the caller share one thread (a
+//!   `current_thread` runtime on the bench thread, `client`): no cross-thread wake-ups. This is
+//!   the cheapest way to run the client and what a single control loop would use;
+//! - `client multi_thread`: a 2-worker runtime (`client-mt`), the `#[tokio::main]` default on
+//!   this machine; the caller runs in `block_on` on the bench thread and the connection task on
+//!   a worker, so every round trip crosses threads twice more;
+//! - `raw std::net`: blocking `write_all` + `read` on the bench thread.
+//!
+//! The variants alternate in blocks of 100 queries, so a change of the machine's load during the
+//! run hits all of them alike. Allocations per round trip are counted on the bench thread for the
+//! `current_thread` variant, where the caller and the client's task both run.
+
+#[path = "common/mod.rs"]
+mod common;
+#[path = "common/counting_alloc.rs"]
+mod counting_alloc;
+
+use std::io::{Read, Write};
+use std::net::{SocketAddr, TcpStream};
+use std::time::{Duration, Instant};
+
+use bytes::BytesMut;
+use common::{flag_value, has_flag, percentile, us};
+use counting_alloc::allocations;
+use gripper::{griplink, smartgrasp, wsg};
+use tokio::runtime::Runtime;
+
+const BLOCK: usize = 100;
+
+#[derive(Clone, Copy, Debug)]
+enum Proto {
+    Wsg,
+    Griplink,
+    SmartGrasp,
+}
+
+impl Proto {
+    fn query(self) -> &'static str {
+        match self {
+            Proto::Wsg => "WSG width (0x43)",
+            Proto::Griplink => "GRIPLINK VALUE[0][0]?",
+            Proto::SmartGrasp => "SmartGrasp GET_STATE",
+        }
+    }
+
+    /// The request bytes, encoded once by the crate's own frame code.
+    fn request_bytes(self) -> Vec<u8> {
+        match self {
+            Proto::Wsg => {
+                let mut b = BytesMut::new();
+                wsg::frame::encode(
+                    &wsg::Command::Width(wsg::UpdateMode::ONCE).to_frame(),
+                    &mut b,
+                )
+                .expect("encode");
+                b.to_vec()
+            }
+            Proto::Griplink => b"VALUE[0][0]?\n".to_vec(),
+            Proto::SmartGrasp => smartgrasp::Request::GetState.to_frame().encode().to_vec(),
+        }
+    }
+}
+
+/// The crate's clients, one query each.
+enum AnyClient {
+    Wsg(wsg::Client),
+    Griplink(griplink::Client),
+    SmartGrasp(smartgrasp::Client),
+}
+
+impl AnyClient {
+    async fn connect(proto: Proto, addr: SocketAddr) -> AnyClient {
+        match proto {
+            Proto::Wsg => AnyClient::Wsg(wsg::Client::connect_tcp(addr).await.expect("connect")),
+            Proto::Griplink => {
+                AnyClient::Griplink(griplink::Client::connect(addr).await.expect("connect"))
+            }
+            Proto::SmartGrasp => AnyClient::SmartGrasp(
+                smartgrasp::Client::connect(addr, smartgrasp::ClientConfig::default())
+                    .await
+                    .expect("connect"),
+            ),
+        }
+    }
+
+    async fn query(&self) {
+        match self {
+            AnyClient::Wsg(c) => {
+                std::hint::black_box(c.width_mm().await.expect("width"));
+            }
+            AnyClient::Griplink(c) => {
+                std::hint::black_box(c.port(0).value(0).await.expect("VALUE"));
+            }
+            AnyClient::SmartGrasp(c) => {
+                std::hint::black_box(c.get_state().await.expect("GET_STATE"));
+            }
+        }
+    }
+
+    async fn close(&self) {
+        match self {
+            AnyClient::Wsg(c) => c.close().await.expect("close"),
+            AnyClient::Griplink(c) => c.close().await.expect("close"),
+            AnyClient::SmartGrasp(_) => {}
+        }
+    }
+}
+
+/// The floor: a blocking client that writes the pre-encoded request and reads until the reply is
+/// complete (checking just enough to know it is the reply).
+struct Raw {
+    proto: Proto,
+    stream: TcpStream,
+    request: Vec<u8>,
+    buf: [u8; 512],
+}
+
+impl Raw {
+    fn connect(proto: Proto, addr: SocketAddr) -> Raw {
+        let stream = TcpStream::connect(addr).expect("connect");
+        stream.set_nodelay(true).expect("nodelay");
+        Raw {
+            proto,
+            stream,
+            request: proto.request_bytes(),
+            buf: [0; 512],
+        }
+    }
+
+    fn query(&mut self) {
+        self.stream.write_all(&self.request).expect("write");
+        let mut have = 0;
+        loop {
+            let n = self.stream.read(&mut self.buf[have..]).expect("read");
+            assert!(n > 0, "simulator closed the connection");
+            have += n;
+            if self.complete(have) {
+                return;
+            }
+        }
+    }
+
+    fn complete(&self, have: usize) -> bool {
+        let b = &self.buf[..have];
+        match self.proto {
+            // AA AA AA | id | len LE | status LE, f32 | crc (manual 1.2.1).
+            Proto::Wsg => {
+                if have < 6 {
+                    return false;
+                }
+                let len = usize::from(u16::from_le_bytes([b[4], b[5]]));
+                if have < 6 + len + 2 {
+                    return false;
+                }
+                assert_eq!((b[3], b[6], b[7]), (0x43, 0, 0), "width reply, E_SUCCESS");
+                true
+            }
+            Proto::Griplink => {
+                if b.last() != Some(&b'\n') {
+                    return false;
+                }
+                assert!(b.starts_with(b"VALUE[0][0]="), "VALUE reply");
+                true
+            }
+            Proto::SmartGrasp => have >= smartgrasp::frame::FRAME_LEN,
+        }
+    }
+
+    /// WSG: announce the disconnect first, so the simulated gripper does not go into FAST STOP.
+    fn close(mut self) {
+        if let Proto::Wsg = self.proto {
+            let mut b = BytesMut::new();
+            wsg::frame::encode(&wsg::Command::AnnounceDisconnect.to_frame(), &mut b)
+                .expect("encode");
+            self.request = b.to_vec();
+            self.stream.write_all(&self.request).expect("write");
+            let _ = self.stream.read(&mut self.buf);
+        }
+    }
+}
+
+struct Samples {
+    name: &'static str,
+    v: Vec<Duration>,
+    allocations: Option<u64>,
+}
+
+impl Samples {
+    fn new(name: &'static str) -> Samples {
+        Samples {
+            name,
+            v: Vec::new(),
+            allocations: None,
+        }
+    }
+}
+
+async fn client_block(c: &AnyClient, out: &mut Vec<Duration>) {
+    for _ in 0..BLOCK {
+        let t = Instant::now();
+        c.query().await;
+        out.push(t.elapsed());
+    }
+}
+
+fn measure(proto: Proto, addr: SocketAddr, rounds: usize) -> Vec<Samples> {
+    let ct = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .expect("runtime");
+    let mt: Runtime = common::runtime("client-mt", 2);
+    let ct_client = ct.block_on(AnyClient::connect(proto, addr));
+    let mt_client = mt.block_on(AnyClient::connect(proto, addr));
+    let mut raw = Raw::connect(proto, addr);
+
+    let mut s_ct = Samples::new("client current_thread");
+    let mut s_mt = Samples::new("client multi_thread(2)");
+    let mut s_raw = Samples::new("raw std::net (floor)");
+    // Warm-up: one block each, not recorded.
+    let mut scratch = Vec::new();
+    ct.block_on(client_block(&ct_client, &mut scratch));
+    mt.block_on(client_block(&mt_client, &mut scratch));
+    for _ in 0..BLOCK {
+        raw.query();
+    }
+    let mut ct_allocations = 0;
+    for _ in 0..rounds {
+        let before = allocations();
+        ct.block_on(client_block(&ct_client, &mut s_ct.v));
+        ct_allocations += allocations() - before;
+        for _ in 0..BLOCK {
+            let t = Instant::now();
+            raw.query();
+            s_raw.v.push(t.elapsed());
+        }
+        mt.block_on(client_block(&mt_client, &mut s_mt.v));
+    }
+    s_ct.allocations = Some(ct_allocations);
+    ct.block_on(ct_client.close());
+    mt.block_on(mt_client.close());
+    raw.close();
+    vec![s_raw, s_ct, s_mt]
+}
+
+fn main() {
+    let rounds = flag_value("--rounds").unwrap_or(if has_flag("--long") { 100 } else { 10 });
+    println!("round trip over loopback TCP, {rounds} rounds of {BLOCK} queries per variant");
+    println!("machine: {}", common::machine());
+
+    let sim_rt = common::runtime("sim", 1);
+    let (wsg_sim, griplink_sim, sg_sim) = sim_rt.block_on(async {
+        let wsg_sim = wsg::sim::SimServer::bind(
+            "127.0.0.1:0",
+            wsg::sim::SimConfig::new(wsg::sim::Model::Wsg50),
+        )
+        .await
+        .expect("WSG simulator");
+        let griplink_sim = griplink::sim::SimServer::bind(
+            "127.0.0.1:0",
+            griplink::sim::SimConfig::et4().time_scale(0.0),
+        )
+        .await
+        .expect("GRIPLINK simulator");
+        let sg_sim =
+            smartgrasp::sim::SimServer::bind("127.0.0.1:0", smartgrasp::sim::SimConfig::default())
+                .await
+                .expect("SmartGrasp simulator");
+        (wsg_sim, griplink_sim, sg_sim)
+    });
+    let targets = [
+        (Proto::Wsg, wsg_sim.local_addr().expect("TCP address")),
+        (Proto::Griplink, griplink_sim.local_addr()),
+        (Proto::SmartGrasp, sg_sim.local_addr()),
+    ];
+
+    println!();
+    println!("| query | variant | n | p50 µs | p99 µs | p50 / floor p50 | p99 − floor p99 µs | allocations per round trip |");
+    println!("|---|---|---:|---:|---:|---:|---:|---:|");
+    for (proto, addr) in targets {
+        // A fresh thread per protocol, owning that protocol's client runtimes.
+        let results = std::thread::Builder::new()
+            .name("client".into())
+            .spawn(move || measure(proto, addr, rounds))
+            .expect("thread")
+            .join()
+            .expect("measurement panicked");
+        let mut floor = None;
+        for mut s in results {
+            s.v.sort();
+            let p50 = percentile(&s.v, 50.0);
+            let p99 = percentile(&s.v, 99.0);
+            let (f50, f99) = *floor.get_or_insert((p50, p99));
+            let allocs = s
+                .allocations
+                .map(|a| format!("{:.1}", a as f64 / s.v.len() as f64))
+                .unwrap_or_else(|| "–".into());
+            println!(
+                "| {} | {} | {} | {} | {} | {:.2} | {} | {} |",
+                proto.query(),
+                s.name,
+                s.v.len(),
+                us(p50),
+                us(p99),
+                p50.as_secs_f64() / f50.as_secs_f64(),
+                if p99 >= f99 {
+                    us(p99 - f99)
+                } else {
+                    format!("-{}", us(f99 - p99))
+                },
+                allocs,
+            );
+        }
+    }
+    println!();
+    println!("load average at the end: {}", common::load());
+    let _guard = sim_rt.enter();
+    drop((wsg_sim, griplink_sim, sg_sim));
+}

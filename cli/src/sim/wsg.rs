@@ -1,0 +1,107 @@
+//! `gripctl sim wsg`: a WSG gripper over TCP, UDP or a serial pseudo-terminal.
+
+use clap::{Args as ClapArgs, ValueEnum};
+use gripper::wsg::sim::{Model, SimConfig, SimServer};
+use serde_json::json;
+
+use super::{announce, cannot_listen, check_time_scale, wait_for_ctrl_c};
+use crate::error::{CliError, Kind};
+use crate::output::Out;
+
+/// Options of `gripctl sim wsg`.
+#[derive(Debug, ClapArgs)]
+pub struct WsgSim {
+    /// Address to serve on; port 0 picks a free port.
+    #[arg(long, default_value = "127.0.0.1:1000")]
+    listen: String,
+    /// Serve UDP (one frame per datagram) instead of TCP.
+    #[arg(long, conflicts_with = "pty")]
+    udp: bool,
+    /// Serve on a new serial pseudo-terminal instead (its path is printed; open it with
+    /// `gripctl wsg --serial PATH --shared`).
+    #[arg(long)]
+    pty: bool,
+    /// The gripper model (device type and limits).
+    #[arg(long, value_enum, default_value_t = ModelArg::Wsg50)]
+    model: ModelArg,
+    /// Width of the part between the fingers, mm.
+    #[arg(long, default_value_t = 40.0, conflicts_with = "no_part")]
+    part: f32,
+    /// How far a grasp's nominal width may be off the part's and still find it, mm.
+    #[arg(long, default_value_t = 2.0)]
+    tolerance: f32,
+    /// No part: every grasp ends in NO PART FOUND.
+    #[arg(long)]
+    no_part: bool,
+    /// Wall seconds per simulated second of motion: 0 is instant, 1 real time.
+    #[arg(long, default_value_t = 0.0)]
+    time_scale: f64,
+}
+
+#[derive(Debug, Clone, Copy, ValueEnum)]
+enum ModelArg {
+    Wsg50,
+    Wsg32,
+    Wsg25,
+    Wsg70,
+}
+
+/// Serves until Ctrl-C.
+pub async fn run(args: WsgSim, out: Out) -> Result<(), CliError> {
+    let model = match args.model {
+        ModelArg::Wsg50 => Model::Wsg50,
+        ModelArg::Wsg32 => Model::Wsg32,
+        ModelArg::Wsg25 => Model::Wsg25,
+        ModelArg::Wsg70 => Model::Wsg70,
+    };
+    check_time_scale(args.time_scale)?;
+    let mut config = SimConfig::new(model).with_time_scale(args.time_scale);
+    if !args.no_part {
+        config = config.with_part(args.part, args.tolerance);
+    }
+    let server = if args.pty {
+        SimServer::serial_pty(config).map_err(|e| {
+            CliError::new(
+                Kind::Simulator,
+                format!("cannot open a pseudo-terminal: {e}"),
+            )
+        })?
+    } else if args.udp {
+        SimServer::bind_udp(args.listen.as_str(), config)
+            .await
+            .map_err(|e| cannot_listen(&args.listen, &e))?
+    } else {
+        SimServer::bind(args.listen.as_str(), config)
+            .await
+            .map_err(|e| cannot_listen(&args.listen, &e))?
+    };
+    let place = match (server.local_addr(), server.serial_path()) {
+        (Some(addr), _) => addr.to_string(),
+        (None, Some(path)) => path.to_owned(),
+        (None, None) => {
+            return Err(CliError::new(
+                Kind::Simulator,
+                "the simulator serves nowhere",
+            ));
+        }
+    };
+    announce(&place)?;
+    let transport = if args.pty {
+        "serial"
+    } else if args.udp {
+        "udp"
+    } else {
+        "tcp"
+    };
+    let part = (!args.no_part).then_some(args.part);
+    out.emit(
+        format!(
+            "wsg simulator: {model:?} over {transport}, {}",
+            part.map_or("no part".to_owned(), |w| format!("a {w} mm part"))
+        ),
+        json!({ "device": "wsg", "model": format!("{model:?}"), "transport": transport, "part_mm": part }),
+    )?;
+    wait_for_ctrl_c().await?;
+    server.shutdown();
+    Ok(())
+}

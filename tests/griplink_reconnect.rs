@@ -1,0 +1,221 @@
+//! `ClientConfig::reconnect`: after a lost connection the client reconnects with backoff,
+//! restores VERBOSE, reports each step through `connection_events()`, and never sends a call
+//! that was in flight again.
+#![cfg(feature = "sim")]
+
+use std::future::Future;
+use std::time::Duration;
+
+use futures_util::StreamExt as _;
+use gripper::fault::{FaultProxy, Framing, ProxyConfig};
+use gripper::griplink::sim::{SimConfig, SimDevice, SimServer};
+use gripper::griplink::{Blocking, Client, ClientConfig, DeviceState, Error, Status};
+use gripper::reconnect::{ConnectionEvent, ConnectionEvents, ReconnectPolicy};
+
+/// Upper bound for anything that should happen promptly; only reached when a test fails.
+const LIMIT: Duration = Duration::from_secs(20);
+
+async fn within<F: Future>(what: &str, future: F) -> F::Output {
+    tokio::time::timeout(LIMIT, future)
+        .await
+        .unwrap_or_else(|_| panic!("hung: {what}"))
+}
+
+async fn sim() -> SimServer {
+    let config = SimConfig::et4()
+        .device(0, Some(SimDevice::ieg_55_020().with_part(12.0)))
+        .time_scale(0.0);
+    SimServer::bind("127.0.0.1:0", config).await.unwrap()
+}
+
+fn policy(max_attempts: Option<u32>) -> ReconnectPolicy {
+    ReconnectPolicy {
+        initial_delay: Duration::from_millis(5),
+        max_delay: Duration::from_millis(20),
+        factor: 2.0,
+        max_attempts,
+    }
+}
+
+fn reconnecting(max_attempts: Option<u32>) -> ClientConfig {
+    ClientConfig {
+        reconnect: Some(policy(max_attempts)),
+        ..ClientConfig::default()
+    }
+}
+
+/// A simulator, a proxy to pull the cable with, and a reconnecting client through it.
+async fn proxied() -> (SimServer, FaultProxy, Client) {
+    let server = sim().await;
+    let lines = ProxyConfig::new().framing(Framing::Delimited(b'\n'));
+    let proxy = FaultProxy::start_with(server.local_addr(), lines)
+        .await
+        .unwrap();
+    let client = Client::connect_with(proxy.local_addr(), reconnecting(None))
+        .await
+        .unwrap();
+    (server, proxy, client)
+}
+
+/// The next events, up to and including the first that `last` accepts.
+async fn events_until(
+    events: &mut ConnectionEvents,
+    last: impl Fn(&ConnectionEvent) -> bool,
+) -> Vec<ConnectionEvent> {
+    let mut got = Vec::new();
+    while let Some(event) = within("event", events.next()).await {
+        let done = last(&event);
+        got.push(event);
+        if done {
+            return got;
+        }
+    }
+    panic!("the event stream ended after {got:?}");
+}
+
+#[tokio::test]
+async fn reconnects_after_a_cut_restores_verbose_and_reports_each_step() {
+    let (_server, proxy, client) = proxied().await;
+    assert!(client.set_verbose(true).await.unwrap());
+    let mut events = client.connection_events();
+    let commands = proxy.client_to_server().stats().frames;
+
+    proxy.cut_connections();
+    let got = events_until(&mut events, |e| {
+        matches!(e, ConnectionEvent::Restored { .. })
+    })
+    .await;
+    assert!(
+        matches!(got.first(), Some(ConnectionEvent::Lost { .. })),
+        "{got:?}"
+    );
+    assert!(got.contains(&ConnectionEvent::Connected), "{got:?}");
+    assert_eq!(got.last(), Some(&ConnectionEvent::Restored { attempts: 1 }));
+    // Restoring sent exactly one line: VERBOSE=1.
+    assert_eq!(proxy.client_to_server().stats().frames, commands + 1);
+    assert_eq!(proxy.stats().connections_accepted, 2);
+
+    // The new connection is verbose: an ERR carries the controller's text.
+    let err = client
+        .port(0)
+        .grip(0, Blocking::Immediate)
+        .await
+        .unwrap_err();
+    match err {
+        Error::Device { status, text, .. } => {
+            assert_eq!(status, Status::NotInitialized);
+            assert_eq!(text.as_deref(), Some("Device not initialized"));
+        }
+        other => panic!("{other:?}"),
+    }
+    assert_eq!(client.id().await.unwrap(), "GRIPLINK-ET4");
+}
+
+#[tokio::test]
+async fn a_call_in_flight_when_the_link_drops_fails_and_is_never_sent_again() {
+    let (server, proxy, client) = proxied().await;
+    let mut events = client.connection_events();
+    let g = client.port(0);
+    g.home().await.unwrap();
+    // The GRIP runs on the controller, its ACK is held, and then the cable is pulled.
+    let gate = server.hold_next_reply();
+    let grip = tokio::spawn({
+        let g = g.clone();
+        async move { g.grip(0, Blocking::Immediate).await }
+    });
+    within("grip", async {
+        while server.device_state(0) != Some(DeviceState::Holding) {
+            tokio::time::sleep(Duration::from_millis(1)).await;
+        }
+    })
+    .await;
+    let commands = proxy.client_to_server().stats().frames;
+    proxy.cut_connections();
+    let r = within("grip result", grip).await.unwrap();
+    assert!(matches!(r, Err(Error::ConnectionLost(_))), "{r:?}");
+    gate.release();
+    events_until(&mut events, |e| {
+        matches!(e, ConnectionEvent::Restored { .. })
+    })
+    .await;
+    // Nothing was sent on the new connection (VERBOSE was never set): the GRIP was not
+    // repeated. The device holds the part from the one GRIP that ran.
+    assert_eq!(proxy.client_to_server().stats().frames, commands);
+    assert_eq!(g.state().await.unwrap(), DeviceState::Holding);
+}
+
+#[tokio::test]
+async fn gives_up_after_the_policys_attempts_and_fails_later_calls() {
+    let server = sim().await;
+    let client = Client::connect_with(server.local_addr(), reconnecting(Some(2)))
+        .await
+        .unwrap();
+    let mut events = client.connection_events();
+    assert_eq!(client.id().await.unwrap(), "GRIPLINK-ET4");
+    drop(server); // closes the connection and the listener: every attempt is refused
+    let got = events_until(&mut events, |e| matches!(e, ConnectionEvent::GaveUp { .. })).await;
+    let attempts = got
+        .iter()
+        .filter(|e| matches!(e, ConnectionEvent::Reconnecting { .. }))
+        .count();
+    assert_eq!(attempts, 2, "{got:?}");
+    assert_eq!(got.last(), Some(&ConnectionEvent::GaveUp { attempts: 2 }));
+    assert!(!got.contains(&ConnectionEvent::Connected), "{got:?}");
+    assert_eq!(within("end", events.next()).await, None);
+    let r = within("call", client.id()).await;
+    assert!(matches!(r, Err(Error::ConnectionLost(_))), "{r:?}");
+}
+
+#[tokio::test]
+async fn without_a_policy_the_loss_is_reported_and_the_client_stays_closed() {
+    let server = sim().await;
+    let client = Client::connect(server.local_addr()).await.unwrap();
+    let mut events = client.connection_events();
+    drop(server);
+    let got = events_until(&mut events, |_| true).await;
+    assert!(matches!(got[..], [ConnectionEvent::Lost { .. }]), "{got:?}");
+    assert_eq!(within("end", events.next()).await, None);
+    let r = within("call", client.id()).await;
+    assert!(matches!(r, Err(Error::ConnectionLost(_))), "{r:?}");
+}
+
+#[tokio::test]
+async fn close_does_not_reconnect() {
+    let server = sim().await;
+    let client = Client::connect_with(server.local_addr(), reconnecting(None))
+        .await
+        .unwrap();
+    let mut events = client.connection_events();
+    client.close().await.unwrap();
+    // No loss, no attempt: the stream just ends.
+    assert_eq!(within("end", events.next()).await, None);
+    assert!(matches!(client.id().await, Err(Error::Closed)));
+}
+
+#[tokio::test]
+async fn a_watch_goes_on_across_a_reconnect() {
+    let (_server, proxy, client) = proxied().await;
+    let mut events = client.connection_events();
+    let mut states = client.port(0).watch_state(Duration::from_millis(1));
+    assert_eq!(
+        within("first", states.next()).await.unwrap().unwrap(),
+        DeviceState::NotInitialized
+    );
+    proxy.cut_connections();
+    events_until(&mut events, |e| {
+        matches!(e, ConnectionEvent::Restored { .. })
+    })
+    .await;
+    // Whatever the loss cost (a failed poll), readings come again.
+    loop {
+        match within("reading", states.next()).await {
+            Some(Ok(state)) => {
+                assert_eq!(state, DeviceState::NotInitialized);
+                break;
+            }
+            Some(Err(_)) => continue,
+            None => panic!("the watch ended although the client reconnected"),
+        }
+    }
+    assert!(!client.is_closed());
+}
