@@ -5,7 +5,8 @@
 //! [`Rule`]s. Each input starts a proxy in front of an echo server, sends a stream through it in
 //! chunks the input chooses (each chunk is read by the proxy before the next is written, so the
 //! framer sees the same pushes every run), half-closes, and reads everything that comes back: the
-//! bytes cross the proxy twice, once through each direction's framer.
+//! bytes cross the proxy twice, once through each direction's framer. Framings: bytes,
+//! delimited, fixed length, the WSG framing (`wsg::frame::frame_len`), a hostile custom one.
 //!
 //! Input: `[framing, param, max_frame_len, rules, (kind, arg, when) x rules, split input..]`
 //! (the split input as in [`split_input`]).
@@ -59,18 +60,6 @@ fn setup() -> &'static (Runtime, SocketAddr) {
     })
 }
 
-/// WSG-like framing: `AA AA AA id len:u16 LE payload crc:u16`, garbage skipped a byte at a time.
-fn wsg_frame_len(buf: &[u8]) -> FrameLen {
-    let preamble = buf.iter().take(3).all(|&b| b == 0xAA);
-    match buf {
-        _ if !preamble => FrameLen::Garbage(1),
-        [_, _, _, _, lo, hi, ..] => {
-            FrameLen::Complete(8 + usize::from(u16::from_le_bytes([*lo, *hi])))
-        }
-        _ => FrameLen::NeedMore,
-    }
-}
-
 /// A framing function that says whatever the bytes make it say: zero, huge and overflowing
 /// lengths, garbage longer than the buffer, "need more" forever.
 fn hostile_frame_len(buf: &[u8]) -> FrameLen {
@@ -93,7 +82,7 @@ fn framing(selector: u8, param: u8) -> Framing {
         0 => Framing::Bytes,
         1 => Framing::Delimited(param),
         2 => Framing::FixedLength(usize::from(param)),
-        3 => Framing::Custom(wsg_frame_len),
+        3 => Framing::Custom(gripper::wsg::frame::frame_len),
         _ => Framing::Custom(hostile_frame_len),
     }
 }

@@ -77,7 +77,7 @@ where
                             assert_eq!(prefix.length, 0);
                             assert_eq!(*server_version, prefix.version);
                         }
-                        Error::Malformed(Malformed::FrameLength { length }) => {
+                        Error::MalformedReply(Malformed::FrameLength { length }) => {
                             assert_eq!(*length, prefix.length);
                             assert_ne!(prefix.length, V3_LENGTH);
                         }

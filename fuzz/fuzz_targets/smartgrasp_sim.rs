@@ -80,8 +80,8 @@ fuzz_target!(|data: &[u8]| {
         handled += 1;
         if fault_every != 0 && handled.is_multiple_of(fault_every) {
             let fault = match handled % 4 {
-                0 => Fault::SkipResponse,
-                1 => Fault::Delay(Duration::from_millis(1)),
+                0 => Fault::DropReply,
+                1 => Fault::DelayReply(Duration::from_millis(1)),
                 2 => Fault::CorruptLength(u32::from(config)),
                 _ => Fault::Close,
             };
@@ -105,12 +105,12 @@ fuzz_target!(|data: &[u8]| {
         // Each injected fault replaces the next answered request's response, in order.
         let response = match (queued.pop_front(), action) {
             (None, Action::Respond(r)) => r,
-            (Some(Fault::Delay(d)), Action::Delay(e, r)) if d == e => r,
+            (Some(Fault::DelayReply(d)), Action::Delay(e, r)) if d == e => r,
             (Some(Fault::CorruptLength(n)), Action::SendRaw(bytes)) => {
                 assert_eq!(bytes[2..6], n.to_be_bytes());
                 continue;
             }
-            (Some(Fault::SkipResponse), Action::Skip) | (Some(Fault::Close), Action::Close) => {
+            (Some(Fault::DropReply), Action::Skip) | (Some(Fault::Close), Action::Close) => {
                 continue
             }
             (fault, action) => panic!("fault {fault:?} queued, action {action:?}"),
