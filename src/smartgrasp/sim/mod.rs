@@ -14,5 +14,5 @@ mod state;
 pub use server::SimServer;
 pub use state::{
     parse_request, Action, Fault, SimConfig, SimConnection, SimGrasp, SimObject, SimProject,
-    SimState,
+    SimState, RECORD_LIMIT,
 };

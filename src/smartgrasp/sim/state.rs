@@ -205,6 +205,20 @@ pub struct SimState {
     faults: VecDeque<Fault>,
 }
 
+/// How many REGISTER_CLIENT and ROBOT_POSE reports the simulator keeps for inspection. A client
+/// that sends them forever (a robot streaming its pose) must not grow the simulator's memory
+/// without limit: past this, the oldest are forgotten.
+pub const RECORD_LIMIT: usize = 1024;
+
+/// Keeps `item`, forgetting the oldest entries once `log` holds [`RECORD_LIMIT`].
+fn record<T>(log: &mut Vec<T>, item: T) {
+    if log.len() >= RECORD_LIMIT {
+        // Drop a batch, not one entry per push: the shift is paid once per many reports.
+        log.drain(..RECORD_LIMIT / 4);
+    }
+    log.push(item);
+}
+
 /// Reads one request frame from the front of `bytes`: `Ok(None)` until 80 bytes are there,
 /// `Ok(Some((frame, 80)))` then. Any prefix length but 74 is an error: a server cannot find the
 /// next frame after it. Pure, for fuzzing.
@@ -244,12 +258,14 @@ impl SimState {
         self.faults.push_back(fault);
     }
 
-    /// The robot systems REGISTER_CLIENT reported, oldest first.
+    /// The robot systems REGISTER_CLIENT reported, oldest first (at most the last
+    /// [`RECORD_LIMIT`]).
     pub fn registered_clients(&self) -> &[RobotSystem] {
         &self.registered_clients
     }
 
-    /// The poses ROBOT_POSE reported, oldest first, as sent.
+    /// The poses ROBOT_POSE reported, oldest first, as sent (at most the last
+    /// [`RECORD_LIMIT`]).
     pub fn robot_poses(&self) -> &[Pose] {
         &self.robot_poses
     }
@@ -325,7 +341,7 @@ impl SimState {
             ),
             Request::GetState => (OK, ResponseBody::State(self.config.server_state)),
             Request::RegisterClient(robot) => {
-                self.registered_clients.push(robot);
+                record(&mut self.registered_clients, robot);
                 (OK, EMPTY)
             }
             Request::SetProject { project_index } => match usize::try_from(project_index) {
@@ -337,7 +353,7 @@ impl SimState {
                 _ => ERROR,
             },
             Request::RobotPose(pose) => {
-                self.robot_poses.push(pose);
+                record(&mut self.robot_poses, pose);
                 (OK, EMPTY)
             }
             Request::GetGrasp(g) => match self.operational_project() {
@@ -647,5 +663,17 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn reports_kept_for_inspection_are_bounded() {
+        let mut state = SimState::new(SimConfig::default());
+        let mut conn = state.connect();
+        for _ in 0..3 * RECORD_LIMIT {
+            let frame = Request::RegisterClient(RobotSystem::Kuka).to_frame();
+            state.handle(&mut conn, &frame);
+        }
+        assert!(state.registered_clients().len() <= RECORD_LIMIT);
+        assert!(state.registered_clients().len() >= RECORD_LIMIT * 3 / 4);
     }
 }
