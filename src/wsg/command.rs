@@ -282,40 +282,12 @@ impl Command {
     /// Checks the arguments against the protocol's limits (not the device's motion limits,
     /// which the device enforces itself).
     pub fn validate(&self) -> Result<(), String> {
-        let finite = |name: &str, v: f32| {
-            if v.is_finite() {
-                Ok(())
-            } else {
-                Err(format!("{name} must be a finite number, got {v}"))
-            }
-        };
+        self.check_finite_arguments()?;
         match self {
             Command::Loop(data) if data.len() > MAX_LOOP_LEN => Err(format!(
                 "loop data of {} bytes exceeds {MAX_LOOP_LEN}",
                 data.len()
             )),
-            Command::PrePosition {
-                width_mm,
-                speed_mm_per_s,
-                ..
-            }
-            | Command::Grasp {
-                width_mm,
-                speed_mm_per_s,
-            }
-            | Command::Release {
-                width_mm,
-                speed_mm_per_s,
-            } => {
-                finite("width_mm", *width_mm)?;
-                finite("speed_mm_per_s", *speed_mm_per_s)
-            }
-            Command::SetAcceleration(v) => finite("acceleration", *v),
-            Command::SetForce(v) => finite("force", *v),
-            Command::SetSoftLimits(l) => {
-                finite("minus_mm", l.minus_mm)?;
-                finite("plus_mm", l.plus_mm)
-            }
             Command::SetTag(tag) => {
                 if tag.len() > MAX_TAG_LEN {
                     Err(format!(
@@ -339,6 +311,46 @@ impl Command {
                     "auto-update period of {} ms is below 10 ms",
                     m.period_ms
                 ))
+            }
+            _ => Ok(()),
+        }
+    }
+
+    /// Refuses a NaN or infinite float parameter (widths, speeds, acceleration, force, soft
+    /// limits: the float parameters of 3.2 and 3.3), naming the first one found.
+    ///
+    /// Shared by [`Command::validate`] (the client refuses before sending) and the simulator
+    /// (which answers `E_RANGE_ERROR`), so the two agree on which floats are checked.
+    pub(crate) fn check_finite_arguments(&self) -> Result<(), String> {
+        let finite = |name: &str, v: f32| {
+            if v.is_finite() {
+                Ok(())
+            } else {
+                Err(format!("{name} must be a finite number, got {v}"))
+            }
+        };
+        match self {
+            Command::PrePosition {
+                width_mm,
+                speed_mm_per_s,
+                ..
+            }
+            | Command::Grasp {
+                width_mm,
+                speed_mm_per_s,
+            }
+            | Command::Release {
+                width_mm,
+                speed_mm_per_s,
+            } => {
+                finite("width_mm", *width_mm)?;
+                finite("speed_mm_per_s", *speed_mm_per_s)
+            }
+            Command::SetAcceleration(v) => finite("acceleration", *v),
+            Command::SetForce(v) => finite("force", *v),
+            Command::SetSoftLimits(l) => {
+                finite("minus_mm", l.minus_mm)?;
+                finite("plus_mm", l.plus_mm)
             }
             _ => Ok(()),
         }

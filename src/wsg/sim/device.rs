@@ -186,30 +186,6 @@ fn data(session: SessionId, id: u8, d: Bytes) -> Out {
     }
 }
 
-/// Whether a command carries a float that is NaN or infinite (widths, speeds, acceleration,
-/// force, soft limits: the float parameters of 3.2 and 3.3).
-fn has_non_finite_argument(cmd: &Command) -> bool {
-    let floats: &[f32] = match cmd {
-        Command::PrePosition {
-            width_mm,
-            speed_mm_per_s,
-            ..
-        }
-        | Command::Grasp {
-            width_mm,
-            speed_mm_per_s,
-        }
-        | Command::Release {
-            width_mm,
-            speed_mm_per_s,
-        } => &[*width_mm, *speed_mm_per_s],
-        Command::SetAcceleration(v) | Command::SetForce(v) => &[*v],
-        Command::SetSoftLimits(l) => &[l.minus_mm, l.plus_mm],
-        _ => &[],
-    };
-    floats.iter().any(|v| !v.is_finite())
-}
-
 fn f32_bytes(v: f32) -> Bytes {
     Bytes::copy_from_slice(&v.to_le_bytes())
 }
@@ -424,7 +400,9 @@ impl Device {
             // A NaN or infinite float is never in range. Found by fuzzing (fuzz/wsg_sim): a NaN
             // width, speed or acceleration gave the motion a NaN end time, which the server's
             // settle loop never reached (a hang at time scale 0, a panic in its clock otherwise).
-            Ok(cmd) if has_non_finite_argument(&cmd) => {
+            // Only the finiteness check is shared with `Command::validate`: the simulator
+            // still accepts what a device accepts (e.g. auto-update periods under 10 ms).
+            Ok(cmd) if cmd.check_finite_arguments().is_err() => {
                 out.push(status(session, frame.id, Status::RangeError));
             }
             Ok(cmd) => self.execute(session, wall, cmd, &mut out),
