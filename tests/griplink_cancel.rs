@@ -4,6 +4,9 @@
 //! a product id or a name per port), so a reply handed to the wrong caller cannot go unnoticed.
 #![cfg(feature = "sim")]
 
+mod common;
+
+use common::Rng;
 use std::pin::pin;
 use std::time::Duration;
 
@@ -25,18 +28,6 @@ async fn sim() -> SimServer {
 }
 
 const PRODUCT_IDS: [u32; 4] = [20, 6050, 50, 6060];
-
-/// xorshift64: reproducible random numbers without a dependency.
-struct Rng(u64);
-
-impl Rng {
-    fn below(&mut self, n: u64) -> u64 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 7;
-        self.0 ^= self.0 << 17;
-        self.0 % n
-    }
-}
 
 /// One query whose answer identifies it, checked.
 async fn query(client: &Client, kind: u64, port: u8) {

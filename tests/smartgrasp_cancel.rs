@@ -7,6 +7,9 @@
 //! Random choices come from a seeded generator: a failure reproduces.
 #![cfg(feature = "sim")]
 
+mod common;
+
+use common::Rng;
 use std::future::Future;
 use std::pin::pin;
 use std::task::Poll;
@@ -27,18 +30,6 @@ async fn within<F: Future>(what: &str, future: F) -> F::Output {
     tokio::time::timeout(LIMIT, future)
         .await
         .unwrap_or_else(|_| panic!("hung: {what}"))
-}
-
-/// xorshift64: reproducible draws without a dependency.
-struct Rng(u64);
-
-impl Rng {
-    fn below(&mut self, n: u64) -> u64 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 7;
-        self.0 ^= self.0 << 17;
-        self.0 % n
-    }
 }
 
 fn scene() -> SimConfig {

@@ -3,6 +3,9 @@
 //! its own answer. Cancelled motion commands keep the fingers moving until a stop.
 #![cfg(feature = "sim")]
 
+mod common;
+
+use common::Rng;
 use std::future::Future;
 use std::pin::Pin;
 use std::task::{Context, Poll};
@@ -11,18 +14,6 @@ use std::time::Duration;
 use gripper::wsg::command::id;
 use gripper::wsg::sim::{Model, SimConfig, SimServer};
 use gripper::wsg::{Client, HomingDirection, SystemState};
-
-/// A small seeded generator: reproducible runs.
-struct Rng(u64);
-
-impl Rng {
-    fn below(&mut self, n: u64) -> u64 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 7;
-        self.0 ^= self.0 << 17;
-        self.0 % n.max(1)
-    }
-}
 
 /// Polls `call` at most `polls` times, one scheduler turn apart (it wakes itself), then
 /// resolves to `None`, dropping `call` at whichever await point it had reached.
