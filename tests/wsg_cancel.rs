@@ -182,18 +182,7 @@ async fn a_cancelled_move_keeps_moving_until_stopped() {
 #[tokio::test]
 async fn a_move_cancelled_before_it_was_sent_is_never_sent() {
     let (sim, client) = setup().await;
-    client.home(HomingDirection::Default).await.unwrap();
-    sim.set_time_scale(1000.0);
-    let first = {
-        let c = client.clone();
-        tokio::spawn(async move { c.pre_position(20.0, 50.0).await })
-    };
-    while !client
-        .system_state()
-        .await
-        .unwrap()
-        .contains(SystemState::MOVING)
-    {}
+    let first = common::wsg_start_moving(&sim, &client).await;
     // The second waits behind the first (same id): dropped there, it must never go out.
     let queued = PollLimit {
         call: Box::pin(client.pre_position(90.0, 50.0)),

@@ -4,6 +4,8 @@
 //! loss is left for the program to acknowledge.
 #![cfg(feature = "sim")]
 
+mod common;
+
 use std::time::Duration;
 
 use futures_util::StreamExt;
@@ -71,18 +73,7 @@ async fn a_cut_connection_is_restored_with_its_streams_and_the_move_is_not_resen
             .await
             .unwrap(),
     );
-    client.home(HomingDirection::Default).await.unwrap();
-    sim.set_time_scale(1000.0);
-    let mover = {
-        let c = client.clone();
-        tokio::spawn(async move { c.pre_position(20.0, 50.0).await })
-    };
-    while !client
-        .system_state()
-        .await
-        .unwrap()
-        .contains(SystemState::MOVING)
-    {}
+    let mover = common::wsg_start_moving(&sim, &client).await;
 
     proxy.cut_connections();
     // The move in flight fails and is never sent again.

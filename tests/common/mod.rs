@@ -2,8 +2,10 @@
 
 /// xorshift64: a small seeded generator, so randomised tests are reproducible without a
 /// dependency. Seed with a non-zero value (zero stays zero).
+#[allow(dead_code)] // only the cancel tests use it
 pub struct Rng(pub u64);
 
+#[allow(dead_code)]
 impl Rng {
     /// The next draw in `0..n` (`0` when `n` is 0).
     pub fn below(&mut self, n: u64) -> u64 {
@@ -12,4 +14,30 @@ impl Rng {
         self.0 ^= self.0 << 17;
         self.0 % n.max(1)
     }
+}
+
+/// Homes the gripper, speeds the simulator up, starts a pre-position to 20 mm at 50 mm/s on a
+/// clone of `client`, and returns the move's task once the device reports MOVING (a move in
+/// flight for the cancel and reconnect tests to interrupt).
+#[cfg(feature = "sim")]
+#[allow(dead_code)] // only the WSG tests use it
+pub async fn wsg_start_moving(
+    sim: &gripper::wsg::sim::SimServer,
+    client: &gripper::wsg::Client,
+) -> tokio::task::JoinHandle<gripper::wsg::Result<()>> {
+    use gripper::wsg::{HomingDirection, SystemState};
+
+    client.home(HomingDirection::Default).await.unwrap();
+    sim.set_time_scale(1000.0);
+    let mover = {
+        let c = client.clone();
+        tokio::spawn(async move { c.pre_position(20.0, 50.0).await })
+    };
+    while !client
+        .system_state()
+        .await
+        .unwrap()
+        .contains(SystemState::MOVING)
+    {}
+    mover
 }
