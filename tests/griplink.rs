@@ -1,6 +1,8 @@
 //! The GRIPLINK client against the simulated controller, over real TCP on loopback.
 #![cfg(feature = "sim")]
 
+mod common;
+
 use std::time::Duration;
 
 use futures_util::StreamExt as _;
@@ -43,13 +45,13 @@ fn device_status<T: std::fmt::Debug>(result: Result<T, Error>) -> Status {
 
 /// Waits (bounded) until the simulated device on `port` is in motion.
 async fn until_moving(server: &SimServer, port: usize) {
-    tokio::time::timeout(Duration::from_secs(10), async {
-        while !server.with_controller(|c, now| c.is_moving(port, now)) {
-            tokio::time::sleep(Duration::from_millis(1)).await;
-        }
-    })
-    .await
-    .expect("the device never started moving");
+    common::griplink_until(
+        server,
+        Duration::from_secs(10),
+        "the device never started moving",
+        |s| s.with_controller(|c, now| c.is_moving(port, now)),
+    )
+    .await;
 }
 
 #[tokio::test]

@@ -140,13 +140,7 @@ async fn dropped_calls_never_hand_their_reply_to_another_caller() {
 
 /// Waits (bounded) until `cond` holds on the simulator.
 async fn until(server: &SimServer, cond: impl Fn(&SimServer) -> bool) {
-    tokio::time::timeout(LIMIT, async {
-        while !cond(server) {
-            tokio::time::sleep(Duration::from_millis(1)).await;
-        }
-    })
-    .await
-    .expect("the simulator never got there");
+    common::griplink_until(server, LIMIT, "the simulator never got there", cond).await;
 }
 
 #[tokio::test]

@@ -41,3 +41,22 @@ pub async fn wsg_start_moving(
     {}
     mover
 }
+
+/// Waits until `cond` holds on the GRIPLINK simulator, polling every millisecond; panics with
+/// `what` if it does not within `limit`.
+#[cfg(feature = "sim")]
+#[allow(dead_code)] // only the GRIPLINK tests use it
+pub async fn griplink_until(
+    server: &gripper::griplink::sim::SimServer,
+    limit: std::time::Duration,
+    what: &str,
+    cond: impl Fn(&gripper::griplink::sim::SimServer) -> bool,
+) {
+    tokio::time::timeout(limit, async {
+        while !cond(server) {
+            tokio::time::sleep(std::time::Duration::from_millis(1)).await;
+        }
+    })
+    .await
+    .expect(what);
+}
