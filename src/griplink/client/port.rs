@@ -168,8 +168,8 @@ impl Port {
     /// `RELEASE(p,index[,1])` with grip recipe `index` (manual 3.4.5).
     ///
     /// [Cancel-safe](super#cancellation), but once sent the motion runs even if the call is
-    /// dropped (a cancelled release still opens the fingers), and with `Blocking::UntilDone` it holds this
-    /// connection until it ends.
+    /// dropped (a cancelled release still opens the fingers), and with `Blocking::UntilDone` it
+    /// holds this connection until it ends.
     pub async fn release(&self, index: u32, blocking: Blocking) -> Result<()> {
         self.client
             .ack(Command::Release {
@@ -205,8 +205,8 @@ impl Port {
     /// `FLEXRELEASEF(…)`: release or pre-position, in mm, mm/s, mm/s² (manual 3.4.7).
     ///
     /// [Cancel-safe](super#cancellation), but once sent the motion runs even if the call is
-    /// dropped (a cancelled release still opens the fingers), and with `Blocking::UntilDone` it holds this
-    /// connection until it ends.
+    /// dropped (a cancelled release still opens the fingers), and with `Blocking::UntilDone` it
+    /// holds this connection until it ends.
     pub async fn flex_release(&self, params: FlexRelease, blocking: Blocking) -> Result<()> {
         self.client
             .ack(Command::FlexReleaseF(self.port, params, blocking))
@@ -216,8 +216,8 @@ impl Port {
     /// `FLEXRELEASE(…)`: release or pre-position, in µm, µm/s, µm/s² (manual 3.4.7).
     ///
     /// [Cancel-safe](super#cancellation), but once sent the motion runs even if the call is
-    /// dropped (a cancelled release still opens the fingers), and with `Blocking::UntilDone` it holds this
-    /// connection until it ends.
+    /// dropped (a cancelled release still opens the fingers), and with `Blocking::UntilDone` it
+    /// holds this connection until it ends.
     pub async fn flex_release_scaled(
         &self,
         params: FlexReleaseScaled,
