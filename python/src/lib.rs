@@ -1,0 +1,23 @@
+//! `gripper._native`: the compiled half of the `gripper` Python package, a thin layer over the
+//! `gripper` crate. The Python half (`python/gripper/`) defines the exceptions, enums and
+//! records these bindings build, and re-exports the classes under the Rust API's module names.
+#![forbid(unsafe_code)]
+
+#[macro_use]
+mod twins;
+mod convert;
+mod errors;
+mod runtime;
+mod stream;
+mod wsg;
+
+use pyo3::prelude::*;
+
+/// The module: one submodule per protocol.
+#[pymodule]
+fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    let py = m.py();
+    m.add_class::<stream::Stream>()?;
+    m.add_submodule(&wsg::module(py)?)?;
+    Ok(())
+}
