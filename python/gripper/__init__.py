@@ -24,7 +24,7 @@ from gripper.errors import (
 
 Stream = _native.Stream
 
-from gripper import wsg  # noqa: E402  (the protocol modules use the names above)
+from gripper import griplink, smartgrasp, wsg  # noqa: E402  (they use the names above)
 
 __all__ = [
     "ClosedError",
@@ -37,5 +37,7 @@ __all__ = [
     "Stream",
     "TimeoutError",
     "TransportError",
+    "griplink",
+    "smartgrasp",
     "wsg",
 ]

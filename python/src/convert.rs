@@ -75,6 +75,11 @@ pub fn enum_value(py: Python<'_>, module: &str, name: &str, code: i64) -> PyResu
     Ok(class(py, module, name)?.call1((code,))?.unbind())
 }
 
+/// `module.Enum.MEMBER`: the package's plain enums (outcomes), by member name.
+pub fn enum_member(py: Python<'_>, module: &str, name: &str, member: &str) -> PyResult<Py<PyAny>> {
+    Ok(class(py, module, name)?.getattr(member)?.unbind())
+}
+
 /// `module.Record(**fields)`: one of the package's frozen dataclasses.
 pub fn record<'py>(
     py: Python<'py>,

@@ -7,7 +7,9 @@
 mod twins;
 mod convert;
 mod errors;
+mod griplink;
 mod runtime;
+mod smartgrasp;
 mod stream;
 mod wsg;
 
@@ -19,5 +21,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = m.py();
     m.add_class::<stream::Stream>()?;
     m.add_submodule(&wsg::module(py)?)?;
+    m.add_submodule(&griplink::module(py)?)?;
+    m.add_submodule(&smartgrasp::module(py)?)?;
     Ok(())
 }

@@ -479,10 +479,11 @@ twins! {
     fn close(&self) => |c| c.close();
 }
 
-/// `close()` for `with`: a client that is already closed is fine to leave.
+/// `close()` for leaving a `with` block: a client that is already closed, or whose connection
+/// is already lost (the error was raised by the call that saw it), is fine to leave.
 fn closed_is_fine(r: wsg::Result<()>) -> wsg::Result<()> {
     match r {
-        Err(Error::Closed) => Ok(()),
+        Err(Error::Closed | Error::ConnectionLost(_)) => Ok(()),
         other => other,
     }
 }
@@ -618,8 +619,9 @@ impl SimServer {
     }
 
     /// Command ids received, oldest first.
-    fn received_ids(&self) -> PyResult<Vec<u8>> {
-        self.with(|s| s.received_ids())
+    fn received_ids(&self) -> PyResult<Vec<u16>> {
+        // u16, not u8: PyO3 makes a Vec<u8> `bytes`, and this is a list of ids.
+        self.with(|s| s.received_ids().into_iter().map(u16::from).collect())
     }
 
     /// The next reply to command `id` is not sent.

@@ -8,6 +8,6 @@ client's ``.aio`` (and an asyncio client's ``.blocking``) is the other view of o
 
 from __future__ import annotations
 
-from gripper.aio import wsg
+from gripper.aio import griplink, smartgrasp, wsg
 
-__all__ = ["wsg"]
+__all__ = ["griplink", "smartgrasp", "wsg"]

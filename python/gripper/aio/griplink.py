@@ -1,0 +1,10 @@
+"""The griplink client for asyncio (``gripper.griplink`` has the types and the simulator)."""
+
+from __future__ import annotations
+
+from gripper import _native
+
+__all__ = ["Client", "Port"]
+
+Client = _native.griplink.AioClient
+Port = _native.griplink.AioPort

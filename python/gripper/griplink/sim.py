@@ -1,0 +1,9 @@
+"""The simulated GRIPLINK controller (Rust: ``gripper::griplink::sim``)."""
+
+from __future__ import annotations
+
+from gripper import _native
+
+__all__ = ["SimServer"]
+
+SimServer = _native.griplink.SimServer

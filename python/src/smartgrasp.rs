@@ -1,0 +1,487 @@
+//! `gripper.smartgrasp`: the Grasping-Kit client (blocking and asyncio) and
+//! `gripper.smartgrasp.sim.SimServer`.
+
+use std::net::SocketAddr;
+use std::sync::Mutex;
+
+use gripper::smartgrasp::{
+    self, Error, GetGraspOutcome, Grasp, GraspFeedback, GraspMode, GraspRequest, ObjectCount, Pose,
+    PoseFormat, RobotSystem, ServerState, Tool,
+};
+use pyo3::prelude::*;
+use pyo3::IntoPyObjectExt;
+
+use crate::convert::{enum_member, enum_value, field, record, ToPy};
+use crate::errors;
+use crate::runtime::{self, seconds};
+
+const PY: &str = "gripper.smartgrasp";
+
+/// A SmartGrasp error as the package's exception.
+pub fn error(e: Error) -> PyErr {
+    let message = e.to_string();
+    match e {
+        Error::Device {
+            message_type,
+            status,
+        } => errors::device(
+            message,
+            i64::from(u8::from(status)),
+            Some(status.to_string().split(' ').next().unwrap_or_default()),
+            Some(status.to_string().as_str()),
+            message_type.to_string(),
+        ),
+        Error::Timeout { timeout, .. } => errors::timeout(message, timeout.as_secs_f64()),
+        Error::ConnectionLost { .. } => errors::connection_lost(message),
+        Error::Closed => errors::closed(message),
+        Error::MalformedReply(_) => errors::malformed(message),
+        Error::InvalidArgument(_) | Error::Pose(_) => errors::invalid_argument(message),
+        Error::Io(_) => errors::transport(message),
+        Error::ServerTooOld { .. } | Error::NotOperational { .. } | Error::ResponseLost { .. } => {
+            errors::raise("ProtocolError", message, &[])
+        }
+        _ => errors::raise("GripperError", message, &[]),
+    }
+}
+
+// ---- results -------------------------------------------------------------------------------
+
+impl ToPy for ServerState {
+    fn to_py(self, py: Python<'_>) -> PyResult<Py<PyAny>> {
+        enum_value(py, PY, "ServerState", i64::from(u8::from(self)))
+    }
+}
+
+fn pose_record(py: Python<'_>, pose: &Pose) -> PyResult<Py<PyAny>> {
+    let format = enum_value(py, PY, "PoseFormat", i64::from(u8::from(pose.format())))?;
+    let si = pose.to_si().ok();
+    record(
+        py,
+        PY,
+        "Pose",
+        &[
+            ("format", format.into_bound(py)),
+            ("wire", field(py, pose.to_wire())?),
+            ("position_m", field(py, pose.position_m())?),
+            (
+                "orientation_xyzw",
+                field(py, si.map(|s| s.orientation.xyzw()))?,
+            ),
+        ],
+    )
+}
+
+impl ToPy for Grasp {
+    fn to_py(self, py: Python<'_>) -> PyResult<Py<PyAny>> {
+        let grasp_mode = enum_value(py, PY, "GraspMode", i64::from(u8::from(self.grasp_mode)))?;
+        let tool = enum_value(py, PY, "Tool", i64::from(u8::from(self.tool)))?;
+        let pose = pose_record(py, &self.pose)?;
+        record(
+            py,
+            PY,
+            "Grasp",
+            &[
+                ("grasp_mode", grasp_mode.into_bound(py)),
+                ("object_class", field(py, self.object_class)?),
+                ("object_instance", field(py, self.object_instance)?),
+                ("stroke_um", field(py, self.stroke_um)?),
+                ("angle_offset_udeg", field(py, self.angle_offset_udeg)?),
+                ("center_offset_um", field(py, self.center_offset_um)?),
+                ("tool", tool.into_bound(py)),
+                ("pose", pose.into_bound(py)),
+                ("object_count", field(py, self.object_count)?),
+                ("candidate_count", field(py, self.candidate_count)?),
+            ],
+        )
+    }
+}
+
+/// A grasp, or `None` when the server found none; why not is `outcome`-specific: the Python
+/// `GetGraspOutcome` enum says which.
+impl ToPy for GetGraspOutcome {
+    fn to_py(self, py: Python<'_>) -> PyResult<Py<PyAny>> {
+        let (member, grasp) = match self {
+            GetGraspOutcome::Grasp(g) => ("GRASP", Some(g.to_py(py)?)),
+            GetGraspOutcome::NoObject => ("NO_OBJECT", None),
+            GetGraspOutcome::NoGrasp => ("NO_GRASP", None),
+            GetGraspOutcome::InvalidObjectClass => ("INVALID_OBJECT_CLASS", None),
+        };
+        let outcome = enum_member(py, PY, "GetGraspOutcome", member)?;
+        record(
+            py,
+            PY,
+            "GraspResult",
+            &[
+                ("outcome", outcome.into_bound(py)),
+                ("grasp", field(py, grasp)?),
+            ],
+        )
+    }
+}
+
+impl ToPy for ObjectCount {
+    fn to_py(self, py: Python<'_>) -> PyResult<Py<PyAny>> {
+        record(
+            py,
+            PY,
+            "ObjectCount",
+            &[
+                ("object_class", field(py, self.object_class)?),
+                ("object_count", field(py, self.object_count)?),
+                ("candidate_count", field(py, self.candidate_count)?),
+            ],
+        )
+    }
+}
+
+// ---- arguments -----------------------------------------------------------------------------
+
+/// A wire enum from its number: numbers the manual does not list are refused before sending.
+fn known<T: From<u8> + std::fmt::Debug>(what: &str, n: u8) -> PyResult<T> {
+    let v = T::from(n);
+    if format!("{v:?}").starts_with("Unknown") {
+        Err(errors::invalid_argument(format!("unknown {what} {n}")))
+    } else {
+        Ok(v)
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn config(
+    query_timeout_s: Option<f64>,
+    detection_timeout_s: Option<f64>,
+    connect_timeout_s: Option<f64>,
+    robot_system: Option<u8>,
+    project_index: Option<u32>,
+) -> PyResult<smartgrasp::ClientConfig> {
+    let mut c = smartgrasp::ClientConfig::default();
+    if let Some(s) = query_timeout_s {
+        c.query_timeout = seconds("query_timeout_s", s)?;
+    }
+    if let Some(s) = detection_timeout_s {
+        c.detection_timeout = seconds("detection_timeout_s", s)?;
+    }
+    if let Some(s) = connect_timeout_s {
+        c.connect_timeout = seconds("connect_timeout_s", s)?;
+    }
+    c.robot_system = robot_system
+        .map(|n| known::<RobotSystem>("robot system", n))
+        .transpose()?;
+    c.project_index = project_index;
+    Ok(c)
+}
+
+fn grasp_request(
+    grasp_mode: u8,
+    object_class: u16,
+    tool: u8,
+    pose_format: u8,
+) -> PyResult<GraspRequest> {
+    Ok(GraspRequest {
+        grasp_mode: known::<GraspMode>("grasp mode", grasp_mode)?,
+        object_class,
+        tool: known::<Tool>("tool", tool)?,
+        pose_format: known::<PoseFormat>("pose format", pose_format)?,
+    })
+}
+
+fn feedback(ok: bool) -> GraspFeedback {
+    if ok {
+        GraspFeedback::Ok
+    } else {
+        GraspFeedback::Bad
+    }
+}
+
+fn pose(format: u8, wire: [i32; 7]) -> PyResult<Pose> {
+    let format = known::<PoseFormat>("pose format", format)?;
+    Pose::from_wire(format, wire).map_err(|e| errors::invalid_argument(format!("pose: {e}")))
+}
+
+// ---- the client ----------------------------------------------------------------------------
+
+/// A SCHUNK 2D Grasping-Kit (blocking API). `with` closes the connection.
+#[pyclass(module = "gripper.smartgrasp", name = "Client", frozen)]
+pub struct Client {
+    inner: smartgrasp::Client,
+}
+
+/// A SCHUNK 2D Grasping-Kit (asyncio API).
+#[pyclass(module = "gripper.aio.smartgrasp", name = "Client", frozen)]
+pub struct AioClient {
+    inner: smartgrasp::Client,
+}
+
+impl ToPy for AioClient {
+    fn to_py(self, py: Python<'_>) -> PyResult<Py<PyAny>> {
+        self.into_py_any(py)
+    }
+}
+
+/// `close()` for leaving a `with` block: a client that is already closed, or whose connection
+/// is already lost (the error was raised by the call that saw it), is fine to leave.
+fn closed_is_fine(r: smartgrasp::Result<()>) -> smartgrasp::Result<()> {
+    match r {
+        Err(Error::Closed | Error::ConnectionLost { .. }) => Ok(()),
+        other => other,
+    }
+}
+
+twins! {
+    Client, AioClient, error;
+    blocking {
+        /// Connects to "host:port" and opens the session (protocol version, state, and the
+        /// `robot_system` registration and `project_index` when given).
+        #[staticmethod]
+        #[pyo3(signature = (addr, *, query_timeout_s=None, detection_timeout_s=None, connect_timeout_s=None, robot_system=None, project_index=None))]
+        fn connect(
+            py: Python<'_>,
+            addr: String,
+            query_timeout_s: Option<f64>,
+            detection_timeout_s: Option<f64>,
+            connect_timeout_s: Option<f64>,
+            robot_system: Option<u8>,
+            project_index: Option<u32>,
+        ) -> PyResult<Client> {
+            let c = config(query_timeout_s, detection_timeout_s, connect_timeout_s, robot_system, project_index)?;
+            let inner = runtime::block_on(py, smartgrasp::Client::connect(addr, c), error)?;
+            Ok(Client { inner })
+        }
+
+        /// Whether the connection is closed for good.
+        #[getter]
+        fn is_closed(&self) -> bool {
+            self.inner.is_closed()
+        }
+
+        /// The asyncio view of this connection.
+        #[getter]
+        fn aio(&self) -> AioClient {
+            AioClient { inner: self.inner.clone() }
+        }
+
+        /// A handle on the same connection whose calls use another timeout.
+        fn with_timeout(&self, timeout_s: f64) -> PyResult<Client> {
+            Ok(Client { inner: self.inner.with_timeout(seconds("timeout_s", timeout_s)?) })
+        }
+
+        fn __enter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {
+            slf
+        }
+
+        #[pyo3(signature = (*_exc))]
+        fn __exit__(&self, py: Python<'_>, _exc: Bound<'_, pyo3::types::PyTuple>) -> PyResult<bool> {
+            let c = self.inner.clone();
+            runtime::block_on(py, async move { closed_is_fine(c.close().await) }, error)?;
+            Ok(false)
+        }
+    }
+    aio {
+        /// Connects to "host:port" and opens the session.
+        #[staticmethod]
+        #[pyo3(signature = (addr, *, query_timeout_s=None, detection_timeout_s=None, connect_timeout_s=None, robot_system=None, project_index=None))]
+        fn connect<'py>(
+            py: Python<'py>,
+            addr: String,
+            query_timeout_s: Option<f64>,
+            detection_timeout_s: Option<f64>,
+            connect_timeout_s: Option<f64>,
+            robot_system: Option<u8>,
+            project_index: Option<u32>,
+        ) -> PyResult<Bound<'py, PyAny>> {
+            let c = config(query_timeout_s, detection_timeout_s, connect_timeout_s, robot_system, project_index)?;
+            runtime::awaitable(
+                py,
+                async move { smartgrasp::Client::connect(addr, c).await.map(|inner| AioClient { inner }) },
+                error,
+            )
+        }
+
+        /// The blocking view of this connection.
+        #[getter]
+        fn blocking(&self) -> Client {
+            Client { inner: self.inner.clone() }
+        }
+
+        fn __aenter__(slf: Bound<'_, Self>) -> PyResult<Bound<'_, PyAny>> {
+            let py = slf.py();
+            let me = slf.unbind();
+            pyo3_async_runtimes::tokio::future_into_py(py, async move { Ok(me) })
+        }
+
+        #[pyo3(signature = (*_exc))]
+        fn __aexit__<'py>(&self, py: Python<'py>, _exc: Bound<'py, pyo3::types::PyTuple>) -> PyResult<Bound<'py, PyAny>> {
+            let c = self.inner.clone();
+            runtime::awaitable(py, async move { closed_is_fine(c.close().await).map(|()| false) }, error)
+        }
+    }
+
+    /// GET_PROTOCOL_VERSION.
+    fn get_protocol_version(&self) => |c| c.get_protocol_version();
+    /// GET_STATE.
+    fn get_state(&self) => |c| c.get_state();
+    /// REGISTER_CLIENT (a `RobotSystem`).
+    fn register_client(&self, robot: u8) [let robot = known::<RobotSystem>("robot system", robot)?;] => |c| c.register_client(robot);
+    /// SET_PROJECT.
+    fn set_project(&self, project_index: u32) => |c| c.set_project(project_index);
+    /// GET_GRASP: a `GraspResult` (its `grasp` is None when the outcome is not GRASP).
+    #[pyo3(signature = (grasp_mode, object_class, tool, pose_format))]
+    fn get_grasp(&self, grasp_mode: u8, object_class: u16, tool: u8, pose_format: u8)
+        [let request = grasp_request(grasp_mode, object_class, tool, pose_format)?;]
+        => |c| c.get_grasp(request);
+    /// GRASP_FEEDBACK: whether the last grasp was fine.
+    fn grasp_feedback(&self, ok: bool) => |c| c.grasp_feedback(feedback(ok));
+    /// GET_OBJECT_COUNT (class 0: all).
+    fn get_object_count(&self, object_class: u16) => |c| c.get_object_count(object_class);
+    /// ROBOT_POSE: the robot's pose, in `format` with the seven wire values.
+    fn robot_pose(&self, format: u8, wire: [i32; 7]) [let p = pose(format, wire)?;] => |c| c.robot_pose(p);
+    /// Closes the connection.
+    fn close(&self) => |c| c.close();
+}
+
+// ---- the simulator -------------------------------------------------------------------------
+
+/// A simulated Grasping-Kit serving TCP in this process (the Rust `SimConfig::default()`: the
+/// demo project, operational).
+#[pyclass(module = "gripper.smartgrasp.sim", name = "SimServer", frozen)]
+pub struct SimServer {
+    server: Mutex<Option<smartgrasp::sim::SimServer>>,
+    addr: SocketAddr,
+}
+
+impl SimServer {
+    fn with<R>(&self, f: impl FnOnce(&smartgrasp::sim::SimServer) -> R) -> PyResult<R> {
+        let guard = self
+            .server
+            .lock()
+            .map_err(|_| errors::closed("the simulator's lock is poisoned".into()))?;
+        match guard.as_ref() {
+            Some(s) => Ok(f(s)),
+            None => Err(errors::closed("the simulator was shut down".into())),
+        }
+    }
+
+    fn inject(&self, fault: smartgrasp::sim::Fault) -> PyResult<()> {
+        self.with(|s| s.inject(fault))
+    }
+}
+
+#[pymethods]
+impl SimServer {
+    /// Starts a simulated Grasping-Kit on `addr`; `server_state` and `protocol_version` are the
+    /// Rust `SimConfig`'s (defaults: OPERATIONAL, this client's version).
+    #[new]
+    #[pyo3(signature = (*, server_state=None, protocol_version=None, addr="127.0.0.1:0"))]
+    fn new(
+        py: Python<'_>,
+        server_state: Option<u8>,
+        protocol_version: Option<u16>,
+        addr: &str,
+    ) -> PyResult<Self> {
+        let mut config = smartgrasp::sim::SimConfig::default();
+        if let Some(s) = server_state {
+            config.server_state = ServerState::from(s);
+        }
+        if let Some(v) = protocol_version {
+            config.protocol_version = v;
+        }
+        let addr = addr.to_owned();
+        let server = runtime::block_on(py, smartgrasp::sim::SimServer::bind(addr, config), |e| {
+            errors::transport(format!("cannot start the SmartGrasp simulator: {e}"))
+        })?;
+        let addr = server.local_addr();
+        Ok(SimServer {
+            server: Mutex::new(Some(server)),
+            addr,
+        })
+    }
+
+    /// "host:port" to connect to.
+    #[getter]
+    fn address(&self) -> String {
+        self.addr.to_string()
+    }
+
+    /// The port it listens on.
+    #[getter]
+    fn port(&self) -> u16 {
+        self.addr.port()
+    }
+
+    /// The robot systems registered so far (numbers of `RobotSystem`).
+    fn registered_clients(&self, py: Python<'_>) -> PyResult<Vec<Py<PyAny>>> {
+        self.with(|s| s.registered_clients())?
+            .into_iter()
+            .map(|r| enum_value(py, PY, "RobotSystem", i64::from(u8::from(r))))
+            .collect()
+    }
+
+    /// The robot poses received so far.
+    fn robot_poses(&self, py: Python<'_>) -> PyResult<Vec<Py<PyAny>>> {
+        self.with(|s| s.robot_poses())?
+            .iter()
+            .map(|p| pose_record(py, p))
+            .collect()
+    }
+
+    /// The server goes into `state` (a `ServerState`).
+    fn set_server_state(&self, state: u8) -> PyResult<()> {
+        self.with(|s| s.with_state(|st| st.set_server_state(ServerState::from(state))))
+    }
+
+    /// The next request is processed but not answered.
+    fn drop_next_reply(&self) -> PyResult<()> {
+        self.inject(smartgrasp::sim::Fault::DropReply)
+    }
+
+    /// The next response comes `delay_s` late.
+    fn delay_next_reply(&self, delay_s: f64) -> PyResult<()> {
+        let d = seconds("delay_s", delay_s)?;
+        self.inject(smartgrasp::sim::Fault::DelayReply(d))
+    }
+
+    /// The next response has `length` in its length field.
+    fn corrupt_next_length(&self, length: u32) -> PyResult<()> {
+        self.inject(smartgrasp::sim::Fault::CorruptLength(length))
+    }
+
+    /// The connection is closed instead of the next response.
+    fn close_next(&self) -> PyResult<()> {
+        self.inject(smartgrasp::sim::Fault::Close)
+    }
+
+    /// Stops serving and closes every connection (idempotent).
+    fn shutdown(&self) -> PyResult<()> {
+        let taken = self
+            .server
+            .lock()
+            .map_err(|_| errors::closed("the simulator's lock is poisoned".into()))?
+            .take();
+        runtime::enter(|| drop(taken));
+        Ok(())
+    }
+
+    fn __enter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {
+        slf
+    }
+
+    #[pyo3(signature = (*_exc))]
+    fn __exit__(&self, _exc: Bound<'_, pyo3::types::PyTuple>) -> PyResult<bool> {
+        self.shutdown()?;
+        Ok(false)
+    }
+
+    fn __repr__(&self) -> String {
+        format!("<gripper.smartgrasp.sim.SimServer at {}>", self.addr)
+    }
+}
+
+/// `gripper._native.smartgrasp`.
+pub fn module(py: Python<'_>) -> PyResult<Bound<'_, PyModule>> {
+    let m = PyModule::new(py, "smartgrasp")?;
+    m.add_class::<Client>()?;
+    m.add("AioClient", py.get_type::<AioClient>())?;
+    m.add_class::<SimServer>()?;
+    m.add("DEFAULT_PORT", smartgrasp::DEFAULT_PORT)?;
+    Ok(m)
+}

@@ -1,0 +1,72 @@
+"""The Grasping-Kit client (blocking) against the in-process simulated server."""
+
+from __future__ import annotations
+
+import pytest
+
+import gripper
+from gripper import smartgrasp
+from gripper.smartgrasp import GetGraspOutcome, GraspMode, PoseFormat, Tool
+from gripper.smartgrasp.sim import SimServer
+
+
+def test_session(kit: smartgrasp.Client, kit_sim: SimServer) -> None:
+    assert kit.get_state() is smartgrasp.ServerState.OPERATIONAL
+    assert kit.get_protocol_version() == 3
+    kit.register_client(smartgrasp.RobotSystem.UR)
+    assert kit_sim.registered_clients() == [smartgrasp.RobotSystem.UR]
+    kit.set_project(0)
+    with pytest.raises(gripper.DeviceError) as caught:
+        kit.set_project(99)
+    assert caught.value.code == smartgrasp.ResponseCode.ERROR
+    assert caught.value.command == "SET_PROJECT"
+
+
+def test_grasp_loop(kit: smartgrasp.Client) -> None:
+    result = kit.get_grasp(GraspMode.ACTIVE_GRASP, 1, Tool.EXTERIOR, PoseFormat.QUATERNION)
+    assert result.outcome is GetGraspOutcome.GRASP
+    grasp = result.grasp
+    assert grasp is not None
+    assert grasp.object_class == 1
+    assert grasp.stroke_mm == 86.0
+    assert grasp.pose.format is PoseFormat.QUATERNION
+    assert len(grasp.pose.wire) == 7
+    assert grasp.pose.orientation_xyzw is not None
+    kit.grasp_feedback(True)
+    missing = kit.get_grasp(GraspMode.ACTIVE_GRASP, 999, Tool.EXTERIOR, PoseFormat.QUATERNION)
+    assert missing.outcome is GetGraspOutcome.INVALID_OBJECT_CLASS
+    assert missing.grasp is None
+    count = kit.get_object_count(0)
+    assert count.object_count >= 1
+
+
+def test_robot_pose(kit: smartgrasp.Client, kit_sim: SimServer) -> None:
+    wire = [450000, -120000, 50000, 1000000, 0, 0, 0]
+    kit.robot_pose(PoseFormat.QUATERNION, wire)
+    [received] = kit_sim.robot_poses()
+    assert received.format is PoseFormat.QUATERNION
+    assert received.wire == wire
+    assert received.position_m == pytest.approx([0.45, -0.12, 0.05])
+    with pytest.raises(ValueError):
+        kit.get_grasp(9, 1, Tool.EXTERIOR, PoseFormat.QUATERNION)
+
+
+def test_timeout_lost_response_and_close(kit_sim: SimServer) -> None:
+    with smartgrasp.Client.connect(kit_sim.address, query_timeout_s=0.2) as kit:
+        kit_sim.delay_next_reply(0.5)
+        with pytest.raises(TimeoutError):
+            kit.get_state()
+        assert kit.with_timeout(5.0).get_state() is smartgrasp.ServerState.OPERATIONAL
+        kit_sim.close_next()
+        with pytest.raises(gripper.ConnectionLostError):
+            kit.get_state()
+    with smartgrasp.Client.connect(kit_sim.address) as kit:
+        kit_sim.corrupt_next_length(5)
+        with pytest.raises(gripper.GripperError):
+            kit.get_state()
+
+
+def test_not_operational_is_a_protocol_error() -> None:
+    with SimServer(server_state=smartgrasp.ServerState.STOPPED) as sim:
+        with pytest.raises(gripper.ProtocolError):
+            smartgrasp.Client.connect(sim.address)
