@@ -274,6 +274,11 @@ twins! {
             Ok(AioPort { inner: self.inner.port(port_number(n)?) })
         }
 
+        /// A handle on the same connection whose calls use another timeout.
+        fn with_timeout(&self, timeout_s: f64) -> PyResult<AioClient> {
+            Ok(AioClient { inner: self.inner.with_timeout(seconds("timeout_s", timeout_s)?) })
+        }
+
         /// The blocking view of this connection.
         #[getter]
         fn blocking(&self) -> Client {
@@ -358,6 +363,11 @@ twins! {
         #[getter]
         fn number(&self) -> u8 {
             self.inner.number()
+        }
+
+        /// The same port with another timeout for its calls.
+        fn with_timeout(&self, timeout_s: f64) -> PyResult<AioPort> {
+            Ok(AioPort { inner: self.inner.with_timeout(seconds("timeout_s", timeout_s)?) })
         }
 
         /// Polls DEVSTATE every `interval_s`: an async stream of device states.

@@ -297,6 +297,11 @@ twins! {
             )
         }
 
+        /// A handle on the same connection whose calls use another timeout.
+        fn with_timeout(&self, timeout_s: f64) -> PyResult<AioClient> {
+            Ok(AioClient { inner: self.inner.with_timeout(seconds("timeout_s", timeout_s)?) })
+        }
+
         /// The blocking view of this connection.
         #[getter]
         fn blocking(&self) -> Client {

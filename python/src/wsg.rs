@@ -368,6 +368,13 @@ twins! {
             )
         }
 
+        /// A handle on the same connection whose calls use other timeouts.
+        fn with_timeouts(&self, query_s: f64, motion_s: f64) -> PyResult<AioClient> {
+            Ok(AioClient {
+                inner: self.inner.with_timeouts(seconds("query_s", query_s)?, seconds("motion_s", motion_s)?),
+            })
+        }
+
         /// The blocking view of this connection (same connection, same pairing).
         #[getter]
         fn blocking(&self) -> Client {
