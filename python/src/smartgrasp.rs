@@ -62,7 +62,12 @@ fn pose_record(py: Python<'_>, pose: &Pose) -> PyResult<Py<PyAny>> {
         &[
             ("format", format.into_bound(py)),
             ("wire", field(py, pose.to_wire())?),
-            ("position_m", field(py, pose.position_m())?),
+            // µm / 1e6 rather than the crate's µm * 1e-6: the division is correctly rounded, so
+            // Python shows 0.45, not 0.44999999999999996.
+            (
+                "position_m",
+                field(py, pose.position_um().map(|um| f64::from(um) / 1e6))?,
+            ),
             (
                 "orientation_xyzw",
                 field(py, si.map(|s| s.orientation.xyzw()))?,

@@ -81,7 +81,8 @@ def test_device_error_carries_code_name_and_description(
         wsg_client.grasp(40.0, 50.0)
     e = caught.value
     assert isinstance(e, gripper.GripperError)
-    assert e.code == wsg.Status.AXIS_BLOCKED == 29
+    assert e.code == 29
+    assert wsg.Status(e.code) is wsg.Status.AXIS_BLOCKED
     assert e.name == "E_AXIS_BLOCKED"
     assert e.description == "axis blocked"
     assert e.command == GRASP_ID
