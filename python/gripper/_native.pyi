@@ -32,7 +32,7 @@ class Stream(Generic[_T]):
         ty: type[BaseException] | None,
         value: BaseException | None,
         tb: TracebackType | None,
-    ) -> bool: ...
+    ) -> None: ...
 
 class _SimBase:
     @property
@@ -46,7 +46,7 @@ class _SimBase:
         ty: type[BaseException] | None,
         value: BaseException | None,
         tb: TracebackType | None,
-    ) -> bool: ...
+    ) -> None: ...
 
 class _Blocking:
     def __enter__(self) -> Self: ...
@@ -55,7 +55,7 @@ class _Blocking:
         ty: type[BaseException] | None,
         value: BaseException | None,
         tb: TracebackType | None,
-    ) -> bool: ...
+    ) -> None: ...
 
 class _Async:
     def __aenter__(self) -> Awaitable[Self]: ...
@@ -64,12 +64,14 @@ class _Async:
         ty: type[BaseException] | None,
         value: BaseException | None,
         tb: TracebackType | None,
-    ) -> Awaitable[bool]: ...
+    ) -> Awaitable[None]: ...
 
 class wsg:
     DEFAULT_PORT: int
     @staticmethod
     def status_codes() -> list[tuple[int, str, str]]: ...
+    @staticmethod
+    def _width_request() -> bytes: ...
 
     class Client(_Blocking):
         @staticmethod

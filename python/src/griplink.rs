@@ -3,7 +3,6 @@
 
 use std::collections::HashMap;
 use std::net::SocketAddr;
-use std::sync::Mutex;
 
 use gripper::griplink::{
     self, Blocking, DeviceState, Error, FlexGrip, FlexRelease, GripConfig, GripConfigF,
@@ -15,6 +14,7 @@ use pyo3::IntoPyObjectExt;
 use crate::convert::{enum_member, enum_value, field, record, ToPy};
 use crate::errors;
 use crate::runtime::{self, seconds};
+use crate::sim::Slot;
 use crate::stream::Stream;
 
 const PY: &str = "gripper.griplink";
@@ -318,6 +318,19 @@ twins! {
     fn close(&self) => |c| c.close();
 }
 
+/// The polling task is spawned on the module's runtime.
+fn watch_state(port: &griplink::Port, interval_s: f64) -> PyResult<Stream> {
+    let interval = seconds("interval_s", interval_s)?;
+    Ok(runtime::enter(|| Stream::new(port.watch_state(interval))))
+}
+
+fn watch_value(port: &griplink::Port, index: u32, interval_s: f64) -> PyResult<Stream> {
+    let interval = seconds("interval_s", interval_s)?;
+    Ok(runtime::enter(|| {
+        Stream::new(port.watch_value(index, interval))
+    }))
+}
+
 // ---- a port --------------------------------------------------------------------------------
 
 /// The device on one port of a GRIPLINK controller (blocking API).
@@ -348,14 +361,12 @@ twins! {
 
         /// Polls DEVSTATE every `interval_s`: a stream of device states.
         fn watch_state(&self, interval_s: f64) -> PyResult<Stream> {
-            let interval = seconds("interval_s", interval_s)?;
-            Ok(runtime::enter(|| Stream::new(self.inner.watch_state(interval))))
+            watch_state(&self.inner, interval_s)
         }
 
         /// Polls VALUEF[index] every `interval_s`: a stream of values.
         fn watch_value(&self, index: u32, interval_s: f64) -> PyResult<Stream> {
-            let interval = seconds("interval_s", interval_s)?;
-            Ok(runtime::enter(|| Stream::new(self.inner.watch_value(index, interval))))
+            watch_value(&self.inner, index, interval_s)
         }
     }
     aio {
@@ -372,14 +383,12 @@ twins! {
 
         /// Polls DEVSTATE every `interval_s`: an async stream of device states.
         fn watch_state(&self, interval_s: f64) -> PyResult<Stream> {
-            let interval = seconds("interval_s", interval_s)?;
-            Ok(runtime::enter(|| Stream::new(self.inner.watch_state(interval))))
+            watch_state(&self.inner, interval_s)
         }
 
         /// Polls VALUEF[index] every `interval_s`: an async stream of values.
         fn watch_value(&self, index: u32, interval_s: f64) -> PyResult<Stream> {
-            let interval = seconds("interval_s", interval_s)?;
-            Ok(runtime::enter(|| Stream::new(self.inner.watch_value(index, interval))))
+            watch_value(&self.inner, index, interval_s)
         }
     }
 
@@ -467,7 +476,7 @@ twins! {
 /// A simulated GRIPLINK controller serving TCP in this process.
 #[pyclass(module = "gripper.griplink.sim", name = "SimServer", frozen)]
 pub struct SimServer {
-    server: Mutex<Option<griplink::sim::SimServer>>,
+    server: Slot<griplink::sim::SimServer>,
     addr: SocketAddr,
 }
 
@@ -490,14 +499,7 @@ fn sim_device(name: &str) -> PyResult<griplink::sim::SimDevice> {
 
 impl SimServer {
     fn with<R>(&self, f: impl FnOnce(&griplink::sim::SimServer) -> R) -> PyResult<R> {
-        let guard = self
-            .server
-            .lock()
-            .map_err(|_| errors::closed("the simulator's lock is poisoned".into()))?;
-        match guard.as_ref() {
-            Some(s) => Ok(f(s)),
-            None => Err(errors::closed("the simulator was shut down".into())),
-        }
+        self.server.with(f)
     }
 
     fn inject(&self, fault: griplink::sim::Fault) -> PyResult<()> {
@@ -562,7 +564,7 @@ impl SimServer {
         })?;
         let addr = server.local_addr();
         Ok(SimServer {
-            server: Mutex::new(Some(server)),
+            server: Slot::new(server),
             addr,
         })
     }
@@ -636,13 +638,7 @@ impl SimServer {
 
     /// Stops serving and closes every connection (idempotent).
     fn shutdown(&self) -> PyResult<()> {
-        let taken = self
-            .server
-            .lock()
-            .map_err(|_| errors::closed("the simulator's lock is poisoned".into()))?
-            .take();
-        runtime::enter(|| drop(taken));
-        Ok(())
+        self.server.shutdown()
     }
 
     fn __enter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {

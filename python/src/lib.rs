@@ -9,6 +9,7 @@ mod convert;
 mod errors;
 mod griplink;
 mod runtime;
+mod sim;
 mod smartgrasp;
 mod stream;
 mod wsg;

@@ -2,7 +2,6 @@
 //! `gripper.smartgrasp.sim.SimServer`.
 
 use std::net::SocketAddr;
-use std::sync::Mutex;
 
 use gripper::smartgrasp::{
     self, Error, GetGraspOutcome, Grasp, GraspFeedback, GraspMode, GraspRequest, ObjectCount, Pose,
@@ -14,6 +13,7 @@ use pyo3::IntoPyObjectExt;
 use crate::convert::{enum_member, enum_value, field, record, ToPy};
 use crate::errors;
 use crate::runtime::{self, seconds};
+use crate::sim::Slot;
 
 const PY: &str = "gripper.smartgrasp";
 
@@ -141,10 +141,11 @@ impl ToPy for ObjectCount {
 
 // ---- arguments -----------------------------------------------------------------------------
 
-/// A wire enum from its number: numbers the manual does not list are refused before sending.
-fn known<T: From<u8> + std::fmt::Debug>(what: &str, n: u8) -> PyResult<T> {
+/// A wire enum from its number: numbers the manual does not list (`is_unknown`) are refused
+/// before sending.
+fn known<T: From<u8>>(what: &str, n: u8, is_unknown: fn(&T) -> bool) -> PyResult<T> {
     let v = T::from(n);
-    if format!("{v:?}").starts_with("Unknown") {
+    if is_unknown(&v) {
         Err(errors::invalid_argument(format!("unknown {what} {n}")))
     } else {
         Ok(v)
@@ -170,7 +171,7 @@ fn config(
         c.connect_timeout = seconds("connect_timeout_s", s)?;
     }
     c.robot_system = robot_system
-        .map(|n| known::<RobotSystem>("robot system", n))
+        .map(|n| known("robot system", n, |v| matches!(v, RobotSystem::Unknown(_))))
         .transpose()?;
     c.project_index = project_index;
     Ok(c)
@@ -183,10 +184,14 @@ fn grasp_request(
     pose_format: u8,
 ) -> PyResult<GraspRequest> {
     Ok(GraspRequest {
-        grasp_mode: known::<GraspMode>("grasp mode", grasp_mode)?,
+        grasp_mode: known("grasp mode", grasp_mode, |v| {
+            matches!(v, GraspMode::Unknown(_))
+        })?,
         object_class,
-        tool: known::<Tool>("tool", tool)?,
-        pose_format: known::<PoseFormat>("pose format", pose_format)?,
+        tool: known("tool", tool, |v| matches!(v, Tool::Unknown(_)))?,
+        pose_format: known("pose format", pose_format, |v| {
+            matches!(v, PoseFormat::Unknown(_))
+        })?,
     })
 }
 
@@ -199,7 +204,9 @@ fn feedback(ok: bool) -> GraspFeedback {
 }
 
 fn pose(format: u8, wire: [i32; 7]) -> PyResult<Pose> {
-    let format = known::<PoseFormat>("pose format", format)?;
+    let format = known("pose format", format, |v| {
+        matches!(v, PoseFormat::Unknown(_))
+    })?;
     Pose::from_wire(format, wire).map_err(|e| errors::invalid_argument(format!("pose: {e}")))
 }
 
@@ -331,7 +338,7 @@ twins! {
     /// GET_STATE.
     fn get_state(&self) => |c| c.get_state();
     /// REGISTER_CLIENT (a `RobotSystem`).
-    fn register_client(&self, robot: u8) [let robot = known::<RobotSystem>("robot system", robot)?;] => |c| c.register_client(robot);
+    fn register_client(&self, robot: u8) [let robot = known("robot system", robot, |v| matches!(v, RobotSystem::Unknown(_)))?;] => |c| c.register_client(robot);
     /// SET_PROJECT.
     fn set_project(&self, project_index: u32) => |c| c.set_project(project_index);
     /// GET_GRASP: a `GraspResult` (its `grasp` is None when the outcome is not GRASP).
@@ -355,20 +362,13 @@ twins! {
 /// demo project, operational).
 #[pyclass(module = "gripper.smartgrasp.sim", name = "SimServer", frozen)]
 pub struct SimServer {
-    server: Mutex<Option<smartgrasp::sim::SimServer>>,
+    server: Slot<smartgrasp::sim::SimServer>,
     addr: SocketAddr,
 }
 
 impl SimServer {
     fn with<R>(&self, f: impl FnOnce(&smartgrasp::sim::SimServer) -> R) -> PyResult<R> {
-        let guard = self
-            .server
-            .lock()
-            .map_err(|_| errors::closed("the simulator's lock is poisoned".into()))?;
-        match guard.as_ref() {
-            Some(s) => Ok(f(s)),
-            None => Err(errors::closed("the simulator was shut down".into())),
-        }
+        self.server.with(f)
     }
 
     fn inject(&self, fault: smartgrasp::sim::Fault) -> PyResult<()> {
@@ -401,7 +401,7 @@ impl SimServer {
         })?;
         let addr = server.local_addr();
         Ok(SimServer {
-            server: Mutex::new(Some(server)),
+            server: Slot::new(server),
             addr,
         })
     }
@@ -462,13 +462,7 @@ impl SimServer {
 
     /// Stops serving and closes every connection (idempotent).
     fn shutdown(&self) -> PyResult<()> {
-        let taken = self
-            .server
-            .lock()
-            .map_err(|_| errors::closed("the simulator's lock is poisoned".into()))?
-            .take();
-        runtime::enter(|| drop(taken));
-        Ok(())
+        self.server.shutdown()
     }
 
     fn __enter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {

@@ -1,7 +1,6 @@
 //! `gripper.wsg`: the WSG client (blocking and asyncio) and `gripper.wsg.sim.SimServer`.
 
 use std::net::SocketAddr;
-use std::sync::Mutex;
 
 use gripper::wsg::{
     self, Error, Finger, FingerFlags, FingerInfo, GraspingStatistics, GripState, HomingDirection,
@@ -13,6 +12,7 @@ use pyo3::IntoPyObjectExt;
 use crate::convert::{enum_value, f32_to_f64, field, record, ToPy};
 use crate::errors;
 use crate::runtime::{self, seconds};
+use crate::sim::Slot;
 use crate::stream::Stream;
 
 const PY: &str = "gripper.wsg";
@@ -506,7 +506,7 @@ fn close_quietly(py: Python<'_>, c: &wsg::Client) -> PyResult<()> {
 /// `with SimServer() as sim:` stops it at the end of the block.
 #[pyclass(module = "gripper.wsg.sim", name = "SimServer", frozen)]
 pub struct SimServer {
-    server: Mutex<Option<wsg::sim::SimServer>>,
+    server: Slot<wsg::sim::SimServer>,
     addr: SocketAddr,
 }
 
@@ -529,14 +529,7 @@ fn model(name: &str) -> PyResult<wsg::sim::Model> {
 
 impl SimServer {
     fn with<R>(&self, f: impl FnOnce(&wsg::sim::SimServer) -> R) -> PyResult<R> {
-        let guard = self
-            .server
-            .lock()
-            .map_err(|_| errors::closed("the simulator's lock is poisoned".into()))?;
-        match guard.as_ref() {
-            Some(s) => Ok(f(s)),
-            None => Err(errors::closed("the simulator was shut down".into())),
-        }
+        self.server.with(f)
     }
 }
 
@@ -589,7 +582,7 @@ impl SimServer {
             .local_addr()
             .ok_or_else(|| errors::transport("the simulator has no address".into()))?;
         Ok(SimServer {
-            server: Mutex::new(Some(server)),
+            server: Slot::new(server),
             addr,
         })
     }
@@ -669,13 +662,7 @@ impl SimServer {
 
     /// Stops serving and closes every connection (idempotent).
     fn shutdown(&self) -> PyResult<()> {
-        let taken = self
-            .server
-            .lock()
-            .map_err(|_| errors::closed("the simulator's lock is poisoned".into()))?
-            .take();
-        runtime::enter(|| drop(taken));
-        Ok(())
+        self.server.shutdown()
     }
 
     fn __enter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {
@@ -702,6 +689,7 @@ pub fn module(py: Python<'_>) -> PyResult<Bound<'_, PyModule>> {
     m.add_class::<SimServer>()?;
     m.add("DEFAULT_PORT", wsg::DEFAULT_PORT)?;
     m.add_function(wrap_pyfunction!(status_codes, &m)?)?;
+    m.add_function(wrap_pyfunction!(_width_request, &m)?)?;
     Ok(m)
 }
 
@@ -714,4 +702,17 @@ fn status_codes() -> Vec<(u16, &'static str, &'static str)> {
         .take_while(|s| !matches!(s, wsg::Status::Unknown(_)))
         .map(|s| (s.code(), s.symbol(), s.description()))
         .collect()
+}
+
+/// The bytes of a width query (0x43, no auto-update), encoded by the crate's own frame code: the
+/// benchmark's raw-socket floor sends exactly what the client sends.
+#[pyfunction]
+fn _width_request() -> PyResult<Vec<u8>> {
+    let mut b = bytes::BytesMut::new();
+    wsg::frame::encode(
+        &wsg::Command::Width(wsg::UpdateMode::ONCE).to_frame(),
+        &mut b,
+    )
+    .map_err(|e| errors::invalid_argument(e.to_string()))?;
+    Ok(b.to_vec())
 }
