@@ -26,7 +26,6 @@ def percentiles(samples_ns: list[int]) -> tuple[float, float, float]:
 
 def bench_package(address: str, calls: int) -> list[int]:
     with wsg.Client.connect_tcp(address) as client:
-        client.home()
         for _ in range(1000):
             client.width_mm()
         out = []
