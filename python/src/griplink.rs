@@ -192,8 +192,8 @@ impl ToPy for AioClient {
 
 /// `close()` for leaving a `with` block: a client that is already closed, or whose connection
 /// is already lost (the error was raised by the call that saw it), is fine to leave.
-fn closed_is_fine(r: griplink::Result<()>) -> griplink::Result<()> {
-    match r {
+async fn close_for_exit(c: griplink::Client) -> griplink::Result<()> {
+    match c.close().await {
         Err(Error::Closed | Error::ConnectionLost(_)) => Ok(()),
         other => other,
     }
@@ -201,6 +201,7 @@ fn closed_is_fine(r: griplink::Result<()>) -> griplink::Result<()> {
 
 twins! {
     Client, AioClient, error;
+    closing close_for_exit;
     blocking {
         /// Connects to "host:port".
         #[staticmethod]
@@ -228,27 +229,12 @@ twins! {
             self.inner.is_closed()
         }
 
-        /// The asyncio view of this connection.
-        #[getter]
-        fn aio(&self) -> AioClient {
-            AioClient { inner: self.inner.clone() }
-        }
 
         /// A handle on the same connection whose calls use another timeout.
         fn with_timeout(&self, timeout_s: f64) -> PyResult<Client> {
             Ok(Client { inner: self.inner.with_timeout(seconds("timeout_s", timeout_s)?) })
         }
 
-        fn __enter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {
-            slf
-        }
-
-        #[pyo3(signature = (*_exc))]
-        fn __exit__(&self, py: Python<'_>, _exc: Bound<'_, pyo3::types::PyTuple>) -> PyResult<bool> {
-            let c = self.inner.clone();
-            runtime::block_on(py, async move { closed_is_fine(c.close().await) }, error)?;
-            Ok(false)
-        }
     }
     aio {
         /// Connects to "host:port".
@@ -279,23 +265,7 @@ twins! {
             Ok(AioClient { inner: self.inner.with_timeout(seconds("timeout_s", timeout_s)?) })
         }
 
-        /// The blocking view of this connection.
-        #[getter]
-        fn blocking(&self) -> Client {
-            Client { inner: self.inner.clone() }
-        }
 
-        fn __aenter__(slf: Bound<'_, Self>) -> PyResult<Bound<'_, PyAny>> {
-            let py = slf.py();
-            let me = slf.unbind();
-            pyo3_async_runtimes::tokio::future_into_py(py, async move { Ok(me) })
-        }
-
-        #[pyo3(signature = (*_exc))]
-        fn __aexit__<'py>(&self, py: Python<'py>, _exc: Bound<'py, pyo3::types::PyTuple>) -> PyResult<Bound<'py, PyAny>> {
-            let c = self.inner.clone();
-            runtime::awaitable(py, async move { closed_is_fine(c.close().await).map(|()| false) }, error)
-        }
     }
 
     /// `ID?`: the controller's identifier.

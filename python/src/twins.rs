@@ -13,10 +13,14 @@
 ///     fn name(&self, a: f32, b: f32) [let x = prelude(a)?;] => |c| c.rust_method(x, b);
 /// }
 /// ```
-/// Both classes have a field `inner` holding the (cheaply cloned) Rust client handle.
+/// Both classes have a field `inner` holding the (cheaply cloned) Rust client handle. With
+/// `closing close_fn;` (an `async fn(Client) -> Result<()>`), the classes also get `with` /
+/// `async with` (leaving closes the connection with `close_fn`) and the `aio` / `blocking`
+/// views of one connection.
 macro_rules! twins {
     (
         $Blocking:ident, $Aio:ident, $err:path;
+        $(closing $closing:path;)?
         blocking { $($blocking_extra:item)* }
         aio { $($aio_extra:item)* }
         $(
@@ -30,6 +34,27 @@ macro_rules! twins {
         impl $Blocking {
             $($blocking_extra)*
             $(
+                /// The asyncio view of this connection (same connection, same pairing).
+                #[getter]
+                fn aio(&self) -> $Aio {
+                    $Aio { inner: self.inner.clone() }
+                }
+
+                fn __enter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {
+                    slf
+                }
+
+                #[pyo3(signature = (*_exc))]
+                fn __exit__(
+                    &self,
+                    py: Python<'_>,
+                    _exc: Bound<'_, pyo3::types::PyTuple>,
+                ) -> PyResult<bool> {
+                    $crate::runtime::block_on(py, $closing(self.inner.clone()), $err)?;
+                    Ok(false)
+                }
+            )?
+            $(
                 $(#[$meta])*
                 fn $name(&self, py: Python<'_> $(, $arg: $ty)*) -> PyResult<Py<PyAny>> {
                     $($($pre;)*)?
@@ -42,6 +67,29 @@ macro_rules! twins {
         #[pymethods]
         impl $Aio {
             $($aio_extra)*
+            $(
+                /// The blocking view of this connection (same connection, same pairing).
+                #[getter]
+                fn blocking(&self) -> $Blocking {
+                    $Blocking { inner: self.inner.clone() }
+                }
+
+                fn __aenter__(slf: Bound<'_, Self>) -> PyResult<Bound<'_, PyAny>> {
+                    let py = slf.py();
+                    let me = slf.unbind();
+                    pyo3_async_runtimes::tokio::future_into_py(py, async move { Ok(me) })
+                }
+
+                #[pyo3(signature = (*_exc))]
+                fn __aexit__<'py>(
+                    &self,
+                    py: Python<'py>,
+                    _exc: Bound<'py, pyo3::types::PyTuple>,
+                ) -> PyResult<Bound<'py, PyAny>> {
+                    let close = $closing(self.inner.clone());
+                    $crate::runtime::awaitable(py, async move { close.await.map(|()| false) }, $err)
+                }
+            )?
             $(
                 $(#[$meta])*
                 fn $name<'py>(&self, py: Python<'py> $(, $arg: $ty)*)

@@ -259,6 +259,7 @@ impl ToPy for AioClient {
 
 twins! {
     Client, AioClient, error;
+    closing close_for_exit;
     blocking {
         /// Connects over TCP to "host:port".
         #[staticmethod]
@@ -307,11 +308,6 @@ twins! {
             Ok(Client { inner })
         }
 
-        /// The asyncio view of this connection (same connection, same pairing).
-        #[getter]
-        fn aio(&self) -> AioClient {
-            AioClient { inner: self.inner.clone() }
-        }
 
         /// A handle on the same connection whose calls use other timeouts.
         fn with_timeouts(&self, query_s: f64, motion_s: f64) -> PyResult<Client> {
@@ -320,15 +316,6 @@ twins! {
             })
         }
 
-        fn __enter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {
-            slf
-        }
-
-        #[pyo3(signature = (*_exc))]
-        fn __exit__(&self, py: Python<'_>, _exc: Bound<'_, pyo3::types::PyTuple>) -> PyResult<bool> {
-            close_quietly(py, &self.inner)?;
-            Ok(false)
-        }
 
         fn __repr__(&self) -> String {
             format!("<gripper.wsg.Client over {:?}>", self.inner.transport())
@@ -375,23 +362,7 @@ twins! {
             })
         }
 
-        /// The blocking view of this connection (same connection, same pairing).
-        #[getter]
-        fn blocking(&self) -> Client {
-            Client { inner: self.inner.clone() }
-        }
 
-        fn __aenter__(slf: Bound<'_, Self>) -> PyResult<Bound<'_, PyAny>> {
-            let py = slf.py();
-            let me = slf.unbind();
-            pyo3_async_runtimes::tokio::future_into_py(py, async move { Ok(me) })
-        }
-
-        #[pyo3(signature = (*_exc))]
-        fn __aexit__<'py>(&self, py: Python<'py>, _exc: Bound<'py, pyo3::types::PyTuple>) -> PyResult<Bound<'py, PyAny>> {
-            let c = self.inner.clone();
-            runtime::awaitable(py, async move { closed_is_fine(c.close().await).map(|()| false) }, error)
-        }
 
         fn __repr__(&self) -> String {
             format!("<gripper.aio.wsg.Client over {:?}>", self.inner.transport())
@@ -488,16 +459,11 @@ twins! {
 
 /// `close()` for leaving a `with` block: a client that is already closed, or whose connection
 /// is already lost (the error was raised by the call that saw it), is fine to leave.
-fn closed_is_fine(r: wsg::Result<()>) -> wsg::Result<()> {
-    match r {
+async fn close_for_exit(c: wsg::Client) -> wsg::Result<()> {
+    match c.close().await {
         Err(Error::Closed | Error::ConnectionLost(_)) => Ok(()),
         other => other,
     }
-}
-
-fn close_quietly(py: Python<'_>, c: &wsg::Client) -> PyResult<()> {
-    let c = c.clone();
-    runtime::block_on(py, async move { closed_is_fine(c.close().await) }, error)
 }
 
 // ---- the simulator -------------------------------------------------------------------------
