@@ -138,8 +138,9 @@ async fn grip_cycle_with_every_motion_command() {
     assert_eq!(g.position_um().await.unwrap(), 20_000);
     assert_eq!(g.position_mm().await.unwrap(), 20.0);
 
+    // ENABLE keeps a gripper in state 2, idle; state 6 is for sensors (manual chapter 5).
     g.enable().await.unwrap();
-    assert_eq!(g.state().await.unwrap(), DeviceState::Enabled);
+    assert_eq!(g.state().await.unwrap(), DeviceState::Disabled);
     assert_eq!(device_status(g.clamp(true).await), Status::StateConflict);
     g.disable().await.unwrap();
     assert_eq!(g.state().await.unwrap(), DeviceState::Disabled);
@@ -290,10 +291,12 @@ async fn grip_and_release_helpers_report_outcomes() {
         GripOutcome::Fault
     );
     assert_eq!(server.device_state(0), Some(DeviceState::Fault));
-    // In DS_FAULT a grip is a state conflict; HOME recovers.
+    // In DS_FAULT a grip re-enables the gripper (manual 3.4.1); so does HOME.
     assert_eq!(
-        device_status(g.grip(0, Blocking::Immediate).await),
-        Status::StateConflict
+        g.grip_and_wait(0, WaitBy::Polling(Duration::from_millis(1)))
+            .await
+            .unwrap(),
+        GripOutcome::NoPart
     );
     g.home().await.unwrap();
     server.fault_next_motion(0);

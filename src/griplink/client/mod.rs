@@ -61,6 +61,7 @@
 mod pipeline;
 mod port;
 mod task;
+mod wait;
 mod watch;
 
 use std::net::SocketAddr;
@@ -72,7 +73,8 @@ use tokio::sync::{mpsc, oneshot};
 use tokio::time::Instant;
 
 pub use port::Port;
-pub use watch::{GripOutcome, ReleaseOutcome, WaitBy, Watch};
+pub use wait::{GripOutcome, ReleaseOutcome, WaitBy, STILL_FOR, TARGET_TOLERANCE_UM};
+pub use watch::Watch;
 
 use self::task::{Request, Shared, Task, TaskConfig};
 use super::codec::DEFAULT_MAX_LINE_LEN;

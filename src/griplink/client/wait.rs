@@ -1,0 +1,414 @@
+//! Start a motion and wait for its outcome: [`Port::grip_and_wait`],
+//! [`Port::release_and_wait`] and their FLEX forms.
+//!
+//! # When a motion counts as ended
+//! A helper reads the device state before it sends the command (the start state), then
+//! decides that the motion ended only from evidence that it did:
+//! 1. **A state transition after the command.** The manual's two ways (3.4.4, options 1 and 2):
+//!    an outcome state that differs from the start state, read by polling `DEVSTATE`
+//!    ([`WaitBy::Polling`]), or answered by `WSTR` ([`WaitBy::Transition`]).
+//! 2. **The fingers at the target** when no transition may come. "The start state can be
+//!    different to DS_IDLE" (3.4.4), and "if the device is already in state DS_RELEASED when the
+//!    command is issued, a state transition may not occur. In this case, use the WAITVAL command"
+//!    (3.4.7). So a release that starts in `DS_RELEASED` or `DS_FAULT` ends when the finger
+//!    position is within [`TARGET_TOLERANCE_UM`] of the release limit (the recipe's, read
+//!    with `GRIPCFG` before the command, or the FLEX command's own): with `WaitBy::Transition`
+//!    by `WAITVAL` on value 0 (3.4.12, one second at a time), with `WaitBy::Polling` by reading
+//!    `VALUE`.
+//! 3. **The fingers still, in `DS_FAULT`.** A motion started in `DS_FAULT` (the gripper is
+//!    re-enabled by GRIP and RELEASE, 3.4.1) that faults again ends with no transition, and a
+//!    grip has no target (a part stops it anywhere). Such a motion counts as ended in
+//!    `DS_FAULT` once the finger position has not changed for [`STILL_FOR`].
+//!
+//! A state read right after the command's `ACK` that merely repeats the start state is never
+//! taken as the outcome: the fingers may still be moving.
+//!
+//! A `WSTR` answered with `ERR 05` ("if no state transition occurs, the query returns with a
+//! timeout error", 3.4.10) is no failure: the helper checks the state (and position) and asks
+//! again, until the helper's own deadline. Only that deadline ends the wait with
+//! [`Error::Timeout`]. `HOME` needs no helper: it always blocks until the homing is done
+//! (3.4.3), so [`Port::home`]'s `ACK` is the evidence.
+
+use std::time::Duration;
+
+use tokio::time::Instant;
+
+use super::Port;
+use crate::griplink::command::{
+    Blocking, FlexGrip, FlexGripScaled, FlexRelease, FlexReleaseScaled,
+};
+use crate::griplink::error::{Error, Result};
+use crate::griplink::state::DeviceState;
+use crate::griplink::status::Status;
+
+/// How to wait for the end of a motion started without blocking (manual 3.4.4, options 1
+/// and 2).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum WaitBy {
+    /// `WSTR[p]?`: the controller answers at the next state transition (or `WAITVAL` on the
+    /// position where no transition may come, see [the module docs](self)). Uses one connection
+    /// slot for the whole wait: later commands of this connection wait behind it.
+    Transition,
+    /// `DEVSTATE[p]?` (and `VALUE[p][0]?` where needed) at this interval: other commands can run
+    /// in between.
+    Polling(Duration),
+}
+
+/// How a grip ended (manual 3.4.4).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum GripOutcome {
+    /// `DS_HOLDING`: a part was found and is held with the gripping force.
+    Holding,
+    /// `DS_NO_PART`: the fingers reached the no-part limit without a part.
+    NoPart,
+    /// `DS_FAULT`: a fault during the motion.
+    Fault,
+}
+
+/// How a release ended (manual 3.4.5).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ReleaseOutcome {
+    /// `DS_RELEASED`: the fingers reached the release position.
+    Released,
+    /// `DS_FAULT`: a fault during the motion.
+    Fault,
+}
+
+/// How close (in µm, either side) to its target a finger position counts as arrived, where
+/// arrival is the evidence (see [the module docs](self)): 0.1 mm. The manual gives no
+/// tolerance; this is this crate's choice, well below any part's clearance.
+pub const TARGET_TOLERANCE_UM: i32 = 100;
+
+/// How long the finger position must stay unchanged for a motion started in `DS_FAULT` to count
+/// as ended in `DS_FAULT` (see [the module docs](self)): 200 ms, this crate's choice, many
+/// IO-Link cycles long.
+pub const STILL_FOR: Duration = Duration::from_millis(200);
+
+/// The longest single `WAITVAL` a helper sends: between two, it checks the state for a fault.
+const WAITVAL_CHUNK: Duration = Duration::from_secs(1);
+
+/// Pause before asking WSTR again after an answer that is not the outcome.
+const WSTR_RETRY_PAUSE: Duration = Duration::from_millis(10);
+
+/// Polling interval when a device refuses WAITVAL ("not available for all devices", 3.4.12).
+const FALLBACK_POLL: Duration = Duration::from_millis(10);
+
+fn grip_outcome(state: DeviceState) -> Option<GripOutcome> {
+    match state {
+        DeviceState::Holding => Some(GripOutcome::Holding),
+        DeviceState::NoPart => Some(GripOutcome::NoPart),
+        DeviceState::Fault => Some(GripOutcome::Fault),
+        _ => None,
+    }
+}
+
+fn release_outcome(state: DeviceState) -> Option<ReleaseOutcome> {
+    match state {
+        DeviceState::Released => Some(ReleaseOutcome::Released),
+        DeviceState::Fault => Some(ReleaseOutcome::Fault),
+        _ => None,
+    }
+}
+
+/// What a helper knows about the motion it waits for.
+struct Awaited<T> {
+    /// For the timeout error: `waiting for the grip`.
+    what: &'static str,
+    outcome: fn(DeviceState) -> Option<T>,
+    /// The state read just before the command.
+    start: DeviceState,
+    /// Where the fingers stop if nothing is in the way (releases), µm.
+    target_um: Option<i32>,
+    deadline: Instant,
+    limit: Duration,
+}
+
+impl<T> Awaited<T> {
+    /// Whether the motion may end without a state transition (3.4.4, 3.4.7).
+    fn ambiguous(&self) -> bool {
+        (self.outcome)(self.start).is_some()
+    }
+}
+
+/// Which start state makes a target worth reading before a release.
+enum Target {
+    /// A recipe's release limit, read only when needed.
+    Recipe(u32),
+    /// A FLEXRELEASE position, µm.
+    Known(i32),
+    /// A grip: a part stops the fingers anywhere.
+    None,
+}
+
+fn mm_to_um(mm: f64) -> Option<i32> {
+    let um = (mm * 1000.0).round();
+    (um.is_finite() && um >= f64::from(i32::MIN) && um <= f64::from(i32::MAX)).then_some(um as i32)
+}
+
+impl Port {
+    /// Starts `GRIP(p,index)` and waits for its outcome: holding, no part, or fault, decided as
+    /// the [module docs](self) describe (manual 3.4.4, 3.4.10). The whole wait is bounded by the
+    /// motion timeout (or the handle's timeout); a `WSTR` timeout within it is asked again.
+    ///
+    /// Not atomic: dropped after the command was sent, the motion still runs and only the wait is
+    /// abandoned (with [`WaitBy::Transition`] a `WSTR` in flight still holds the connection until
+    /// the next state change or its timeout). Each step is [cancel-safe](super#cancellation).
+    pub async fn grip_and_wait(&self, index: u32, by: WaitBy) -> Result<GripOutcome> {
+        self.start_and_wait(
+            "waiting for the grip",
+            grip_outcome,
+            Target::None,
+            by,
+            |p| Box::pin(async move { p.grip(index, Blocking::Immediate).await }),
+        )
+        .await
+    }
+
+    /// Starts `RELEASE(p,index)` and waits for its outcome: released or fault, decided as the
+    /// [module docs](self) describe (manual 3.4.5, 3.4.7). From `DS_RELEASED` or `DS_FAULT` it
+    /// first reads the recipe's release limit and returns only once the fingers are there.
+    ///
+    /// Not atomic: dropped after the command was sent, the motion still runs and only the wait is
+    /// abandoned (with [`WaitBy::Transition`] a `WSTR` or `WAITVAL` in flight still holds the
+    /// connection until it answers). Each step is [cancel-safe](super#cancellation).
+    pub async fn release_and_wait(&self, index: u32, by: WaitBy) -> Result<ReleaseOutcome> {
+        let target = Target::Recipe(index);
+        self.start_and_wait(
+            "waiting for the release",
+            release_outcome,
+            target,
+            by,
+            |p| Box::pin(async move { p.release(index, Blocking::Immediate).await }),
+        )
+        .await
+    }
+
+    /// Starts `FLEXGRIPF(…)` and waits for its outcome, as [`Port::grip_and_wait`] (manual
+    /// 3.4.6).
+    pub async fn flex_grip_and_wait(&self, params: FlexGrip, by: WaitBy) -> Result<GripOutcome> {
+        self.start_and_wait(
+            "waiting for the grip",
+            grip_outcome,
+            Target::None,
+            by,
+            |p| Box::pin(async move { p.flex_grip(params, Blocking::Immediate).await }),
+        )
+        .await
+    }
+
+    /// Starts `FLEXGRIP(…)` and waits for its outcome, as [`Port::grip_and_wait`] (manual
+    /// 3.4.6).
+    pub async fn flex_grip_scaled_and_wait(
+        &self,
+        params: FlexGripScaled,
+        by: WaitBy,
+    ) -> Result<GripOutcome> {
+        self.start_and_wait(
+            "waiting for the grip",
+            grip_outcome,
+            Target::None,
+            by,
+            |p| Box::pin(async move { p.flex_grip_scaled(params, Blocking::Immediate).await }),
+        )
+        .await
+    }
+
+    /// Starts `FLEXRELEASEF(…)` and waits for its outcome, as [`Port::release_and_wait`], with
+    /// `params.position_mm` as the target (manual 3.4.7).
+    pub async fn flex_release_and_wait(
+        &self,
+        params: FlexRelease,
+        by: WaitBy,
+    ) -> Result<ReleaseOutcome> {
+        let target = match mm_to_um(params.position_mm) {
+            Some(um) => Target::Known(um),
+            // Refused by the command's own checks, before anything moves.
+            None => Target::None,
+        };
+        self.start_and_wait(
+            "waiting for the release",
+            release_outcome,
+            target,
+            by,
+            |p| Box::pin(async move { p.flex_release(params, Blocking::Immediate).await }),
+        )
+        .await
+    }
+
+    /// Starts `FLEXRELEASE(…)` and waits for its outcome, as [`Port::release_and_wait`], with
+    /// `params.position_um` as the target (manual 3.4.7).
+    pub async fn flex_release_scaled_and_wait(
+        &self,
+        params: FlexReleaseScaled,
+        by: WaitBy,
+    ) -> Result<ReleaseOutcome> {
+        let target = Target::Known(params.position_um);
+        self.start_and_wait(
+            "waiting for the release",
+            release_outcome,
+            target,
+            by,
+            |p| Box::pin(async move { p.flex_release_scaled(params, Blocking::Immediate).await }),
+        )
+        .await
+    }
+
+    /// The overall limit of a wait: the handle's timeout if set, else the motion timeout.
+    fn motion_limit(&self) -> Duration {
+        self.client
+            .timeout
+            .unwrap_or(self.client.config.motion_timeout)
+    }
+
+    /// This port with every call bounded by what is left until `deadline` (and by `cap`).
+    fn within(
+        &self,
+        deadline: Instant,
+        cap: Option<Duration>,
+        err: &dyn Fn() -> Error,
+    ) -> Result<Port> {
+        let remaining = deadline.saturating_duration_since(Instant::now());
+        if remaining.is_zero() {
+            return Err(err());
+        }
+        Ok(self.with_timeout(cap.map_or(remaining, |c| c.min(remaining))))
+    }
+
+    async fn start_and_wait<T>(
+        &self,
+        what: &'static str,
+        outcome: fn(DeviceState) -> Option<T>,
+        target: Target,
+        by: WaitBy,
+        send: impl FnOnce(
+            Port,
+        )
+            -> std::pin::Pin<Box<dyn std::future::Future<Output = Result<()>> + Send>>,
+    ) -> Result<T> {
+        let limit = self.motion_limit();
+        let deadline = Instant::now() + limit;
+        let err = || Error::Timeout {
+            command: format!("{what} on port {}", self.port),
+            timeout: limit,
+        };
+        let query = Some(self.client.config.query_timeout);
+        let start = self.within(deadline, query, &err)?.state().await?;
+        let target_um = match target {
+            Target::Recipe(index) if outcome(start).is_some() => Some(
+                self.within(deadline, query, &err)?
+                    .grip_config(index)
+                    .await?
+                    .params[1],
+            ),
+            Target::Known(um) => Some(um),
+            Target::Recipe(_) | Target::None => None,
+        };
+        send(self.within(deadline, query, &err)?).await?;
+        let awaited = Awaited {
+            what,
+            outcome,
+            start,
+            target_um,
+            deadline,
+            limit,
+        };
+        self.wait_for_end(&awaited, by).await
+    }
+
+    fn timeout_error<T>(&self, m: &Awaited<T>) -> Error {
+        Error::Timeout {
+            command: format!("{} on port {}", m.what, self.port),
+            timeout: m.limit,
+        }
+    }
+
+    async fn wait_for_end<T>(&self, m: &Awaited<T>, mut by: WaitBy) -> Result<T> {
+        let err = || self.timeout_error(m);
+        let query = Some(self.client.config.query_timeout);
+        loop {
+            // What the controller says, if it says anything: `None` after its own timeout.
+            let heard = match (by, m.target_um) {
+                (WaitBy::Polling(_), _) => None,
+                (WaitBy::Transition, Some(target)) if m.ambiguous() => {
+                    // 3.4.7: no transition may come; wait for the position instead.
+                    let chunk =
+                        WAITVAL_CHUNK.min(m.deadline.saturating_duration_since(Instant::now()));
+                    let window = TARGET_TOLERANCE_UM.saturating_mul(2);
+                    match self
+                        .within(m.deadline, None, &err)?
+                        .wait_value(0, target, window, chunk)
+                        .await
+                    {
+                        Ok(())
+                        | Err(Error::Device {
+                            status: Status::Timeout,
+                            ..
+                        }) => None,
+                        Err(Error::Device { status, .. }) => {
+                            tracing::warn!(port = self.port, %status, "WAITVAL refused; polling the position instead");
+                            by = WaitBy::Polling(FALLBACK_POLL);
+                            None
+                        }
+                        Err(e) => return Err(e),
+                    }
+                }
+                (WaitBy::Transition, _) => match self
+                    .within(m.deadline, None, &err)?
+                    .wait_for_transition()
+                    .await
+                {
+                    Ok(state) => Some(state),
+                    // 3.4.10: no transition within the controller's WSTR timeout. Ask again.
+                    Err(Error::Device {
+                        status: Status::Timeout,
+                        ..
+                    }) => None,
+                    Err(e) => return Err(e),
+                },
+            };
+            let state = match heard {
+                Some(state) => state,
+                None => self.within(m.deadline, query, &err)?.state().await?,
+            };
+            if let Some(done) = (m.outcome)(state) {
+                if state != m.start || self.ended_in_place(m, state).await? {
+                    return Ok(done);
+                }
+            }
+            let pause = match by {
+                WaitBy::Polling(interval) => interval,
+                WaitBy::Transition => WSTR_RETRY_PAUSE,
+            };
+            if tokio::time::timeout_at(m.deadline, tokio::time::sleep(pause))
+                .await
+                .is_err()
+            {
+                return Err(err());
+            }
+        }
+    }
+
+    /// Evidence that a motion ended without a transition, in `state` (its start state): the
+    /// fingers at the target, or, in `DS_FAULT` or with no target, still for [`STILL_FOR`].
+    async fn ended_in_place<T>(&self, m: &Awaited<T>, state: DeviceState) -> Result<bool> {
+        let err = || self.timeout_error(m);
+        let query = Some(self.client.config.query_timeout);
+        let before = self.within(m.deadline, query, &err)?.position_um().await?;
+        if let Some(target) = m.target_um {
+            if (i64::from(before) - i64::from(target)).abs() <= i64::from(TARGET_TOLERANCE_UM) {
+                return Ok(true);
+            }
+            if state != DeviceState::Fault {
+                return Ok(false);
+            }
+        }
+        if tokio::time::timeout_at(m.deadline, tokio::time::sleep(STILL_FOR))
+            .await
+            .is_err()
+        {
+            return Err(err());
+        }
+        let after = self.within(m.deadline, query, &err)?.position_um().await?;
+        Ok(before == after)
+    }
+}
