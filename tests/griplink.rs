@@ -916,3 +916,56 @@ async fn simulator_reads_split_and_oversized_lines_over_tcp() {
         Some("SN=\"123456\"")
     );
 }
+
+/// Strings from third-party IO-Link devices may hold `'` and `\`: accepted up to the closing
+/// quote (PROTOCOLS.md errata for seed 004). What this side sends stays strict.
+#[tokio::test]
+async fn device_strings_with_quotes_and_backslashes_are_read() {
+    let device = SimDevice {
+        name: "O'Brien \\ Gripper".into(),
+        vendor: "ACME 'Robots'".into(),
+        serial_number: "SN\\42".into(),
+        ..SimDevice::ieg_55_020()
+    };
+    let config = SimConfig::et4().device(1, Some(device)).time_scale(0.0);
+    let server = SimServer::bind("127.0.0.1:0", config).await.unwrap();
+    let client = connect(&server).await;
+    let p = client.port(1);
+    assert_eq!(p.name().await.unwrap(), "O'Brien \\ Gripper");
+    assert_eq!(p.vendor().await.unwrap(), "ACME 'Robots'");
+    assert_eq!(p.serial_number().await.unwrap(), "SN\\42");
+    assert!(matches!(
+        p.set_tag("O'Brien").await,
+        Err(Error::InvalidArgument { .. })
+    ));
+}
+
+/// Refused before anything is sent: a raw line of only spaces (the controller would trim it to
+/// nothing and never answer) and a float whose plain decimal form would need hundreds of digits.
+#[tokio::test]
+async fn blank_lines_and_endless_floats_are_refused_before_sending() {
+    let server = sim().await;
+    let client = connect(&server).await;
+    for blank in ["", " ", "    "] {
+        assert!(
+            matches!(
+                client.command(blank).await,
+                Err(Error::InvalidArgument { .. })
+            ),
+            "{blank:?}"
+        );
+    }
+    let g = client.port(0);
+    let e = g.set_value_f(0, 1e-300).await.unwrap_err();
+    assert!(
+        matches!(&e, Error::InvalidArgument { reason, .. } if reason.contains("plain")),
+        "{e:?}"
+    );
+    let tiny = GripConfigF::gripper("t", 1e-200, 18.0, 50.0);
+    assert!(matches!(
+        g.set_grip_config_f(0, &tiny).await,
+        Err(Error::InvalidArgument { .. })
+    ));
+    // The connection is untouched: nothing was sent.
+    assert_eq!(client.id().await.unwrap(), "GRIPLINK-ET4");
+}
