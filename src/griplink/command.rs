@@ -361,10 +361,10 @@ fn check_string(what: &'static str, text: &str) -> Result<()> {
     check_text(text, MAX_TEXT_LEN).map_err(|e| Error::invalid(what, e.to_string()))
 }
 
-/// Longest plain decimal a float argument can take once [`float_arg`] accepted it: a sign,
-/// `0.`, 37 zeros and 17 significant digits for the smallest magnitude (just above
-/// `f32::MIN_POSITIVE`), 39 digits for the largest. Eight of them (GRIPCFGF) and a 32-character
-/// tag stay far below the 1024-byte line bound.
+/// Longest plain decimal a float argument of a typed command can take: a sign, `0.`, 37 zeros
+/// and 17 significant digits just above `f32::MIN_POSITIVE`; 39 digits at `f32::MAX`. Smaller
+/// (but not 0) and larger magnitudes are refused before formatting ([`Command::encode`]). Eight
+/// floats (GRIPCFGF) and a 32-character tag stay far below the 1024-byte line bound.
 pub const MAX_FLOAT_ARG_LEN: usize = 57;
 
 /// Formats a float argument: finite and within the controller's 32-bit float range (manual
@@ -468,7 +468,9 @@ impl Command {
     }
 
     /// The command as one line, upper case, **without** the terminating LF (the codec adds it).
-    /// Refuses invalid arguments before anything is sent.
+    /// Refuses invalid arguments before anything is sent: among them floats that are not
+    /// finite or whose magnitude the controller's 32-bit float cannot hold (above `f32::MAX`,
+    /// or below `f32::MIN_POSITIVE` but not 0: hundreds of digits as a plain decimal).
     pub fn encode(&self) -> Result<String> {
         use Command::*;
         if let Some(port) = self.port() {

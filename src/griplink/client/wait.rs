@@ -1,33 +1,7 @@
 //! Start a motion and wait for its outcome: [`Port::grip_and_wait`],
 //! [`Port::release_and_wait`] and their FLEX forms.
 //!
-//! # When a motion counts as ended
-//! A helper reads the device state before it sends the command (the start state), then
-//! decides that the motion ended only from evidence that it did:
-//! 1. **A state transition after the command.** The manual's two ways (3.4.4, options 1 and 2):
-//!    an outcome state that differs from the start state, read by polling `DEVSTATE`
-//!    ([`WaitBy::Polling`]), or answered by `WSTR` ([`WaitBy::Transition`]).
-//! 2. **The fingers at the target** when no transition may come. "The start state can be
-//!    different to DS_IDLE" (3.4.4), and "if the device is already in state DS_RELEASED when the
-//!    command is issued, a state transition may not occur. In this case, use the WAITVAL command"
-//!    (3.4.7). So a release that starts in `DS_RELEASED` or `DS_FAULT` ends when the finger
-//!    position is within [`TARGET_TOLERANCE_UM`] of the release limit (the recipe's, read
-//!    with `GRIPCFG` before the command, or the FLEX command's own): with `WaitBy::Transition`
-//!    by `WAITVAL` on value 0 (3.4.12, one second at a time), with `WaitBy::Polling` by reading
-//!    `VALUE`.
-//! 3. **The fingers still, in `DS_FAULT`.** A motion started in `DS_FAULT` (the gripper is
-//!    re-enabled by GRIP and RELEASE, 3.4.1) that faults again ends with no transition, and a
-//!    grip has no target (a part stops it anywhere). Such a motion counts as ended in
-//!    `DS_FAULT` once the finger position has not changed for [`STILL_FOR`].
-//!
-//! A state read right after the command's `ACK` that merely repeats the start state is never
-//! taken as the outcome: the fingers may still be moving.
-//!
-//! A `WSTR` answered with `ERR 05` ("if no state transition occurs, the query returns with a
-//! timeout error", 3.4.10) is no failure: the helper checks the state (and position) and asks
-//! again, until the helper's own deadline. Only that deadline ends the wait with
-//! [`Error::Timeout`]. `HOME` needs no helper: it always blocks until the homing is done
-//! (3.4.3), so [`Port::home`]'s `ACK` is the evidence.
+//! The rules are in the [client docs](super#waiting-for-a-motion).
 
 use std::time::Duration;
 
@@ -46,7 +20,7 @@ use crate::griplink::status::Status;
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum WaitBy {
     /// `WSTR[p]?`: the controller answers at the next state transition (or `WAITVAL` on the
-    /// position where no transition may come, see [the module docs](self)). Uses one connection
+    /// position where no transition may come, see [the client docs](super#waiting-for-a-motion)). Uses one connection
     /// slot for the whole wait: later commands of this connection wait behind it.
     Transition,
     /// `DEVSTATE[p]?` (and `VALUE[p][0]?` where needed) at this interval: other commands can run
@@ -75,12 +49,12 @@ pub enum ReleaseOutcome {
 }
 
 /// How close (in µm, either side) to its target a finger position counts as arrived, where
-/// arrival is the evidence (see [the module docs](self)): 0.1 mm. The manual gives no
+/// arrival is the evidence (see [the client docs](super#waiting-for-a-motion)): 0.1 mm. The manual gives no
 /// tolerance; this is this crate's choice, well below any part's clearance.
 pub const TARGET_TOLERANCE_UM: i32 = 100;
 
 /// How long the finger position must stay unchanged for a motion started in `DS_FAULT` to count
-/// as ended in `DS_FAULT` (see [the module docs](self)): 200 ms, this crate's choice, many
+/// as ended in `DS_FAULT` (see [the client docs](super#waiting-for-a-motion)): 200 ms, this crate's choice, many
 /// IO-Link cycles long.
 pub const STILL_FOR: Duration = Duration::from_millis(200);
 
@@ -147,7 +121,7 @@ fn mm_to_um(mm: f64) -> Option<i32> {
 
 impl Port {
     /// Starts `GRIP(p,index)` and waits for its outcome: holding, no part, or fault, decided as
-    /// the [module docs](self) describe (manual 3.4.4, 3.4.10). The whole wait is bounded by the
+    /// the [client docs](super#waiting-for-a-motion) describe (manual 3.4.4, 3.4.10). The whole wait is bounded by the
     /// motion timeout (or the handle's timeout); a `WSTR` timeout within it is asked again.
     ///
     /// Not atomic: dropped after the command was sent, the motion still runs and only the wait is
@@ -165,7 +139,7 @@ impl Port {
     }
 
     /// Starts `RELEASE(p,index)` and waits for its outcome: released or fault, decided as the
-    /// [module docs](self) describe (manual 3.4.5, 3.4.7). From `DS_RELEASED` or `DS_FAULT` it
+    /// [client docs](super#waiting-for-a-motion) describe (manual 3.4.5, 3.4.7). From `DS_RELEASED` or `DS_FAULT` it
     /// first reads the recipe's release limit and returns only once the fingers are there.
     ///
     /// Not atomic: dropped after the command was sent, the motion still runs and only the wait is
