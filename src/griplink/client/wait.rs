@@ -9,7 +9,7 @@ use tokio::time::Instant;
 
 use super::Port;
 use crate::griplink::command::{
-    Blocking, FlexGrip, FlexGripScaled, FlexRelease, FlexReleaseScaled,
+    Blocking, Command, FlexGrip, FlexGripScaled, FlexRelease, FlexReleaseScaled,
 };
 use crate::griplink::error::{Error, Result};
 use crate::griplink::state::DeviceState;
@@ -20,8 +20,9 @@ use crate::griplink::status::Status;
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum WaitBy {
     /// `WSTR[p]?`: the controller answers at the next state transition (or `WAITVAL` on the
-    /// position where no transition may come, see [the client docs](super#waiting-for-a-motion)). Uses one connection
-    /// slot for the whole wait: later commands of this connection wait behind it.
+    /// position where no transition may come, see the
+    /// [client docs](super#waiting-for-a-motion)). Uses one connection slot for the whole
+    /// wait: later commands of this connection wait behind it.
     Transition,
     /// `DEVSTATE[p]?` (and `VALUE[p][0]?` where needed) at this interval: other commands can run
     /// in between.
@@ -49,13 +50,13 @@ pub enum ReleaseOutcome {
 }
 
 /// How close (in µm, either side) to its target a finger position counts as arrived, where
-/// arrival is the evidence (see [the client docs](super#waiting-for-a-motion)): 0.1 mm. The manual gives no
-/// tolerance; this is this crate's choice, well below any part's clearance.
+/// arrival is the evidence (see the [client docs](super#waiting-for-a-motion)): 0.1 mm. The
+/// manual gives no tolerance; this is this crate's choice, well below any part's clearance.
 pub const TARGET_TOLERANCE_UM: i32 = 100;
 
 /// How long the finger position must stay unchanged for a motion started in `DS_FAULT` to count
-/// as ended in `DS_FAULT` (see [the client docs](super#waiting-for-a-motion)): 200 ms, this crate's choice, many
-/// IO-Link cycles long.
+/// as ended in `DS_FAULT` (see the [client docs](super#waiting-for-a-motion)): 200 ms, this
+/// crate's choice, many IO-Link cycles long.
 pub const STILL_FOR: Duration = Duration::from_millis(200);
 
 /// The longest single `WAITVAL` a helper sends: between two, it checks the state for a fault.
@@ -121,8 +122,9 @@ fn mm_to_um(mm: f64) -> Option<i32> {
 
 impl Port {
     /// Starts `GRIP(p,index)` and waits for its outcome: holding, no part, or fault, decided as
-    /// the [client docs](super#waiting-for-a-motion) describe (manual 3.4.4, 3.4.10). The whole wait is bounded by the
-    /// motion timeout (or the handle's timeout); a `WSTR` timeout within it is asked again.
+    /// the [client docs](super#waiting-for-a-motion) describe (manual 3.4.4, 3.4.10). The
+    /// whole wait is bounded by the motion timeout (or the handle's timeout); a `WSTR` timeout
+    /// within it is asked again.
     ///
     /// Not atomic: dropped after the command was sent, the motion still runs and only the wait is
     /// abandoned (with [`WaitBy::Transition`] a `WSTR` in flight still holds the connection until
@@ -133,14 +135,19 @@ impl Port {
             grip_outcome,
             Target::None,
             by,
-            |p| Box::pin(async move { p.grip(index, Blocking::Immediate).await }),
+            Command::Grip {
+                port: self.port,
+                index,
+                blocking: Blocking::Immediate,
+            },
         )
         .await
     }
 
     /// Starts `RELEASE(p,index)` and waits for its outcome: released or fault, decided as the
-    /// [client docs](super#waiting-for-a-motion) describe (manual 3.4.5, 3.4.7). From `DS_RELEASED` or `DS_FAULT` it
-    /// first reads the recipe's release limit and returns only once the fingers are there.
+    /// [client docs](super#waiting-for-a-motion) describe (manual 3.4.5, 3.4.7). From
+    /// `DS_RELEASED` or `DS_FAULT` it first reads the recipe's release limit (`GRIPCFG`) and
+    /// returns only once the fingers are there.
     ///
     /// Not atomic: dropped after the command was sent, the motion still runs and only the wait is
     /// abandoned (with [`WaitBy::Transition`] a `WSTR` or `WAITVAL` in flight still holds the
@@ -152,7 +159,11 @@ impl Port {
             release_outcome,
             target,
             by,
-            |p| Box::pin(async move { p.release(index, Blocking::Immediate).await }),
+            Command::Release {
+                port: self.port,
+                index,
+                blocking: Blocking::Immediate,
+            },
         )
         .await
     }
@@ -165,7 +176,7 @@ impl Port {
             grip_outcome,
             Target::None,
             by,
-            |p| Box::pin(async move { p.flex_grip(params, Blocking::Immediate).await }),
+            Command::FlexGripF(self.port, params, Blocking::Immediate),
         )
         .await
     }
@@ -182,7 +193,7 @@ impl Port {
             grip_outcome,
             Target::None,
             by,
-            |p| Box::pin(async move { p.flex_grip_scaled(params, Blocking::Immediate).await }),
+            Command::FlexGrip(self.port, params, Blocking::Immediate),
         )
         .await
     }
@@ -204,7 +215,7 @@ impl Port {
             release_outcome,
             target,
             by,
-            |p| Box::pin(async move { p.flex_release(params, Blocking::Immediate).await }),
+            Command::FlexReleaseF(self.port, params, Blocking::Immediate),
         )
         .await
     }
@@ -222,7 +233,7 @@ impl Port {
             release_outcome,
             target,
             by,
-            |p| Box::pin(async move { p.flex_release_scaled(params, Blocking::Immediate).await }),
+            Command::FlexRelease(self.port, params, Blocking::Immediate),
         )
         .await
     }
@@ -254,10 +265,7 @@ impl Port {
         outcome: fn(DeviceState) -> Option<T>,
         target: Target,
         by: WaitBy,
-        send: impl FnOnce(
-            Port,
-        )
-            -> std::pin::Pin<Box<dyn std::future::Future<Output = Result<()>> + Send>>,
+        command: Command,
     ) -> Result<T> {
         let limit = self.motion_limit();
         let deadline = Instant::now() + limit;
@@ -277,7 +285,11 @@ impl Port {
             Target::Known(um) => Some(um),
             Target::Recipe(_) | Target::None => None,
         };
-        send(self.within(deadline, query, &err)?).await?;
+        // Read first: a state read after the command that merely repeats it is no outcome.
+        self.within(deadline, query, &err)?
+            .client
+            .ack(command)
+            .await?;
         let awaited = Awaited {
             what,
             outcome,
@@ -319,7 +331,11 @@ impl Port {
                             ..
                         }) => None,
                         Err(Error::Device { status, .. }) => {
-                            tracing::warn!(port = self.port, %status, "WAITVAL refused; polling the position instead");
+                            tracing::warn!(
+                                port = self.port,
+                                %status,
+                                "WAITVAL refused; polling the position instead"
+                            );
                             by = WaitBy::Polling(FALLBACK_POLL);
                             None
                         }

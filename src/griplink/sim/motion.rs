@@ -98,14 +98,33 @@ impl Controller {
         Ok(id)
     }
 
-    /// Checks that a GRIP or RELEASE may start on port `i` (3.4.1, 3.4.4).
-    fn check_motion_start(&mut self, i: usize, grip: bool) -> Result<(), Status> {
-        match self.port_sim(i)?.state() {
-            DeviceState::NotInitialized => Err(Status::NotInitialized),
-            DeviceState::Holding | DeviceState::NoPart if grip => Err(Status::StateConflict),
+    /// What GRIP and RELEASE check before they move to `to_um` (3.4.1, 3.4.4), then the start
+    /// of a manipulating command. Returns the port index, the device's default speed and the
+    /// part width, µm.
+    fn begin_motion(
+        &mut self,
+        port: PortNumber,
+        to_um: i64,
+        grip: bool,
+    ) -> Result<(usize, f64, Option<i64>), Status> {
+        let (i, device) = self.device(port)?;
+        let stroke = device.stroke_um();
+        let default_speed = device.default_speed_um_per_s();
+        let part = device.part_width_mm.map(super::device::um);
+        let p = self.port_sim(i)?;
+        match p.state() {
+            DeviceState::NotInitialized => return Err(Status::NotInitialized),
+            DeviceState::Holding | DeviceState::NoPart if grip => {
+                return Err(Status::StateConflict)
+            }
             // DS_FAULT and DS_DISABLED: re-enabled automatically (3.4.1).
-            _ => Ok(()),
+            _ => {}
         }
+        if !(0..=stroke).contains(&to_um) {
+            return Err(Status::RangeError);
+        }
+        p.transitions.command();
+        Ok((i, default_speed, part))
     }
 
     /// `HOME`: to the open end of the stroke, always blocking (3.4.3). Also the way out of
@@ -127,17 +146,8 @@ impl Controller {
         blocking: Blocking,
         now: Duration,
     ) -> Step {
-        let (i, device) = self.device(port)?;
-        let stroke = device.stroke_um();
-        let part = device.part_width_mm.map(super::device::um);
-        let default_speed = device.default_speed_um_per_s();
-        self.check_motion_start(i, true)?;
-        if !(0..=stroke).contains(&limit_um) {
-            return Err(Status::RangeError);
-        }
-        let p = self.port_sim(i)?;
-        p.transitions.command();
-        let from = p.position_um;
+        let (i, default_speed, part) = self.begin_motion(port, limit_um, true)?;
+        let from = self.port_sim(i)?.position_um;
         let (stop, end) = match part {
             Some(w) if (limit_um < w && w < from) || (from < w && w < limit_um) => {
                 (w, DeviceState::Holding)
@@ -158,14 +168,7 @@ impl Controller {
         blocking: Blocking,
         now: Duration,
     ) -> Step {
-        let (i, device) = self.device(port)?;
-        let stroke = device.stroke_um();
-        let default_speed = device.default_speed_um_per_s();
-        self.check_motion_start(i, false)?;
-        if !(0..=stroke).contains(&target_um) {
-            return Err(Status::RangeError);
-        }
-        self.port_sim(i)?.transitions.command();
+        let (i, default_speed, _) = self.begin_motion(port, target_um, false)?;
         let speed = or_default(speed_um_per_s, default_speed);
         let id = self.start_motion(i, target_um, speed, DeviceState::Released, now)?;
         Ok(motion_reply(i, id, blocking))

@@ -95,8 +95,9 @@ fn waitval_and_wstr_in_simulated_time() {
     };
     assert_eq!(c.poll(&s, &wait, ms(500)), None); // 15 mm
     assert_eq!(c.next_wake(&wait, ms(500)), ms(505));
-    assert_eq!(c.poll(&s, &wait, ms(600)).as_deref(), Some("ACK")); // 10 mm
-                                                                    // A window the fingers never reach: E_TIMEOUT at the WAITVAL's own timeout.
+    // At 600 ms the fingers are at 10 mm.
+    assert_eq!(c.poll(&s, &wait, ms(600)).as_deref(), Some("ACK"));
+    // A window the fingers never reach: E_TIMEOUT at the WAITVAL's own timeout.
     let Outcome::Wait(wait) = run(&mut c, &mut s, "WAITVAL(0,0,30000,10,1000)", ms(600)) else {
         panic!("WAITVAL must wait")
     };
