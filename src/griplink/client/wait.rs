@@ -9,7 +9,7 @@ use tokio::time::Instant;
 
 use super::Port;
 use crate::griplink::command::{
-    Blocking, Command, FlexGrip, FlexGripScaled, FlexRelease, FlexReleaseScaled,
+    Blocking, Command, FlexGrip, FlexGripScaled, FlexRelease, FlexReleaseScaled, PortNumber,
 };
 use crate::griplink::error::{Error, Result};
 use crate::griplink::state::DeviceState;
@@ -113,6 +113,14 @@ enum Target {
     Known(i32),
     /// A grip: a part stops the fingers anywhere.
     None,
+}
+
+/// The error of a helper whose own deadline passed.
+fn wait_timeout(what: &str, port: PortNumber, limit: Duration) -> Error {
+    Error::Timeout {
+        command: format!("{what} on port {port}"),
+        timeout: limit,
+    }
 }
 
 fn mm_to_um(mm: f64) -> Option<i32> {
@@ -269,10 +277,7 @@ impl Port {
     ) -> Result<T> {
         let limit = self.motion_limit();
         let deadline = Instant::now() + limit;
-        let err = || Error::Timeout {
-            command: format!("{what} on port {}", self.port),
-            timeout: limit,
-        };
+        let err = || wait_timeout(what, self.port, limit);
         let query = Some(self.client.config.query_timeout);
         let start = self.within(deadline, query, &err)?.state().await?;
         let target_um = match target {
@@ -301,15 +306,8 @@ impl Port {
         self.wait_for_end(&awaited, by).await
     }
 
-    fn timeout_error<T>(&self, m: &Awaited<T>) -> Error {
-        Error::Timeout {
-            command: format!("{} on port {}", m.what, self.port),
-            timeout: m.limit,
-        }
-    }
-
     async fn wait_for_end<T>(&self, m: &Awaited<T>, mut by: WaitBy) -> Result<T> {
-        let err = || self.timeout_error(m);
+        let err = || wait_timeout(m.what, self.port, m.limit);
         let query = Some(self.client.config.query_timeout);
         loop {
             // What the controller says, if it says anything: `None` after its own timeout.
@@ -381,7 +379,7 @@ impl Port {
     /// Evidence that a motion ended without a transition, in `state` (its start state): the
     /// fingers at the target, or, in `DS_FAULT` or with no target, still for [`STILL_FOR`].
     async fn ended_in_place<T>(&self, m: &Awaited<T>, state: DeviceState) -> Result<bool> {
-        let err = || self.timeout_error(m);
+        let err = || wait_timeout(m.what, self.port, m.limit);
         let query = Some(self.client.config.query_timeout);
         let before = self.within(m.deadline, query, &err)?.position_um().await?;
         if let Some(target) = m.target_um {

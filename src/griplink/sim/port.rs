@@ -20,6 +20,8 @@ const HISTORY: usize = 64;
 /// WSTR (the motion ended before the WSTR arrived), and otherwise `ERR 05` after its timeout.
 /// "When issuing the same command twice, WSTR immediately returns with the current device
 /// state": the one WSTR right after a WSTR that reported a transition answers at once.
+/// This bookkeeping is per port, shared by every connection, as the manual describes WSTR per
+/// device; every WSTR waiting when a transition happens gets it.
 #[derive(Debug, Clone, Default)]
 pub(super) struct Transitions {
     /// State transitions so far.
