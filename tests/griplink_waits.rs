@@ -65,6 +65,23 @@ async fn release_from_released_returns_only_at_the_target() {
             "{by:?}: returned at {position} µm"
         );
     }
+    // From DS_FAULT: RELEASE re-enables the gripper (3.4.1); the state stays DS_FAULT while the
+    // fingers move and the end is DS_RELEASED at the target.
+    for by in [POLL, WaitBy::Transition] {
+        slow_down(&server, 0.0);
+        g.set_value(0, 5000).await.unwrap();
+        server.inject_device_fault(0);
+        slow_down(&server, 0.2);
+        assert_eq!(
+            g.release_and_wait(0, by).await.unwrap(),
+            ReleaseOutcome::Released
+        );
+        let position = g.position_um().await.unwrap();
+        assert!(
+            at_target(position, 20_000),
+            "{by:?}: returned at {position} µm"
+        );
+    }
     // FLEXRELEASE to its own position, from DS_RELEASED too.
     for by in [POLL, WaitBy::Transition] {
         slow_down(&server, 0.0);

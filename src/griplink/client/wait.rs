@@ -359,8 +359,17 @@ impl Port {
                 None => self.within(m.deadline, query, &err)?.state().await?,
             };
             if let Some(done) = (m.outcome)(state) {
-                if state != m.start || self.ended_in_place(m, state).await? {
+                if state != m.start {
                     return Ok(done);
+                }
+                if self.ended_in_place(m, state).await? {
+                    // The position was read after the state, and the motion may have ended in
+                    // between (DS_FAULT, then DS_RELEASED at the target): the state now is
+                    // the outcome.
+                    let now = self.within(m.deadline, query, &err)?.state().await?;
+                    if let Some(done) = (m.outcome)(now) {
+                        return Ok(done);
+                    }
                 }
             }
             let pause = match by {
