@@ -65,7 +65,12 @@
 //! 3. **The fingers still, in `DS_FAULT`.** A motion started in `DS_FAULT` (the gripper is
 //!    re-enabled by GRIP and RELEASE, 3.4.1) that faults again ends with no transition, and a
 //!    grip has no target (a part stops it anywhere). Such a motion counts as ended in
-//!    `DS_FAULT` once the finger position has not changed for [`STILL_FOR`].
+//!    `DS_FAULT` once the finger position has not changed for [`STILL_FOR`]. (The same holds
+//!    for a grip from any other outcome state a device might accept; Weiss grippers refuse GRIP
+//!    in `DS_HOLDING` and `DS_NO_PART`, 3.4.4.)
+//!
+//! Evidence from the position is followed by a fresh state read, which gives the outcome (the
+//! motion may have ended between the two reads).
 //!
 //! A state read right after the command's `ACK` that merely repeats the start state is never
 //! taken as the outcome: the fingers may still be moving.

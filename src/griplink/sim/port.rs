@@ -21,7 +21,9 @@ const HISTORY: usize = 64;
 /// "When issuing the same command twice, WSTR immediately returns with the current device
 /// state": the one WSTR right after a WSTR that reported a transition answers at once.
 /// This bookkeeping is per port, shared by every connection, as the manual describes WSTR per
-/// device; every WSTR waiting when a transition happens gets it.
+/// device; every WSTR waiting when a transition happens gets it. The manual's wording is terse;
+/// this reading is the simulator's: a WSTR sent just after a fast motion sees that motion's
+/// end, and a WSTR on an idle port waits and times out.
 #[derive(Debug, Clone, Default)]
 pub(super) struct Transitions {
     /// State transitions so far.
