@@ -48,39 +48,29 @@ async fn release_from_released_returns_only_at_the_target() {
         g.release_and_wait(0, POLL).await.unwrap(),
         ReleaseOutcome::Released
     );
-    for by in [POLL, WaitBy::Transition] {
-        slow_down(&server, 0.0);
-        g.set_value(0, 5000).await.unwrap();
-        assert_eq!(g.position_um().await.unwrap(), 5000);
-        assert_eq!(g.state().await.unwrap(), DeviceState::Released);
-        // 15 mm at 50 mm/s: 300 ms simulated, 60 ms of wall time.
-        slow_down(&server, 0.2);
-        assert_eq!(
-            g.release_and_wait(0, by).await.unwrap(),
-            ReleaseOutcome::Released
-        );
-        let position = g.position_um().await.unwrap();
-        assert!(
-            at_target(position, 20_000),
-            "{by:?}: returned at {position} µm"
-        );
-    }
-    // From DS_FAULT: RELEASE re-enables the gripper (3.4.1); the state stays DS_FAULT while the
-    // fingers move and the end is DS_RELEASED at the target.
-    for by in [POLL, WaitBy::Transition] {
-        slow_down(&server, 0.0);
-        g.set_value(0, 5000).await.unwrap();
-        server.inject_device_fault(0);
-        slow_down(&server, 0.2);
-        assert_eq!(
-            g.release_and_wait(0, by).await.unwrap(),
-            ReleaseOutcome::Released
-        );
-        let position = g.position_um().await.unwrap();
-        assert!(
-            at_target(position, 20_000),
-            "{by:?}: returned at {position} µm"
-        );
+    // From DS_RELEASED, and from DS_FAULT: RELEASE re-enables the gripper (3.4.1) and the
+    // state stays DS_FAULT while the fingers move.
+    for start in [DeviceState::Released, DeviceState::Fault] {
+        for by in [POLL, WaitBy::Transition] {
+            slow_down(&server, 0.0);
+            g.set_value(0, 5000).await.unwrap();
+            if start == DeviceState::Fault {
+                server.inject_device_fault(0);
+            }
+            assert_eq!(g.position_um().await.unwrap(), 5000);
+            assert_eq!(g.state().await.unwrap(), start);
+            // 15 mm at 50 mm/s: 300 ms simulated, 60 ms of wall time.
+            slow_down(&server, 0.2);
+            assert_eq!(
+                g.release_and_wait(0, by).await.unwrap(),
+                ReleaseOutcome::Released
+            );
+            let position = g.position_um().await.unwrap();
+            assert!(
+                at_target(position, 20_000),
+                "{start:?} {by:?}: returned at {position} µm"
+            );
+        }
     }
     // FLEXRELEASE to its own position, from DS_RELEASED too.
     for by in [POLL, WaitBy::Transition] {
