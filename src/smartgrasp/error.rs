@@ -47,8 +47,12 @@ pub enum Error {
         /// The state GET_STATE reported.
         state: ServerState,
     },
-    /// The response counter skipped a number: a response was lost (manual 3.2.2.3). The call
-    /// that was waiting for it gets this error instead of someone else's answer.
+    /// A response was lost: the server answered a later request, and the counter skipped
+    /// (manual 3.2.2.3). The call that was waiting for it gets this error instead of someone
+    /// else's answer. By default a counter gap alone is only recorded
+    /// ([`Client::counter_gaps`](super::Client::counter_gaps)); this error needs the response
+    /// to fit a later request and not this one, or
+    /// [`ClientConfig::strict_response_counter`](super::ClientConfig::strict_response_counter).
     #[error(
         "a response was lost: expected response counter {expected}, the server sent {received}"
     )]

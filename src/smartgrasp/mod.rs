@@ -8,7 +8,8 @@
 //!   message types, and poses in the four formats with SI conversions (pure);
 //! - [`codec`]: tokio-util codecs that read the prefix first and refuse any length but 74;
 //! - [`Client`]: the async client, a cloneable handle to a task that owns the connection and checks
-//!   every response (type, message type, response counter, response code);
+//!   every response (type, message type, response code, echoed fields; the response counter is
+//!   recorded, and trusted only in [`ClientConfig::strict_response_counter`] mode);
 //! - `sim` (feature `sim`): a simulated server.
 //!
 //! # Faults, cancellation and reconnecting
@@ -20,6 +21,20 @@
 //! With [`ClientConfig::reconnect`] the client reconnects after a lost connection and restores
 //! registration and project; [`Client::connection_events`] reports it. [`Client::close`] ends the
 //! connection for good (no reconnecting), and every later call fails with [`Error::Closed`].
+//!
+//! # Tolerance where the manual is silent
+//!
+//! Where the manual leaves room, the client records what it sees and goes on, rather than drop a
+//! connection a real server may rightly use (each pinned in `tests/smartgrasp_tolerance.rs`):
+//! - the response counter's scope is not specified (3.2.2.3; the examples 6.4 and 6.5 both show
+//!   3): a gap is counted ([`Client::counter_gaps`]) and warned about, the call gets its response;
+//!   [`ClientConfig::strict_response_counter`] trusts the counter instead;
+//! - a GET_OBJECT_COUNT answered as message type 17 (the manual's table, an erratum for 32) is
+//!   read as a count;
+//! - REGISTER_CLIENT is informational (3.3.2.3): its code is reported
+//!   ([`Client::registration`]), not fatal to the connect;
+//! - a server that stays connected but stops answering is given up
+//!   [`ClientConfig::give_up_after`] past a call's timeout, then reconnected to if configured.
 //!
 //! What V3 cannot detect, and so neither can this client: frames carry no checksum and
 //! responses no request id. A corrupted byte that still reads as a valid value (a count, a pose

@@ -6,8 +6,8 @@ mod session;
 mod task;
 
 use std::net::SocketAddr;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, OnceLock};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex, OnceLock};
 use std::time::Duration;
 
 use tokio::net::ToSocketAddrs;
@@ -69,6 +69,20 @@ pub struct ClientConfig {
     /// When the policy gives up, the client is closed like one without a policy. After
     /// [`Client::close`], nothing reconnects.
     pub reconnect: Option<ReconnectPolicy>,
+    /// How long past a call's timeout a missing response is tolerated before the connection is
+    /// given up as lost ([`Error::ConnectionLost`]; then reconnected if [`reconnect`] is set).
+    /// A server that stays connected but stops answering would otherwise keep every slot busy,
+    /// and every later call would time out for ever. Default 30 s, like GRIPLINK's.
+    ///
+    /// [`reconnect`]: ClientConfig::reconnect
+    pub give_up_after: Duration,
+    /// Trust the response counter (default `false`). Manual 3.2.2.3 only says the counter rises
+    /// with every response and wraps at 256, not whether it counts per connection or across all
+    /// of a server's clients. By default a gap is recorded ([`Client::counter_gaps`] and a
+    /// `tracing` warning) and the call gets its response. With `true`, a gap of `k` fails the
+    /// `k` oldest waiting calls with [`Error::ResponseLost`], and a gap no waiting call explains
+    /// breaks the connection: only for a server known to count per connection.
+    pub strict_response_counter: bool,
 }
 
 impl Default for ClientConfig {
@@ -80,7 +94,29 @@ impl Default for ClientConfig {
             robot_system: None,
             project_index: None,
             reconnect: None,
+            give_up_after: Duration::from_secs(30),
+            strict_response_counter: false,
         }
+    }
+}
+
+/// What the task shares with the handles besides the call channel.
+#[derive(Debug, Default)]
+pub(crate) struct Shared {
+    /// Responses whose counter skipped (see [`Client::counter_gaps`]).
+    pub counter_gaps: AtomicU64,
+    /// The response code of the last REGISTER_CLIENT of an opening sequence (see
+    /// [`Client::registration`]).
+    pub registration: Mutex<Option<ResponseCode>>,
+}
+
+impl Shared {
+    /// Records the response code of an opening sequence's REGISTER_CLIENT.
+    pub(crate) fn set_registration(&self, code: Option<ResponseCode>) {
+        *self
+            .registration
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner()) = code;
     }
 }
 
@@ -172,6 +208,7 @@ pub struct Client {
     events: EventSubscriber,
     timeouts: Timeouts,
     close: Arc<Close>,
+    shared: Arc<Shared>,
 }
 
 /// What [`Client::close`] shares between the handles and the task.
@@ -193,11 +230,16 @@ impl Client {
     /// a session that was open. Cancel-safe: dropping the future closes the new connection.
     pub async fn connect(addr: impl ToSocketAddrs, config: ClientConfig) -> Result<Client> {
         let addrs = link::within_connect_timeout(config.connect_timeout, resolve(addr)).await?;
-        let mut link = Link::connect(&addrs, &config).await?;
+        let shared = Arc::new(Shared::default());
+        let mut link = Link::connect(&addrs, &config, &shared).await?;
         let session = Session::from_config(&config);
-        let server_version = session.open(&mut link, &config).await?;
-        tracing::info!(server_version, "smartgrasp session open");
-        Ok(Client::spawn(link, addrs, session, config))
+        let opened = session.open(&mut link, &config).await?;
+        shared.set_registration(opened.registration);
+        tracing::info!(
+            server_version = opened.server_version,
+            "smartgrasp session open"
+        );
+        Ok(Client::spawn(link, addrs, session, config, shared))
     }
 
     /// Connects without sending anything (`config`'s opening-sequence fields are not used; a
@@ -208,11 +250,24 @@ impl Client {
         config: ClientConfig,
     ) -> Result<Client> {
         let addrs = link::within_connect_timeout(config.connect_timeout, resolve(addr)).await?;
-        let link = Link::connect(&addrs, &config).await?;
-        Ok(Client::spawn(link, addrs, Session::default(), config))
+        let shared = Arc::new(Shared::default());
+        let link = Link::connect(&addrs, &config, &shared).await?;
+        Ok(Client::spawn(
+            link,
+            addrs,
+            Session::default(),
+            config,
+            shared,
+        ))
     }
 
-    fn spawn(link: Link, addrs: Vec<SocketAddr>, session: Session, config: ClientConfig) -> Client {
+    fn spawn(
+        link: Link,
+        addrs: Vec<SocketAddr>,
+        session: Session,
+        config: ClientConfig,
+        shared: Arc<Shared>,
+    ) -> Client {
         let (calls, rx) = mpsc::channel(CALL_QUEUE);
         let closed = Arc::new(OnceLock::new());
         let events = EventSender::new("smartgrasp", EVENT_BUFFER);
@@ -223,6 +278,7 @@ impl Client {
             events: events.subscriber(),
             timeouts: config.timeouts(),
             close: Arc::clone(&close),
+            shared: Arc::clone(&shared),
         };
         let task = task::Task {
             calls: rx,
@@ -232,6 +288,7 @@ impl Client {
             addrs,
             events,
             shutdown: close.shutdown.clone(),
+            shared,
         };
         tokio::spawn(task::run(link, task));
         client
@@ -246,6 +303,27 @@ impl Client {
             },
             ..self.clone()
         }
+    }
+
+    /// How many responses so far carried a response counter other than the one due (one more
+    /// than the last response's, manual 3.2.2.3), over every connection of this client. By
+    /// default such a gap is only recorded (see [`ClientConfig::strict_response_counter`]); a
+    /// rising count with a server shared by several clients suggests the server counts across
+    /// them.
+    pub fn counter_gaps(&self) -> u64 {
+        self.shared.counter_gaps.load(Ordering::Relaxed)
+    }
+
+    /// The response code the server gave the REGISTER_CLIENT of the last opening sequence (the
+    /// connect, or the last reconnect); `None` if none was sent. Manual 3.3.2.3 calls the
+    /// message informational, so a code other than SUCCESS is reported here and in a `tracing`
+    /// warning, and does not fail the connect.
+    pub fn registration(&self) -> Option<ResponseCode> {
+        *self
+            .shared
+            .registration
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner())
     }
 
     /// Whether the connection is closed for good (every call would fail). While the client

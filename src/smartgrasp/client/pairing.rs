@@ -5,11 +5,16 @@
 //! stream, one server loop), so pairing is in order. What the header offers is checked:
 //! - communication type must be "response" and the prefix version 3;
 //! - the message type must be the request's (manual 3.3; errata: GET_OBJECT_COUNT answers 32);
-//! - the response counter must advance by one modulo 256 (manual 3.2.2.3). The first response's
-//!   counter is unknown to a fresh connection and is learned. A gap of `k` means the `k`
-//!   responses before this one were lost; with in-order delivery those belong to the `k` oldest
-//!   waiting requests, which get [`Error::ResponseLost`] instead of someone else's answer. A gap
-//!   that no waiting request can explain breaks the connection.
+//! - the response counter (manual 3.2.2.3) rises by one per response and wraps at 256. The manual
+//!   does not say whether it counts per connection or across all of a server's clients (its own
+//!   examples 6.4 and 6.5 both show 3; PROTOCOLS.md errata), so by default a gap is only
+//!   *recorded* ([`Counted::gap`], a `tracing` warning and a count on the client): on TCP a gap
+//!   does not mean a response was mispaired, and pairing rests on the order, the message type and
+//!   the echoed fields. In strict mode ([`Pairing::strict`]) the counter is trusted: a gap of `k`
+//!   means the `k` responses before this one were lost; with in-order delivery those belong to
+//!   the `k` oldest waiting requests, which get [`Error::ResponseLost`] instead of someone else's
+//!   answer, and a gap that no waiting request can explain breaks the connection. Either way the
+//!   first response's counter is unknown to a fresh connection and is learned.
 //! - the fields a SUCCESS response repeats from its request must match ([`check_response`]).
 //!
 //! What no check can see (V3 frames carry no checksum): a corrupted body byte that still makes a
@@ -22,37 +27,57 @@ use crate::smartgrasp::types::{CommunicationType, MessageType, ResponseCode};
 /// The response counter's expectations across a connection.
 #[derive(Debug, Default, Clone, Copy)]
 pub(crate) struct Pairing {
-    /// The counter the next response must carry; `None` until the first response.
+    /// The counter the next response should carry; `None` until the first response.
     next_counter: Option<u8>,
+    /// Trust the counter: a gap charges the oldest waiting requests, or breaks the connection.
+    strict: bool,
 }
 
-/// Lost responses found by [`Pairing::counter`].
+/// What [`Pairing::counter`] found.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) struct Lost {
-    /// How many of the oldest waiting requests lost their response.
-    pub count: usize,
-    /// The counter the first lost response would have carried.
-    pub first_expected: u8,
+pub(crate) struct Counted {
+    /// How many of the oldest waiting requests lost their response (strict mode only; 0 in the
+    /// tolerant default).
+    pub lost: usize,
+    /// The counter this response should have carried.
+    pub expected: u8,
+    /// How many counter values were skipped (0: none).
+    pub gap: u8,
 }
 
 impl Pairing {
+    /// Pairing that trusts the response counter (see the module docs).
+    pub(crate) fn strict() -> Pairing {
+        Pairing {
+            next_counter: None,
+            strict: true,
+        }
+    }
+
     /// Checks the counter of a response that arrived while `waiting` requests (the abandoned ones
-    /// included) were outstanding. `Ok(lost)`: fail `lost.count` oldest requests with
-    /// [`Error::ResponseLost`], then pair the response with the next. `Err`: the connection must
-    /// be closed.
-    pub(crate) fn counter(&mut self, received: u8, waiting: usize) -> Result<Lost, Error> {
+    /// included) were outstanding. `Ok`: in strict mode fail `lost` oldest requests with
+    /// [`Error::ResponseLost`], then pair the response with the next; `gap` is what to record.
+    /// `Err`: the connection must be closed.
+    pub(crate) fn counter(&mut self, received: u8, waiting: usize) -> Result<Counted, Error> {
         if waiting == 0 {
             return Err(Malformed::Unsolicited { counter: received }.into());
         }
         let expected = self.next_counter.unwrap_or(received);
-        let count = usize::from(received.wrapping_sub(expected));
-        if count >= waiting {
-            return Err(Error::ResponseLost { expected, received });
-        }
+        let gap = received.wrapping_sub(expected);
+        let lost = if self.strict {
+            let lost = usize::from(gap);
+            if lost >= waiting {
+                return Err(Error::ResponseLost { expected, received });
+            }
+            lost
+        } else {
+            0
+        };
         self.next_counter = Some(received.wrapping_add(1));
-        Ok(Lost {
-            count,
-            first_expected: expected,
+        Ok(Counted {
+            lost,
+            expected,
+            gap,
         })
     }
 }
@@ -69,13 +94,32 @@ pub(crate) fn check_header(request: MessageType, frame: &ResponseFrame) -> Resul
             frame.header.communication_type,
         ));
     }
-    if frame.header.message_type != request {
+    if !answers(request, frame.header.message_type) {
         return Err(Malformed::MessageType {
             expected: request,
             received: frame.header.message_type,
         });
     }
     Ok(())
+}
+
+/// Whether a response of type `response` may answer a request of type `request`: the same type,
+/// or 17 for GET_OBJECT_COUNT. The manual's GET_OBJECT_COUNT response table (3.3.4.1) prints 17,
+/// an erratum for 32 (17 is GRASP_FEEDBACK; PROTOCOLS.md), but a firmware that followed the
+/// table would send 17, and refusing it would drop the connection on every count. The echoed
+/// object class still tells a count from a feedback response where the class is not 0.
+pub(crate) fn answers(request: MessageType, response: MessageType) -> bool {
+    request == response
+        || (request == MessageType::GetObjectCount && response == MessageType::GraspFeedback)
+}
+
+/// Whether a response to `a` could be taken for a response to `b` by its message type alone.
+pub(crate) fn ambiguous(a: MessageType, b: MessageType) -> bool {
+    answers(a, b) || answers(b, a) || {
+        // Both could be answered with 17.
+        let either = |t| t == MessageType::GetObjectCount || t == MessageType::GraspFeedback;
+        either(a) && either(b)
+    }
 }
 
 /// Checks a response against the request it is paired with: [`check_header`], then the fields a
@@ -127,24 +171,45 @@ mod tests {
 
     #[test]
     fn first_counter_is_learned_then_must_advance_by_one_and_wrap() {
-        let mut p = Pairing::default();
-        assert_eq!(p.counter(254, 1).unwrap().count, 0);
-        assert_eq!(p.counter(255, 1).unwrap().count, 0);
-        assert_eq!(p.counter(0, 1).unwrap().count, 0);
-        assert_eq!(p.counter(1, 1).unwrap().count, 0);
+        for mut p in [Pairing::default(), Pairing::strict()] {
+            for c in [254, 255, 0, 1] {
+                let counted = p.counter(c, 1).unwrap();
+                assert_eq!((counted.lost, counted.gap), (0, 0));
+            }
+        }
     }
 
     #[test]
-    fn a_gap_fails_the_oldest_requests_or_breaks_the_connection() {
+    fn by_default_a_gap_is_recorded_and_charges_nobody() {
         let mut p = Pairing::default();
+        p.counter(10, 1).unwrap();
+        // A server counting across all its clients: 12 where 11 was due, one call waiting.
+        assert_eq!(
+            p.counter(12, 1).unwrap(),
+            Counted {
+                lost: 0,
+                expected: 11,
+                gap: 1
+            }
+        );
+        // Learned from the last response: 13 is on time.
+        assert_eq!(p.counter(13, 1).unwrap().gap, 0);
+        // A repeated counter is a gap of 255, recorded too.
+        assert_eq!(p.counter(13, 1).unwrap().gap, 255);
+    }
+
+    #[test]
+    fn in_strict_mode_a_gap_fails_the_oldest_requests_or_breaks_the_connection() {
+        let mut p = Pairing::strict();
         p.counter(10, 1).unwrap();
         // Two requests waiting (the first abandoned by a timeout); the response to the first
         // was lost: 12 arrives where 11 was due.
         assert_eq!(
             p.counter(12, 2).unwrap(),
-            Lost {
-                count: 1,
-                first_expected: 11
+            Counted {
+                lost: 1,
+                expected: 11,
+                gap: 1
             }
         );
         // One request waiting and a gap: nothing can explain it.
@@ -156,13 +221,13 @@ mod tests {
             })
         ));
         // A repeated counter is a gap of 255.
-        let mut p = Pairing::default();
+        let mut p = Pairing::strict();
         p.counter(0, 1).unwrap();
         assert!(p.counter(0, 3).is_err());
         // A gap across the wrap.
-        let mut p = Pairing::default();
+        let mut p = Pairing::strict();
         p.counter(255, 1).unwrap();
-        assert_eq!(p.counter(1, 2).unwrap().count, 1);
+        assert_eq!(p.counter(1, 2).unwrap().lost, 1);
     }
 
     #[test]
@@ -177,12 +242,33 @@ mod tests {
     fn header_checks() {
         let ok = ResponseFrame::new(MessageType::GetObjectCount, ResponseCode::Success, 0);
         assert_eq!(check_header(MessageType::GetObjectCount, &ok), Ok(()));
-        // Errata: the manual's table says 17 for GET_OBJECT_COUNT's response; it is 32.
-        let mut wrong = ok;
-        wrong.header.message_type = MessageType::GraspFeedback;
+        // Errata: the manual's table says 17 for GET_OBJECT_COUNT's response; it is 32, but a
+        // server that follows the table is accepted.
+        let mut seventeen = ok;
+        seventeen.header.message_type = MessageType::GraspFeedback;
+        assert_eq!(
+            check_header(MessageType::GetObjectCount, &seventeen),
+            Ok(())
+        );
+        // Not the other way round, and no other type.
         assert!(matches!(
-            check_header(MessageType::GetObjectCount, &wrong),
+            check_header(MessageType::GraspFeedback, &ok),
             Err(Malformed::MessageType { .. })
+        ));
+        let mut state = ok;
+        state.header.message_type = MessageType::GetState;
+        assert!(matches!(
+            check_header(MessageType::GetObjectCount, &state),
+            Err(Malformed::MessageType { .. })
+        ));
+        assert!(ambiguous(
+            MessageType::GraspFeedback,
+            MessageType::GetObjectCount
+        ));
+        assert!(ambiguous(MessageType::GetGrasp, MessageType::GetGrasp));
+        assert!(!ambiguous(
+            MessageType::GetState,
+            MessageType::GetObjectCount
         ));
         let mut request = ok;
         request.header.communication_type = CommunicationType::Request;

@@ -42,9 +42,10 @@ impl Session {
     }
 
     /// Runs the opening sequence on a fresh connection: GET_PROTOCOL_VERSION (v3 or newer),
-    /// GET_STATE (OPERATIONAL), then REGISTER_CLIENT and SET_PROJECT as set up. Returns the
-    /// server's protocol version.
-    pub(crate) async fn open(&self, link: &mut Link, config: &ClientConfig) -> Result<u16> {
+    /// GET_STATE (OPERATIONAL), then REGISTER_CLIENT and SET_PROJECT as set up. REGISTER_CLIENT
+    /// is informational (manual 3.3.2.3): its response code is returned and warned about, never
+    /// fatal.
+    pub(crate) async fn open(&self, link: &mut Link, config: &ClientConfig) -> Result<Opened> {
         let server_version = match success(
             link.exchange(Request::GetProtocolVersion.to_frame(), config)
                 .await?,
@@ -63,11 +64,31 @@ impl Session {
             ResponseBody::State(state) => return Err(Error::NotOperational { state }),
             other => return Err(unexpected_body(other)),
         }
-        for request in self.register.iter().chain(&self.project) {
-            success(link.exchange(*request, config).await?)?;
+        let mut registration = None;
+        if let Some(request) = self.register {
+            let code = link.exchange(request, config).await?.code;
+            if code != ResponseCode::Success {
+                tracing::warn!(%code, robot = %request.client, "smartgrasp: REGISTER_CLIENT was not accepted; going on (manual 3.3.2.3: informational)");
+            }
+            registration = Some(code);
         }
-        Ok(server_version)
+        if let Some(request) = self.project {
+            success(link.exchange(request, config).await?)?;
+        }
+        Ok(Opened {
+            server_version,
+            registration,
+        })
     }
+}
+
+/// What an opening sequence found out.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Opened {
+    /// The server's highest protocol version (GET_PROTOCOL_VERSION).
+    pub server_version: u16,
+    /// REGISTER_CLIENT's response code, if it was sent.
+    pub registration: Option<ResponseCode>,
 }
 
 /// The body of a SUCCESS response; any other code is [`Error::Device`].

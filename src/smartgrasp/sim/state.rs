@@ -290,6 +290,18 @@ impl SimState {
         self.config.server_state = state;
     }
 
+    /// The "too old" empty message for the bytes of a message this server cannot read (a length
+    /// other than 74), if its prefix carries a version newer than the server's: manual 1.3 says
+    /// a server older than the client always answers with it, whatever the rest of the message.
+    /// `None` for an incomplete prefix or a version the server speaks (a plain bad length).
+    pub fn too_old_for(&self, bytes: &[u8]) -> Option<Prefix> {
+        let prefix = Prefix::decode(bytes.first_chunk()?);
+        (prefix.version > self.config.protocol_version).then_some(Prefix {
+            version: self.config.protocol_version,
+            length: 0,
+        })
+    }
+
     /// Handles one request frame.
     pub fn handle(&mut self, conn: &mut SimConnection, frame: &RequestFrame) -> Action {
         // Manual 1.3: a server older than the client answers with an empty message carrying its
@@ -611,6 +623,30 @@ mod tests {
                 length: 0
             })
         );
+    }
+
+    #[test]
+    fn a_newer_message_of_any_length_gets_too_old_and_a_plain_bad_length_nothing() {
+        let s = SimState::new(SimConfig::default());
+        let newer = Prefix {
+            version: PROTOCOL_VERSION + 2,
+            length: 200,
+        }
+        .encode();
+        assert_eq!(
+            s.too_old_for(&newer),
+            Some(Prefix {
+                version: PROTOCOL_VERSION,
+                length: 0
+            })
+        );
+        assert_eq!(s.too_old_for(&newer[..5]), None);
+        let bad_length = Prefix {
+            version: PROTOCOL_VERSION,
+            length: 200,
+        }
+        .encode();
+        assert_eq!(s.too_old_for(&bad_length), None);
     }
 
     #[test]
