@@ -112,6 +112,7 @@ fn simulated_bins() -> smartgrasp::sim::SimConfig {
                         stroke_um: (stroke_mm * 1000.0).round() as i32,
                         angle_offset_udeg: 0,
                         center_offset_um: [0, 0, 0],
+                        object_offset: smartgrasp::ObjectOffset::default(),
                         pose: SiPose {
                             position_m: [
                                 x_mm / 1000.0,
@@ -268,10 +269,14 @@ async fn empty_the_bin(
 ) -> Result<u32, String> {
     let e = |step: &'static str| move |e: smartgrasp::Error| format!("Grasping-Kit {step}: {e}");
     kit.set_project(project).await.map_err(e("set project"))?;
+    // V3 names the tool here; V4 uses the tool chosen with SET_TOOL (1 = exterior in the
+    // simulator) and the selection criterion instead (its values are not public; SCHUNK's KUKA
+    // example sends 1 to 3).
     let request = GraspRequest {
         grasp_mode: GraspMode::AutoGrasp,
         object_class: 0,
         tool: Tool::Exterior,
+        selection_criterion: smartgrasp::SelectionCriterion(1),
         pose_format: PoseFormat::Abc,
     };
     let mut picked = 0;
@@ -317,7 +322,10 @@ async fn run(args: Args) -> Result<(), String> {
     )
     .await
     .map_err(|e| format!("Grasping-Kit at {smartgrasp_addr}: {e}"))?;
-    println!("Grasping-Kit ready, registered as KUKA");
+    println!(
+        "Grasping-Kit ready (protocol v{}), registered as KUKA",
+        kit.protocol_version()
+    );
 
     let wsg = wsg::Client::connect_tcp(wsg_addr.as_str())
         .await

@@ -19,6 +19,15 @@ use gripper::fault::{At, Fault, FaultHandle, FaultProxy, Faults, Framing, ProxyC
 use gripper::reconnect::ConnectionEvent;
 use gripper::smartgrasp::codec;
 use gripper::smartgrasp::sim::{SimConfig, SimServer};
+
+/// The V3 simulator these tests were written for (the default speaks V4 too; V4 is
+/// `tests/smartgrasp_v4.rs`).
+fn v3_sim() -> SimConfig {
+    SimConfig {
+        max_version: 3,
+        ..SimConfig::default()
+    }
+}
 use gripper::smartgrasp::{
     Client, ClientConfig, Error, GetGraspOutcome, GraspMode, GraspRequest, Malformed, MessageType,
     ObjectCount, PoseFormat, ResponseCode, RobotSystem, ServerState, Tool,
@@ -64,9 +73,7 @@ struct Rig {
 }
 
 async fn rig() -> Rig {
-    let server = SimServer::bind("127.0.0.1:0", SimConfig::default())
-        .await
-        .unwrap();
+    let server = SimServer::bind("127.0.0.1:0", v3_sim()).await.unwrap();
     let config = ProxyConfig::new().framing(Framing::Custom(codec::proxy_frame_len));
     let proxy = FaultProxy::start_with(server.local_addr(), config)
         .await
@@ -119,6 +126,7 @@ fn any_grasp(class: u16) -> GraspRequest {
         grasp_mode: GraspMode::AnyGrasp,
         object_class: class,
         tool: Tool::Exterior,
+        selection_criterion: gripper::smartgrasp::SelectionCriterion::default(),
         pose_format: PoseFormat::Abc,
     }
 }

@@ -271,7 +271,7 @@ async fn the_simulator_answers_a_newer_message_of_any_length_with_too_old_then_c
     assert_eq!(
         answer,
         Prefix {
-            version: 3,
+            version: SimConfig::default().max_version,
             length: 0
         }
         .encode()

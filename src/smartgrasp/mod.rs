@@ -118,7 +118,7 @@ pub use client::{Client, ClientConfig, GetGraspOutcome, DEFAULT_PORT};
 pub use error::{Error, Malformed, Result};
 #[doc(inline)]
 pub use message::{
-    Grasp, GraspRequest, ObjectCount, Request, RequestError, Response, ResponseBody,
+    Grasp, GraspRequest, ObjectCount, ObjectOffset, Request, RequestError, Response, ResponseBody,
 };
 #[doc(inline)]
 pub use pose::{
@@ -126,6 +126,6 @@ pub use pose::{
 };
 #[doc(inline)]
 pub use types::{
-    CommunicationType, GraspFeedback, GraspMode, MessageType, PoseFormat, ResponseCode,
-    RobotSystem, ServerState, Tool,
+    CommunicationType, GraspFeedback, GraspMode, MessageType, PoseFormat, ReferenceFrame,
+    ResponseCode, RobotSystem, SelectionCriterion, ServerState, Tool,
 };

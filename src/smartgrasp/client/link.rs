@@ -23,7 +23,9 @@ use super::pairing::{ambiguous, check_response, Counted, Pairing};
 use super::{ClientConfig, Shared, Timeouts};
 use crate::smartgrasp::codec::ClientCodec;
 use crate::smartgrasp::error::{Error, Malformed, Result};
-use crate::smartgrasp::frame::{RequestFrame, ResponseFrame};
+use crate::smartgrasp::frame::{
+    AnyRequestFrame as RequestFrame, AnyResponseFrame as ResponseFrame,
+};
 use crate::smartgrasp::message::{Request, Response};
 use crate::smartgrasp::types::MessageType;
 
@@ -84,7 +86,8 @@ impl Link {
         stream.set_nodelay(true)?;
         let (read, write) = stream.into_split();
         Ok(Link {
-            responses: FramedRead::new(read, ClientCodec),
+            // V3 until the opening sequence chose a version (see `set_version`).
+            responses: FramedRead::new(read, ClientCodec::default()),
             write,
             waiting: VecDeque::with_capacity(MAX_IN_FLIGHT),
             pairing: if config.strict_response_counter {
@@ -99,20 +102,32 @@ impl Link {
         })
     }
 
-    /// One request with nothing else in flight (the opening sequence), answered within the
-    /// configured timeout of its type. After an error the link must be dropped.
+    /// The protocol version requests on this link are sent in.
+    pub(crate) fn version(&self) -> u16 {
+        self.responses.decoder().version
+    }
+
+    /// Sends every later request in protocol `version` (the opening sequence negotiated it).
+    pub(crate) fn set_version(&mut self, version: u16) {
+        self.responses.decoder_mut().version = version;
+    }
+
+    /// One request with nothing else in flight (the opening sequence), in the link's version,
+    /// answered within the configured timeout of its type. After an error the link must be
+    /// dropped.
     pub(crate) async fn exchange(
         &mut self,
-        request: RequestFrame,
+        request: &Request,
         config: &ClientConfig,
     ) -> Result<Response> {
+        let request = request.to_any_frame(self.version())?;
         let answer = async {
             self.write.write_all(&request.encode()).await?;
             let frame = match self.next_response().await {
                 None => return Err(server_closed()),
                 Some(frame) => frame?,
             };
-            let counted = self.pairing.counter(frame.header.response_counter, 1)?;
+            let counted = self.pairing.counter(frame.header().response_counter, 1)?;
             self.record_gap(&counted, &frame);
             check_response(&request, &frame)?;
             self.last_response = Some(frame);
@@ -120,7 +135,7 @@ impl Link {
         };
         config
             .timeouts()
-            .run(request.header.message_type, answer)
+            .run(request.header().message_type, answer)
             .await
     }
 
@@ -159,7 +174,7 @@ impl Link {
                     }
                 },
                 () = tokio::time::sleep_until(give_up_at.unwrap_or_else(Instant::now)), if give_up_at.is_some() => {
-                    let request = self.waiting.front().map(|w| w.request.header.message_type);
+                    let request = self.waiting.front().map(|w| w.request.header().message_type);
                     tracing::error!(?request, give_up_after = ?self.give_up_after, "smartgrasp: response overdue, giving up on the connection");
                     break Error::ConnectionLost {
                         reason: format!(
@@ -211,7 +226,7 @@ impl Link {
         request: RequestFrame,
         reply: oneshot::Sender<Result<ResponseFrame>>,
     ) -> Result<()> {
-        let limit = self.timeouts.for_type(request.header.message_type);
+        let limit = self.timeouts.for_type(request.header().message_type);
         let error = match tokio::time::timeout(limit, self.write.write_all(&request.encode())).await
         {
             Ok(Ok(())) => {
@@ -243,15 +258,18 @@ impl Link {
     /// next response is this request's. Costs one query, only after a call was given up.
     fn marker_before(&self, next: &RequestFrame) -> Option<RequestFrame> {
         let back = self.waiting.back()?;
-        let ambiguous = ambiguous(back.request.header.message_type, next.header.message_type);
+        let ambiguous = ambiguous(
+            back.request.header().message_type,
+            next.header().message_type,
+        );
         if !ambiguous || !back.reply.is_closed() {
             return None;
         }
-        let marker = match next.header.message_type {
+        let marker = match next.header().message_type {
             MessageType::GetProtocolVersion => Request::GetState,
             _ => Request::GetProtocolVersion,
         };
-        Some(marker.to_frame())
+        marker.to_any_frame(self.version()).ok()
     }
 
     /// Records a counter gap: a warning and the count the handles read
@@ -263,8 +281,8 @@ impl Link {
         let gaps = self.shared.counter_gaps.fetch_add(1, Ordering::Relaxed) + 1;
         tracing::warn!(
             expected = counted.expected,
-            received = frame.header.response_counter,
-            message_type = %frame.header.message_type,
+            received = frame.header().response_counter,
+            message_type = %frame.header().message_type,
             gaps,
             "smartgrasp: the response counter skipped (manual 3.2.2.3 does not say whether it counts per connection)"
         );
@@ -277,18 +295,18 @@ impl Link {
             // The same bytes again, counter included: the server counts every response, so this
             // is a copy (a network device repeating a segment), not a new answer. Noise, skipped.
             tracing::warn!(
-                counter = frame.header.response_counter,
+                counter = frame.header().response_counter,
                 "repeated response skipped"
             );
             return Ok(());
         }
-        let received = frame.header.response_counter;
+        let received = frame.header().response_counter;
         let counted = self.pairing.counter(received, self.waiting.len())?;
         self.record_gap(&counted, frame);
         for i in 0..counted.lost {
             if let Some(w) = self.waiting.pop_front() {
                 let expected = counted.expected.wrapping_add(i as u8);
-                tracing::warn!(expected, received, request = %w.request.header.message_type, "response lost");
+                tracing::warn!(expected, received, request = %w.request.header().message_type, "response lost");
                 let _ = w
                     .reply
                     .send(Err(Error::ResponseLost { expected, received }));
@@ -316,7 +334,7 @@ impl Link {
                 let _ = w.reply.send(Err(e.clone()));
                 return Err(e);
             }
-            tracing::warn!(request = %w.request.header.message_type, "a request was never answered; its slot is dropped");
+            tracing::warn!(request = %w.request.header().message_type, "a request was never answered; its slot is dropped");
             let _ = w.reply.send(Err(Error::ResponseLost {
                 expected: counted.expected,
                 received,
@@ -330,7 +348,7 @@ impl Link {
         let frame = normalised(&w.request, frame);
         on_paired(&w.request, &frame);
         if w.reply.send(Ok(frame)).is_err() {
-            tracing::debug!(request = %w.request.header.message_type, counter = received, "late reply discarded");
+            tracing::debug!(request = %w.request.header().message_type, counter = received, "late reply discarded");
         }
         Ok(())
     }
@@ -340,13 +358,13 @@ impl Link {
 /// 17 (see [`answers`](super::pairing::answers)) is read as the count it is.
 fn normalised(request: &RequestFrame, frame: &ResponseFrame) -> ResponseFrame {
     let mut frame = *frame;
-    if frame.header.message_type != request.header.message_type {
+    if frame.header().message_type != request.header().message_type {
         tracing::warn!(
-            request = %request.header.message_type,
-            response = %frame.header.message_type,
+            request = %request.header().message_type,
+            response = %frame.header().message_type,
             "smartgrasp: response with the manual's erratum message type accepted"
         );
-        frame.header.message_type = request.header.message_type;
+        frame.header_mut().message_type = request.header().message_type;
     }
     frame
 }

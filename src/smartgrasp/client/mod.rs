@@ -6,7 +6,7 @@ mod session;
 mod task;
 
 use std::net::SocketAddr;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU16, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, OnceLock};
 use std::time::Duration;
 
@@ -15,7 +15,7 @@ use tokio::sync::{mpsc, oneshot};
 use tokio_util::sync::CancellationToken;
 
 use super::error::{Error, Result};
-use super::frame::ResponseFrame;
+use super::frame::AnyResponseFrame;
 use super::message::{Grasp, GraspRequest, ObjectCount, Request, Response, ResponseBody};
 use super::pose::Pose;
 use super::types::{
@@ -23,7 +23,7 @@ use super::types::{
 };
 use crate::reconnect::{ConnectionEvents, EventSender, EventSubscriber, ReconnectPolicy};
 use link::{Call, Link};
-use session::{success, unexpected_body, Session};
+use session::{success, unexpected_body, Opened, Session};
 
 /// The server's TCP port (manual 1.1).
 pub const DEFAULT_PORT: u16 = 42001;
@@ -49,7 +49,22 @@ pub struct ClientConfig {
     /// manual allows for systems it does not list).
     pub robot_system: Option<RobotSystem>,
     /// Project to activate in the opening sequence (`None`: keep the server's active project).
+    /// V3: the project index; V4: the project ID seen in the web frontend (see
+    /// [`Request::SetProject`]).
     pub project_index: Option<u32>,
+    /// V4 only: the tool ID to choose with SET_TOOL in the opening sequence (`None`: keep the
+    /// server's). Skipped, with a warning, on a V3 connection, where each GET_GRASP names its
+    /// tool ([`GraspRequest::tool`]).
+    pub tool_id: Option<u16>,
+    /// V4 only: the workspace ID to choose with SET_WORKSPACE in the opening sequence (`None`:
+    /// keep the server's). Skipped, with a warning, on a V3 connection.
+    pub workspace_id: Option<u16>,
+    /// The protocol version to speak: `None` (the default) negotiates the highest version both
+    /// speak (3 or 4; GET_PROTOCOL_VERSION first, asked as V3, which every server since V3
+    /// answers); `Some(3)` or `Some(4)` pins it, and a server below the pinned version fails the
+    /// connect with [`Error::ServerTooOld`]. V4's layout is known only from SCHUNK's public KUKA
+    /// example (see the module docs).
+    pub protocol_version: Option<u16>,
     /// Reconnect after a lost connection (`None`, the default: a lost connection stays closed
     /// and every later call fails with [`Error::ConnectionLost`]).
     ///
@@ -93,6 +108,9 @@ impl Default for ClientConfig {
             detection_timeout: Duration::from_secs(30),
             robot_system: None,
             project_index: None,
+            tool_id: None,
+            workspace_id: None,
+            protocol_version: None,
             reconnect: None,
             give_up_after: Duration::from_secs(30),
             strict_response_counter: false,
@@ -108,15 +126,30 @@ pub(crate) struct Shared {
     /// The response code of the last REGISTER_CLIENT of an opening sequence (see
     /// [`Client::registration`]).
     pub registration: Mutex<Option<ResponseCode>>,
+    /// The protocol version the connection speaks (see [`Client::protocol_version`]).
+    pub version: AtomicU16,
+    /// The server's highest version (see [`Client::server_version`]).
+    pub server_version: AtomicU16,
 }
 
 impl Shared {
-    /// Records the response code of an opening sequence's REGISTER_CLIENT.
-    pub(crate) fn set_registration(&self, code: Option<ResponseCode>) {
+    /// A connection that has not negotiated yet speaks `version`.
+    fn new(version: u16) -> Shared {
+        Shared {
+            version: AtomicU16::new(version),
+            ..Shared::default()
+        }
+    }
+
+    /// Records what an opening sequence found out.
+    pub(crate) fn set_opened(&self, opened: &Opened) {
         *self
             .registration
             .lock()
-            .unwrap_or_else(|poisoned| poisoned.into_inner()) = code;
+            .unwrap_or_else(|poisoned| poisoned.into_inner()) = opened.registration;
+        self.version.store(opened.version, Ordering::SeqCst);
+        self.server_version
+            .store(opened.server_version, Ordering::SeqCst);
     }
 }
 
@@ -139,9 +172,11 @@ pub(crate) struct Timeouts {
 impl Timeouts {
     pub(crate) fn for_type(self, message_type: MessageType) -> Duration {
         match message_type {
-            MessageType::GetGrasp | MessageType::GetObjectCount | MessageType::SetProject => {
-                self.detection
-            }
+            MessageType::GetGrasp
+            | MessageType::GetObjectCount
+            | MessageType::SetProject
+            | MessageType::SetTool
+            | MessageType::SetWorkspace => self.detection,
             _ => self.query,
         }
     }
@@ -151,7 +186,7 @@ impl Timeouts {
     async fn run(
         self,
         message_type: MessageType,
-        exchange: impl std::future::Future<Output = Result<ResponseFrame>>,
+        exchange: impl std::future::Future<Output = Result<AnyResponseFrame>>,
     ) -> Result<Response> {
         let timeout = self.for_type(message_type);
         let frame = tokio::time::timeout(timeout, exchange)
@@ -160,7 +195,7 @@ impl Timeouts {
                 message_type,
                 timeout,
             })??;
-        Ok(Response::from_frame(&frame)?)
+        Ok(Response::from_any_frame(&frame)?)
     }
 }
 
@@ -230,13 +265,14 @@ impl Client {
     /// a session that was open. Cancel-safe: dropping the future closes the new connection.
     pub async fn connect(addr: impl ToSocketAddrs, config: ClientConfig) -> Result<Client> {
         let addrs = link::within_connect_timeout(config.connect_timeout, resolve(addr)).await?;
-        let shared = Arc::new(Shared::default());
+        let shared = Arc::new(Shared::new(crate::smartgrasp::frame::PROTOCOL_VERSION));
         let mut link = Link::connect(&addrs, &config, &shared).await?;
         let session = Session::from_config(&config);
         let opened = session.open(&mut link, &config).await?;
-        shared.set_registration(opened.registration);
+        shared.set_opened(&opened);
         tracing::info!(
             server_version = opened.server_version,
+            version = opened.version,
             "smartgrasp session open"
         );
         Ok(Client::spawn(link, addrs, session, config, shared))
@@ -244,14 +280,19 @@ impl Client {
 
     /// Connects without sending anything (`config`'s opening-sequence fields are not used; a
     /// reconnect runs GET_PROTOCOL_VERSION and GET_STATE, then restores what the program set up
-    /// with its own calls). Cancel-safe like [`connect`](Self::connect).
+    /// with its own calls). Speaks [`ClientConfig::protocol_version`], V3 if `None` (nothing is
+    /// negotiated). Cancel-safe like [`connect`](Self::connect).
     pub async fn connect_without_opening(
         addr: impl ToSocketAddrs,
         config: ClientConfig,
     ) -> Result<Client> {
         let addrs = link::within_connect_timeout(config.connect_timeout, resolve(addr)).await?;
-        let shared = Arc::new(Shared::default());
-        let link = Link::connect(&addrs, &config, &shared).await?;
+        let version = config
+            .protocol_version
+            .unwrap_or(crate::smartgrasp::frame::PROTOCOL_VERSION);
+        let shared = Arc::new(Shared::new(version));
+        let mut link = Link::connect(&addrs, &config, &shared).await?;
+        link.set_version(version);
         Ok(Client::spawn(
             link,
             addrs,
@@ -303,6 +344,19 @@ impl Client {
             },
             ..self.clone()
         }
+    }
+
+    /// The protocol version the connection speaks (3 or 4), as the last opening sequence
+    /// negotiated it (see [`ClientConfig::protocol_version`]).
+    pub fn protocol_version(&self) -> u16 {
+        self.shared.version.load(Ordering::SeqCst)
+    }
+
+    /// The server's highest protocol version, from the last opening sequence's
+    /// GET_PROTOCOL_VERSION (0 after [`connect_without_opening`](Self::connect_without_opening)
+    /// until a reconnect).
+    pub fn server_version(&self) -> u16 {
+        self.shared.server_version.load(Ordering::SeqCst)
     }
 
     /// How many responses so far carried a response counter other than the one due (one more
@@ -431,6 +485,25 @@ impl Client {
         Ok(())
     }
 
+    /// SET_TOOL (V4 only): chooses the tool with `tool_id`, as configured on the device
+    /// (PROTOCOLS.md 2b). A reconnect chooses the last tool the server accepted again. On a V3
+    /// connection [`Error::Request`], nothing sent: V3 names the tool in each GET_GRASP.
+    /// Cancel-safe (see [`Client`]); a cancelled call may still have switched the tool.
+    pub async fn set_tool(&self, tool_id: u16) -> Result<()> {
+        self.expect_success(Request::SetTool { tool_id }).await?;
+        Ok(())
+    }
+
+    /// SET_WORKSPACE (V4 only): chooses the workspace with `workspace_id`, as configured on the
+    /// device (PROTOCOLS.md 2b). A reconnect chooses it again. On a V3 connection
+    /// [`Error::Request`], nothing sent.
+    /// Cancel-safe (see [`Client`]); a cancelled call may still have switched the workspace.
+    pub async fn set_workspace(&self, workspace_id: u16) -> Result<()> {
+        self.expect_success(Request::SetWorkspace { workspace_id })
+            .await?;
+        Ok(())
+    }
+
     /// GET_GRASP: a grasp for the current scene (manual 3.3.3.1). The pose comes back in
     /// `request.pose_format`.
     /// Cancel-safe (see [`Client`]); a cancelled call may still have made the server pick a grasp,
@@ -457,7 +530,9 @@ impl Client {
         }
     }
 
-    /// GRASP_FEEDBACK: reports the result of the last grasp (manual 3.3.3.2).
+    /// GRASP_FEEDBACK: reports the result of the last grasp (manual 3.3.3.2). In V4 SCHUNK's
+    /// example says the message has no effect ("not yet supported with V4"); it is sent all the
+    /// same, so that cell code works with either version.
     /// Cancel-safe (see [`Client`]), but a cancelled or timed-out OK may still have removed the
     /// object from the scene: check with [`get_object_count`](Self::get_object_count) before
     /// sending it again.
@@ -475,7 +550,8 @@ impl Client {
             .expect_success(Request::GetObjectCount { object_class })
             .await?
         {
-            ResponseBody::ObjectCount(c) => Ok(c),
+            // V3 echoes the class (checked by the pairing); V4 may not (PROTOCOLS.md 2b).
+            ResponseBody::ObjectCount(c) => Ok(ObjectCount { object_class, ..c }),
             other => Err(unexpected_body(other)),
         }
     }
@@ -496,7 +572,7 @@ impl Client {
         let (reply, answer) = oneshot::channel();
         let exchange = async {
             let call = Call {
-                frame: request.to_frame(),
+                frame: request.to_any_frame(self.protocol_version())?,
                 reply,
             };
             self.calls.send(call).await.map_err(|_| self.closed())?;

@@ -3,7 +3,7 @@
 //!
 //! Responses carry no request id; they come back in the order the requests were sent (one TCP
 //! stream, one server loop), so pairing is in order. What the header offers is checked:
-//! - communication type must be "response" and the prefix version 3;
+//! - communication type must be "response" and the prefix version the request's;
 //! - the message type must be the request's (manual 3.3; errata: GET_OBJECT_COUNT answers 32);
 //! - the response counter (manual 3.2.2.3) rises by one per response and wraps at 256. The manual
 //!   does not say whether it counts per connection or across all of a server's clients (its own
@@ -21,7 +21,7 @@
 //! valid value (a count, a pose, a server state, a response code) reaches the caller as it is.
 
 use crate::smartgrasp::error::{Error, Malformed};
-use crate::smartgrasp::frame::{RequestFrame, ResponseFrame, PROTOCOL_VERSION};
+use crate::smartgrasp::frame::{AnyRequestFrame, AnyResponseFrame};
 use crate::smartgrasp::types::{CommunicationType, MessageType, ResponseCode};
 
 /// The response counter's expectations across a connection.
@@ -82,22 +82,27 @@ impl Pairing {
     }
 }
 
-/// Checks a response's prefix and header against the request it is paired with.
-pub(crate) fn check_header(request: MessageType, frame: &ResponseFrame) -> Result<(), Malformed> {
-    if frame.version != PROTOCOL_VERSION {
+/// Checks a response's prefix and header against the request it is paired with: the version the
+/// request used (a server answers with it, manual 1.3), communication type "response", and a
+/// message type that [`answers`] the request's.
+pub(crate) fn check_header(
+    request: &AnyRequestFrame,
+    frame: &AnyResponseFrame,
+) -> Result<(), Malformed> {
+    if frame.version() != request.version() {
         return Err(Malformed::Version {
-            version: frame.version,
+            version: frame.version(),
         });
     }
-    if frame.header.communication_type != CommunicationType::Response {
-        return Err(Malformed::CommunicationType(
-            frame.header.communication_type,
-        ));
+    let header = frame.header();
+    if header.communication_type != CommunicationType::Response {
+        return Err(Malformed::CommunicationType(header.communication_type));
     }
-    if !answers(request, frame.header.message_type) {
+    let expected = request.header().message_type;
+    if !answers(expected, header.message_type) {
         return Err(Malformed::MessageType {
-            expected: request,
-            received: frame.header.message_type,
+            expected,
+            received: header.message_type,
         });
     }
     Ok(())
@@ -123,21 +128,26 @@ pub(crate) fn ambiguous(a: MessageType, b: MessageType) -> bool {
 }
 
 /// Checks a response against the request it is paired with: [`check_header`], then the fields a
-/// SUCCESS response repeats from its request. The manual: GET_GRASP's tool is "the tool of the
+/// SUCCESS V3 response repeats from its request. The manual: GET_GRASP's tool is "the tool of the
 /// request (same value)", its pose is in the pose format the request asked for, and its object is
 /// of the requested class unless that was 0 = any (3.3.3.1); GET_OBJECT_COUNT repeats the
 /// requested class (3.3.4.1). These catch a response paired with another request of the same
-/// type (a request lost on the wire, a corrupted counter) where the header cannot.
+/// type (a request lost on the wire, a corrupted counter) where the header cannot. V4 pins no
+/// echo (PROTOCOLS.md 2b: the example reads no echoed field, and whether the class is echoed is
+/// an open question), so a V4 response is checked by its header only.
 pub(crate) fn check_response(
-    request: &RequestFrame,
-    frame: &ResponseFrame,
+    request: &AnyRequestFrame,
+    frame: &AnyResponseFrame,
 ) -> Result<(), Malformed> {
-    let message_type = request.header.message_type;
-    check_header(message_type, frame)?;
+    check_header(request, frame)?;
+    let (AnyRequestFrame::V3(request), AnyResponseFrame::V3(frame)) = (request, frame) else {
+        return Ok(());
+    };
     if frame.header.response_code != ResponseCode::Success {
         // The rest of the body is meaningless (manual 3.2.2.2).
         return Ok(());
     }
+    let message_type = request.header.message_type;
     let differs = |field| {
         Err(Malformed::Echo {
             request: message_type,
@@ -167,7 +177,35 @@ pub(crate) fn check_response(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::smartgrasp::frame::{v4, RequestFrame, ResponseFrame};
     use crate::smartgrasp::types::ResponseCode;
+
+    fn v3_header(request: MessageType, frame: &ResponseFrame) -> Result<(), Malformed> {
+        check_header(&RequestFrame::new(request).into(), &(*frame).into())
+    }
+
+    fn v3_response(request: &RequestFrame, frame: &ResponseFrame) -> Result<(), Malformed> {
+        check_response(&(*request).into(), &(*frame).into())
+    }
+
+    #[test]
+    fn a_response_must_use_the_requests_version_and_v4_pins_no_echo() {
+        let v4_count = v4::RequestFrame::new(MessageType::GetObjectCount).into();
+        let v3_answer = ResponseFrame::new(MessageType::GetObjectCount, ResponseCode::Success, 0);
+        assert_eq!(
+            check_response(&v4_count, &v3_answer.into()),
+            Err(Malformed::Version { version: 3 })
+        );
+        let mut v4_answer =
+            v4::ResponseFrame::new(MessageType::GetObjectCount, ResponseCode::Success, 0);
+        v4_answer.object_id = 9;
+        assert_eq!(check_response(&v4_count, &v4_answer.into()), Ok(()));
+        let v3_count = RequestFrame::new(MessageType::GetObjectCount).into();
+        assert_eq!(
+            check_response(&v3_count, &v4_answer.into()),
+            Err(Malformed::Version { version: 4 })
+        );
+    }
 
     #[test]
     fn first_counter_is_learned_then_must_advance_by_one_and_wrap() {
@@ -241,24 +279,21 @@ mod tests {
     #[test]
     fn header_checks() {
         let ok = ResponseFrame::new(MessageType::GetObjectCount, ResponseCode::Success, 0);
-        assert_eq!(check_header(MessageType::GetObjectCount, &ok), Ok(()));
+        assert_eq!(v3_header(MessageType::GetObjectCount, &ok), Ok(()));
         // Errata: the manual's table says 17 for GET_OBJECT_COUNT's response; it is 32, but a
         // server that follows the table is accepted.
         let mut seventeen = ok;
         seventeen.header.message_type = MessageType::GraspFeedback;
-        assert_eq!(
-            check_header(MessageType::GetObjectCount, &seventeen),
-            Ok(())
-        );
+        assert_eq!(v3_header(MessageType::GetObjectCount, &seventeen), Ok(()));
         // Not the other way round, and no other type.
         assert!(matches!(
-            check_header(MessageType::GraspFeedback, &ok),
+            v3_header(MessageType::GraspFeedback, &ok),
             Err(Malformed::MessageType { .. })
         ));
         let mut state = ok;
         state.header.message_type = MessageType::GetState;
         assert!(matches!(
-            check_header(MessageType::GetObjectCount, &state),
+            v3_header(MessageType::GetObjectCount, &state),
             Err(Malformed::MessageType { .. })
         ));
         assert!(ambiguous(
@@ -272,11 +307,11 @@ mod tests {
         ));
         let mut request = ok;
         request.header.communication_type = CommunicationType::Request;
-        assert!(check_header(MessageType::GetObjectCount, &request).is_err());
+        assert!(v3_header(MessageType::GetObjectCount, &request).is_err());
         let mut v4 = ok;
         v4.version = 4;
         assert_eq!(
-            check_header(MessageType::GetObjectCount, &v4),
+            v3_header(MessageType::GetObjectCount, &v4),
             Err(Malformed::Version { version: 4 })
         );
     }
@@ -284,15 +319,15 @@ mod tests {
     #[test]
     fn success_responses_must_repeat_the_request() {
         use crate::smartgrasp::message::{GraspRequest, Request};
-        use crate::smartgrasp::types::{GraspMode, PoseFormat, Tool};
+        use crate::smartgrasp::types::{GraspMode, PoseFormat, SelectionCriterion, Tool};
         let count = Request::GetObjectCount { object_class: 2 }.to_frame();
         let mut ok = ResponseFrame::new(MessageType::GetObjectCount, ResponseCode::Success, 0);
         ok.object_class = 2;
-        assert_eq!(check_response(&count, &ok), Ok(()));
+        assert_eq!(v3_response(&count, &ok), Ok(()));
         let mut other = ok;
         other.object_class = 1;
         assert!(matches!(
-            check_response(&count, &other),
+            v3_response(&count, &other),
             Err(Malformed::Echo {
                 field: "object class",
                 ..
@@ -300,12 +335,13 @@ mod tests {
         ));
         // Without SUCCESS the body means nothing and is not checked.
         other.header.response_code = ResponseCode::InvalidObjectClass;
-        assert_eq!(check_response(&count, &other), Ok(()));
+        assert_eq!(v3_response(&count, &other), Ok(()));
 
         let any = Request::GetGrasp(GraspRequest {
             grasp_mode: GraspMode::AutoGrasp,
             object_class: 0,
             tool: Tool::Exterior,
+            selection_criterion: SelectionCriterion::default(),
             pose_format: PoseFormat::Abc,
         })
         .to_frame();
@@ -314,18 +350,18 @@ mod tests {
         grasp.pose_format = PoseFormat::Abc;
         grasp.object_class = 7;
         assert_eq!(
-            check_response(&any, &grasp),
+            v3_response(&any, &grasp),
             Ok(()),
             "class 0 asks for any class"
         );
         let mut class_one = any;
         class_one.object_class = 1;
-        assert!(check_response(&class_one, &grasp).is_err());
+        assert!(v3_response(&class_one, &grasp).is_err());
         let mut suction = grasp;
         suction.tool = Tool::Contact;
-        assert!(check_response(&any, &suction).is_err());
+        assert!(v3_response(&any, &suction).is_err());
         let mut wpr = grasp;
         wpr.pose_format = PoseFormat::Wpr;
-        assert!(check_response(&any, &wpr).is_err());
+        assert!(v3_response(&any, &wpr).is_err());
     }
 }

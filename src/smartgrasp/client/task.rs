@@ -78,7 +78,7 @@ pub(crate) async fn run(mut link: Link, mut task: Task) {
                 let mut link = Link::connect(addrs, config, shared).await?;
                 events.send(ConnectionEvent::Connected);
                 let opened = session.open(&mut link, config).await?;
-                shared.set_registration(opened.registration);
+                shared.set_opened(&opened);
                 Ok::<_, Error>(link)
             },
         );
