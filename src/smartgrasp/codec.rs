@@ -24,7 +24,7 @@ pub enum Peeked {
         /// Bytes still missing.
         needed: usize,
     },
-    /// A complete V3 frame (the first 80 bytes).
+    /// A complete frame, V3 or V4 (the first 80 bytes).
     Frame([u8; FRAME_LEN]),
     /// An empty message: a prefix with length 0 (the first 6 bytes). From a server, it means
     /// "too old" and `version` is its highest version (manual 1.3).

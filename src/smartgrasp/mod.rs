@@ -1,10 +1,28 @@
-//! SCHUNK 2D Grasping-Kit "Smart Grasping" native protocol V3 (manual seed 002): 80-byte big
-//! endian frames over TCP, port 42001.
+//! SCHUNK 2D Grasping-Kit "Smart Grasping" native protocol, V3 (manual seed 002) and V4: 80-byte
+//! big endian frames over TCP, port 42001.
+//!
+//! # Two protocol versions
+//!
+//! V3 follows SCHUNK's manual. No V4 manual is public: the V4 layout ([`frame::v4`]) is read from
+//! SCHUNK's own KUKA example (repository `SCHUNK-SE-Co-KG/SCHUNK_2DGrasping_Examples`, files
+//! `KUKA-KRC/SCHUNK_GRASPINGKIT.src/.dat`, commit 57ade13 of 2025-06-11), as
+//! `shared/PROTOCOLS.md` section 2b lists it: SET_TOOL (5) and SET_WORKSPACE (6) choose tool and
+//! workspace by the ids configured on the device, GET_GRASP carries a selection criterion instead
+//! of a tool, and its response a reference frame, an object offset and a two-axis centre offset.
+//! What the example does not pin is kept raw ([`SelectionCriterion`], [`ReferenceFrame`], response
+//! bytes 10–13, 68–71, 76–79) and documented as such, never given a meaning. In V4
+//! GRASP_FEEDBACK has no effect, by the example's own comment.
+//!
+//! [`Client::connect`] negotiates: GET_PROTOCOL_VERSION asked as V3 (every server since V3
+//! answers it, manual 1.3 and 3.3.2.1), then the highest version both speak;
+//! [`ClientConfig::protocol_version`] pins 3 or 4. One [`Request`], [`Response`] and [`Grasp`]
+//! serve both versions, so cell code works with either: what only one version carries is an
+//! `Option` in a response, and ignored by the other version in a request.
 //!
 //! Layers, each usable alone:
-//! - [`frame`]: the 6-byte prefix and the 80-byte request/response frames, every field of the
-//!   layout table (pure);
-//! - [`types`], [`message`], [`pose`]: the enumerations, typed requests and responses of the eight
+//! - [`frame`]: the 6-byte prefix and the 80-byte request/response frames of both versions, every
+//!   field of the layout (pure);
+//! - [`types`], [`message`], [`pose`]: the enumerations, typed requests and responses of the ten
 //!   message types, and poses in the four formats with SI conversions (pure);
 //! - [`codec`]: tokio-util codecs that read the prefix first and refuse any length but 74;
 //! - [`Client`]: the async client, a cloneable handle to a task that owns the connection and checks
@@ -72,7 +90,7 @@
 //! use gripper::smartgrasp::sim::{SimConfig, SimServer};
 //! use gripper::smartgrasp::{
 //!     Client, ClientConfig, GetGraspOutcome, GraspFeedback, GraspMode, GraspRequest, PoseFormat,
-//!     RobotSystem, Tool,
+//!     RobotSystem, SelectionCriterion, Tool,
 //! };
 //!
 //! let server = SimServer::bind("127.0.0.1:0", SimConfig::default()).await?;
@@ -82,10 +100,12 @@
 //!     ..ClientConfig::default()
 //! };
 //! let client = Client::connect(server.local_addr(), config).await?;
+//! assert_eq!(client.protocol_version(), 4); // the simulator speaks V3 and V4
 //! let request = GraspRequest {
 //!     grasp_mode: GraspMode::AutoGrasp,
 //!     object_class: 0,
-//!     tool: Tool::Exterior,
+//!     tool: Tool::Exterior,                          // V3: the tool of this grasp
+//!     selection_criterion: SelectionCriterion(1),    // V4 (the tool is set with SET_TOOL)
 //!     pose_format: PoseFormat::Abc,
 //! };
 //! let mut picked = 0;

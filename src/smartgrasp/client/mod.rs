@@ -388,7 +388,7 @@ impl Client {
 
     /// Ends the connection for every clone of this handle, and stops any reconnecting. Calls
     /// waiting for a response and calls queued fail with [`Error::Closed`], and so does every
-    /// later call. None of V3's eight message types ends a session (manual 3.3): the TCP
+    /// later call. No message type of V3 or V4 ends a session (manual 3.3): the TCP
     /// connection is simply closed. Returns once the connection is released; [`Error::Closed`]
     /// if the client was already closed with `close()`.
     ///

@@ -13,7 +13,8 @@ use super::types::{
 
 /// Length of the prefix: version u16 + length u32 (manual 2.2).
 pub const PREFIX_LEN: usize = 6;
-/// Length of every V3 frame, prefix included (manual 3.1: "Jede Meldung ist 80 Byte lang. Immer.").
+/// Length of every V3 frame, prefix included (manual 3.1: "Jede Meldung ist 80 Byte lang. Immer."),
+/// and of every V4 frame (PROTOCOLS.md 2b).
 pub const FRAME_LEN: usize = 80;
 /// The prefix's length field of a V3 frame: the bytes after the prefix (manual 3.2.1).
 pub const V3_LENGTH: u32 = 74;
