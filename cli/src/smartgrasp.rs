@@ -420,11 +420,12 @@ async fn connect_as(
 async fn open_session(client: &Client, grasp: &GraspArgs) -> Result<Tool, CliError> {
     check_operational(client).await?;
     if let Some(robot) = grasp.robot {
-        // Informational (manual 3.3.2.3): a refusal is reported by the command `register`.
-        client
-            .register_client(robot.into())
-            .await
-            .map_err(classify)?;
+        // Informational (manual 3.3.2.3): a refusal does not stop the grasp (the command
+        // `register` reports it).
+        match client.register_client(robot.into()).await {
+            Ok(()) | Err(Error::Device { .. }) => {}
+            Err(e) => return Err(classify(e)),
+        }
     }
     if let Some(project) = grasp.project {
         client.set_project(project).await.map_err(classify)?;

@@ -290,6 +290,7 @@ impl Client {
         let version = config
             .protocol_version
             .unwrap_or(crate::smartgrasp::frame::PROTOCOL_VERSION);
+        session::check_pinned(version)?;
         let shared = Arc::new(Shared::new(version));
         let mut link = Link::connect(&addrs, &config, &shared).await?;
         link.set_version(version);

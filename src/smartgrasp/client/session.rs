@@ -74,11 +74,7 @@ impl Session {
                 other => return Err(unexpected_body(other)),
             };
         let wanted = config.protocol_version.unwrap_or(HIGHEST_VERSION);
-        if !(PROTOCOL_VERSION..=HIGHEST_VERSION).contains(&wanted) {
-            return Err(Error::InvalidArgument(
-                "ClientConfig::protocol_version must be 3, 4 or None",
-            ));
-        }
+        check_pinned(wanted)?;
         let version = if config.protocol_version.is_some() {
             wanted
         } else {
@@ -123,6 +119,17 @@ impl Session {
             version,
             registration,
         })
+    }
+}
+
+/// A version this client can speak: 3 or 4.
+pub(crate) fn check_pinned(version: u16) -> Result<()> {
+    if (PROTOCOL_VERSION..=HIGHEST_VERSION).contains(&version) {
+        Ok(())
+    } else {
+        Err(Error::InvalidArgument(
+            "ClientConfig::protocol_version must be 3, 4 or None",
+        ))
     }
 }
 
