@@ -78,8 +78,6 @@ async fn run(args: Args) -> Result<(), String> {
         project_index: Some(0),
         tool_id: args.tool,
         workspace_id: args.workspace,
-        // A V4 pose has six values: a quaternion needs V3.
-        protocol_version: (args.format == PoseFormat::Quaternion).then_some(3),
         ..ClientConfig::default()
     };
     let client = Client::connect(addr.as_str(), config)

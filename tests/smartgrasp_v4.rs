@@ -118,16 +118,31 @@ async fn every_v4_message_round_trips() {
     });
     client.robot_pose(pose).await.unwrap();
     assert_eq!(server.robot_poses(), [pose]);
-    // A quaternion does not fit V4's six values: refused before sending.
+    // A quaternion does not fit V4's six values: the client sends it as ABC.
     let quaternion = Pose::Quaternion(QuaternionPose {
-        position_um: [0; 3],
+        position_um: [1, 2, 3],
         quaternion_e6: [0, 0, 0, 1_000_000],
     });
-    assert!(matches!(
-        client.robot_pose(quaternion).await,
-        Err(Error::Request(RequestError::Pose(_)))
-    ));
-    assert_eq!(server.robot_poses().len(), 1);
+    client.robot_pose(quaternion).await.unwrap();
+    let sent = Pose::Abc(AbcPose {
+        position_um: [1, 2, 3],
+        abc_udeg: [0, 0, 0],
+    });
+    assert_eq!(server.robot_poses(), [pose, sent]);
+    // And a grasp asked for as a quaternion is asked for in ABC and converted.
+    let mut as_quaternion = request(1, 1);
+    as_quaternion.pose_format = PoseFormat::Quaternion;
+    let GetGraspOutcome::Grasp(q) = client.get_grasp(as_quaternion).await.unwrap() else {
+        panic!("no grasp")
+    };
+    assert_eq!(q.pose.format(), PoseFormat::Quaternion);
+    assert_eq!(q.pose.position_um(), g.pose.position_um());
+    let angle = q
+        .pose
+        .orientation()
+        .unwrap()
+        .angle_to_rad(&g.pose.orientation().unwrap());
+    assert!(angle < 1e-6, "{angle}");
     assert_eq!(client.counter_gaps(), 0);
 }
 

@@ -298,15 +298,9 @@ async fn execute(
         }
         Command::Grasp(grasp) => {
             let tool = open_session(&client, &grasp).await?;
-            let v4 = client.protocol_version() >= v4::PROTOCOL_VERSION;
             let format = grasp
                 .format
                 .or(grasp.robot.map(Robot::native_format))
-                // A V4 pose has six values: no quaternion (PROTOCOLS.md 2b).
-                .map(|f| match f {
-                    Format::Quaternion if v4 && grasp.format.is_none() => Format::Abc,
-                    f => f,
-                })
                 .unwrap_or(Format::Abc);
             let request = GraspRequest {
                 grasp_mode: match grasp.mode {

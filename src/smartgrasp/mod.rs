@@ -73,7 +73,8 @@
 //!   buffer; it refuses any prefix length but 74 (and 0) before buffering a byte of it, so a
 //!   hostile 4 GB length allocates nothing;
 //! - requests in flight: at most 16 sent and unanswered (one 80-byte request and a reply slot
-//!   each), plus the one marker query above; a server that stops answering gets no more;
+//!   each), plus the one marker query above; a server that stops answering gets no more, and
+//!   is given up [`ClientConfig::give_up_after`] past the oldest call's timeout;
 //! - request channel: at most 32 calls queued towards the connection task; further callers wait
 //!   for room, each within its own timeout, and a call given up while queued is never sent;
 //! - connection events: each [`Client::connection_events`] stream buffers at most 32 events; a

@@ -506,7 +506,8 @@ impl Client {
     }
 
     /// GET_GRASP: a grasp for the current scene (manual 3.3.3.1). The pose comes back in
-    /// `request.pose_format`.
+    /// `request.pose_format` (with V4, a quaternion is asked for in ABC and converted: V4 poses
+    /// have six values).
     /// Cancel-safe (see [`Client`]); a cancelled call may still have made the server pick a grasp,
     /// which the next GRASP_FEEDBACK then refers to.
     pub async fn get_grasp(&self, request: GraspRequest) -> Result<GetGraspOutcome> {
@@ -515,9 +516,18 @@ impl Client {
                 "GET_GRASP needs one of the manual's pose formats to read the grasp pose",
             ));
         }
+        // A V4 pose has six values (PROTOCOLS.md 2b): a quaternion is asked for in ABC, the
+        // format SCHUNK's example uses, and converted here, so that cell code works with either
+        // version.
+        let wanted = request.pose_format;
+        let mut request = request;
+        if self.speaks_v4() && wanted == PoseFormat::Quaternion {
+            request.pose_format = PoseFormat::Abc;
+        }
         let response = self.call(Request::GetGrasp(request)).await?;
         match (response.code, response.body) {
-            (ResponseCode::Success, ResponseBody::Grasp(grasp)) => {
+            (ResponseCode::Success, ResponseBody::Grasp(mut grasp)) => {
+                grasp.pose = grasp.pose.to_format(wanted)?;
                 Ok(GetGraspOutcome::Grasp(grasp))
             }
             (ResponseCode::NoObject, _) => Ok(GetGraspOutcome::NoObject),
@@ -558,11 +568,21 @@ impl Client {
     }
 
     /// ROBOT_POSE: tells the server the end effector's pose in the robot base frame, in any of
-    /// the four formats (manual 3.3.5.1).
+    /// the four formats (manual 3.3.5.1). V4 carries six values (PROTOCOLS.md 2b): there a
+    /// quaternion is sent as ABC, the format SCHUNK's example uses (rounded to the wire's µm and
+    /// µdeg).
     /// Cancel-safe (see [`Client`]); a cancelled call may still have been recorded.
     pub async fn robot_pose(&self, pose: Pose) -> Result<()> {
+        let pose = match pose {
+            Pose::Quaternion(_) if self.speaks_v4() => pose.to_format(PoseFormat::Abc)?,
+            _ => pose,
+        };
         self.expect_success(Request::RobotPose(pose)).await?;
         Ok(())
+    }
+
+    fn speaks_v4(&self) -> bool {
+        self.protocol_version() >= crate::smartgrasp::frame::v4::PROTOCOL_VERSION
     }
 
     /// Sends any request and returns the checked, typed response whatever its response code.
