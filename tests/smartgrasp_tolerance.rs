@@ -9,6 +9,8 @@
 //!
 //! Real clock; every wait is bounded by `within`.
 
+#![cfg(feature = "sim")]
+
 use std::future::Future;
 use std::net::SocketAddr;
 use std::sync::Arc;

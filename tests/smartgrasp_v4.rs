@@ -4,6 +4,8 @@
 //! The V4 layout is PROTOCOLS.md 2b's (from SCHUNK's public KUKA example); its byte-by-byte test
 //! vectors are in `src/smartgrasp/frame/v4.rs` and `message.rs`.
 
+#![cfg(feature = "sim")]
+
 use std::future::Future;
 use std::time::Duration;
 
