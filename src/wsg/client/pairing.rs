@@ -406,7 +406,7 @@ impl Pairing {
             let Some(f) = &mut st.in_flight else {
                 continue;
             };
-            if f.due(*id).map_or(true, |at| at > now) {
+            if f.due(*id).is_none_or(|at| at > now) {
                 continue;
             }
             if f.acknowledged && is_motion(*id) {
