@@ -315,21 +315,21 @@ async fn late_final_reply_fake(delay: Duration, stream: bool) -> (Fake, Arc<Atom
     (fake, early)
 }
 
-/// The client for the recovery tests: moves time out after 300 ms, the grace is 1 s.
-async fn recovering_client(fake: &Fake) -> Client {
+/// The client for the recovery tests: moves time out after 300 ms.
+async fn recovering_client(fake: &Fake, grace: Duration) -> Client {
     connect(
         builder()
             .query_timeout(Duration::from_secs(5))
             .motion_timeout(Duration::from_millis(300))
-            .late_reply_grace(Duration::from_secs(1)),
+            .late_reply_grace(grace),
         fake,
     )
     .await
 }
 
-/// Times the first move out, then starts a second one of the same id and checks that it gets
-/// its own reply, sent after the first one's delayed final reply.
-async fn second_move_gets_its_own_reply(client: &Client, fake: &Fake, early: &AtomicBool) {
+/// Times a first pre-position out (its final reply does not come in time) and returns a
+/// patient handle for the next move, which the client holds past the first one's deadline.
+async fn time_out_a_move(client: &Client) -> Client {
     let err = guard("first move", client.pre_position(20.0, 50.0))
         .await
         .unwrap_err();
@@ -343,8 +343,14 @@ async fn second_move_gets_its_own_reply(client: &Client, fake: &Fake, early: &At
         ),
         "{err}"
     );
+    client.with_timeouts(Duration::from_secs(5), Duration::from_secs(10))
+}
+
+/// Times the first move out, then starts a second one of the same id and checks that it gets
+/// its own reply, sent after the first one's delayed final reply.
+async fn second_move_gets_its_own_reply(client: &Client, fake: &Fake, early: &AtomicBool) {
     // Past the first move's deadline: the second waits for the recovery's verdict.
-    let patient = client.with_timeouts(Duration::from_secs(5), Duration::from_secs(10));
+    let patient = time_out_a_move(client).await;
     guard("second move", patient.pre_position(60.0, 50.0))
         .await
         .expect("the second move got the first one's late final reply");
@@ -358,14 +364,14 @@ async fn second_move_gets_its_own_reply(client: &Client, fake: &Fake, early: &At
 #[tokio::test]
 async fn a_final_reply_delayed_past_the_probe_is_not_taken_for_the_next_move() {
     let (fake, early) = late_final_reply_fake(Duration::from_millis(300), false).await;
-    let client = recovering_client(&fake).await;
+    let client = recovering_client(&fake, Duration::from_secs(1)).await;
     second_move_gets_its_own_reply(&client, &fake, &early).await;
 }
 
 #[tokio::test]
 async fn a_streamed_system_state_during_recovery_does_not_release_the_move() {
     let (fake, early) = late_final_reply_fake(Duration::from_millis(300), true).await;
-    let client = recovering_client(&fake).await;
+    let client = recovering_client(&fake, Duration::from_secs(1)).await;
     let mut states = client
         .subscribe_system_state(UpdateOptions::periodic(Duration::from_millis(10)))
         .await
@@ -392,18 +398,8 @@ async fn a_move_whose_final_reply_is_lost_frees_its_id_after_two_idle_answers() 
         _ => wire.reply(f.id, Status::Success, &[]),
     })
     .await;
-    let client = connect(
-        builder()
-            .motion_timeout(Duration::from_millis(200))
-            .late_reply_grace(Duration::from_millis(200)),
-        &fake,
-    )
-    .await;
-    let err = guard("first move", client.pre_position(20.0, 50.0))
-        .await
-        .unwrap_err();
-    assert!(matches!(err, Error::Timeout { .. }), "{err}");
-    let patient = client.with_timeouts(Duration::from_secs(5), Duration::from_secs(10));
+    let client = recovering_client(&fake, Duration::from_millis(200)).await;
+    let patient = time_out_a_move(&client).await;
     guard("second move", patient.pre_position(60.0, 50.0))
         .await
         .unwrap();
@@ -424,15 +420,8 @@ async fn a_move_that_still_runs_past_its_deadline_refuses_the_next_one() {
         _ => wire.reply(f.id, Status::Success, &[]),
     })
     .await;
-    let client = connect(
-        builder()
-            .motion_timeout(Duration::from_millis(200))
-            .late_reply_grace(Duration::from_millis(200)),
-        &fake,
-    )
-    .await;
-    assert!(client.pre_position(20.0, 50.0).await.is_err());
-    let patient = client.with_timeouts(Duration::from_secs(5), Duration::from_secs(10));
+    let client = recovering_client(&fake, Duration::from_millis(200)).await;
+    let patient = time_out_a_move(&client).await;
     for _ in 0..2 {
         let err = guard("next move", patient.pre_position(60.0, 50.0))
             .await
