@@ -366,15 +366,17 @@ async fn a_timed_out_move_that_still_runs_keeps_its_id_until_its_final_reply() {
         bounded(MOTION, impatient.pre_position(20.0, 50.0)).await,
         id::PRE_POSITION,
     );
-    // The next move of the id makes the client ask: the device still moves, so it waits.
-    let next = {
-        let c = rig.patient();
-        tokio::spawn(async move { c.pre_position(90.0, 50.0).await })
-    };
-    while rig.count_received(id::SYSTEM_STATE) == 0 {
-        rig.patient().temperature_c().await.unwrap();
-    }
-    rig.patient().temperature_c().await.unwrap();
+    // Past the first call's deadline the client asks the device (0x40) whether it still moves;
+    // it does, so the next move of the id is refused as the device would refuse it (3.2.2)
+    // instead of being queued (issue 10 item 4: this test used to expect queuing), and unsent.
+    let err = bounded(SURE, rig.patient().pre_position(90.0, 50.0))
+        .await
+        .unwrap_err();
+    assert_eq!(err.status(), Some(Status::AlreadyRunning), "{err}");
+    assert!(
+        rig.count_received(id::SYSTEM_STATE) >= 1,
+        "no probe was sent"
+    );
     assert_eq!(
         rig.count_received(id::PRE_POSITION),
         1,
@@ -382,12 +384,12 @@ async fn a_timed_out_move_that_still_runs_keeps_its_id_until_its_final_reply() {
     );
     // The stop ends the first move; its late E_CMD_ABORTED frees the id for the next one.
     rig.patient().stop().await.unwrap();
-    while rig.count_received(id::PRE_POSITION) < 2 {
-        rig.patient().temperature_c().await.unwrap();
-    }
-    rig.patient().stop().await.unwrap();
-    let err = bounded(MOTION, next).await.unwrap().unwrap_err();
-    assert_eq!(err.status(), Some(Status::CmdAborted), "{err}");
+    rig.sim.set_time_scale(0.0);
+    bounded(SURE, rig.patient().pre_position(90.0, 50.0))
+        .await
+        .unwrap();
+    assert_eq!(rig.patient().width_mm().await.unwrap(), 90.0);
+    assert_eq!(rig.count_received(id::PRE_POSITION), 2);
 }
 
 // ---- duplicate --------------------------------------------------------------------------------
