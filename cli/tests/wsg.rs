@@ -344,6 +344,8 @@ async fn sim_child_processes_serve_the_chosen_model_and_part() {
         "--model",
         "wsg32",
         "--no-part",
+        "--time-scale",
+        "0",
     ])
     .await;
     let info = wsg(&sim.addr, &["info", "--json"]).await.json();
@@ -353,7 +355,17 @@ async fn sim_child_processes_serve_the_chosen_model_and_part() {
     let run = wsg(&sim.addr, &["grasp", "20"]).await;
     assert!(run.failed().contains("E_CMD_FAILED"), "{run:?}");
 
-    let udp = Simulator::start(&["wsg", "--listen", "127.0.0.1:0", "--udp", "--part", "25"]).await;
+    let udp = Simulator::start(&[
+        "wsg",
+        "--listen",
+        "127.0.0.1:0",
+        "--udp",
+        "--part",
+        "25",
+        "--time-scale",
+        "0",
+    ])
+    .await;
     let udp_args = ["wsg", "--udp", "--addr", &udp.addr];
     gripctl(&[&udp_args[..], &["home"]].concat()).await.ok();
     let grasp = gripctl(&[&udp_args[..], &["grasp", "25", "--json"]].concat())

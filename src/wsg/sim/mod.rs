@@ -9,12 +9,16 @@
 //! final reply follows its E_CMD_PENDING at once. Give it a large scale (e.g. 1000) to have a move
 //! still running when a stop arrives.
 
+mod commands;
 pub mod device;
 mod model;
+mod motion;
 mod server;
+mod sessions;
 
 // Inlined, so that this page lists them with their summaries.
 #[doc(inline)]
 pub use device::{Device, Out, SessionId, SessionKind};
-pub use model::{Model, Part, SimConfig, SimFinger};
+pub use model::{Model, Part, SimConfig, SimFinger, DEFAULT_UDP_IDLE_TIMEOUT};
 pub use server::{SimServer, SimSnapshot};
+pub use sessions::MIN_UPDATE_PERIOD_MS;
