@@ -529,4 +529,40 @@ mod tests {
         );
         assert_eq!(d.next_update_due(), None);
     }
+
+    /// Manual 1.3 and 1.4.2: another session's unannounced TCP close is a FAST STOP whose
+    /// E_CMD_ABORTED goes to the move's owner; a UDP session is not owed anything after it.
+    #[test]
+    fn a_lost_connection_answers_the_owner_of_the_move() {
+        let mut d = dev();
+        d.connect(2, SessionKind::Tcp);
+        cmd(&mut d, 0.0, Command::Homing(HomingDirection::Default));
+        assert!(d.awaits_final_reply(1));
+        assert!(!d.awaits_final_reply(2));
+        let o = d.disconnect(2, 0.0);
+        assert_eq!(o.len(), 1);
+        assert_eq!((o[0].session, o[0].reply.id), (1, 0x20));
+        assert_eq!(o[0].reply.status, Status::CmdAborted);
+        assert!(d.system_state().contains(SystemState::FAST_STOP));
+        assert!(!d.awaits_final_reply(1));
+    }
+
+    /// 0x40–0x45 list only E_SUCCESS and E_CMD_FORMAT_ERROR: a period under 10 ms runs at 10 ms.
+    #[test]
+    fn a_short_update_period_runs_at_the_minimum() {
+        let mut d = dev();
+        let m = UpdateMode {
+            auto: true,
+            on_change: false,
+            period_ms: 1,
+        };
+        let o = d.handle_at(
+            0.0,
+            Some(0.0),
+            1,
+            &Decoded::Frame(Command::Width(m).to_frame()),
+        );
+        assert_eq!(o[0].reply.status, Status::Success);
+        assert_eq!(d.next_update_due(), Some(0.01));
+    }
 }
