@@ -87,6 +87,13 @@ impl Raw {
     }
 }
 
+/// A simulator on a free TCP port, and a raw client connected to it.
+async fn serve(config: SimConfig) -> (SimServer, Raw) {
+    let sim = SimServer::bind("127.0.0.1:0", config).await.unwrap();
+    let raw = Raw::connect(sim.local_addr().unwrap()).await;
+    (sim, raw)
+}
+
 fn status_of(r: &Reply) -> (u8, Status) {
     (r.id, r.status)
 }
@@ -325,10 +332,7 @@ async fn a_thousand_pipelined_requests_all_get_their_reply() {
 /// reads all 201 replies before the simulator closes its side; the close was announced.
 #[tokio::test]
 async fn a_half_close_after_200_requests_gets_every_reply() {
-    let sim = SimServer::bind("127.0.0.1:0", SimConfig::default())
-        .await
-        .unwrap();
-    let mut raw = Raw::connect(sim.local_addr().unwrap()).await;
+    let (sim, mut raw) = serve(SimConfig::default()).await;
     let mut all = BytesMut::new();
     for n in 0..200 {
         all.put_slice(&numbered_loop(n));
@@ -440,10 +444,7 @@ async fn an_unannounced_close_aborts_the_move_of_another_session() {
 /// before the simulator closes.
 #[tokio::test]
 async fn a_half_closing_owner_reads_its_own_aborted_move() {
-    let sim = SimServer::bind("127.0.0.1:0", SimConfig::default())
-        .await
-        .unwrap();
-    let mut a = Raw::connect(sim.local_addr().unwrap()).await;
+    let (sim, mut a) = serve(SimConfig::default()).await;
     sim.set_time_scale(1000.0);
     a.send(&bytes_of(Command::Homing(HomingDirection::Default)))
         .await;
@@ -466,10 +467,7 @@ async fn a_half_closing_owner_reads_its_own_aborted_move() {
 /// 10 ms minimum is served (at the minimum), not refused with E_INVALID_PARAMETER.
 #[tokio::test]
 async fn an_update_period_under_10_ms_is_not_refused() {
-    let sim = SimServer::bind("127.0.0.1:0", SimConfig::default())
-        .await
-        .unwrap();
-    let mut raw = Raw::connect(sim.local_addr().unwrap()).await;
+    let (sim, mut raw) = serve(SimConfig::default()).await;
     for period_ms in [0, 1, 9] {
         let mode = UpdateMode {
             auto: true,
@@ -498,10 +496,7 @@ async fn an_update_period_under_10_ms_is_not_refused() {
 /// (3.6.1, 3.6.2, 3.6.4), not E_NO_PARAM_EXPECTED.
 #[tokio::test]
 async fn finger_queries_with_parameters_are_format_errors() {
-    let sim = SimServer::bind("127.0.0.1:0", SimConfig::default())
-        .await
-        .unwrap();
-    let mut raw = Raw::connect(sim.local_addr().unwrap()).await;
+    let (sim, mut raw) = serve(SimConfig::default()).await;
     for id in [0x60, 0x61, 0x63, 0x70, 0x71, 0x73] {
         raw.send(&encode(&Frame::new(id, vec![0]))).await;
         assert_eq!(
@@ -516,10 +511,7 @@ async fn finger_queries_with_parameters_are_format_errors() {
 /// timeout, as the client does, and the request behind it is answered.
 #[tokio::test]
 async fn a_stalled_partial_frame_is_dropped_and_what_follows_is_answered() {
-    let sim = SimServer::bind("127.0.0.1:0", SimConfig::default())
-        .await
-        .unwrap();
-    let mut raw = Raw::connect(sim.local_addr().unwrap()).await;
+    let (sim, mut raw) = serve(SimConfig::default()).await;
     let mut bytes = BytesMut::from(&[0xAA, 0xAA, 0xAA, 0x06, 0x89, 0x00, 1, 2, 3][..]);
     bytes.put_slice(&numbered_loop(7));
     raw.send(&bytes).await;
@@ -543,8 +535,7 @@ async fn a_bad_checksum_is_not_answered_by_default() {
             answer_bad_checksum,
             ..SimConfig::default()
         };
-        let sim = SimServer::bind("127.0.0.1:0", config).await.unwrap();
-        let mut raw = Raw::connect(sim.local_addr().unwrap()).await;
+        let (sim, mut raw) = serve(config).await;
         raw.send(&corrupt).await;
         raw.send(&numbered_loop(5)).await;
         if answer_bad_checksum {
