@@ -496,7 +496,7 @@ async fn an_update_period_under_10_ms_is_not_refused() {
 /// (3.6.1, 3.6.2, 3.6.4), not E_NO_PARAM_EXPECTED.
 #[tokio::test]
 async fn finger_queries_with_parameters_are_format_errors() {
-    let (sim, mut raw) = serve(SimConfig::default()).await;
+    let (_sim, mut raw) = serve(SimConfig::default()).await;
     for id in [0x60, 0x61, 0x63, 0x70, 0x71, 0x73] {
         raw.send(&encode(&Frame::new(id, vec![0]))).await;
         assert_eq!(
@@ -511,7 +511,7 @@ async fn finger_queries_with_parameters_are_format_errors() {
 /// timeout, as the client does, and the request behind it is answered.
 #[tokio::test]
 async fn a_stalled_partial_frame_is_dropped_and_what_follows_is_answered() {
-    let (sim, mut raw) = serve(SimConfig::default()).await;
+    let (_sim, mut raw) = serve(SimConfig::default()).await;
     let mut bytes = BytesMut::from(&[0xAA, 0xAA, 0xAA, 0x06, 0x89, 0x00, 1, 2, 3][..]);
     bytes.put_slice(&numbered_loop(7));
     raw.send(&bytes).await;
