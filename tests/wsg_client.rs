@@ -468,9 +468,15 @@ async fn grip_state_stream_follows_a_grasp() {
     ));
 }
 
+/// Only when configured to: by default a frame with a bad checksum is discarded (manual 1.2.1;
+/// see `SimConfig::answer_bad_checksum` and tests/wsg_sim_field.rs).
 #[tokio::test]
 async fn the_simulator_answers_a_bad_checksum_with_e_checksum_error() {
-    let sim = SimServer::bind("127.0.0.1:0", with_part()).await.unwrap();
+    let config = SimConfig {
+        answer_bad_checksum: true,
+        ..with_part()
+    };
+    let sim = SimServer::bind("127.0.0.1:0", config).await.unwrap();
     let mut raw = tokio::net::TcpStream::connect(sim.local_addr().unwrap())
         .await
         .unwrap();
