@@ -14,7 +14,7 @@ use tokio::time::timeout;
 
 use gripper::wsg::command::id;
 use gripper::wsg::frame::{self, Decoded};
-use gripper::wsg::sim::{SimConfig, SimServer};
+use gripper::wsg::sim::{SimConfig, SimServer, MAX_UDP_SESSIONS};
 use gripper::wsg::{Command, Frame, HomingDirection, Reply, Status, SystemState, UpdateMode};
 
 /// How long any single expected event may take (generous: the machine is shared).
@@ -200,10 +200,11 @@ async fn udp_replies_go_to_the_remote_port_whatever_port_sent() {
     assert_eq!(sim.snapshot().sessions, 1);
 }
 
-/// Every new sender address used to stay a session for good; now a silent one is forgotten
-/// (its auto-updates stop), but not while it is still owed a move's final reply.
+/// Every new sender address used to stay a session for good; now a silent one is forgotten, but
+/// not while it is still owed a move's final reply or auto-updates it switched on (a driver that
+/// subscribes once and then only listens keeps its stream, as on the device).
 #[tokio::test]
-async fn idle_udp_sessions_are_forgotten_unless_a_final_reply_is_due() {
+async fn idle_udp_sessions_are_forgotten_unless_something_is_due() {
     let config = SimConfig {
         udp_idle_timeout: Duration::from_millis(100),
         ..SimConfig::new(gripper::wsg::sim::Model::Wsg50)
@@ -247,9 +248,26 @@ async fn idle_udp_sessions_are_forgotten_unless_a_final_reply_is_due() {
         s.sessions == 11 && s.streams == 1
     })
     .await;
-    until(&sim, "the idle peers forgotten", |s| s.sessions == 1).await;
-    assert_eq!(sim.snapshot().streams, 0, "a forgotten peer's stream stops");
+    until(&sim, "the idle peers forgotten", |s| s.sessions == 2).await;
+    assert_eq!(
+        sim.snapshot().streams,
+        1,
+        "the listening peer keeps its stream"
+    );
     assert!(sim.snapshot().system_state.contains(SystemState::MOVING));
+    // Once the listener switches its stream off, it is forgotten too.
+    let off = UpdateMode {
+        auto: false,
+        ..stream
+    };
+    peers[0]
+        .send_to(&bytes_of(Command::Width(off)), addr)
+        .await
+        .unwrap();
+    until(&sim, "the listener forgotten once its stream is off", |s| {
+        s.sessions == 1 && s.streams == 0
+    })
+    .await;
     // The mover still gets its final reply (after the stop's E_CMD_ABORTED).
     mover.send_to(&bytes_of(Command::Stop), addr).await.unwrap();
     let mut statuses = Vec::new();
@@ -278,6 +296,51 @@ async fn idle_udp_sessions_are_forgotten_unless_a_final_reply_is_due() {
         .unwrap()
         .unwrap();
     assert_eq!(&buf[6..len - 2], &[0, 0, 3, 0, 0, 0]);
+}
+
+/// A flood of sender addresses cannot grow the simulator's sessions without bound, however
+/// much each one is still owed: past the cap, the longest-silent session makes room.
+#[tokio::test]
+async fn udp_sessions_are_capped() {
+    let sim = SimServer::bind_udp("127.0.0.1:0", SimConfig::default())
+        .await
+        .unwrap();
+    let addr = sim.local_addr().unwrap();
+    let mut buf = [0u8; 512];
+    let stream = UpdateMode {
+        auto: true,
+        on_change: false,
+        period_ms: 1000,
+    };
+    let mut peers = Vec::new();
+    for _ in 0..MAX_UDP_SESSIONS + 8 {
+        // Each subscribes, so none may be forgotten for being idle.
+        let peer = UdpSocket::bind("127.0.0.1:0").await.unwrap();
+        peer.send_to(&bytes_of(Command::Width(stream)), addr)
+            .await
+            .unwrap();
+        timeout(PATIENCE, peer.recv_from(&mut buf))
+            .await
+            .unwrap()
+            .unwrap();
+        peers.push(peer);
+    }
+    let snapshot = sim.snapshot();
+    assert_eq!(snapshot.sessions, MAX_UDP_SESSIONS);
+    assert_eq!(snapshot.streams, MAX_UDP_SESSIONS);
+    // The newest sender is served.
+    let last = peers.last().unwrap();
+    last.send_to(&numbered_loop(7), addr).await.unwrap();
+    loop {
+        let (len, _) = timeout(PATIENCE, last.recv_from(&mut buf))
+            .await
+            .unwrap()
+            .unwrap();
+        if buf[3] == id::LOOP {
+            assert_eq!(&buf[6..len - 2], &[0, 0, 7, 0, 0, 0]);
+            break;
+        }
+    }
 }
 
 // ---- item 8: no reply dropped ----------------------------------------------------------------

@@ -537,14 +537,14 @@ mod tests {
         let mut d = dev();
         d.connect(2, SessionKind::Tcp);
         cmd(&mut d, 0.0, Command::Homing(HomingDirection::Default));
-        assert!(d.awaits_final_reply(1));
-        assert!(!d.awaits_final_reply(2));
+        assert!(d.owes_session(1));
+        assert!(!d.owes_session(2));
         let o = d.disconnect(2, 0.0);
         assert_eq!(o.len(), 1);
         assert_eq!((o[0].session, o[0].reply.id), (1, 0x20));
         assert_eq!(o[0].reply.status, Status::CmdAborted);
         assert!(d.system_state().contains(SystemState::FAST_STOP));
-        assert!(!d.awaits_final_reply(1));
+        assert!(!d.owes_session(1));
     }
 
     /// 0x40–0x45 list only E_SUCCESS and E_CMD_FORMAT_ERROR: a period under 10 ms runs at 10 ms.

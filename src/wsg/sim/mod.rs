@@ -28,8 +28,8 @@
 //!   [`SimConfig::udp_remote_port`] to the sender's IP address at that port whatever port the
 //!   request came from: the device's "UDP remote port" setting, which public UDP drivers rely
 //!   on (`PROTOCOLS.md`, WSG field notes). A UDP session silent for
-//!   [`SimConfig::udp_idle_timeout`] (60 s) is forgotten and its auto-updates stop, unless a
-//!   move's final reply is still due to it.
+//!   [`SimConfig::udp_idle_timeout`] (60 s) is forgotten, unless a move's final reply or
+//!   auto-updates it switched on are still due to it; at most [`MAX_UDP_SESSIONS`] are kept.
 //! - **Bytes that make no frame**: a partial frame that gets no new byte for
 //!   [`DEFAULT_PARTIAL_FRAME_TIMEOUT`](crate::wsg::client::DEFAULT_PARTIAL_FRAME_TIMEOUT) is
 //!   dropped as noise, as the client does. A frame with a bad checksum is discarded unanswered:
@@ -52,6 +52,6 @@ mod sessions;
 // Inlined, so that this page lists them with their summaries.
 #[doc(inline)]
 pub use device::{Device, Out, SessionId, SessionKind};
-pub use model::{Model, Part, SimConfig, SimFinger, DEFAULT_UDP_IDLE_TIMEOUT};
+pub use model::{Model, Part, SimConfig, SimFinger, DEFAULT_UDP_IDLE_TIMEOUT, MAX_UDP_SESSIONS};
 pub use server::{SimServer, SimSnapshot};
 pub use sessions::MIN_UPDATE_PERIOD_MS;

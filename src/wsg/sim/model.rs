@@ -80,6 +80,10 @@ impl Default for SimFinger {
     }
 }
 
+/// How many UDP sessions the simulator keeps at once (the real device answers one remote
+/// port); a new sender beyond this replaces the session that has been silent longest.
+pub const MAX_UDP_SESSIONS: usize = 256;
+
 /// The default of [`SimConfig::udp_idle_timeout`].
 pub const DEFAULT_UDP_IDLE_TIMEOUT: Duration = Duration::from_secs(60);
 
@@ -130,11 +134,12 @@ pub struct SimConfig {
     /// sender's address and port. All senders with one IP address are then one session.
     pub udp_remote_port: Option<u16>,
     /// A UDP session (a peer, or with [`SimConfig::udp_remote_port`] an IP address) from which
-    /// no datagram came for this long is forgotten: its auto-updates stop. A session still owed
-    /// the final reply of a move or finger power-on is kept until that reply is sent. UDP has no
-    /// connection to close, so without this every sender address would stay a session for the
-    /// life of the simulator. A client that only listens to auto-updates renews its session by
-    /// sending any command (e.g. the subscription again) within this time. Default 60 s.
+    /// no datagram came for this long is forgotten, unless it is still owed something: the
+    /// final reply of a move or finger power-on, or auto-updates it switched on (the device keeps
+    /// streaming to its remote port, and drivers that subscribe once and then only listen rely
+    /// on that). UDP has no connection to close, so without this every sender address would
+    /// stay a session for the life of the simulator. At most [`MAX_UDP_SESSIONS`] are kept: a
+    /// new sender beyond that replaces the longest-silent one. Default 60 s.
     pub udp_idle_timeout: Duration,
 }
 

@@ -60,10 +60,13 @@ impl Device {
         self.announced.contains(&session)
     }
 
-    /// Whether a final reply is still due to `session`: a move it started, or a finger
-    /// power-on (3.6.3). A UDP peer is not forgotten while one is.
-    pub fn awaits_final_reply(&self, session: SessionId) -> bool {
-        self.motion.is_some_and(|m| m.session == session)
+    /// Whether `session` is still owed something: the final reply of a move it started or of a
+    /// finger power-on (3.6.3), or auto-updates (3.4.1) it switched on. A UDP peer is not
+    /// forgotten while it is: the device keeps streaming to its UDP remote port whether or not
+    /// the driver there ever sends again, and public drivers subscribe once and then only listen.
+    pub fn owes_session(&self, session: SessionId) -> bool {
+        self.streams.keys().any(|(s, _)| *s == session)
+            || self.motion.is_some_and(|m| m.session == session)
             || self
                 .finger_power_on
                 .iter()

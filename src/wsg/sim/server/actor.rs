@@ -93,8 +93,8 @@ pub(super) enum Event {
     /// The connection ended (or, for UDP, nothing more will come): what is still owed to it is
     /// queued, then its outbox is dropped, which ends its writer once everything is written.
     Disconnected { session: SessionId },
-    /// A UDP session was silent for its idle timeout: forget it unless a final reply is still
-    /// due to it. The answer says whether it was forgotten.
+    /// A UDP session was silent for its idle timeout: forget it unless something is still due
+    /// to it (a final reply, auto-updates). The answer says whether it was forgotten.
     Idle {
         session: SessionId,
         forgotten: oneshot::Sender<bool>,
@@ -228,7 +228,7 @@ impl Actor {
             }
             Event::Disconnected { session } => self.forget(session),
             Event::Idle { session, forgotten } => {
-                let forget = !self.device.awaits_final_reply(session);
+                let forget = !self.device.owes_session(session);
                 if forget {
                     tracing::debug!(session, "simulator: idle UDP session forgotten");
                     self.forget(session);

@@ -8,7 +8,9 @@
 //!
 //! UDP has no connection to close: a session from which nothing came for
 //! [`SimConfig::udp_idle_timeout`](crate::wsg::sim::SimConfig::udp_idle_timeout) is forgotten
-//! (its auto-updates stop), unless a final reply is still due to it.
+//! unless a final reply or auto-updates are still due to it. At most
+//! [`MAX_UDP_SESSIONS`](crate::wsg::sim::MAX_UDP_SESSIONS) are kept: a new sender beyond that
+//! replaces the longest-silent session, so a flood of sender addresses cannot grow memory.
 
 use std::collections::HashMap;
 use std::net::SocketAddr;
@@ -24,6 +26,7 @@ use super::actor::{Event, Inbox, Outbox};
 use super::Parts;
 use crate::wsg::frame::{self, DEFAULT_MAX_PAYLOAD_LEN};
 use crate::wsg::sim::device::{SessionId, SessionKind};
+use crate::wsg::sim::MAX_UDP_SESSIONS;
 
 /// How the UDP side is set up (from the [`SimConfig`](crate::wsg::sim::SimConfig)).
 #[derive(Clone, Copy, Debug)]
@@ -69,6 +72,11 @@ pub(super) async fn serve_udp(socket: Arc<UdpSocket>, parts: Parts, settings: Ud
                         peer.session
                     }
                     None => {
+                        if peers.len() >= MAX_UDP_SESSIONS
+                            && evict_longest_silent(&mut peers, &events).await.is_err()
+                        {
+                            return;
+                        }
                         let session = next_session.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                         let (outbox, inbox) = Outbox::new();
                         tokio::spawn(send_replies(socket.clone(), reply_to, inbox));
@@ -127,6 +135,27 @@ async fn expire(
             peer.expires =
                 now + idle_timeout.clamp(Duration::from_millis(10), Duration::from_secs(1));
         }
+    }
+    Ok(())
+}
+
+/// Forgets the session that has been silent longest, whatever it is still owed, to make room
+/// for a new sender.
+async fn evict_longest_silent(
+    peers: &mut HashMap<SocketAddr, Peer>,
+    events: &mpsc::Sender<Event>,
+) -> Result<(), ()> {
+    let Some((&addr, _)) = peers.iter().min_by_key(|(_, p)| p.expires) else {
+        return Ok(());
+    };
+    if let Some(peer) = peers.remove(&addr) {
+        tracing::warn!(%addr, "simulator: {MAX_UDP_SESSIONS} UDP sessions, the longest-silent one forgotten");
+        events
+            .send(Event::Disconnected {
+                session: peer.session,
+            })
+            .await
+            .map_err(drop)?;
     }
     Ok(())
 }
