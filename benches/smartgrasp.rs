@@ -21,6 +21,7 @@ fn request() -> Request {
         grasp_mode: GraspMode::AutoGrasp,
         object_class: 0,
         tool: Tool::Exterior,
+        selection_criterion: gripper::smartgrasp::SelectionCriterion::default(),
         pose_format: PoseFormat::Quaternion,
     })
 }
@@ -36,9 +37,12 @@ fn response_bytes() -> [u8; FRAME_LEN] {
             object_class: 3,
             object_instance: 0,
             stroke_um: 86_000,
-            angle_offset_udeg: -25_210_142,
-            center_offset_um: [-911, -310, 68],
-            tool: Tool::Exterior,
+            angle_offset_udeg: Some(-25_210_142),
+            center_offset_um: [-911, -310],
+            center_offset_z_um: Some(68),
+            tool: Some(Tool::Exterior),
+            reference_frame: None,
+            object_offset: None,
             pose: Pose::Quaternion(QuaternionPose {
                 position_um: [853_798, 111_998, 502_790],
                 quaternion_e6: [775_990, 630_744, 0, 0],
@@ -78,7 +82,7 @@ fn encode(c: &mut Criterion) {
     g.bench_function("codec_encode", |b| {
         b.iter(|| {
             buf.clear();
-            ClientCodec
+            ClientCodec::default()
                 .encode(black_box(&request).to_frame(), &mut buf)
                 .unwrap();
             black_box(&buf);
@@ -106,7 +110,7 @@ fn decode(c: &mut Criterion) {
     g.bench_function("codec_decode", |b| {
         b.iter(|| {
             buf.extend_from_slice(black_box(&bytes));
-            black_box(ClientCodec.decode(&mut buf).unwrap())
+            black_box(ClientCodec::default().decode(&mut buf).unwrap())
         })
     });
     g.finish();

@@ -10,7 +10,11 @@
 //!     --griplink-port N          the controller's port the gripper is on (default 0)
 //!     --wsg-project N            the Grasping-Kit project of the WSG's bin (default 0)
 //!     --griplink-project N       the Grasping-Kit project of the GRIPLINK gripper's bin (default 1)
+//!     --tool ID, --workspace ID  Grasping-Kit V4: the tool and workspace to choose by id
+//!     --selection N              Grasping-Kit V4: GET_GRASP's selection criterion (default 1)
 //! ```
+//! The Grasping-Kit is spoken to in protocol V4 when it offers it, V3 otherwise (the simulated
+//! one speaks both); the V4-only options are then ignored.
 //! Any device not given on the command line is simulated. The robot's own motion is not part
 //! of this example: where the robot would move, the log says so.
 
@@ -34,6 +38,12 @@ struct Args {
     griplink_port: u8,
     wsg_project: u32,
     griplink_project: u32,
+    /// Grasping-Kit V4: SET_TOOL's id (`--tool`).
+    smartgrasp_tool: Option<u16>,
+    /// Grasping-Kit V4: SET_WORKSPACE's id (`--workspace`).
+    smartgrasp_workspace: Option<u16>,
+    /// Grasping-Kit V4: GET_GRASP's selection criterion (`--selection`).
+    smartgrasp_selection: Option<u8>,
 }
 
 fn parse_args() -> Result<Args, String> {
@@ -51,10 +61,14 @@ fn parse_args() -> Result<Args, String> {
             "--griplink-port" => args.griplink_port = number(&flag, value()?)?,
             "--wsg-project" => args.wsg_project = number(&flag, value()?)?,
             "--griplink-project" => args.griplink_project = number(&flag, value()?)?,
+            // Grasping-Kit V4 only (ignored when the server speaks V3).
+            "--tool" => args.smartgrasp_tool = Some(number(&flag, value()?)?),
+            "--workspace" => args.smartgrasp_workspace = Some(number(&flag, value()?)?),
+            "--selection" => args.smartgrasp_selection = Some(number(&flag, value()?)?),
             "-h" | "--help" => {
                 return Err("usage: pick_and_place [--smartgrasp ADDR] [--wsg ADDR] \
                             [--griplink ADDR] [--griplink-port N] [--wsg-project N] \
-                            [--griplink-project N]"
+                            [--griplink-project N] [--tool ID] [--workspace ID] [--selection N]"
                     .into())
             }
             other => return Err(format!("unknown argument {other} (try --help)")),
@@ -112,6 +126,7 @@ fn simulated_bins() -> smartgrasp::sim::SimConfig {
                         stroke_um: (stroke_mm * 1000.0).round() as i32,
                         angle_offset_udeg: 0,
                         center_offset_um: [0, 0, 0],
+                        object_offset: smartgrasp::ObjectOffset::default(),
                         pose: SiPose {
                             position_m: [
                                 x_mm / 1000.0,
@@ -265,13 +280,18 @@ async fn empty_the_bin(
     kit: &smartgrasp::Client,
     gripper: &impl Gripper,
     project: u32,
+    selection: u8,
 ) -> Result<u32, String> {
     let e = |step: &'static str| move |e: smartgrasp::Error| format!("Grasping-Kit {step}: {e}");
     kit.set_project(project).await.map_err(e("set project"))?;
+    // V3 names the tool here; V4 uses the tool chosen with SET_TOOL (1 = exterior in the
+    // simulator) and the selection criterion instead (its values are not public; SCHUNK's KUKA
+    // example sends 1 to 3).
     let request = GraspRequest {
         grasp_mode: GraspMode::AutoGrasp,
         object_class: 0,
         tool: Tool::Exterior,
+        selection_criterion: smartgrasp::SelectionCriterion(selection),
         pose_format: PoseFormat::Abc,
     };
     let mut picked = 0;
@@ -312,12 +332,18 @@ async fn run(args: Args) -> Result<(), String> {
         smartgrasp_addr.as_str(),
         smartgrasp::ClientConfig {
             robot_system: Some(smartgrasp::RobotSystem::Kuka),
+            // V4 only; skipped with a warning by a V3 server.
+            tool_id: args.smartgrasp_tool,
+            workspace_id: args.smartgrasp_workspace,
             ..smartgrasp::ClientConfig::default()
         },
     )
     .await
     .map_err(|e| format!("Grasping-Kit at {smartgrasp_addr}: {e}"))?;
-    println!("Grasping-Kit ready, registered as KUKA");
+    println!(
+        "Grasping-Kit ready (protocol v{}), registered as KUKA",
+        kit.protocol_version()
+    );
 
     let wsg = wsg::Client::connect_tcp(wsg_addr.as_str())
         .await
@@ -331,7 +357,8 @@ async fn run(args: Args) -> Result<(), String> {
         .await
         .map_err(|e| format!("WSG homing: {e}"))?;
     let wsg = Wsg(wsg);
-    let picked = empty_the_bin(&kit, &wsg, args.wsg_project).await?;
+    let selection = args.smartgrasp_selection.unwrap_or(1);
+    let picked = empty_the_bin(&kit, &wsg, args.wsg_project, selection).await?;
     println!("WSG bin empty: {picked} parts picked");
     // Announce the disconnect (0x07) so the WSG does not go into FAST STOP.
     wsg.0.close().await.map_err(|e| format!("WSG close: {e}"))?;
@@ -345,7 +372,13 @@ async fn run(args: Args) -> Result<(), String> {
     port.home()
         .await
         .map_err(|e| format!("GRIPLINK homing: {e}"))?;
-    let picked = empty_the_bin(&kit, &GriplinkGripper(port), args.griplink_project).await?;
+    let picked = empty_the_bin(
+        &kit,
+        &GriplinkGripper(port),
+        args.griplink_project,
+        selection,
+    )
+    .await?;
     println!("GRIPLINK bin empty: {picked} parts picked");
     controller
         .close()

@@ -1,12 +1,16 @@
-//! Picks every part out of the bin with a SCHUNK 2D Grasping-Kit: opens the session (version,
-//! state, register as KUKA, project 0), then GET_GRASP → (move the robot) → GRASP_FEEDBACK OK
-//! until the server reports no object, printing each grasp pose in metres and in the robot's own
-//! format.
+//! Picks every part out of the bin with a SCHUNK 2D Grasping-Kit: opens the session (version
+//! negotiation, state, register as KUKA, project 0, and with V4 the tool and workspace), then
+//! GET_GRASP → (move the robot) → GRASP_FEEDBACK OK until the server reports no object, printing
+//! each grasp pose in metres and in the robot's own format.
+//!
+//! Speaks V4 when the server offers it (SET_TOOL, SET_WORKSPACE, a selection criterion), V3
+//! otherwise; `--tool`, `--workspace` and `--selection` only matter with V4.
 //!
 //! ```text
 //! cargo run --example smartgrasp_pick                          # against the in-process simulator
 //! cargo run --example smartgrasp_pick -- --addr 10.0.0.5:42001 # against a server (port optional)
 //! cargo run --example smartgrasp_pick -- --format wpr          # FANUC's W, P, R instead of ABC
+//! cargo run --example smartgrasp_pick -- --tool 1 --workspace 0 --selection 1
 //! ```
 
 use std::process::ExitCode;
@@ -14,7 +18,7 @@ use std::process::ExitCode;
 use gripper::smartgrasp::sim::{SimConfig, SimServer};
 use gripper::smartgrasp::{
     Client, ClientConfig, GetGraspOutcome, GraspFeedback, GraspMode, GraspRequest, PoseFormat,
-    RobotSystem, Tool,
+    RobotSystem, SelectionCriterion, Tool,
 };
 
 /// A real bin is refilled or re-imaged between picks; this bounds the loop if a server never
@@ -24,6 +28,12 @@ const MAX_PICKS: usize = 1000;
 struct Args {
     addr: Option<String>,
     format: PoseFormat,
+    /// V4: SET_TOOL's id.
+    tool: Option<u16>,
+    /// V4: SET_WORKSPACE's id.
+    workspace: Option<u16>,
+    /// V4: GET_GRASP's selection criterion.
+    selection: u8,
 }
 
 #[tokio::main]
@@ -32,7 +42,7 @@ async fn main() -> ExitCode {
         Ok(args) => args,
         Err(message) => {
             eprintln!("smartgrasp_pick: {message}");
-            eprintln!("usage: smartgrasp_pick [--addr HOST:PORT] [--format abc|wpr|quaternion|axis-angle]");
+            eprintln!("usage: smartgrasp_pick [--addr HOST:PORT] [--format abc|wpr|quaternion|axis-angle] [--tool ID] [--workspace ID] [--selection N]");
             return ExitCode::from(2);
         }
     };
@@ -66,6 +76,8 @@ async fn run(args: Args) -> Result<(), String> {
     let config = ClientConfig {
         robot_system: Some(robot),
         project_index: Some(0),
+        tool_id: args.tool,
+        workspace_id: args.workspace,
         ..ClientConfig::default()
     };
     let client = Client::connect(addr.as_str(), config)
@@ -76,14 +88,19 @@ async fn run(args: Args) -> Result<(), String> {
         .await
         .map_err(|e| format!("GET_OBJECT_COUNT failed: {e}"))?;
     println!(
-        "connected to {addr} as {robot}; {} objects in the scene",
+        "connected to {addr} as {robot}, protocol v{} (the server speaks up to v{}); {} objects in the scene",
+        client.protocol_version(),
+        client.server_version(),
         count.object_count
     );
 
     let request = GraspRequest {
         grasp_mode: GraspMode::AutoGrasp,
         object_class: 0,
+        // V3 only; V4 grasps with the tool SET_TOOL chose.
         tool: Tool::Exterior,
+        // V4 only.
+        selection_criterion: SelectionCriterion(args.selection),
         pose_format: args.format,
     };
     for pick in 1..=MAX_PICKS {
@@ -123,6 +140,12 @@ async fn run(args: Args) -> Result<(), String> {
             "  pose: x {x:.6} m, y {y:.6} m, z {z:.6} m, q [{qx:.6}, {qy:.6}, {qz:.6}, {qw:.6}]"
         );
         println!("  {}: {}", grasp.pose.format(), grasp.pose);
+        if let Some(offset) = grasp.object_offset {
+            println!(
+                "  V4 object offset: x {} µm, y {} µm, rz {} µdeg",
+                offset.x_um, offset.y_um, offset.rz_udeg
+            );
+        }
         // Here the robot would open to the stroke, approach, close and lift.
         client
             .grasp_feedback(GraspFeedback::Ok)
@@ -136,7 +159,16 @@ fn parse_args(mut args: impl Iterator<Item = String>) -> Result<Args, String> {
     let mut parsed = Args {
         addr: None,
         format: PoseFormat::Abc,
+        tool: None,
+        workspace: None,
+        selection: 1,
     };
+    fn number<T: std::str::FromStr>(flag: &str, value: Option<String>) -> Result<T, String> {
+        value
+            .as_deref()
+            .and_then(|v| v.parse().ok())
+            .ok_or_else(|| format!("{flag} needs a number"))
+    }
     while let Some(arg) = args.next() {
         match arg.as_str() {
             "--addr" => {
@@ -157,6 +189,9 @@ fn parse_args(mut args: impl Iterator<Item = String>) -> Result<Args, String> {
                     other => return Err(format!("unknown pose format {other:?}")),
                 }
             }
+            "--tool" => parsed.tool = Some(number("--tool", args.next())?),
+            "--workspace" => parsed.workspace = Some(number("--workspace", args.next())?),
+            "--selection" => parsed.selection = number("--selection", args.next())?,
             other => return Err(format!("unknown argument {other:?}")),
         }
     }

@@ -1,8 +1,10 @@
-//! Serves the simulated Smart Grasping server (V3) with the demo project (three parts) until
-//! killed.
+//! Serves the simulated Smart Grasping server (V4 and V3) with the demo project (three parts)
+//! until killed. `--max-version 3` makes it a V3-only server, which answers V4 requests with the
+//! "too old" empty message (manual 1.3).
 //!
 //! ```text
 //! cargo run --example smartgrasp_simulator -- --listen 127.0.0.1:42001
+//! cargo run --example smartgrasp_simulator -- --max-version 3
 //! ```
 //!
 //! The first line of standard output is `listening on <bound address>` (port 0 picks a free
@@ -19,15 +21,19 @@ async fn main() -> ExitCode {
         .with_env_filter(tracing_subscriber::EnvFilter::from_default_env())
         .with_writer(std::io::stderr)
         .init();
-    let listen = match parse_args(std::env::args().skip(1)) {
-        Ok(listen) => listen,
+    let (listen, max_version) = match parse_args(std::env::args().skip(1)) {
+        Ok(args) => args,
         Err(message) => {
             eprintln!("smartgrasp_simulator: {message}");
-            eprintln!("usage: smartgrasp_simulator [--listen HOST:PORT]");
+            eprintln!("usage: smartgrasp_simulator [--listen HOST:PORT] [--max-version 3|4]");
             return ExitCode::from(2);
         }
     };
-    let server = match SimServer::bind(listen.as_str(), SimConfig::default()).await {
+    let config = SimConfig {
+        max_version,
+        ..SimConfig::default()
+    };
+    let server = match SimServer::bind(listen.as_str(), config).await {
         Ok(server) => server,
         Err(e) => {
             eprintln!("smartgrasp_simulator: cannot listen on {listen}: {e}");
@@ -45,13 +51,21 @@ async fn main() -> ExitCode {
     ExitCode::SUCCESS
 }
 
-fn parse_args(mut args: impl Iterator<Item = String>) -> Result<String, String> {
+fn parse_args(mut args: impl Iterator<Item = String>) -> Result<(String, u16), String> {
     let mut listen = format!("127.0.0.1:{}", gripper::smartgrasp::DEFAULT_PORT);
+    let mut max_version = SimConfig::default().max_version;
     while let Some(arg) = args.next() {
         match arg.as_str() {
             "--listen" => listen = args.next().ok_or("--listen needs an address")?,
+            "--max-version" => {
+                max_version = match args.next().as_deref() {
+                    Some("3") => 3,
+                    Some("4") => 4,
+                    other => return Err(format!("--max-version takes 3 or 4, not {other:?}")),
+                }
+            }
             other => return Err(format!("unknown argument {other:?}")),
         }
     }
-    Ok(listen)
+    Ok((listen, max_version))
 }

@@ -1,13 +1,20 @@
 //! Serves the simulated WSG gripper so any program can connect to it.
 //!
 //! ```text
-//! cargo run --example wsg_simulator -- --listen 127.0.0.1:1000 [--udp] [--part MM | --no-part]
+//! cargo run --example wsg_simulator -- --listen 127.0.0.1:1000 [--part MM | --no-part]
+//!                                      [--udp [--udp-remote-port PORT]]
 //!                                      [--time-scale S] [--model wsg50|wsg32|wsg25|wsg70]
 //! cargo run --example wsg_simulator -- --pty          # serial: prints the pseudo-terminal path
 //!     (open it non-exclusively: `wsg_pick --serial PATH --shared`)
 //! ```
 //! The first line of standard output is `listening on <address or path>`; then it runs until
 //! killed.
+//!
+//! Without options it serves [`SimConfig::standalone`]: a WSG 50 with a 40 mm part in **real
+//! time** (`--time-scale 1`), so a move takes as long as on the device and a client can stop
+//! it, abort it or be refused with E_ALREADY_RUNNING; `--time-scale 0` makes motion instant.
+//! `--udp-remote-port PORT` is the device's "UDP remote port" setting: replies go to the
+//! sender's IP address at PORT, whatever port the request came from.
 
 use std::io::Write;
 use std::process::ExitCode;
@@ -26,7 +33,7 @@ fn parse() -> Result<Args, String> {
         listen: "127.0.0.1:1000".into(),
         udp: false,
         pty: false,
-        config: SimConfig::new(Model::Wsg50).with_part(40.0, 2.0),
+        config: SimConfig::standalone(),
     };
     let mut it = std::env::args().skip(1);
     while let Some(a) = it.next() {
@@ -34,6 +41,12 @@ fn parse() -> Result<Args, String> {
         match a.as_str() {
             "--listen" => args.listen = value("--listen")?,
             "--udp" => args.udp = true,
+            "--udp-remote-port" => {
+                let port: u16 = value("--udp-remote-port")?
+                    .parse()
+                    .map_err(|e| format!("--udp-remote-port: {e}"))?;
+                args.config.udp_remote_port = Some(port);
+            }
             "--pty" => args.pty = true,
             "--no-part" => args.config.part = None,
             "--part" => {
@@ -46,6 +59,9 @@ fn parse() -> Result<Args, String> {
                 let s: f64 = value("--time-scale")?
                     .parse()
                     .map_err(|e| format!("--time-scale: {e}"))?;
+                if !(s.is_finite() && s >= 0.0) {
+                    return Err("--time-scale must be 0 or more".into());
+                }
                 args.config.time_scale = s;
             }
             "--model" => {
@@ -56,22 +72,25 @@ fn parse() -> Result<Args, String> {
                     "wsg70" => Model::Wsg70,
                     other => return Err(format!("unknown model {other}")),
                 };
-                let part = args.config.part;
+                let old = &args.config;
                 args.config = SimConfig {
-                    part,
-                    time_scale: args.config.time_scale,
+                    part: old.part,
+                    time_scale: old.time_scale,
+                    udp_remote_port: old.udp_remote_port,
                     ..SimConfig::new(model)
                 };
             }
-            "-h" | "--help" => {
-                return Err(
-                    "usage: wsg_simulator [--listen ADDR] [--udp | --pty] [--part MM | --no-part] \
-                            [--time-scale S] [--model wsg50|wsg32|wsg25|wsg70]"
-                        .into(),
-                )
-            }
+            "-h" | "--help" => return Err(
+                "usage: wsg_simulator [--listen ADDR] [--udp [--udp-remote-port PORT] | --pty] \
+                            [--part MM | --no-part] [--time-scale S (default 1: real time)] \
+                            [--model wsg50|wsg32|wsg25|wsg70]"
+                    .into(),
+            ),
             other => return Err(format!("unknown argument {other} (try --help)")),
         }
+    }
+    if args.config.udp_remote_port.is_some() && !args.udp {
+        return Err("--udp-remote-port needs --udp".into());
     }
     Ok(args)
 }

@@ -3,7 +3,8 @@
 //! Async clients and device simulators for the grippers and grasp planners of a robot cell:
 //!
 //! - [`wsg`]: Weiss WSG grippers' binary protocol (CRC-framed, over TCP, UDP and serial).
-//! - [`smartgrasp`]: the SCHUNK 2D Grasping-Kit native protocol V3 (80-byte frames over TCP).
+//! - [`smartgrasp`]: the SCHUNK 2D Grasping-Kit native protocol V3 and V4 (80-byte frames over
+//!   TCP).
 //! - [`griplink`]: Weiss GRIPLINK controllers' ASCII command set (LF-terminated lines over TCP).
 //!
 //! Every protocol has the same layers: pure encode/decode (no I/O), a tokio-util codec, an async
@@ -37,6 +38,7 @@
 //!     grasp_mode: GraspMode::ActiveGrasp,
 //!     object_class: 1,
 //!     tool: Tool::Exterior,
+//!     selection_criterion: smartgrasp::SelectionCriterion(1),
 //!     pose_format: PoseFormat::Quaternion,
 //! };
 //! if let GetGraspOutcome::Grasp(grasp) = kit.get_grasp(request).await? {

@@ -107,24 +107,25 @@ fn wsg_decoding_allocates_nothing_per_frame() {
 #[test]
 fn smartgrasp_decoding_allocates_nothing_per_frame() {
     use gripper::smartgrasp::codec::ClientCodec;
-    use gripper::smartgrasp::frame::ResponseFrame;
+    use gripper::smartgrasp::frame::{AnyResponseFrame, ResponseFrame};
     use gripper::smartgrasp::{MessageType, Response, ResponseCode, ServerState};
     let mut f = ResponseFrame::new(MessageType::GetState, ResponseCode::Success, 1);
     f.server_state = ServerState::Operational;
     let wire = f.encode();
 
-    let per_frame = allocations_per_frame(ClientCodec, &wire, |f: ResponseFrame| {
-        assert_eq!(f.server_state, ServerState::Operational);
+    let per_frame = allocations_per_frame(ClientCodec::default(), &wire, |f: AnyResponseFrame| {
+        assert!(matches!(f, AnyResponseFrame::V3(f) if f.server_state == ServerState::Operational));
         0
     });
     println!("smartgrasp GET_STATE response, codec decode: {per_frame:?} allocations per frame");
     assert_eq!(per_frame.beyond_value(), 0.0);
 
-    let per_response = allocations_per_frame(ClientCodec, &wire, |f: ResponseFrame| {
-        let r = Response::from_frame(&f).expect("well-formed response");
-        assert_eq!(r.code, ResponseCode::Success);
-        0
-    });
+    let per_response =
+        allocations_per_frame(ClientCodec::default(), &wire, |f: AnyResponseFrame| {
+            let r = Response::from_any_frame(&f).expect("well-formed response");
+            assert_eq!(r.code, ResponseCode::Success);
+            0
+        });
     println!(
         "smartgrasp GET_STATE response, codec decode + Response::from_frame: {per_response:?} \
          allocations per frame"

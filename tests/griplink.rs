@@ -138,8 +138,9 @@ async fn grip_cycle_with_every_motion_command() {
     assert_eq!(g.position_um().await.unwrap(), 20_000);
     assert_eq!(g.position_mm().await.unwrap(), 20.0);
 
+    // ENABLE keeps a gripper in state 2, idle; state 6 is for sensors (manual chapter 5).
     g.enable().await.unwrap();
-    assert_eq!(g.state().await.unwrap(), DeviceState::Enabled);
+    assert_eq!(g.state().await.unwrap(), DeviceState::Disabled);
     assert_eq!(device_status(g.clamp(true).await), Status::StateConflict);
     g.disable().await.unwrap();
     assert_eq!(g.state().await.unwrap(), DeviceState::Disabled);
@@ -290,10 +291,12 @@ async fn grip_and_release_helpers_report_outcomes() {
         GripOutcome::Fault
     );
     assert_eq!(server.device_state(0), Some(DeviceState::Fault));
-    // In DS_FAULT a grip is a state conflict; HOME recovers.
+    // In DS_FAULT a grip re-enables the gripper (manual 3.4.1); so does HOME.
     assert_eq!(
-        device_status(g.grip(0, Blocking::Immediate).await),
-        Status::StateConflict
+        g.grip_and_wait(0, WaitBy::Polling(Duration::from_millis(1)))
+            .await
+            .unwrap(),
+        GripOutcome::NoPart
     );
     g.home().await.unwrap();
     server.fault_next_motion(0);
@@ -912,4 +915,57 @@ async fn simulator_reads_split_and_oversized_lines_over_tcp() {
         reader.next_line().await.unwrap().as_deref(),
         Some("SN=\"123456\"")
     );
+}
+
+/// Strings from third-party IO-Link devices may hold `'` and `\`: accepted up to the closing
+/// quote (PROTOCOLS.md errata for seed 004). What this side sends stays strict.
+#[tokio::test]
+async fn device_strings_with_quotes_and_backslashes_are_read() {
+    let device = SimDevice {
+        name: "O'Brien \\ Gripper".into(),
+        vendor: "ACME 'Robots'".into(),
+        serial_number: "SN\\42".into(),
+        ..SimDevice::ieg_55_020()
+    };
+    let config = SimConfig::et4().device(1, Some(device)).time_scale(0.0);
+    let server = SimServer::bind("127.0.0.1:0", config).await.unwrap();
+    let client = connect(&server).await;
+    let p = client.port(1);
+    assert_eq!(p.name().await.unwrap(), "O'Brien \\ Gripper");
+    assert_eq!(p.vendor().await.unwrap(), "ACME 'Robots'");
+    assert_eq!(p.serial_number().await.unwrap(), "SN\\42");
+    assert!(matches!(
+        p.set_tag("O'Brien").await,
+        Err(Error::InvalidArgument { .. })
+    ));
+}
+
+/// Refused before anything is sent: a raw line of only spaces (the controller would trim it to
+/// nothing and never answer) and a float whose plain decimal form would need hundreds of digits.
+#[tokio::test]
+async fn blank_lines_and_endless_floats_are_refused_before_sending() {
+    let server = sim().await;
+    let client = connect(&server).await;
+    for blank in ["", " ", "    "] {
+        assert!(
+            matches!(
+                client.command(blank).await,
+                Err(Error::InvalidArgument { .. })
+            ),
+            "{blank:?}"
+        );
+    }
+    let g = client.port(0);
+    let e = g.set_value_f(0, 1e-300).await.unwrap_err();
+    assert!(
+        matches!(&e, Error::InvalidArgument { reason, .. } if reason.contains("plain")),
+        "{e:?}"
+    );
+    let tiny = GripConfigF::gripper("t", 1e-200, 18.0, 50.0);
+    assert!(matches!(
+        g.set_grip_config_f(0, &tiny).await,
+        Err(Error::InvalidArgument { .. })
+    ));
+    // The connection is untouched: nothing was sent.
+    assert_eq!(client.id().await.unwrap(), "GRIPLINK-ET4");
 }

@@ -8,10 +8,12 @@ use bytes::BytesMut;
 use gripper::griplink::codec::{Discarded, Line, LineCodec};
 use gripper::griplink::command::{
     Blocking, Command, FlexGrip, FlexGripScaled, FlexRelease, GripConfig, GripConfigF,
+    MAX_FLOAT_ARG_LEN,
 };
 use gripper::griplink::reply::{parse_reply, Reply};
 use gripper::griplink::sim::parse::parse_command;
 use gripper::griplink::value::{format_float, Value};
+use gripper::griplink::Error;
 use proptest::prelude::*;
 use tokio_util::codec::Decoder;
 
@@ -25,7 +27,11 @@ fn any_finite() -> impl Strategy<Value = f64> {
 
 /// Finite values the controller's 32-bit floats can hold.
 fn f32_range() -> impl Strategy<Value = f64> {
-    any_finite().prop_filter("fits f32", |v| v.abs() <= f64::from(f32::MAX))
+    // 0, or a magnitude between f32::MIN_POSITIVE and f32::MAX: smaller magnitudes are refused
+    // (hundreds of digits as a plain decimal, and 0 or a subnormal in the controller).
+    any_finite().prop_filter("fits f32", |v| {
+        *v == 0.0 || (f64::from(f32::MIN_POSITIVE)..=f64::from(f32::MAX)).contains(&v.abs())
+    })
 }
 
 /// Strings the protocol can carry (manual 2.1.1).
@@ -166,6 +172,24 @@ proptest! {
         match parse_reply(&format!("VALUEF[0][0]={s}")).unwrap() {
             Reply::Data(d) => prop_assert_eq!(d.value.as_f64(), Some(v)),
             other => prop_assert!(false, "{:?}", other),
+        }
+    }
+
+    /// A float the controller's 32-bit float cannot hold is refused before anything is sent;
+    /// every accepted one is at most `MAX_FLOAT_ARG_LEN` characters.
+    #[test]
+    fn float_arguments_are_bounded_or_refused(v in any_finite()) {
+        let cmd = Command::SetValF { port: 0, index: 0, value: v };
+        let fits = v == 0.0
+            || (f64::from(f32::MIN_POSITIVE)..=f64::from(f32::MAX)).contains(&v.abs());
+        match cmd.encode() {
+            Ok(line) => {
+                prop_assert!(fits, "{}", line);
+                let arg = line.trim_start_matches("SETVALF(0,0,").trim_end_matches(')');
+                prop_assert!(arg.len() <= MAX_FLOAT_ARG_LEN, "{}", line);
+            }
+            Err(Error::InvalidArgument { .. }) => prop_assert!(!fits, "{}", v),
+            Err(e) => prop_assert!(false, "{:?}", e),
         }
     }
 

@@ -18,6 +18,15 @@ use std::time::Duration;
 use gripper::fault::{Fault, FaultProxy, Framing, ProxyConfig};
 use gripper::smartgrasp::codec;
 use gripper::smartgrasp::sim::{SimConfig, SimGrasp, SimObject, SimProject, SimServer};
+
+/// The V3 simulator these tests were written for (the default speaks V4 too; V4 is
+/// `tests/smartgrasp_v4.rs`).
+fn v3_sim() -> SimConfig {
+    SimConfig {
+        max_version: 3,
+        ..SimConfig::default()
+    }
+}
 use gripper::smartgrasp::{
     Client, ClientConfig, GetGraspOutcome, GraspMode, GraspRequest, PoseFormat, SiPose, Tool,
     UnitQuaternion,
@@ -45,6 +54,7 @@ fn scene() -> SimConfig {
                     stroke_um: i32::from(class) * 1000,
                     angle_offset_udeg: 0,
                     center_offset_um: [0; 3],
+                    object_offset: gripper::smartgrasp::ObjectOffset::default(),
                     pose: SiPose {
                         position_m: [0.4, f64::from(class) / 100.0, 0.05],
                         orientation: UnitQuaternion::from_rpy(std::f64::consts::PI, 0.0, 0.0),
@@ -56,7 +66,7 @@ fn scene() -> SimConfig {
     }
     SimConfig {
         projects: vec![SimProject::from_scene(objects)],
-        ..SimConfig::default()
+        ..v3_sim()
     }
 }
 
@@ -67,6 +77,7 @@ async fn identified_call(client: &Client, class: u16, grasp: bool) {
             grasp_mode: GraspMode::ActiveGrasp,
             object_class: class,
             tool: Tool::Exterior,
+            selection_criterion: gripper::smartgrasp::SelectionCriterion::default(),
             pose_format: PoseFormat::Wpr,
         };
         match client.get_grasp(request).await {

@@ -12,6 +12,15 @@ use gripper::fault::{FaultProxy, Framing, ProxyConfig};
 use gripper::reconnect::{ConnectionEvent, ConnectionEvents, ReconnectPolicy};
 use gripper::smartgrasp::codec;
 use gripper::smartgrasp::sim::{Fault, SimConfig, SimProject, SimServer};
+
+/// The V3 simulator these tests were written for (the default speaks V4 too; V4 is
+/// `tests/smartgrasp_v4.rs`).
+fn v3_sim() -> SimConfig {
+    SimConfig {
+        max_version: 3,
+        ..SimConfig::default()
+    }
+}
 use gripper::smartgrasp::{
     AbcPose, Client, ClientConfig, Error, GetGraspOutcome, GraspMode, GraspRequest, Pose,
     PoseFormat, RobotSystem, Tool,
@@ -39,7 +48,7 @@ async fn sim() -> SimServer {
             SimConfig::demo_project(),
             SimProject::from_scene(Vec::new()),
         ],
-        ..SimConfig::default()
+        ..v3_sim()
     };
     SimServer::bind("127.0.0.1:0", config).await.unwrap()
 }
@@ -99,6 +108,7 @@ fn grasp_request() -> GraspRequest {
         grasp_mode: GraspMode::AnyGrasp,
         object_class: 1,
         tool: Tool::Exterior,
+        selection_criterion: gripper::smartgrasp::SelectionCriterion::default(),
         pose_format: PoseFormat::Abc,
     }
 }

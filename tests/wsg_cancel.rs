@@ -13,7 +13,7 @@ use std::time::Duration;
 
 use gripper::wsg::command::id;
 use gripper::wsg::sim::{Model, SimConfig, SimServer};
-use gripper::wsg::{Client, HomingDirection, SystemState};
+use gripper::wsg::{Client, HomingDirection, Status, SystemState};
 
 /// Polls `call` at most `polls` times, one scheduler turn apart (it wakes itself), then
 /// resolves to `None`, dropping `call` at whichever await point it had reached.
@@ -183,12 +183,15 @@ async fn a_cancelled_move_keeps_moving_until_stopped() {
 async fn a_move_cancelled_before_it_was_sent_is_never_sent() {
     let (sim, client) = setup().await;
     let first = common::wsg_start_moving(&sim, &client).await;
-    // The second waits behind the first (same id): dropped there, it must never go out.
-    let queued = PollLimit {
+    // A second move of the same id while the first runs is refused unsent (E_ALREADY_RUNNING,
+    // manual 3.2.2); dropped before or after that answer, it must never go out.
+    let second = PollLimit {
         call: Box::pin(client.pre_position(90.0, 50.0)),
         polls: 3,
     };
-    assert!(queued.await.is_none());
+    if let Some(result) = second.await {
+        assert_eq!(result.unwrap_err().status(), Some(Status::AlreadyRunning));
+    }
     client.stop().await.unwrap();
     assert!(first.await.unwrap().is_err());
     // A round trip after the first's abort: had the second been sent, the device has it now.

@@ -1,6 +1,8 @@
 //! The WSG client against the in-process simulator over real loopback sockets and a pty.
 #![cfg(feature = "sim")]
 
+mod common;
+
 use std::time::Duration;
 
 use futures_util::StreamExt;
@@ -466,9 +468,15 @@ async fn grip_state_stream_follows_a_grasp() {
     ));
 }
 
+/// Only when configured to: by default a frame with a bad checksum is discarded (manual 1.2.1;
+/// see `SimConfig::answer_bad_checksum` and tests/wsg_sim_field.rs).
 #[tokio::test]
 async fn the_simulator_answers_a_bad_checksum_with_e_checksum_error() {
-    let sim = SimServer::bind("127.0.0.1:0", with_part()).await.unwrap();
+    let config = SimConfig {
+        answer_bad_checksum: true,
+        ..with_part()
+    };
+    let sim = SimServer::bind("127.0.0.1:0", config).await.unwrap();
     let mut raw = tokio::net::TcpStream::connect(sim.local_addr().unwrap())
         .await
         .unwrap();
@@ -660,53 +668,100 @@ async fn a_lost_part_shows_in_the_grip_state() {
 }
 
 #[tokio::test]
-async fn same_id_motion_calls_queue_behind_the_pending_one() {
+async fn a_second_motion_during_a_move_is_refused_like_the_device_refuses_it() {
+    // Issue 10 item 4 (this test replaces `same_id_motion_calls_queue_behind_the_pending_one`,
+    // which pinned the old queuing). Manual 3.2.2: while a motion command runs, another one gets
+    // E_ALREADY_RUNNING. The device answers that for a grasp (0x25) during a pre-position; the
+    // client must answer the same for a second pre-position (0x21), which it cannot send.
     let (sim, client) = tcp(with_part()).await;
-    client.home(HomingDirection::Default).await.unwrap();
-    // From now on a move takes 1000 wall seconds per simulated second.
-    sim.set_time_scale(1000.0);
-    let first = {
-        let c = client.clone();
-        tokio::spawn(async move { c.pre_position(10.0, 10.0).await })
-    };
-    while !client
-        .system_state()
-        .await
-        .unwrap()
-        .contains(SystemState::MOVING)
-    {}
-    let second = {
-        let c = client.clone();
-        tokio::spawn(async move { c.pre_position(90.0, 10.0).await })
-    };
-    // Another id goes through while both pre-positions wait; the second one was not sent.
-    let count = |ids: Vec<u8>| ids.iter().filter(|i| **i == id::PRE_POSITION).count();
-    client.temperature_c().await.unwrap();
+    let first = common::wsg_start_moving(&sim, &client).await;
+    let count = |ids: Vec<u8>, which: u8| ids.iter().filter(|i| **i == which).count();
+    let same_id = client.pre_position(90.0, 10.0).await.unwrap_err();
+    let other_id = client.grasp(40.0, 10.0).await.unwrap_err();
+    for err in [&same_id, &other_id] {
+        assert_eq!(err.status(), Some(Status::AlreadyRunning), "{err}");
+    }
+    assert!(
+        matches!(
+            same_id,
+            Error::Device {
+                command: id::PRE_POSITION,
+                ..
+            }
+        ),
+        "{same_id}"
+    );
+    assert!(
+        matches!(
+            other_id,
+            Error::Device {
+                command: id::GRASP,
+                ..
+            }
+        ),
+        "{other_id}"
+    );
     assert_eq!(
-        count(sim.received_ids()),
+        count(sim.received_ids(), id::PRE_POSITION),
         1,
-        "the second pre-position must wait"
+        "the refused pre-position was sent"
+    );
+    assert_eq!(
+        count(sim.received_ids(), id::GRASP),
+        1,
+        "the device refused it"
     );
     client.stop().await.unwrap();
     assert_eq!(
         first.await.unwrap().unwrap_err().status(),
         Some(Status::CmdAborted)
     );
-    // Now the queued one is sent and runs: stop it too.
-    loop {
-        // The round trip comes first: it is what lets the client task run.
-        let moving = client
-            .system_state()
-            .await
-            .unwrap()
-            .contains(SystemState::MOVING);
-        if moving && count(sim.received_ids()) == 2 {
-            break;
+    // Refused means never run later: after the abort nothing moves, and the id is free again.
+    client.temperature_c().await.unwrap();
+    assert_eq!(count(sim.received_ids(), id::PRE_POSITION), 1);
+    assert!(!client
+        .system_state()
+        .await
+        .unwrap()
+        .contains(SystemState::MOVING));
+    sim.set_time_scale(0.0);
+    client.pre_position(70.0, 100.0).await.unwrap();
+    assert_eq!(client.width_mm().await.unwrap(), 70.0);
+}
+
+#[tokio::test]
+async fn a_second_subscriber_with_other_options_is_refused_not_imposed_on_the_first() {
+    // Issue 10 item 5: the device keeps one stream per value (3.4.1); re-configuring it for a
+    // second subscriber would change the first one's period behind its back.
+    let sim = SimServer::bind("127.0.0.1:0", with_part()).await.unwrap();
+    let client = Client::connect_tcp(sim.local_addr().unwrap())
+        .await
+        .unwrap();
+    let fast = UpdateOptions::periodic(Duration::from_millis(10));
+    let slow = UpdateOptions::periodic(Duration::from_millis(50));
+    let mut first = client.subscribe_width_mm(fast).await.unwrap();
+    for other in [slow, UpdateOptions::on_change(Duration::from_millis(10))] {
+        match client.subscribe_width_mm(other).await {
+            Err(Error::SubscriptionConflict { command, active }) => {
+                assert_eq!((command, active), (id::WIDTH, fast));
+            }
+            other => panic!("expected a conflict, got {other:?}"),
         }
     }
-    client.stop().await.unwrap();
-    assert_eq!(
-        second.await.unwrap().unwrap_err().status(),
-        Some(Status::CmdAborted)
-    );
+    // Only the first subscription's command reached the device: its stream is unchanged.
+    let widths = sim
+        .received_ids()
+        .iter()
+        .filter(|i| **i == id::WIDTH)
+        .count();
+    assert_eq!(widths, 1);
+    // The same options join the stream; another value is independent.
+    let mut second = client.subscribe_width_mm(fast).await.unwrap();
+    let _state = client.subscribe_system_state(slow).await.unwrap();
+    assert_eq!(first.next().await, Some(0.0));
+    assert_eq!(second.next().await, Some(0.0));
+    // Once every subscriber of the value is gone, new options are free to choose.
+    drop((first, second));
+    let mut again = client.subscribe_width_mm(slow).await.unwrap();
+    assert_eq!(again.next().await, Some(0.0));
 }

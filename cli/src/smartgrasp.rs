@@ -1,13 +1,15 @@
-//! `gripctl smartgrasp …`: the SCHUNK 2D Grasping-Kit's native protocol V3 (manual seed 002),
-//! one request per command over a fresh connection.
+//! `gripctl smartgrasp …`: the SCHUNK 2D Grasping-Kit's native protocol, V3 (manual seed 002) or
+//! V4 (known from SCHUNK's public KUKA example, PROTOCOLS.md 2b), one request per command over a
+//! fresh connection. V4 is used when the server offers it, unless `--protocol 3` pins V3.
 
 use std::time::Duration;
 
 use clap::{Args as ClapArgs, Subcommand, ValueEnum};
-use gripper::smartgrasp::frame::PROTOCOL_VERSION;
+use gripper::smartgrasp::frame::{v4, PROTOCOL_VERSION};
 use gripper::smartgrasp::{
     Client, ClientConfig, Error, GetGraspOutcome, Grasp, GraspFeedback, GraspMode, GraspRequest,
-    ObjectCount, Pose, PoseFormat, RobotSystem, ServerState, Tool, DEFAULT_PORT,
+    ObjectCount, Pose, PoseFormat, RobotSystem, SelectionCriterion, ServerState, Tool,
+    DEFAULT_PORT,
 };
 use serde_json::{json, Value};
 
@@ -21,8 +23,23 @@ pub struct Args {
     /// The Smart Grasping server: HOST or HOST:PORT (port 42001 when omitted, manual 1.1).
     #[arg(long, default_value = "127.0.0.1")]
     addr: String,
+    /// The protocol version to speak: the highest the server offers (3 or 4), or pinned.
+    #[arg(long, value_enum, default_value_t = Protocol::Auto)]
+    protocol: Protocol,
     #[command(subcommand)]
     command: Command,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum Protocol {
+    /// The highest version both speak (GET_PROTOCOL_VERSION first).
+    Auto,
+    /// V3 (manual seed 002).
+    #[value(name = "3")]
+    V3,
+    /// V4 (SCHUNK's public KUKA example).
+    #[value(name = "4")]
+    V4,
 }
 
 #[derive(Debug, Subcommand)]
@@ -37,10 +54,21 @@ enum Command {
         #[arg(value_enum)]
         robot: Robot,
     },
-    /// SET_PROJECT: activate a project by index (manual 3.3.2.4).
+    /// SET_PROJECT: activate a project by index (V3, manual 3.3.2.4) or by the ID seen in the
+    /// web frontend (V4).
     Project {
-        /// The project's index.
+        /// The project's index (V3) or ID (V4).
         index: u32,
+    },
+    /// SET_TOOL (V4 only): choose the tool by the ID configured on the device.
+    Tool {
+        /// The tool ID seen in the web frontend.
+        id: u16,
+    },
+    /// SET_WORKSPACE (V4 only): choose the workspace by the ID configured on the device.
+    Workspace {
+        /// The workspace ID seen in the web frontend.
+        id: u16,
     },
     /// GET_GRASP: a grasp for the current scene, in metres and in the robot's format
     /// (manual 3.3.3.1). NO_OBJECT and NO_GRASP are results (exit status 0), not failures.
@@ -70,9 +98,17 @@ struct GraspArgs {
     /// Object class to grasp; 0 = any class.
     #[arg(long, default_value_t = 0)]
     class: u16,
-    /// The tool the robot grasps with.
-    #[arg(long, value_enum, default_value_t = ToolArg::Exterior)]
-    tool: ToolArg,
+    /// The tool: V3 names it in the request (exterior, interior, contact; default exterior);
+    /// V4 chooses it by ID with SET_TOOL first (a number; default: the server's current tool).
+    #[arg(long, value_parser = parse_tool)]
+    tool: Option<ToolArg>,
+    /// V4 only: choose this workspace ID first (SET_WORKSPACE).
+    #[arg(long)]
+    workspace: Option<u16>,
+    /// V4 only: the selection criterion (its values are not public; SCHUNK's example sends 1 to
+    /// 3). Ignored by V3.
+    #[arg(long, default_value_t = 1)]
+    selection: u8,
     /// Pose format of the answer [default: the --robot's own, else abc].
     #[arg(long, value_enum)]
     format: Option<Format>,
@@ -142,14 +178,24 @@ enum Mode {
     Auto,
 }
 
-#[derive(Debug, Clone, Copy, ValueEnum)]
+/// `--tool`: a V3 tool name, or a V4 tool ID.
+#[derive(Debug, Clone, Copy)]
 enum ToolArg {
-    /// Two-finger parallel gripper, outer grip.
-    Exterior,
-    /// Two-finger parallel gripper, inner grip.
-    Interior,
-    /// Suction, magnet or adhesion.
-    Contact,
+    /// V3: the tool enumeration (3.3.3.1).
+    Named(Tool),
+    /// V4: the tool ID for SET_TOOL.
+    Id(u16),
+}
+
+fn parse_tool(text: &str) -> Result<ToolArg, String> {
+    match text {
+        "exterior" => Ok(ToolArg::Named(Tool::Exterior)),
+        "interior" => Ok(ToolArg::Named(Tool::Interior)),
+        "contact" => Ok(ToolArg::Named(Tool::Contact)),
+        other => other.parse().map(ToolArg::Id).map_err(|_| {
+            format!("{other:?} is neither exterior, interior, contact (V3) nor a tool ID (V4)")
+        }),
+    }
 }
 
 #[derive(Debug, Clone, Copy, ValueEnum)]
@@ -185,13 +231,14 @@ enum Feedback {
 pub async fn run(args: Args, timeout: Option<Duration>, out: Out) -> Result<(), CliError> {
     let addr = with_default_port(&args.addr, DEFAULT_PORT);
     let context = format!("smartgrasp {addr}");
-    execute(&addr, args.command, timeout, out)
+    execute(&addr, args.protocol, args.command, timeout, out)
         .await
         .map_err(|e| e.context(context))
 }
 
 async fn execute(
     addr: &str,
+    protocol: Protocol,
     command: Command,
     timeout: Option<Duration>,
     out: Out,
@@ -199,22 +246,26 @@ async fn execute(
     if let Command::RobotPose(args) = &command {
         // The values are checked before connecting: a typo needs no server to be reported.
         let pose = pose_from_args(args)?;
-        let client = connect(addr, timeout).await?;
+        let client = connect(addr, protocol, timeout).await?;
         client.robot_pose(pose).await.map_err(classify)?;
         return out.emit(
             format!("robot pose sent: {}: {pose}", pose.format()),
             json!({ "robot_pose": pose_json(&pose)? }),
         );
     }
-    let client = connect(addr, timeout).await?;
+    if let Command::Version = command {
+        // Asked as V3, which every server since V3 answers in full (manual 1.3, 3.3.2.1).
+        let client = connect_as(addr, Some(PROTOCOL_VERSION), timeout).await?;
+        let version = client.get_protocol_version().await.map_err(classify)?;
+        let highest = v4::PROTOCOL_VERSION;
+        return out.emit(
+            format!("protocol version {version} (this client speaks 3 and {highest})"),
+            json!({ "protocol_version": version, "client_version": highest }),
+        );
+    }
+    let client = connect(addr, protocol, timeout).await?;
     match command {
-        Command::Version => {
-            let version = client.get_protocol_version().await.map_err(classify)?;
-            out.emit(
-                format!("protocol version {version} (this client speaks {PROTOCOL_VERSION})"),
-                json!({ "protocol_version": version, "client_version": PROTOCOL_VERSION }),
-            )
-        }
+        Command::Version => Ok(()), // answered above
         Command::State => {
             let state = client.get_state().await.map_err(classify)?;
             out.emit(state, json!({ "state": named(u8::from(state), state) }))
@@ -234,8 +285,19 @@ async fn execute(
                 json!({ "project": index }),
             )
         }
+        Command::Tool { id } => {
+            client.set_tool(id).await.map_err(classify)?;
+            out.emit(format!("tool {id} active"), json!({ "tool_id": id }))
+        }
+        Command::Workspace { id } => {
+            client.set_workspace(id).await.map_err(classify)?;
+            out.emit(
+                format!("workspace {id} active"),
+                json!({ "workspace_id": id }),
+            )
+        }
         Command::Grasp(grasp) => {
-            open_session(&client, &grasp).await?;
+            let tool = open_session(&client, &grasp).await?;
             let format = grasp
                 .format
                 .or(grasp.robot.map(Robot::native_format))
@@ -247,11 +309,8 @@ async fn execute(
                     Mode::Auto => GraspMode::AutoGrasp,
                 },
                 object_class: grasp.class,
-                tool: match grasp.tool {
-                    ToolArg::Exterior => Tool::Exterior,
-                    ToolArg::Interior => Tool::Interior,
-                    ToolArg::Contact => Tool::Contact,
-                },
+                tool,
+                selection_criterion: SelectionCriterion(grasp.selection),
                 pose_format: format.into(),
             };
             match client.get_grasp(request).await.map_err(classify)? {
@@ -300,10 +359,44 @@ async fn execute(
     }
 }
 
-/// Connects without the opening sequence: `version` and `state` must work on a server that is
-/// not ready, and each command checks what it needs itself.
-async fn connect(addr: &str, timeout: Option<Duration>) -> Result<Client, CliError> {
-    let mut config = ClientConfig::default();
+/// Connects without the opening sequence (`state` must work on a server that is not ready, and
+/// each command checks what it needs itself), in the version `protocol` asks for. `Auto` asks
+/// GET_PROTOCOL_VERSION as V3 on a first connection (every server since V3 answers it) and
+/// speaks V4 on a second one when the server offers it.
+async fn connect(
+    addr: &str,
+    protocol: Protocol,
+    timeout: Option<Duration>,
+) -> Result<Client, CliError> {
+    let version = match protocol {
+        Protocol::V3 => PROTOCOL_VERSION,
+        Protocol::V4 => v4::PROTOCOL_VERSION,
+        Protocol::Auto => {
+            let probe = connect_as(addr, Some(PROTOCOL_VERSION), timeout).await?;
+            let offered = probe.get_protocol_version().await.map_err(classify)?;
+            // Release the probe's connection before opening the next.
+            let _ = probe.close().await;
+            if offered < PROTOCOL_VERSION {
+                return Err(classify(Error::ServerTooOld {
+                    server_version: offered,
+                    client_version: PROTOCOL_VERSION,
+                }));
+            }
+            offered.min(v4::PROTOCOL_VERSION)
+        }
+    };
+    connect_as(addr, Some(version), timeout).await
+}
+
+async fn connect_as(
+    addr: &str,
+    version: Option<u16>,
+    timeout: Option<Duration>,
+) -> Result<Client, CliError> {
+    let mut config = ClientConfig {
+        protocol_version: version,
+        ..ClientConfig::default()
+    };
     if let Some(t) = timeout {
         config.connect_timeout = t;
         config.query_timeout = t;
@@ -314,32 +407,50 @@ async fn connect(addr: &str, timeout: Option<Duration>) -> Result<Client, CliErr
         .map_err(|e| classify(e).context("cannot connect"))
 }
 
-/// The manual's opening sequence (manual 6) before GET_GRASP: the server must speak V3 and be
-/// OPERATIONAL, then register and set the project when asked to. Done here step by step (not by
-/// `Client::connect`) so that a refused connection and a refused request read differently.
-async fn open_session(client: &Client, grasp: &GraspArgs) -> Result<(), CliError> {
+/// The manual's opening sequence (manual 6) before GET_GRASP: the server must be OPERATIONAL,
+/// then register, set the project, and with V4 the tool and workspace, when asked to. Done here
+/// step by step (not by `Client::connect`) so that a refused connection and a refused request
+/// read differently. Returns the V3 tool for the request.
+async fn open_session(client: &Client, grasp: &GraspArgs) -> Result<Tool, CliError> {
     check_operational(client).await?;
     if let Some(robot) = grasp.robot {
-        client
-            .register_client(robot.into())
-            .await
-            .map_err(classify)?;
+        // Informational (manual 3.3.2.3): a refusal does not stop the grasp (the command
+        // `register` reports it).
+        match client.register_client(robot.into()).await {
+            Ok(()) | Err(Error::Device { .. }) => {}
+            Err(e) => return Err(classify(e)),
+        }
     }
     if let Some(project) = grasp.project {
         client.set_project(project).await.map_err(classify)?;
     }
-    Ok(())
+    let v4 = client.protocol_version() >= v4::PROTOCOL_VERSION;
+    let tool = match (grasp.tool, v4) {
+        (None, _) => Tool::Exterior,
+        (Some(ToolArg::Named(tool)), false) => tool,
+        (Some(ToolArg::Id(id)), true) => {
+            client.set_tool(id).await.map_err(classify)?;
+            Tool::Exterior
+        }
+        (Some(ToolArg::Named(_)), true) => {
+            return Err(CliError::argument(
+                "the server speaks V4, which chooses the tool by ID: --tool <number>",
+            ))
+        }
+        (Some(ToolArg::Id(_)), false) => {
+            return Err(CliError::argument(
+                "the server speaks V3, which names the tool: --tool exterior|interior|contact",
+            ))
+        }
+    };
+    if let Some(workspace) = grasp.workspace {
+        client.set_workspace(workspace).await.map_err(classify)?;
+    }
+    Ok(tool)
 }
 
-/// Detection calls need a V3 server in OPERATIONAL state: say so instead of a bare ERROR.
+/// Detection calls need an OPERATIONAL server: say so instead of a bare ERROR.
 async fn check_operational(client: &Client) -> Result<(), CliError> {
-    let server_version = client.get_protocol_version().await.map_err(classify)?;
-    if server_version < PROTOCOL_VERSION {
-        return Err(classify(Error::ServerTooOld {
-            server_version,
-            client_version: PROTOCOL_VERSION,
-        }));
-    }
     let state = client.get_state().await.map_err(classify)?;
     if state != ServerState::Operational {
         return Err(classify(Error::NotOperational { state }));
@@ -369,7 +480,7 @@ fn classify(e: Error) -> CliError {
             CliError::new(Kind::Connection, message)
         }
         Error::MalformedReply(_) | Error::Pose(_) => CliError::new(Kind::Malformed, message),
-        Error::InvalidArgument(_) => CliError::argument(message),
+        Error::InvalidArgument(_) | Error::Request(_) => CliError::argument(message),
         // `smartgrasp::Error` is non-exhaustive: a kind added later still gets its message through.
         _ => CliError::new(Kind::Connection, message),
     }
@@ -386,36 +497,70 @@ fn grasp_report(g: &Grasp) -> Result<(String, Value), CliError> {
     let si = g.pose.to_si().map_err(|e| classify(e.into()))?;
     let [x, y, z] = metres(g.pose.position_um());
     let [qx, qy, qz, qw] = si.orientation.xyzw();
-    let [cx, cy, cz] = g.center_offset_um.map(|um| f64::from(um) / 1000.0);
+    let mm = |um: i32| f64::from(um) / 1000.0;
+    let [cx, cy] = g.center_offset_um.map(mm);
+    let mut centre = vec![cx, cy];
+    centre.extend(g.center_offset_z_um.map(mm));
+    let centre = centre
+        .iter()
+        .map(|v| format!("{v:.3}"))
+        .collect::<Vec<_>>()
+        .join(", ");
+    // What only one version delivers (V3: tool echo and angle offset; V4: reference frame and
+    // object offset), on a line of its own.
+    let mut extra = Vec::new();
+    if let Some(tool) = g.tool {
+        extra.push(format!("tool {}", split_name(&tool.to_string()).0));
+    }
+    if let Some(udeg) = g.angle_offset_udeg {
+        extra.push(format!("angle offset {:.4}°", f64::from(udeg) * 1e-6));
+    }
+    if let Some(frame) = g.reference_frame {
+        extra.push(format!("reference frame {}", frame.0));
+    }
+    if let Some(o) = g.object_offset {
+        extra.push(format!(
+            "object offset [{:.3}, {:.3}] mm, rz {:.4}°",
+            mm(o.x_um),
+            mm(o.y_um),
+            f64::from(o.rz_udeg) * 1e-6
+        ));
+    }
     let human = format!(
-        "grasp: class {} instance {}, {}, tool {}\n\
+        "grasp: class {} instance {}, {}\n\
          pose (m): x {x:.6}, y {y:.6}, z {z:.6}, q [{qx:.6}, {qy:.6}, {qz:.6}, {qw:.6}]\n\
          pose ({}): {}\n\
-         stroke {:.3} mm, angle offset {:.4}°, centre offset [{cx:.3}, {cy:.3}, {cz:.3}] mm\n\
+         stroke {:.3} mm, centre offset [{centre}] mm\n\
+         {}\n\
          {} objects in the scene, {} candidates",
         g.object_class,
         g.object_instance,
         g.grasp_mode,
-        split_name(&g.tool.to_string()).0,
         g.pose.format(),
         g.pose,
         f64::from(g.stroke_um) / 1000.0,
-        f64::from(g.angle_offset_udeg) * 1e-6,
+        extra.join(", "),
         g.object_count,
         g.candidate_count,
     );
+    let mut centre_um: Vec<i32> = g.center_offset_um.to_vec();
+    centre_um.extend(g.center_offset_z_um);
     let json = json!({
         "outcome": "GRASP",
         "grasp_mode": named(u8::from(g.grasp_mode), g.grasp_mode),
         "object_class": g.object_class,
         "object_instance": g.object_instance,
-        "tool": named(u8::from(g.tool), g.tool),
+        "tool": g.tool.map(|t| named(u8::from(t), t)),
         "stroke_m": f64::from(g.stroke_um) / 1e6,
         "stroke_um": g.stroke_um,
         "angle_offset_rad": g.angle_offset_rad(),
         "angle_offset_udeg": g.angle_offset_udeg,
-        "center_offset_m": metres(g.center_offset_um),
-        "center_offset_um": g.center_offset_um,
+        "center_offset_m": centre_um.iter().map(|&v| f64::from(v) / 1e6).collect::<Vec<_>>(),
+        "center_offset_um": centre_um,
+        "reference_frame": g.reference_frame.map(|f| f.0),
+        "object_offset": g.object_offset.map(|o| json!({
+            "x_um": o.x_um, "y_um": o.y_um, "rz_udeg": o.rz_udeg,
+        })),
         "pose": pose_json(&g.pose)?,
         "object_count": g.object_count,
         "candidate_count": g.candidate_count,

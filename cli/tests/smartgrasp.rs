@@ -8,6 +8,14 @@ use common::{gripctl, refused_addr, Simulator};
 use gripper::smartgrasp::sim::{Fault, SimConfig, SimServer};
 use gripper::smartgrasp::{Pose, PoseFormat, RobotSystem, ServerState};
 
+/// A V3-only server (the default speaks V4 too).
+fn v3_sim() -> SimConfig {
+    SimConfig {
+        max_version: 3,
+        ..SimConfig::default()
+    }
+}
+
 async fn server(config: SimConfig) -> (SimServer, String) {
     let server = SimServer::bind("127.0.0.1:0", config).await.expect("bind");
     let addr = server.local_addr().to_string();
@@ -34,13 +42,19 @@ async fn version_and_state_as_text_and_json() {
     let version = sg(&addr, &["version"]).await;
     assert_eq!(
         version.ok().trim(),
-        "protocol version 3 (this client speaks 3)"
+        "protocol version 4 (this client speaks 3 and 4)"
+    );
+    let (_v3, v3_addr) = server(v3_sim()).await;
+    let version = sg(&v3_addr, &["version"]).await;
+    assert_eq!(
+        version.ok().trim(),
+        "protocol version 3 (this client speaks 3 and 4)"
     );
     let state = sg(&addr, &["state"]).await;
     assert!(state.ok().starts_with("OPERATIONAL"), "{state:?}");
 
     let version = sg(&addr, &["version", "--json"]).await.json();
-    assert_eq!(version["protocol_version"], 3);
+    assert_eq!(version["protocol_version"], 4);
     let state = sg(&addr, &["state", "--json"]).await.json();
     assert_eq!(state["state"]["name"], "OPERATIONAL");
     assert_eq!(state["state"]["code"], 2);
@@ -78,14 +92,23 @@ async fn grasp_prints_metres_and_the_robots_format() {
     assert!(text.contains("stroke 86.000 mm"), "{text}");
     assert_eq!(server.registered_clients(), [RobotSystem::Kuka]);
 
-    let json = sg(&addr, &["grasp", "--format", "wpr", "--json"])
-        .await
-        .json();
+    // V3 echoes the tool and has no object offset.
+    let json = sg(
+        &addr,
+        &["--protocol", "3", "grasp", "--format", "wpr", "--json"],
+    )
+    .await
+    .json();
     assert_eq!(json["outcome"], "GRASP");
     assert_eq!(json["object_class"], 1);
     assert_eq!(json["stroke_um"], 86_000);
     assert_eq!(json["stroke_m"], 0.086);
     assert_eq!(json["tool"]["name"], "EXTERIOR");
+    assert_eq!(
+        json["center_offset_um"],
+        serde_json::json!([-911, -310, 68])
+    );
+    assert!(json["object_offset"].is_null());
     let pose = &json["pose"];
     assert_eq!(pose["format"], "WPR");
     assert_eq!(pose["position_m"], serde_json::json!([0.45, -0.12, 0.05]));
@@ -261,15 +284,69 @@ async fn connection_refused_is_one_line() {
 }
 
 #[tokio::test]
+async fn v4_when_offered_with_tool_workspace_and_selection() {
+    let (sim, addr) = server(SimConfig::default()).await;
+    let json = sg(
+        &addr,
+        &[
+            "grasp",
+            "--tool",
+            "3",
+            "--workspace",
+            "1",
+            "--selection",
+            "2",
+            "--class",
+            "2",
+            "--json",
+        ],
+    )
+    .await
+    .json();
+    assert_eq!(json["outcome"], "GRASP");
+    // Tool 3 is the simulator's contact tool: class 2's model-free grasp.
+    assert_eq!(json["grasp_mode"]["name"], "AUTO_GRASP");
+    assert!(json["tool"].is_null(), "V4 echoes no tool: {json}");
+    assert_eq!(json["center_offset_um"], serde_json::json!([-911, -310]));
+    assert_eq!(json["object_offset"]["x_um"], 1_250);
+    assert_eq!(json["reference_frame"], 0);
+    assert_eq!(
+        sim.with_state(|s| (s.active_tool(), s.active_workspace())),
+        (Some(3), Some(1))
+    );
+    let text = sg(&addr, &["tool", "1"]).await;
+    assert_eq!(text.ok().trim(), "tool 1 active");
+    assert_eq!(sim.with_state(|s| s.active_tool()), Some(1));
+    sg(&addr, &["workspace", "9", "--json"])
+        .await
+        .failed_with("device", "SET_WORKSPACE");
+    // A V3 tool name to a V4 server, and V4 messages to a V3 server, are refused.
+    sg(&addr, &["grasp", "--tool", "contact", "--json"])
+        .await
+        .failed_with("argument", "chooses the tool by ID");
+    let (_v3, v3_addr) = server(v3_sim()).await;
+    sg(&v3_addr, &["tool", "1", "--json"])
+        .await
+        .failed_with("argument", "SET_TOOL is not a message of protocol v3");
+    // Pinning V4 against a V3-only server: "too old".
+    sg(&v3_addr, &["--protocol", "4", "state", "--json"])
+        .await
+        .failed_with("device", "the server is too old: it speaks protocol v3");
+}
+
+#[tokio::test]
 async fn a_missing_response_times_out() {
     let (server, addr) = server(SimConfig::default()).await;
     server.inject(Fault::DropReply);
+    // Pinned to V3: no GET_PROTOCOL_VERSION probe before GET_STATE.
     let args = [
         "--timeout",
         "200ms",
         "smartgrasp",
         "--addr",
         &addr,
+        "--protocol",
+        "3",
         "state",
         "--json",
     ];

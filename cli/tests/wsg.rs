@@ -344,6 +344,8 @@ async fn sim_child_processes_serve_the_chosen_model_and_part() {
         "--model",
         "wsg32",
         "--no-part",
+        "--time-scale",
+        "0",
     ])
     .await;
     let info = wsg(&sim.addr, &["info", "--json"]).await.json();
@@ -353,7 +355,17 @@ async fn sim_child_processes_serve_the_chosen_model_and_part() {
     let run = wsg(&sim.addr, &["grasp", "20"]).await;
     assert!(run.failed().contains("E_CMD_FAILED"), "{run:?}");
 
-    let udp = Simulator::start(&["wsg", "--listen", "127.0.0.1:0", "--udp", "--part", "25"]).await;
+    let udp = Simulator::start(&[
+        "wsg",
+        "--listen",
+        "127.0.0.1:0",
+        "--udp",
+        "--part",
+        "25",
+        "--time-scale",
+        "0",
+    ])
+    .await;
     let udp_args = ["wsg", "--udp", "--addr", &udp.addr];
     gripctl(&[&udp_args[..], &["home"]].concat()).await.ok();
     let grasp = gripctl(&[&udp_args[..], &["grasp", "25", "--json"]].concat())
@@ -361,4 +373,111 @@ async fn sim_child_processes_serve_the_chosen_model_and_part() {
         .json();
     assert_eq!(grasp["grip_state"]["name"], "HOLDING");
     assert_eq!(grasp["width_mm"], 25.0);
+}
+
+/// One status-only reply (10 bytes: preamble, id, length 2, status, checksum) read raw.
+async fn raw_status(stream: &mut tokio::net::TcpStream) -> (u8, Status) {
+    use tokio::io::AsyncReadExt;
+    let mut got = [0u8; 10];
+    tokio::time::timeout(common::PATIENCE, stream.read_exact(&mut got))
+        .await
+        .expect("a reply in time")
+        .expect("readable");
+    decode_status(&got)
+}
+
+fn decode_status(bytes: &[u8]) -> (u8, Status) {
+    let mut buf = bytes::BytesMut::from(bytes);
+    match gripper::wsg::frame::decode_eof(&mut buf, 64) {
+        Some(gripper::wsg::frame::Decoded::Frame(f)) => {
+            let reply = gripper::wsg::Reply::from_frame(f).expect("a reply");
+            (reply.id, reply.status)
+        }
+        other => panic!("not a reply frame: {other:?}"),
+    }
+}
+
+fn encoded(cmd: gripper::wsg::Command) -> Vec<u8> {
+    let mut b = bytes::BytesMut::new();
+    gripper::wsg::frame::encode(&cmd.to_frame(), &mut b).expect("encodable");
+    b.to_vec()
+}
+
+/// `gripctl sim wsg` with no options but a free port runs in real time (like the
+/// `wsg_simulator` example, both serve `SimConfig::standalone()`): the homing is still running
+/// when a second one comes (E_ALREADY_RUNNING), and a stop ends it with E_CMD_ABORTED.
+#[tokio::test]
+async fn sim_wsg_runs_in_real_time_by_default() {
+    use gripper::wsg::{Command, HomingDirection};
+    use tokio::io::AsyncWriteExt;
+    let sim = Simulator::start(&["wsg", "--listen", "127.0.0.1:0"]).await;
+    let mut raw = tokio::net::TcpStream::connect(&sim.addr)
+        .await
+        .expect("connect");
+    let homing = encoded(Command::Homing(HomingDirection::Default));
+    raw.write_all(&homing).await.expect("write");
+    assert_eq!(raw_status(&mut raw).await, (0x20, Status::CmdPending));
+    raw.write_all(&homing).await.expect("write");
+    assert_eq!(raw_status(&mut raw).await, (0x20, Status::AlreadyRunning));
+    raw.write_all(&encoded(Command::Stop)).await.expect("write");
+    assert_eq!(raw_status(&mut raw).await, (0x20, Status::CmdAborted));
+    assert_eq!(raw_status(&mut raw).await, (0x22, Status::Success));
+    raw.write_all(&encoded(Command::AnnounceDisconnect))
+        .await
+        .expect("write");
+    assert_eq!(raw_status(&mut raw).await, (0x07, Status::Success));
+}
+
+/// `gripctl sim wsg --udp --udp-remote-port P`: a client that sends from one socket and
+/// listens on port P (as drivers of the real device do) receives every reply there.
+#[tokio::test]
+async fn sim_wsg_udp_remote_port_sends_every_reply_to_that_port() {
+    use gripper::wsg::{Command, HomingDirection};
+    let listener = tokio::net::UdpSocket::bind("127.0.0.1:0")
+        .await
+        .expect("bind");
+    let port = listener.local_addr().expect("address").port().to_string();
+    let sim = Simulator::start(&[
+        "wsg",
+        "--listen",
+        "127.0.0.1:0",
+        "--udp",
+        "--udp-remote-port",
+        &port,
+        "--time-scale",
+        "0",
+    ])
+    .await;
+    let sender = tokio::net::UdpSocket::bind("127.0.0.1:0")
+        .await
+        .expect("bind");
+    let mut buf = [0u8; 64];
+    let mut recv = async || {
+        let (n, _) = tokio::time::timeout(common::PATIENCE, listener.recv_from(&mut buf))
+            .await
+            .expect("the reply reaches the remote port")
+            .expect("readable");
+        decode_status(&buf[..n])
+    };
+    for _ in 0..20 {
+        sender
+            .send_to(&encoded(Command::Stop), &sim.addr)
+            .await
+            .expect("send");
+        assert_eq!(recv().await, (0x22, Status::Success));
+    }
+    sender
+        .send_to(
+            &encoded(Command::Homing(HomingDirection::Default)),
+            &sim.addr,
+        )
+        .await
+        .expect("send");
+    assert_eq!(recv().await, (0x20, Status::CmdPending));
+    assert_eq!(recv().await, (0x20, Status::Success));
+    let mut none = [0u8; 64];
+    assert!(
+        sender.try_recv_from(&mut none).is_err(),
+        "nothing goes back to the sending port"
+    );
 }

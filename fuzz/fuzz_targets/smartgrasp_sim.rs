@@ -1,7 +1,8 @@
 //! The SmartGrasp simulator's request parser and state machine fed arbitrary bytes.
 //!
-//! Input: `[config, stream..]`. The first byte picks the simulator's configuration (protocol
-//! version 2 or 3, server state, first response counter, an injected fault every so often); the
+//! Input: `[config, stream..]`. The first byte picks the simulator's configuration (highest
+//! protocol version 2, 3 or 4, server state, first response counter, an injected fault every so
+//! often); the
 //! stream is parsed with `parse_request` frame after frame, exactly as the server's connection
 //! loop does, and every frame goes through one `SimState::handle` (the state persists across the
 //! frames of one input, so the fuzzer can build sequences: SET_PROJECT, GET_GRASP, GRASP_FEEDBACK).
@@ -10,8 +11,9 @@
 //! - `parse_request` agrees with the server codec, consumes exactly 80 bytes per frame and fails
 //!   only on a prefix length other than 74;
 //! - a response has the request's message type and version, is a response, carries the next
-//!   response counter (+1 per answered request, wrapping), and is something the client can read
-//!   (`Response::from_frame`, the pose of a grasp convertible to SI units);
+//!   response counter (+1 per answered request, wrapping), is in the layout of the request's
+//!   version (V4 for 4), and is something the client can read (`Response::from_any_frame`, the
+//!   pose of a grasp convertible to SI units);
 //! - the "too old" answer only when the request's version is above the server's.
 #![no_main]
 
@@ -20,7 +22,7 @@ use std::time::Duration;
 
 use bytes::BytesMut;
 use gripper::smartgrasp::codec::ServerCodec;
-use gripper::smartgrasp::frame::{Prefix, FRAME_LEN, PREFIX_LEN};
+use gripper::smartgrasp::frame::{AnyRequestFrame, AnyResponseFrame, Prefix, FRAME_LEN, PREFIX_LEN};
 use gripper::smartgrasp::sim::{parse_request, Action, Fault, SimConfig, SimState};
 use gripper::smartgrasp::{CommunicationType, Response, ResponseBody, ServerState};
 use gripper_fuzz as _; // the bounded allocator
@@ -31,17 +33,20 @@ fuzz_target!(|data: &[u8]| {
     let Some((&config, mut rest)) = data.split_first() else {
         return;
     };
-    let protocol_version = if config & 0x01 != 0 { 2 } else { 3 };
-    let server_state = match (config >> 1) & 0x03 {
-        0 | 1 => ServerState::Operational,
-        2 => ServerState::Init,
-        _ => ServerState::Unknown(config),
+    let protocol_version = match config & 0x03 {
+        0 => 2,
+        1 => 3,
+        _ => 4,
+    };
+    let server_state = match (config >> 2) & 0x01 {
+        0 => ServerState::Operational,
+        _ => ServerState::Init,
     };
     let first_response_counter = if config & 0x08 != 0 { 254 } else { 0 };
     // Bits 4..8: inject a fault before every n-th frame (0: never).
     let fault_every = usize::from(config >> 4);
     let mut state = SimState::new(SimConfig {
-        protocol_version,
+        max_version: protocol_version,
         server_state,
         first_response_counter,
         ..SimConfig::default()
@@ -89,7 +94,7 @@ fuzz_target!(|data: &[u8]| {
             queued.push_back(fault);
         }
         let action = state.handle(&mut conn, &frame);
-        if frame.version > protocol_version {
+        if frame.version() > protocol_version {
             assert_eq!(
                 action,
                 Action::RespondEmpty(Prefix {
@@ -115,14 +120,16 @@ fuzz_target!(|data: &[u8]| {
             }
             (fault, action) => panic!("fault {fault:?} queued, action {action:?}"),
         };
+        let header = response.header();
+        assert_eq!(header.communication_type, CommunicationType::Response);
+        assert_eq!(header.message_type, frame.header().message_type);
+        assert_eq!(header.response_counter, counter);
+        assert_eq!(response.version(), frame.version());
         assert_eq!(
-            response.header.communication_type,
-            CommunicationType::Response
+            matches!(response, AnyResponseFrame::V4(_)),
+            matches!(frame, AnyRequestFrame::V4(_))
         );
-        assert_eq!(response.header.message_type, frame.header.message_type);
-        assert_eq!(response.header.response_counter, counter);
-        assert_eq!(response.version, frame.version);
-        let typed = Response::from_frame(&response)
+        let typed = Response::from_any_frame(&response)
             .unwrap_or_else(|e| panic!("the client cannot read {response:?}: {e}"));
         if let ResponseBody::Grasp(grasp) = typed.body {
             grasp

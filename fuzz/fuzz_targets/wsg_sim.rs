@@ -157,7 +157,7 @@ fuzz_target!(|data: &[u8]| {
             }
         }
         settle(&mut device, &mut now, instant, sessions);
-        for out in device.updates_due(now) {
+        for out in device.updates_due(now, |_| false) {
             check_out(&out, sessions);
             assert!(
                 !closed.contains(&out.session),

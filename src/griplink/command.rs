@@ -361,8 +361,19 @@ fn check_string(what: &'static str, text: &str) -> Result<()> {
     check_text(text, MAX_TEXT_LEN).map_err(|e| Error::invalid(what, e.to_string()))
 }
 
+/// Longest plain decimal a float argument of a typed command can take: a sign, `0.`, 37 zeros
+/// and 17 significant digits just above `f32::MIN_POSITIVE`; 39 digits at `f32::MAX`. Smaller
+/// (but not 0) and larger magnitudes are refused before formatting ([`Command::encode`]). Eight
+/// floats (GRIPCFGF) and a 32-character tag stay far below the 1024-byte line bound.
+pub const MAX_FLOAT_ARG_LEN: usize = 57;
+
 /// Formats a float argument: finite and within the controller's 32-bit float range (manual
 /// 2.1.1), as a plain decimal.
+///
+/// Checked before formatting: a plain decimal has no exponent, so a tiny magnitude such as
+/// `1e-300` would need hundreds of digits (over the line bound with a few of them) for a value
+/// the controller's 32-bit float cannot hold anyway. Magnitudes below `f32::MIN_POSITIVE`
+/// (about 1.2e-38) other than 0 are refused, as those above `f32::MAX` are.
 pub(crate) fn float_arg(what: &'static str, value: f64) -> Result<String> {
     if !value.is_finite() {
         return Err(Error::invalid(
@@ -373,7 +384,17 @@ pub(crate) fn float_arg(what: &'static str, value: f64) -> Result<String> {
     if value.abs() > f64::from(f32::MAX) {
         return Err(Error::invalid(
             what,
-            format!("{value} does not fit the controller's 32-bit float"),
+            format!("{value:e} does not fit the controller's 32-bit float"),
+        ));
+    }
+    if value != 0.0 && value.abs() < f64::from(f32::MIN_POSITIVE) {
+        let digits = -value.abs().log10().floor();
+        return Err(Error::invalid(
+            what,
+            format!(
+                "{value:e} is too close to 0 for the controller's 32-bit float; as a plain \
+                 decimal (no exponent, manual 2.1.1) it would need over {digits} digits: send 0"
+            ),
         ));
     }
     format_float(value).ok_or_else(|| Error::invalid(what, "not a finite number"))
@@ -447,7 +468,9 @@ impl Command {
     }
 
     /// The command as one line, upper case, **without** the terminating LF (the codec adds it).
-    /// Refuses invalid arguments before anything is sent.
+    /// Refuses invalid arguments before anything is sent: among them floats that are not
+    /// finite or whose magnitude the controller's 32-bit float cannot hold (above `f32::MAX`,
+    /// or below `f32::MIN_POSITIVE` but not 0: hundreds of digits as a plain decimal).
     pub fn encode(&self) -> Result<String> {
         use Command::*;
         if let Some(port) = self.port() {
@@ -729,10 +752,18 @@ fn blocking_duty(blocking: Blocking) -> Duty {
 }
 
 /// Checks a raw command line for [`Client::command`](super::Client::command): printable ASCII
-/// only, no control characters (so no LF: one line is one command), not empty.
+/// only, no control characters (so no LF: one line is one command), not empty and not only
+/// spaces (the controller trims a command, manual 2.1: a blank line would be no command, get
+/// no reply, and the call would wait for one that never comes).
 pub(crate) fn check_raw_line(line: &str) -> Result<()> {
     if line.is_empty() {
         return Err(Error::invalid("command line", "empty"));
+    }
+    if line.bytes().all(|b| b == b' ') {
+        return Err(Error::invalid(
+            "command line",
+            "only spaces: the controller trims it to nothing and never answers",
+        ));
     }
     if let Some((at, ch)) = line
         .chars()
@@ -904,5 +935,21 @@ mod tests {
         assert!(check_raw_line("ID?\nBYE()").is_err());
         assert!(check_raw_line("ID?\r").is_err());
         assert!(check_raw_line("").is_err());
+        assert!(check_raw_line("   ").is_err());
+        assert!(check_raw_line(" ID? ").is_ok());
+        // Tiny magnitudes are refused before formatting; the extremes accepted stay short.
+        assert!(float_arg("value", 1e-300).is_err());
+        assert!(float_arg("value", -1e-39).is_err());
+        assert_eq!(float_arg("value", 0.0).unwrap(), "0");
+        let smallest = -f64::from(f32::MIN_POSITIVE) * 1.000_000_000_000_1;
+        let largest = -f64::from(f32::MAX);
+        for v in [smallest, largest] {
+            let text = float_arg("value", v).unwrap();
+            assert!(
+                text.len() <= MAX_FLOAT_ARG_LEN,
+                "{text} ({} chars)",
+                text.len()
+            );
+        }
     }
 }

@@ -24,7 +24,8 @@
 //!   up to its LF without being buffered and fails its call with [`Error::MalformedReply`].
 //! - **Command lines**: at most `max_line_len` bytes; a longer one (possible only through
 //!   [`Client::command`]) is refused with [`Error::InvalidArgument`] before anything is sent.
-//!   Typed commands are far shorter (strings are limited to 32 characters).
+//!   Typed commands are far shorter (strings are limited to 32 characters, float arguments to
+//!   [`command::MAX_FLOAT_ARG_LEN`] characters).
 //! - **Commands on the wire** ([`ClientConfig::pipeline_depth`], default 1): each holds its line
 //!   and its caller's reply channel; a resynchronisation probe takes one of these places.
 //! - **Queued calls** ([`ClientConfig::queue_len`], default 64): a bounded channel to the

@@ -63,7 +63,7 @@ const MAX_INDICES: usize = 2;
 
 /// Parses one reply line (without its LF).
 pub fn parse_reply(line: &str) -> std::result::Result<Reply, SyntaxError> {
-    let mut c = Cursor::new(line);
+    let mut c = Cursor::received(line);
     let key = c.name()?;
     if key == "ACK" {
         c.skip_spaces();

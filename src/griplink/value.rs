@@ -173,13 +173,29 @@ impl fmt::Display for SyntaxError {
 pub(crate) struct Cursor<'a> {
     bytes: &'a [u8],
     pos: usize,
+    /// A line the controller sent: strings hold any printable character up to the closing
+    /// quote (see [`Cursor::received`]).
+    received: bool,
 }
 
 impl<'a> Cursor<'a> {
+    /// A cursor over a line this side checks strictly (a command).
     pub(crate) fn new(line: &'a str) -> Self {
         Cursor {
             bytes: line.as_bytes(),
             pos: 0,
+            received: false,
+        }
+    }
+
+    /// A cursor over a reply line. Strings in replies may carry `'` and `\`: DEVNAME,
+    /// DEVVENDOR and DEVSN come from third-party IO-Link devices, which do not follow the rules
+    /// of manual 2.1.1 for what a client sends. So a received string is any printable ASCII up
+    /// to its closing quote (PROTOCOLS.md, errata for seed 004).
+    pub(crate) fn received(line: &'a str) -> Self {
+        Cursor {
+            received: true,
+            ..Cursor::new(line)
         }
     }
 
@@ -323,7 +339,8 @@ impl<'a> Cursor<'a> {
         }
     }
 
-    /// A quoted string (`"…"` or `'…'`), whose content obeys the manual's character rules.
+    /// A quoted string (`"…"` or `'…'`). In a command its content obeys the manual's character
+    /// rules (2.1.1); in a reply it is any printable ASCII but the quote that opened it.
     pub(crate) fn string(&mut self) -> Result<String, SyntaxError> {
         let quote = match self.peek() {
             Some(q @ (b'"' | b'\'')) => q,
@@ -335,6 +352,8 @@ impl<'a> Cursor<'a> {
             match self.peek() {
                 Some(b) if b == quote => break,
                 Some(b) if is_text_byte(b) => self.pos += 1,
+                Some(b) if self.received && (0x20..=0x7E).contains(&b) => self.pos += 1,
+                Some(_) if self.received => return self.fail("a printable ASCII character"),
                 Some(_) => return self.fail("a printable character other than ' \" \\"),
                 None => return self.fail("a closing quote"),
             }
@@ -414,6 +433,11 @@ mod tests {
         assert!(value("\"a'b\"").is_err());
         assert!(value("\"a\\b\"").is_err());
         assert!(value("\"open").is_err());
+        // A reply's strings may hold ' and \ (device names from IO-Link devices).
+        let mut c = Cursor::received("\"O'Brien \\ Co.\"");
+        assert_eq!(c.value(), Ok(Value::Str("O'Brien \\ Co.".into())));
+        assert!(c.at_end());
+        assert!(Cursor::received("\"tab\there\"").value().is_err());
         assert_eq!(
             value("[\"tube\",3500, -1 ,2.5]"),
             Ok(Value::List(vec![

@@ -1,8 +1,9 @@
 //! tokio-util codecs: [`ClientCodec`] (requests out, responses in) and [`ServerCodec`] (requests
 //! in, responses out), over the pure [`peek_frame`].
 //!
-//! The prefix is read first (manual 1.3: a client must not assume 80 bytes). Length 74 is a V3
-//! frame; length 0 is the "server too old" empty message; any other length is refused before a
+//! The prefix is read first (manual 1.3: a client must not assume 80 bytes). Length 74 is a frame
+//! (V3, or V4 when the prefix says 4: both are 80 bytes, PROTOCOLS.md 2b); length 0 is the
+//! "server too old" empty message; any other length is refused before a
 //! byte of it is buffered: the field is a u32, and a hostile 4 GB length must not allocate 4 GB.
 //! Frames carry no start marker, so after a bad length the stream cannot be resynchronised: the
 //! decoder returns `Err`, which ends the stream, and the connection is reported broken.
@@ -12,7 +13,7 @@ use tokio_util::codec::{Decoder, Encoder};
 
 use super::error::{Error, Malformed};
 use super::frame::{
-    Prefix, RequestFrame, ResponseFrame, FRAME_LEN, PREFIX_LEN, PROTOCOL_VERSION, V3_LENGTH,
+    AnyRequestFrame, AnyResponseFrame, Prefix, FRAME_LEN, PREFIX_LEN, PROTOCOL_VERSION, V3_LENGTH,
 };
 
 /// What the bytes at the front of a buffer hold.
@@ -23,7 +24,7 @@ pub enum Peeked {
         /// Bytes still missing.
         needed: usize,
     },
-    /// A complete V3 frame (the first 80 bytes).
+    /// A complete frame, V3 or V4 (the first 80 bytes).
     Frame([u8; FRAME_LEN]),
     /// An empty message: a prefix with length 0 (the first 6 bytes). From a server, it means
     /// "too old" and `version` is its highest version (manual 1.3).
@@ -103,34 +104,53 @@ fn take(src: &mut BytesMut) -> Result<Option<Taken>, Malformed> {
     }
 }
 
-/// The client side: encodes [`RequestFrame`]s, decodes [`ResponseFrame`]s.
+/// The client side: encodes request frames, decodes [`AnyResponseFrame`]s (the layout the
+/// prefix's version says).
 ///
-/// Decoder errors: [`Error::ServerTooOld`] for an empty message, [`Malformed::FrameLength`] for
-/// any length but 74 and 0. Both end the stream.
-#[derive(Debug, Clone, Copy, Default)]
-pub struct ClientCodec;
+/// Decoder errors: [`Error::ServerTooOld`] for an empty message from a server older than
+/// [`version`](Self::version), [`Malformed::FrameLength`] for any other empty message and any
+/// length but 74 and 0. Both end the stream.
+#[derive(Debug, Clone, Copy)]
+pub struct ClientCodec {
+    /// The protocol version the client sends: an empty message with a lower version says the
+    /// server is older (manual 1.3).
+    pub version: u16,
+}
+
+impl ClientCodec {
+    /// A codec for a client sending protocol `version`.
+    pub fn new(version: u16) -> ClientCodec {
+        ClientCodec { version }
+    }
+}
+
+impl Default for ClientCodec {
+    /// A V3 client's codec (every server since V3 answers V3 in full).
+    fn default() -> Self {
+        ClientCodec::new(PROTOCOL_VERSION)
+    }
+}
 
 impl Decoder for ClientCodec {
-    type Item = ResponseFrame;
+    type Item = AnyResponseFrame;
     type Error = Error;
 
-    fn decode(&mut self, src: &mut BytesMut) -> Result<Option<ResponseFrame>, Error> {
+    fn decode(&mut self, src: &mut BytesMut) -> Result<Option<AnyResponseFrame>, Error> {
         match take(src)? {
             None => Ok(None),
-            Some(Taken::Frame(bytes)) => Ok(Some(ResponseFrame::decode(&bytes))),
+            Some(Taken::Frame(bytes)) => Ok(Some(AnyResponseFrame::decode(&bytes))),
             // Only a server older than this client answers with an empty message (manual 1.3);
-            // one that claims v3 or newer is a damaged frame, not a version answer.
-            Some(Taken::Empty { version }) if version < PROTOCOL_VERSION => {
-                Err(Error::ServerTooOld {
-                    server_version: version,
-                    client_version: PROTOCOL_VERSION,
-                })
-            }
+            // one that claims this client's version or newer is a damaged frame, not a version
+            // answer.
+            Some(Taken::Empty { version }) if version < self.version => Err(Error::ServerTooOld {
+                server_version: version,
+                client_version: self.version,
+            }),
             Some(Taken::Empty { .. }) => Err(Malformed::FrameLength { length: 0 }.into()),
         }
     }
 
-    fn decode_eof(&mut self, src: &mut BytesMut) -> Result<Option<ResponseFrame>, Error> {
+    fn decode_eof(&mut self, src: &mut BytesMut) -> Result<Option<AnyResponseFrame>, Error> {
         match self.decode(src)? {
             Some(frame) => Ok(Some(frame)),
             None if src.is_empty() => Ok(None),
@@ -146,45 +166,47 @@ impl Decoder for ClientCodec {
     }
 }
 
-impl Encoder<RequestFrame> for ClientCodec {
+impl<F: Into<AnyRequestFrame>> Encoder<F> for ClientCodec {
     type Error = Error;
 
-    fn encode(&mut self, item: RequestFrame, dst: &mut BytesMut) -> Result<(), Error> {
-        dst.extend_from_slice(&item.encode());
+    fn encode(&mut self, item: F, dst: &mut BytesMut) -> Result<(), Error> {
+        dst.extend_from_slice(&item.into().encode());
         Ok(())
     }
 }
 
-/// The server side: decodes [`RequestFrame`]s of any version whose length is 74, encodes
-/// [`ResponseFrame`]s and bare [`Prefix`]es (the "too old" empty message).
+/// The server side: decodes [`AnyRequestFrame`]s of any version whose length is 74, encodes
+/// response frames and bare [`Prefix`]es (the "too old" empty message).
 ///
-/// Any other length is an `Err` ([`Malformed::FrameLength`]) that ends the stream.
+/// Any other length is an `Err` ([`Malformed::FrameLength`]) that ends the stream; the prefix is
+/// still in the read buffer, so a server can answer a newer client "too old" first (manual 1.3).
 #[derive(Debug, Clone, Copy, Default)]
 pub struct ServerCodec;
 
 impl Decoder for ServerCodec {
-    type Item = RequestFrame;
+    type Item = AnyRequestFrame;
     type Error = Error;
 
-    fn decode(&mut self, src: &mut BytesMut) -> Result<Option<RequestFrame>, Error> {
+    fn decode(&mut self, src: &mut BytesMut) -> Result<Option<AnyRequestFrame>, Error> {
         match take(src)? {
             None => Ok(None),
-            Some(Taken::Frame(bytes)) => Ok(Some(RequestFrame::decode(&bytes))),
+            Some(Taken::Frame(bytes)) => Ok(Some(AnyRequestFrame::decode(&bytes))),
             // A request with no body has no meaning in any version.
             Some(Taken::Empty { .. }) => Err(Malformed::FrameLength { length: 0 }.into()),
         }
     }
 }
 
-impl Encoder<ResponseFrame> for ServerCodec {
+impl<F: Into<AnyResponseFrame>> Encoder<F> for ServerCodec {
     type Error = Error;
 
-    fn encode(&mut self, item: ResponseFrame, dst: &mut BytesMut) -> Result<(), Error> {
-        dst.extend_from_slice(&item.encode());
+    fn encode(&mut self, item: F, dst: &mut BytesMut) -> Result<(), Error> {
+        dst.extend_from_slice(&item.into().encode());
         Ok(())
     }
 }
 
+/// The "too old" empty message.
 impl Encoder<Prefix> for ServerCodec {
     type Error = Error;
 
@@ -197,25 +219,29 @@ impl Encoder<Prefix> for ServerCodec {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::smartgrasp::frame::ResponseFrame;
     use crate::smartgrasp::types::{MessageType, ResponseCode};
     use proptest::prelude::*;
 
-    fn response(counter: u8) -> ResponseFrame {
+    fn response(counter: u8) -> AnyResponseFrame {
         let mut f = ResponseFrame::new(MessageType::GetState, ResponseCode::Success, counter);
         f.server_state = crate::smartgrasp::ServerState::Operational;
-        f
+        f.into()
     }
 
     #[test]
     fn partial_frames_wait_and_reserve_at_most_one_frame() {
         let bytes = response(1).encode();
         let mut buf = BytesMut::from(&bytes[..3]);
-        assert!(ClientCodec.decode(&mut buf).unwrap().is_none());
+        assert!(ClientCodec::default().decode(&mut buf).unwrap().is_none());
         buf.extend_from_slice(&bytes[3..50]);
-        assert!(ClientCodec.decode(&mut buf).unwrap().is_none());
+        assert!(ClientCodec::default().decode(&mut buf).unwrap().is_none());
         assert!(buf.capacity() < 4096);
         buf.extend_from_slice(&bytes[50..]);
-        assert_eq!(ClientCodec.decode(&mut buf).unwrap(), Some(response(1)));
+        assert_eq!(
+            ClientCodec::default().decode(&mut buf).unwrap(),
+            Some(response(1))
+        );
         assert!(buf.is_empty());
     }
 
@@ -228,7 +254,7 @@ mod tests {
             }
             .encode()[..],
         );
-        let err = ClientCodec.decode(&mut buf).unwrap_err();
+        let err = ClientCodec::default().decode(&mut buf).unwrap_err();
         assert!(matches!(
             err,
             Error::ServerTooOld {
@@ -268,7 +294,7 @@ mod tests {
             .encode()[..],
         );
         assert!(matches!(
-            ClientCodec.decode(&mut buf),
+            ClientCodec::default().decode(&mut buf),
             Err(Error::MalformedReply(Malformed::FrameLength { length: 0 }))
         ));
     }
@@ -278,12 +304,15 @@ mod tests {
         let bytes = response(1).encode();
         let mut buf = BytesMut::from(&bytes[..30]);
         assert!(matches!(
-            ClientCodec.decode_eof(&mut buf),
+            ClientCodec::default().decode_eof(&mut buf),
             Err(Error::ConnectionLost { reason }) if reason.contains("30 bytes")
         ));
         let mut buf = BytesMut::from(&bytes[..]);
-        assert_eq!(ClientCodec.decode_eof(&mut buf).unwrap(), Some(response(1)));
-        assert_eq!(ClientCodec.decode_eof(&mut buf).unwrap(), None);
+        assert_eq!(
+            ClientCodec::default().decode_eof(&mut buf).unwrap(),
+            Some(response(1))
+        );
+        assert_eq!(ClientCodec::default().decode_eof(&mut buf).unwrap(), None);
     }
 
     #[test]
@@ -295,7 +324,7 @@ mod tests {
             }
             .encode()[..],
         );
-        let err = ClientCodec.decode(&mut buf).unwrap_err();
+        let err = ClientCodec::default().decode(&mut buf).unwrap_err();
         assert!(matches!(
             err,
             Error::MalformedReply(Malformed::FrameLength { length: u32::MAX })
@@ -318,7 +347,7 @@ mod tests {
             counters in proptest::collection::vec(any::<u8>(), 1..6),
             cuts in proptest::collection::vec(0usize..480, 0..8),
         ) {
-            let frames: Vec<ResponseFrame> = counters.iter().map(|&c| response(c)).collect();
+            let frames: Vec<AnyResponseFrame> = counters.iter().map(|&c| response(c)).collect();
             let stream: Vec<u8> = frames.iter().flat_map(|f| f.encode()).collect();
             let mut cuts: Vec<usize> = cuts.into_iter().map(|c| c % (stream.len() + 1)).collect();
             cuts.push(stream.len());
@@ -329,7 +358,7 @@ mod tests {
             for cut in cuts {
                 buf.extend_from_slice(&stream[start..cut]);
                 start = cut;
-                while let Some(f) = ClientCodec.decode(&mut buf).unwrap() {
+                while let Some(f) = ClientCodec::default().decode(&mut buf).unwrap() {
                     out.push(f);
                 }
             }
@@ -341,7 +370,7 @@ mod tests {
         #[test]
         fn arbitrary_bytes_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..300)) {
             let mut buf = BytesMut::from(&bytes[..]);
-            while let Ok(Some(_)) = ClientCodec.decode(&mut buf) {}
+            while let Ok(Some(_)) = ClientCodec::default().decode(&mut buf) {}
             let mut buf = BytesMut::from(&bytes[..]);
             while let Ok(Some(_)) = ServerCodec.decode(&mut buf) {}
         }

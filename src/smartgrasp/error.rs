@@ -5,6 +5,7 @@
 use std::sync::Arc;
 use std::time::Duration;
 
+use super::message::RequestError;
 use super::pose::PoseError;
 use super::types::{CommunicationType, MessageType, ResponseCode, ServerState};
 
@@ -33,7 +34,9 @@ pub enum Error {
         status: ResponseCode,
     },
     /// The server speaks an older protocol version: it answered with an empty message (manual
-    /// 1.3), or GET_PROTOCOL_VERSION reported a version below 3. The connection is closed.
+    /// 1.3), or GET_PROTOCOL_VERSION reported a version below 3, or below the version the
+    /// configuration pins ([`ClientConfig::protocol_version`](super::ClientConfig::protocol_version)).
+    /// The connection is closed.
     #[error("the server is too old: it speaks protocol v{server_version}, this client needs v{client_version}")]
     ServerTooOld {
         /// The highest version the server supports.
@@ -47,8 +50,12 @@ pub enum Error {
         /// The state GET_STATE reported.
         state: ServerState,
     },
-    /// The response counter skipped a number: a response was lost (manual 3.2.2.3). The call
-    /// that was waiting for it gets this error instead of someone else's answer.
+    /// A response was lost: the server answered a later request, and the counter skipped
+    /// (manual 3.2.2.3). The call that was waiting for it gets this error instead of someone
+    /// else's answer. By default a counter gap alone is only recorded
+    /// ([`Client::counter_gaps`](super::Client::counter_gaps)); this error needs the response
+    /// to fit a later request and not this one, or
+    /// [`ClientConfig::strict_response_counter`](super::ClientConfig::strict_response_counter).
     #[error(
         "a response was lost: expected response counter {expected}, the server sent {received}"
     )]
@@ -85,6 +92,11 @@ pub enum Error {
     /// clone get this too.
     #[error("the client was closed")]
     Closed,
+    /// The request cannot be sent in the protocol version the connection speaks: a V4-only
+    /// message (SET_TOOL, SET_WORKSPACE) to a V3 server, or a value V4 cannot carry (a
+    /// quaternion pose, a project number over 65535). Nothing was sent.
+    #[error("cannot send: {0}")]
+    Request(#[from] RequestError),
     /// An argument was refused before anything was sent.
     #[error("invalid argument: {0}")]
     InvalidArgument(&'static str),
@@ -112,16 +124,17 @@ impl From<std::io::Error> for Error {
 /// A reply that breaks the protocol's rules.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum Malformed {
-    /// The prefix's length field is neither 74 (a V3 frame) nor 0 (the "too old" answer). The
+    /// The prefix's length field is neither 74 (a V3 or V4 frame) nor 0 (the "too old" answer). The
     /// stream cannot be resynchronised, so the connection is reported broken; the length is not
     /// allocated.
-    #[error("frame length {length} (a V3 frame has 74 bytes after the prefix)")]
+    #[error("frame length {length} (a V3 or V4 frame has 74 bytes after the prefix)")]
     FrameLength {
         /// The length field as received.
         length: u32,
     },
-    /// A V3 frame carried another version in its prefix.
-    #[error("protocol version {version} in a V3 frame")]
+    /// A response carried another version in its prefix than its request (a server answers
+    /// with the version the request used, manual 1.3).
+    #[error("protocol version {version} in the response to a request of another version")]
     Version {
         /// The version as received.
         version: u16,

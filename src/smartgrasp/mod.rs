@@ -1,14 +1,33 @@
-//! SCHUNK 2D Grasping-Kit "Smart Grasping" native protocol V3 (manual seed 002): 80-byte big
-//! endian frames over TCP, port 42001.
+//! SCHUNK 2D Grasping-Kit "Smart Grasping" native protocol, V3 (manual seed 002) and V4: 80-byte
+//! big endian frames over TCP, port 42001.
+//!
+//! # Two protocol versions
+//!
+//! V3 follows SCHUNK's manual. No V4 manual is public: the V4 layout ([`frame::v4`]) is read from
+//! SCHUNK's own KUKA example (repository `SCHUNK-SE-Co-KG/SCHUNK_2DGrasping_Examples`, files
+//! `KUKA-KRC/SCHUNK_GRASPINGKIT.src/.dat`, commit 57ade13 of 2025-06-11), as
+//! `shared/PROTOCOLS.md` section 2b lists it: SET_TOOL (5) and SET_WORKSPACE (6) choose tool and
+//! workspace by the ids configured on the device, GET_GRASP carries a selection criterion instead
+//! of a tool, and its response a reference frame, an object offset and a two-axis centre offset.
+//! What the example does not pin is kept raw ([`SelectionCriterion`], [`ReferenceFrame`], response
+//! bytes 10–13, 68–71, 76–79) and documented as such, never given a meaning. In V4
+//! GRASP_FEEDBACK has no effect, by the example's own comment.
+//!
+//! [`Client::connect`] negotiates: GET_PROTOCOL_VERSION asked as V3 (every server since V3
+//! answers it, manual 1.3 and 3.3.2.1), then the highest version both speak;
+//! [`ClientConfig::protocol_version`] pins 3 or 4. One [`Request`], [`Response`] and [`Grasp`]
+//! serve both versions, so cell code works with either: what only one version carries is an
+//! `Option` in a response, and ignored by the other version in a request.
 //!
 //! Layers, each usable alone:
-//! - [`frame`]: the 6-byte prefix and the 80-byte request/response frames, every field of the
-//!   layout table (pure);
-//! - [`types`], [`message`], [`pose`]: the enumerations, typed requests and responses of the eight
+//! - [`frame`]: the 6-byte prefix and the 80-byte request/response frames of both versions, every
+//!   field of the layout (pure);
+//! - [`types`], [`message`], [`pose`]: the enumerations, typed requests and responses of the ten
 //!   message types, and poses in the four formats with SI conversions (pure);
 //! - [`codec`]: tokio-util codecs that read the prefix first and refuse any length but 74;
 //! - [`Client`]: the async client, a cloneable handle to a task that owns the connection and checks
-//!   every response (type, message type, response counter, response code);
+//!   every response (type, message type, response code, echoed fields; the response counter is
+//!   recorded, and trusted only in [`ClientConfig::strict_response_counter`] mode);
 //! - `sim` (feature `sim`): a simulated server.
 //!
 //! # Faults, cancellation and reconnecting
@@ -20,6 +39,20 @@
 //! With [`ClientConfig::reconnect`] the client reconnects after a lost connection and restores
 //! registration and project; [`Client::connection_events`] reports it. [`Client::close`] ends the
 //! connection for good (no reconnecting), and every later call fails with [`Error::Closed`].
+//!
+//! # Tolerance where the manual is silent
+//!
+//! Where the manual leaves room, the client records what it sees and goes on, rather than drop a
+//! connection a real server may rightly use (each pinned in `tests/smartgrasp_tolerance.rs`):
+//! - the response counter's scope is not specified (3.2.2.3; the examples 6.4 and 6.5 both show
+//!   3): a gap is counted ([`Client::counter_gaps`]) and warned about, the call gets its response;
+//!   [`ClientConfig::strict_response_counter`] trusts the counter instead;
+//! - a GET_OBJECT_COUNT answered as message type 17 (the manual's table, an erratum for 32) is
+//!   read as a count;
+//! - REGISTER_CLIENT is informational (3.3.2.3): its code is reported
+//!   ([`Client::registration`]), not fatal to the connect;
+//! - a server that stays connected but stops answering is given up
+//!   [`ClientConfig::give_up_after`] past a call's timeout, then reconnected to if configured.
 //!
 //! What V3 cannot detect, and so neither can this client: frames carry no checksum and
 //! responses no request id. A corrupted byte that still reads as a valid value (a count, a pose
@@ -40,7 +73,8 @@
 //!   buffer; it refuses any prefix length but 74 (and 0) before buffering a byte of it, so a
 //!   hostile 4 GB length allocates nothing;
 //! - requests in flight: at most 16 sent and unanswered (one 80-byte request and a reply slot
-//!   each), plus the one marker query above; a server that stops answering gets no more;
+//!   each), plus the one marker query above; a server that stops answering gets no more, and
+//!   is given up [`ClientConfig::give_up_after`] past the oldest call's timeout;
 //! - request channel: at most 32 calls queued towards the connection task; further callers wait
 //!   for room, each within its own timeout, and a call given up while queued is never sent;
 //! - connection events: each [`Client::connection_events`] stream buffers at most 32 events; a
@@ -57,7 +91,7 @@
 //! use gripper::smartgrasp::sim::{SimConfig, SimServer};
 //! use gripper::smartgrasp::{
 //!     Client, ClientConfig, GetGraspOutcome, GraspFeedback, GraspMode, GraspRequest, PoseFormat,
-//!     RobotSystem, Tool,
+//!     RobotSystem, SelectionCriterion, Tool,
 //! };
 //!
 //! let server = SimServer::bind("127.0.0.1:0", SimConfig::default()).await?;
@@ -67,10 +101,12 @@
 //!     ..ClientConfig::default()
 //! };
 //! let client = Client::connect(server.local_addr(), config).await?;
+//! assert_eq!(client.protocol_version(), 4); // the simulator speaks V3 and V4
 //! let request = GraspRequest {
 //!     grasp_mode: GraspMode::AutoGrasp,
 //!     object_class: 0,
-//!     tool: Tool::Exterior,
+//!     tool: Tool::Exterior,                          // V3: the tool of this grasp
+//!     selection_criterion: SelectionCriterion(1),    // V4 (the tool is set with SET_TOOL)
 //!     pose_format: PoseFormat::Abc,
 //! };
 //! let mut picked = 0;
@@ -103,7 +139,7 @@ pub use client::{Client, ClientConfig, GetGraspOutcome, DEFAULT_PORT};
 pub use error::{Error, Malformed, Result};
 #[doc(inline)]
 pub use message::{
-    Grasp, GraspRequest, ObjectCount, Request, RequestError, Response, ResponseBody,
+    Grasp, GraspRequest, ObjectCount, ObjectOffset, Request, RequestError, Response, ResponseBody,
 };
 #[doc(inline)]
 pub use pose::{
@@ -111,6 +147,6 @@ pub use pose::{
 };
 #[doc(inline)]
 pub use types::{
-    CommunicationType, GraspFeedback, GraspMode, MessageType, PoseFormat, ResponseCode,
-    RobotSystem, ServerState, Tool,
+    CommunicationType, GraspFeedback, GraspMode, MessageType, PoseFormat, ReferenceFrame,
+    ResponseCode, RobotSystem, SelectionCriterion, ServerState, Tool,
 };

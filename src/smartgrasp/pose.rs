@@ -26,6 +26,10 @@ pub enum PoseError {
     /// A quaternion of length zero (or not finite) describes no rotation.
     #[error("the quaternion has no direction (all zero or not finite)")]
     DegenerateQuaternion,
+    /// A V4 pose carries six values (PROTOCOLS.md 2b); a quaternion needs seven, and whether V4
+    /// sends a seventh (at response bytes 68–71) is not public.
+    #[error("pose format {0} needs seven values; a V4 pose carries six")]
+    SevenValuesInV4(PoseFormat),
     /// A value does not fit the wire's i32 in its unit.
     #[error("{what} does not fit the wire's 32-bit integer")]
     OutOfRange {
@@ -316,6 +320,26 @@ impl Pose {
             }),
             other @ PoseFormat::Unknown(_) => return Err(PoseError::UnsupportedFormat(other)),
         })
+    }
+
+    /// The six wire integers of a V4 pose (PROTOCOLS.md 2b: ROBOT_POSE at 24, the GET_GRASP
+    /// response's pose at 44). The example only uses ABC (17); axis-angle and WPR have no seventh
+    /// value either, a quaternion is refused.
+    pub fn to_wire6(&self) -> Result<[i32; 6], PoseError> {
+        if let Pose::Quaternion(_) = self {
+            return Err(PoseError::SevenValuesInV4(PoseFormat::Quaternion));
+        }
+        let [x, y, z, a, b, c, _] = self.to_wire();
+        Ok([x, y, z, a, b, c])
+    }
+
+    /// Reads the six wire integers of a V4 pose in `format` (see [`to_wire6`](Self::to_wire6)).
+    pub fn from_wire6(format: PoseFormat, v: [i32; 6]) -> Result<Pose, PoseError> {
+        if format == PoseFormat::Quaternion {
+            return Err(PoseError::SevenValuesInV4(format));
+        }
+        let [x, y, z, a, b, c] = v;
+        Pose::from_wire(format, [x, y, z, a, b, c, 0])
     }
 
     /// The orientation as a unit quaternion. Fails only for a quaternion pose of length zero.

@@ -92,6 +92,10 @@ wire_enum! {
         RegisterClient = 3 => "REGISTER_CLIENT",
         /// 4: set the active project.
         SetProject = 4 => "SET_PROJECT",
+        /// 5 (V4 only): choose the tool by the id configured on the device.
+        SetTool = 5 => "SET_TOOL",
+        /// 6 (V4 only): choose the workspace by the id configured on the device.
+        SetWorkspace = 6 => "SET_WORKSPACE",
         /// 16: get a grasp for the current scene.
         GetGrasp = 16 => "GET_GRASP",
         /// 17: report the result of the last grasp.
@@ -186,6 +190,47 @@ wire_enum! {
         /// 17: position µm, A about z, B about y', C about x'' in µdeg (KUKA).
         Abc = 17 => "ABC",
     }
+}
+
+/// Defines a raw `u8` field of V4 whose values no public source pins: kept as received, shown as
+/// its number.
+macro_rules! raw_u8 {
+    ($(#[$meta:meta])* pub struct $name:ident;) => {
+        $(#[$meta])*
+        #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+        pub struct $name(pub u8);
+
+        impl From<u8> for $name {
+            fn from(value: u8) -> Self {
+                $name(value)
+            }
+        }
+
+        impl From<$name> for u8 {
+            fn from(value: $name) -> u8 {
+                value.0
+            }
+        }
+
+        impl fmt::Display for $name {
+            fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+                write!(f, "{} {}", stringify!($name), self.0)
+            }
+        }
+    };
+}
+
+raw_u8! {
+    /// V4 GET_GRASP request byte 14: which candidate the server picks (PROTOCOLS.md 2b). SCHUNK's
+    /// KUKA example sends 1, 2 and 3; no public source says what they mean, so the number is
+    /// passed through as given. Not sent in V3 (byte 14 is the tool there).
+    pub struct SelectionCriterion;
+}
+
+raw_u8! {
+    /// V4 GET_GRASP response byte 19: the frame the grasp pose refers to (PROTOCOLS.md 2b). No
+    /// public source gives its values: kept as received.
+    pub struct ReferenceFrame;
 }
 
 #[cfg(test)]

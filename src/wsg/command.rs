@@ -546,15 +546,24 @@ impl Command {
                 } else {
                     Finger::Two
                 };
+                // 3.6.1, 3.6.2, 3.6.4 take no parameters but, unlike the other commands
+                // without any, list E_CMD_FORMAT_ERROR (not E_NO_PARAM_EXPECTED) for them.
+                let no_param = |c: Command| {
+                    if p.is_empty() {
+                        Ok(c)
+                    } else {
+                        Err(Status::CmdFormatError)
+                    }
+                };
                 match frame.id & 0x0F {
-                    0 => return none(Command::FingerInfo(finger)),
-                    1 => return none(Command::FingerFlags(finger)),
+                    0 => return no_param(Command::FingerInfo(finger)),
+                    1 => return no_param(Command::FingerFlags(finger)),
                     2 => match r.u8().map_err(fmt)? {
                         0 => Command::FingerPower(finger, false),
                         1 => Command::FingerPower(finger, true),
                         _ => return Err(Status::InvalidParameter),
                     },
-                    _ => return none(Command::FingerData(finger)),
+                    _ => return no_param(Command::FingerData(finger)),
                 }
             }
             _ => return Err(Status::CmdUnknown),
@@ -700,6 +709,15 @@ mod tests {
             Command::parse(&Frame::new(0x06, vec![0; 257])),
             Err(Status::CmdFormatError)
         );
+        // The finger queries list E_CMD_FORMAT_ERROR, not E_NO_PARAM_EXPECTED (3.6.1-3.6.4).
+        for id in [0x60, 0x61, 0x63, 0x70, 0x71, 0x73] {
+            assert_eq!(
+                Command::parse(&Frame::new(id, vec![1])),
+                Err(Status::CmdFormatError),
+                "{id:#04x}"
+            );
+            assert!(Command::parse(&Frame::new(id, vec![])).is_ok(), "{id:#04x}");
+        }
     }
 
     fn every_command() -> Vec<Command> {

@@ -2,14 +2,15 @@
 
 use std::time::Duration;
 
-use super::Status;
+use super::{Status, UpdateOptions};
 
 /// Everything a WSG call can fail with.
 ///
 /// The variants keep apart: the device said no ([`Error::Device`], with its status code), the
 /// connection ([`Error::Io`], [`Error::ConnectionLost`], [`Error::Closed`]), no answer in time
 /// ([`Error::Timeout`]), a reply that does not parse ([`Error::MalformedReply`]), and arguments
-/// refused before anything was sent ([`Error::InvalidArgument`]).
+/// refused before anything was sent ([`Error::InvalidArgument`],
+/// [`Error::SubscriptionConflict`]).
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum Error {
@@ -50,6 +51,17 @@ pub enum Error {
     /// The arguments were refused before sending (out of the protocol's range).
     #[error("invalid argument: {0}")]
     InvalidArgument(String),
+    /// A subscription asked for other update options than the value's stream already has.
+    /// The device sends one stream per value (manual 3.4.1), so serving the new options would
+    /// change the stream under the subscribers it has: subscribe with `active`, or drop the
+    /// other subscriptions first.
+    #[error("command {command:#04x} is already streamed with {active:?}")]
+    SubscriptionConflict {
+        /// The command id of the value.
+        command: u8,
+        /// The options the stream runs with.
+        active: UpdateOptions,
+    },
 }
 
 impl Error {

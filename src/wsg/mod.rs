@@ -23,11 +23,14 @@
 //!   and fail their checksum.
 //! - **Request queue**: [`ClientBuilder::request_queue`] requests (default 64) between the
 //!   handles and the task; a caller waits for a slot within its timeout.
-//! - **Per command id**: one request on the wire, the others queued behind it; a queued request
-//!   whose caller is gone is dropped when the next one is queued, so the queue holds at most one
-//!   request per live caller. A request on the wire whose caller left holds its id until its
-//!   reply, or its deadline plus [`ClientBuilder::late_reply_grace`] (an acknowledged move: its
-//!   final reply, or the device saying it no longer moves).
+//! - **Per command id**: one request on the wire, the others queued behind it (except stop and
+//!   FAST STOP, never queued, and a motion command, refused while one of its id runs: see
+//!   [`Client`]); a queued request whose caller is gone is dropped when the next one is queued,
+//!   so the queue holds at most one request per live caller. A request on the wire whose caller
+//!   left holds its id until its reply, or its deadline plus [`ClientBuilder::late_reply_grace`]
+//!   (an acknowledged move: its final reply, or the device saying twice, a grace period apart,
+//!   that it no longer moves; see [Lost final replies](Client#lost-final-replies)). Stop
+//!   requests waiting for a reply are at most one per live caller too.
 //! - **Subscriptions**: each subscriber buffers [`ClientBuilder::subscription_buffer`] updates
 //!   (default 64); a slow consumer misses the newest updates while its buffer is full, counted by
 //!   [`Subscription::missed`], and reads the older buffered ones first (tested).

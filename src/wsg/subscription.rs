@@ -40,6 +40,14 @@ impl UpdateOptions {
         }
     }
 
+    /// The options an auto-update mode stands for.
+    pub(crate) fn from_mode(mode: UpdateMode) -> Self {
+        Self {
+            period: Duration::from_millis(u64::from(mode.period_ms)),
+            on_change: mode.on_change,
+        }
+    }
+
     pub(crate) fn to_mode(self) -> Result<UpdateMode, String> {
         if self.period < MIN_UPDATE_PERIOD {
             return Err(format!(
@@ -82,10 +90,15 @@ impl Subscriber {
 /// A stream of auto-update values of one kind (system state, grip state, width, speed or
 /// force), created by the `subscribe_*` methods of [`Client`](super::Client).
 ///
-/// The first item is the value the device sent in answer to the subscription. All subscribers of
-/// one value share the device's update stream; subscribing again re-configures it with the newest
-/// options. Dropping the last subscriber of a value turns its updates off on the device (the
-/// command is sent again with FLAGS bit0 clear).
+/// The first item is the value the device sent in answer to the subscription. The device keeps
+/// one update stream per value (manual 3.4.1: sending the command again re-configures it), so all
+/// subscribers of one value share it and must agree on its options: a subscription asking for
+/// other [`UpdateOptions`] than the live ones is refused with
+/// [`Error::SubscriptionConflict`](super::Error::SubscriptionConflict) (it would otherwise change
+/// the period or the on-change mode under the first subscriber). Subscribing with the same
+/// options joins the stream. Once the last subscriber of a value is dropped, its updates are
+/// turned off on the device (the command is sent again with FLAGS bit0 clear), and the next
+/// subscription may choose new options.
 ///
 /// Each subscriber has a bounded buffer (see
 /// [`ClientBuilder::subscription_buffer`](super::ClientBuilder::subscription_buffer)). A consumer

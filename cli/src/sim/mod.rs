@@ -25,7 +25,7 @@ pub struct Args {
 #[derive(Debug, Subcommand)]
 enum Device {
     /// A Weiss WSG gripper (binary protocol) over TCP, UDP or a serial pseudo-terminal, with a
-    /// part between the fingers. Motion takes no wall time unless --time-scale says so.
+    /// part between the fingers. Motion runs in real time unless --time-scale says otherwise.
     Wsg(wsg::WsgSim),
     /// A Weiss GRIPLINK-ET4 controller (IEG 55-020 on port 0, CRG 200-085 on port 2), or a
     /// WPG 100-090 with --wpg.

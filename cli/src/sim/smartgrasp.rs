@@ -24,9 +24,11 @@ pub struct SmartgraspSim {
     /// What GET_STATE reports; detection calls fail with ERROR unless operational.
     #[arg(long, value_enum, default_value_t = StateArg::Operational)]
     state: StateArg,
-    /// The highest protocol version the server speaks (below 3 it answers "too old").
-    #[arg(long, default_value_t = gripper::smartgrasp::frame::PROTOCOL_VERSION)]
-    protocol_version: u16,
+    /// The highest protocol version the server speaks (default 4): it answers requests of a
+    /// higher version with the "too old" empty message (3: a V3-only server; below 3 it answers
+    /// every request that way).
+    #[arg(long, alias = "protocol-version", default_value_t = gripper::smartgrasp::frame::v4::PROTOCOL_VERSION)]
+    max_version: u16,
 }
 
 #[derive(Debug, Clone, Copy, ValueEnum)]
@@ -63,7 +65,7 @@ pub async fn run(args: SmartgraspSim, out: Out) -> Result<(), CliError> {
 
 fn smartgrasp_config(args: &SmartgraspSim) -> SimConfig {
     let mut config = SimConfig {
-        protocol_version: args.protocol_version,
+        max_version: args.max_version,
         server_state: match args.state {
             StateArg::Init => ServerState::Init,
             StateArg::Operational => ServerState::Operational,

@@ -17,6 +17,10 @@ pub struct WsgSim {
     /// Serve UDP (one frame per datagram) instead of TCP.
     #[arg(long, conflicts_with = "pty")]
     udp: bool,
+    /// The device's "UDP remote port": UDP replies go to the sender's IP address at this port,
+    /// whatever port the request came from (default: the sender's own port).
+    #[arg(long, requires = "udp")]
+    udp_remote_port: Option<u16>,
     /// Serve on a new serial pseudo-terminal instead (its path is printed; open it with
     /// `gripctl wsg --serial PATH --shared`).
     #[arg(long)]
@@ -33,8 +37,9 @@ pub struct WsgSim {
     /// No part: every grasp ends in NO PART FOUND.
     #[arg(long)]
     no_part: bool,
-    /// Wall seconds per simulated second of motion: 0 is instant, 1 real time.
-    #[arg(long, default_value_t = 0.0)]
+    /// Wall seconds per simulated second of motion: 1 (the default) is real time, so a move
+    /// can be stopped or refused with E_ALREADY_RUNNING as on the device; 0 is instant.
+    #[arg(long, default_value_t = SimConfig::standalone().time_scale)]
     time_scale: f64,
 }
 
@@ -55,7 +60,13 @@ pub async fn run(args: WsgSim, out: Out) -> Result<(), CliError> {
         ModelArg::Wsg70 => Model::Wsg70,
     };
     check_time_scale(args.time_scale)?;
-    let mut config = SimConfig::new(model).with_time_scale(args.time_scale);
+    // The standalone defaults (real time), with the model and part asked for.
+    let mut config = SimConfig {
+        part: None,
+        time_scale: args.time_scale,
+        udp_remote_port: args.udp_remote_port,
+        ..SimConfig::new(model)
+    };
     if !args.no_part {
         config = config.with_part(args.part, args.tolerance);
     }
@@ -94,12 +105,16 @@ pub async fn run(args: WsgSim, out: Out) -> Result<(), CliError> {
         "tcp"
     };
     let part = (!args.no_part).then_some(args.part);
+    let scale = args.time_scale;
     out.emit(
         format!(
-            "wsg simulator: {model:?} over {transport}, {}",
-            part.map_or("no part".to_owned(), |w| format!("a {w} mm part"))
+            "wsg simulator: {model:?} over {transport}, {}, time scale {scale}{}",
+            part.map_or("no part".to_owned(), |w| format!("a {w} mm part")),
+            args.udp_remote_port
+                .map_or(String::new(), |p| format!(", UDP replies to port {p}"))
         ),
-        json!({ "device": "wsg", "model": format!("{model:?}"), "transport": transport, "part_mm": part }),
+        json!({ "device": "wsg", "model": format!("{model:?}"), "transport": transport,
+                "part_mm": part, "time_scale": scale, "udp_remote_port": args.udp_remote_port }),
     )?;
     wait_for_ctrl_c().await?;
     server.shutdown();

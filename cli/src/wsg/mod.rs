@@ -455,7 +455,10 @@ pub(super) fn classify(e: Error) -> CliError {
         Error::Io(io) => CliError::new(Kind::Connection, io.to_string()),
         Error::ConnectionLost(_) | Error::Closed => CliError::new(Kind::Connection, message),
         Error::MalformedReply { .. } => CliError::new(Kind::Malformed, message),
-        Error::InvalidArgument(_) => CliError::argument(message),
+        // Options that clash with a live auto-update stream are the caller's to change.
+        Error::InvalidArgument(_) | Error::SubscriptionConflict { .. } => {
+            CliError::argument(message)
+        }
         // `wsg::Error` is non-exhaustive: a kind added later still gets its message through.
         _ => CliError::new(Kind::Connection, message),
     }

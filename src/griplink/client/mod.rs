@@ -48,6 +48,39 @@
 //! expects another shape. A reply cut off by a lost connection is never taken for a whole one
 //! (it fails with [`Error::ConnectionLost`]).
 //!
+//! # Waiting for a motion
+//! A helper reads the device state before it sends the command (the start state), then
+//! decides that the motion ended only from evidence that it did:
+//! 1. **A state transition after the command.** The manual's two ways (3.4.4, options 1 and 2):
+//!    an outcome state that differs from the start state, read by polling `DEVSTATE`
+//!    ([`WaitBy::Polling`]), or answered by `WSTR` ([`WaitBy::Transition`]).
+//! 2. **The fingers at the target** when no transition may come. "The start state can be
+//!    different to DS_IDLE" (3.4.4), and "if the device is already in state DS_RELEASED when the
+//!    command is issued, a state transition may not occur. In this case, use the WAITVAL command"
+//!    (3.4.7). So a release that starts in `DS_RELEASED` or `DS_FAULT` ends when the finger
+//!    position is within [`TARGET_TOLERANCE_UM`] of the release limit (the recipe's, read
+//!    with `GRIPCFG` before the command, or the FLEX command's own): with `WaitBy::Transition`
+//!    by `WAITVAL` on value 0 (3.4.12, one second at a time), with `WaitBy::Polling` by reading
+//!    `VALUE`.
+//! 3. **The fingers still, in `DS_FAULT`.** A motion started in `DS_FAULT` (the gripper is
+//!    re-enabled by GRIP and RELEASE, 3.4.1) that faults again ends with no transition, and a
+//!    grip has no target (a part stops it anywhere). Such a motion counts as ended in
+//!    `DS_FAULT` once the finger position has not changed for [`STILL_FOR`]. (The same holds
+//!    for a grip from any other outcome state a device might accept; Weiss grippers refuse GRIP
+//!    in `DS_HOLDING` and `DS_NO_PART`, 3.4.4.)
+//!
+//! Evidence from the position is followed by a fresh state read, which gives the outcome (the
+//! motion may have ended between the two reads).
+//!
+//! A state read right after the command's `ACK` that merely repeats the start state is never
+//! taken as the outcome: the fingers may still be moving.
+//!
+//! A `WSTR` answered with `ERR 05` ("if no state transition occurs, the query returns with a
+//! timeout error", 3.4.10) is no failure: the helper checks the state (and position) and asks
+//! again, until the helper's own deadline. Only that deadline ends the wait with
+//! [`Error::Timeout`]. `HOME` needs no helper: it always blocks until the homing is done
+//! (3.4.3), so [`Port::home`]'s `ACK` is the evidence.
+//!
 //! # Cancellation
 //! Every async method is cancel-safe for the connection: dropping its future (a `select!`,
 //! a timeout, an aborted task) at any await point never hands its reply to another caller. A
@@ -61,6 +94,7 @@
 mod pipeline;
 mod port;
 mod task;
+mod wait;
 mod watch;
 
 use std::net::SocketAddr;
@@ -72,7 +106,8 @@ use tokio::sync::{mpsc, oneshot};
 use tokio::time::Instant;
 
 pub use port::Port;
-pub use watch::{GripOutcome, ReleaseOutcome, WaitBy, Watch};
+pub use wait::{GripOutcome, ReleaseOutcome, WaitBy, STILL_FOR, TARGET_TOLERANCE_UM};
+pub use watch::Watch;
 
 use self::task::{Request, Shared, Task, TaskConfig};
 use super::codec::DEFAULT_MAX_LINE_LEN;

@@ -123,7 +123,9 @@ impl Port {
         self.client.read_string(Command::DevVer(self.port)).await
     }
 
-    /// `ENABLE(p)` (manual 3.4.1).
+    /// `ENABLE(p)` (manual 3.4.1). What it does depends on the device; Weiss grippers are also
+    /// (re-)enabled by GRIP, RELEASE and HOME, and an enabled idle gripper reports state 2
+    /// ([`DeviceState::Disabled`], "idle" in chapter 5; state 6, `DS_ENABLED`, is for sensors).
     ///
     /// [Cancel-safe](super#cancellation) for the connection; dropped after it was sent, the change
     /// still takes effect on the controller.
@@ -257,6 +259,14 @@ impl Port {
     /// `WSTR[p]?`: waits for the next device state transition and returns the new state
     /// (motion timeout) (manual 3.4.10).
     ///
+    /// "If no state transition occurs, the query returns with a timeout error": the controller
+    /// answers `ERR 05`, here [`Error::Device`] with [`Status::Timeout`](crate::griplink::Status),
+    /// after a time the manual does not give. That says nothing about a motion; ask again or
+    /// decide otherwise. A motion that ends in the state it started in (RELEASE from
+    /// `DS_RELEASED`, 3.4.7) causes no transition. "When issuing the same command twice, WSTR
+    /// immediately returns with the current device state." [`Port::grip_and_wait`] and
+    /// [`Port::release_and_wait`] handle all of this.
+    ///
     /// [Cancel-safe](super#cancellation) for the connection, but once sent the controller holds
     /// this connection until it answers, even if the call is dropped: later calls on it wait.
     pub async fn wait_for_transition(&self) -> Result<DeviceState> {
@@ -291,8 +301,14 @@ impl Port {
             .await
     }
 
-    /// `WAITVAL(…)`: waits until value `index` enters `threshold ± window/2` (scaled
-    /// integers); the controller answers `E_TIMEOUT` after `timeout` (manual 3.4.12).
+    /// `WAITVAL(…)`: waits until value `index` reaches or crosses the window `threshold ±
+    /// window/2` (scaled integers); the controller answers `E_TIMEOUT` after `timeout` (manual
+    /// 3.4.12).
+    ///
+    /// Reach/cross, not "inside": a value that approaches from below is ACKed once it is above
+    /// `threshold − window/2`, one from above once it is below `threshold + window/2`, so a value
+    /// that steps over a narrow window (even `window` 0) between two of the controller's samples
+    /// is ACKed too. The manual adds that for non-steady values the sampling time matters.
     ///
     /// [Cancel-safe](super#cancellation) for the connection, but once sent the controller holds
     /// this connection until it answers, even if the call is dropped: later calls on it wait.

@@ -6,6 +6,7 @@ use std::collections::VecDeque;
 use std::future::poll_fn;
 use std::net::SocketAddr;
 use std::pin::Pin;
+use std::sync::atomic::Ordering;
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -14,15 +15,17 @@ use tokio::io::AsyncWriteExt;
 use tokio::net::tcp::{OwnedReadHalf, OwnedWriteHalf};
 use tokio::net::TcpStream;
 use tokio::sync::{mpsc, oneshot};
+use tokio::time::Instant;
 use tokio_util::codec::FramedRead;
 use tokio_util::sync::CancellationToken;
 
-use super::pairing::{check_response, Pairing};
-use super::session::Session;
-use super::{ClientConfig, Timeouts};
+use super::pairing::{ambiguous, check_response, Counted, Pairing};
+use super::{ClientConfig, Shared, Timeouts};
 use crate::smartgrasp::codec::ClientCodec;
 use crate::smartgrasp::error::{Error, Malformed, Result};
-use crate::smartgrasp::frame::{RequestFrame, ResponseFrame};
+use crate::smartgrasp::frame::{
+    AnyRequestFrame as RequestFrame, AnyResponseFrame as ResponseFrame,
+};
 use crate::smartgrasp::message::{Request, Response};
 use crate::smartgrasp::types::MessageType;
 
@@ -41,7 +44,15 @@ pub(crate) struct Call {
 struct Waiting {
     request: RequestFrame,
     reply: oneshot::Sender<Result<ResponseFrame>>,
+    /// Its timeout plus [`ClientConfig::give_up_after`] after it was sent: a server that has not
+    /// answered by then is not answering, and the connection is given up.
+    give_up_at: Instant,
 }
+
+/// What [`Link::serve`] tells its owner about each response it pairs: the request and its
+/// response (the session records the set-up requests the server accepted). A callback rather
+/// than the session itself, so that the link does not depend on the session that drives it.
+pub(crate) type OnPaired<'a> = dyn FnMut(&RequestFrame, &ResponseFrame) + Send + 'a;
 
 /// A connection and its pairing state.
 pub(crate) struct Link {
@@ -54,11 +65,19 @@ pub(crate) struct Link {
     last_response: Option<ResponseFrame>,
     /// The configured timeouts, which also bound each write (see `send`).
     timeouts: Timeouts,
+    /// See [`ClientConfig::give_up_after`].
+    give_up_after: Duration,
+    /// Counters the handles read (counter gaps).
+    shared: Arc<Shared>,
 }
 
 impl Link {
     /// Connects within the configured connect timeout.
-    pub(crate) async fn connect(addrs: &[SocketAddr], config: &ClientConfig) -> Result<Link> {
+    pub(crate) async fn connect(
+        addrs: &[SocketAddr],
+        config: &ClientConfig,
+        shared: &Arc<Shared>,
+    ) -> Result<Link> {
         let stream = within_connect_timeout(config.connect_timeout, async {
             Ok(TcpStream::connect(addrs).await?)
         })
@@ -67,36 +86,56 @@ impl Link {
         stream.set_nodelay(true)?;
         let (read, write) = stream.into_split();
         Ok(Link {
-            responses: FramedRead::new(read, ClientCodec),
+            // V3 until the opening sequence chose a version (see `set_version`).
+            responses: FramedRead::new(read, ClientCodec::default()),
             write,
             waiting: VecDeque::with_capacity(MAX_IN_FLIGHT),
-            pairing: Pairing::default(),
+            pairing: if config.strict_response_counter {
+                Pairing::strict()
+            } else {
+                Pairing::default()
+            },
             last_response: None,
             timeouts: config.timeouts(),
+            give_up_after: config.give_up_after,
+            shared: Arc::clone(shared),
         })
     }
 
-    /// One request with nothing else in flight (the opening sequence), answered within the
-    /// configured timeout of its type. After an error the link must be dropped.
+    /// The protocol version requests on this link are sent in.
+    pub(crate) fn version(&self) -> u16 {
+        self.responses.decoder().version
+    }
+
+    /// Sends every later request in protocol `version` (the opening sequence negotiated it).
+    pub(crate) fn set_version(&mut self, version: u16) {
+        self.responses.decoder_mut().version = version;
+    }
+
+    /// One request with nothing else in flight (the opening sequence), in the link's version,
+    /// answered within the configured timeout of its type. After an error the link must be
+    /// dropped.
     pub(crate) async fn exchange(
         &mut self,
-        request: RequestFrame,
+        request: &Request,
         config: &ClientConfig,
     ) -> Result<Response> {
+        let request = request.to_any_frame(self.version())?;
         let answer = async {
             self.write.write_all(&request.encode()).await?;
             let frame = match self.next_response().await {
                 None => return Err(server_closed()),
                 Some(frame) => frame?,
             };
-            self.pairing.counter(frame.header.response_counter, 1)?;
+            let counted = self.pairing.counter(frame.header().response_counter, 1)?;
+            self.record_gap(&counted, &frame);
             check_response(&request, &frame)?;
             self.last_response = Some(frame);
-            Ok(frame)
+            Ok(normalised(&request, &frame))
         };
         config
             .timeouts()
-            .run(request.header.message_type, answer)
+            .run(request.header().message_type, answer)
             .await
     }
 
@@ -106,15 +145,20 @@ impl Link {
 
     /// Serves calls until the connection breaks (`Some(reason)`; every call that was waiting on
     /// it has been answered with an error), the program closes the client (`shutdown`, then the
-    /// reason is [`Error::Closed`]) or every handle is gone (`None`). Records the set-up requests
-    /// the server accepts in `session`.
+    /// reason is [`Error::Closed`]) or every handle is gone (`None`). Hands every paired request
+    /// and response to `on_paired`.
+    ///
+    /// A response that stays away [`ClientConfig::give_up_after`] beyond its call's timeout
+    /// breaks the connection ([`Error::ConnectionLost`]): a server that stays connected but stops
+    /// answering would otherwise hold every slot for ever, and every later call would time out.
     pub(crate) async fn serve(
         &mut self,
         calls: &mut mpsc::Receiver<Call>,
-        session: &mut Session,
+        on_paired: &mut OnPaired<'_>,
         shutdown: &CancellationToken,
     ) -> Option<Error> {
         let reason = loop {
+            let give_up_at = self.waiting.front().map(|w| w.give_up_at);
             tokio::select! {
                 // Closing first: `close()` must not wait behind a busy connection. Then
                 // responses: each frees a slot.
@@ -124,10 +168,22 @@ impl Link {
                     None => break server_closed(),
                     Some(Err(e)) => break e,
                     Some(Ok(frame)) => {
-                        if let Err(e) = self.on_response(session, &frame) {
+                        if let Err(e) = self.on_response(on_paired, &frame) {
                             break e;
                         }
                     }
+                },
+                () = tokio::time::sleep_until(give_up_at.unwrap_or_else(Instant::now)), if give_up_at.is_some() => {
+                    let request = self.waiting.front().map(|w| w.request.header().message_type);
+                    tracing::error!(?request, give_up_after = ?self.give_up_after, "smartgrasp: response overdue, giving up on the connection");
+                    break Error::ConnectionLost {
+                        reason: format!(
+                            "no response to {} within its timeout and {:?} more: the server stopped answering",
+                            request.unwrap_or(MessageType::Unknown(0)),
+                            self.give_up_after
+                        )
+                        .into(),
+                    };
                 },
                 call = calls.recv(), if self.waiting.len() < MAX_IN_FLIGHT => match call {
                     // Every handle is gone, so no call can be waiting: nothing left to do.
@@ -170,11 +226,16 @@ impl Link {
         request: RequestFrame,
         reply: oneshot::Sender<Result<ResponseFrame>>,
     ) -> Result<()> {
-        let limit = self.timeouts.for_type(request.header.message_type);
+        let limit = self.timeouts.for_type(request.header().message_type);
         let error = match tokio::time::timeout(limit, self.write.write_all(&request.encode())).await
         {
             Ok(Ok(())) => {
-                self.waiting.push_back(Waiting { request, reply });
+                let give_up_at = Instant::now() + limit.saturating_add(self.give_up_after);
+                self.waiting.push_back(Waiting {
+                    request,
+                    reply,
+                    give_up_at,
+                });
                 return Ok(());
             }
             Ok(Err(e)) => Error::from(e),
@@ -197,35 +258,55 @@ impl Link {
     /// next response is this request's. Costs one query, only after a call was given up.
     fn marker_before(&self, next: &RequestFrame) -> Option<RequestFrame> {
         let back = self.waiting.back()?;
-        let same_type = back.request.header.message_type == next.header.message_type;
-        if !same_type || !back.reply.is_closed() {
+        let ambiguous = ambiguous(
+            back.request.header().message_type,
+            next.header().message_type,
+        );
+        if !ambiguous || !back.reply.is_closed() {
             return None;
         }
-        let marker = match next.header.message_type {
+        let marker = match next.header().message_type {
             MessageType::GetProtocolVersion => Request::GetState,
             _ => Request::GetProtocolVersion,
         };
-        Some(marker.to_frame())
+        marker.to_any_frame(self.version()).ok()
+    }
+
+    /// Records a counter gap: a warning and the count the handles read
+    /// ([`Client::counter_gaps`](super::Client::counter_gaps)).
+    fn record_gap(&self, counted: &Counted, frame: &ResponseFrame) {
+        if counted.gap == 0 {
+            return;
+        }
+        let gaps = self.shared.counter_gaps.fetch_add(1, Ordering::Relaxed) + 1;
+        tracing::warn!(
+            expected = counted.expected,
+            received = frame.header().response_counter,
+            message_type = %frame.header().message_type,
+            gaps,
+            "smartgrasp: the response counter skipped (manual 3.2.2.3 does not say whether it counts per connection)"
+        );
     }
 
     /// Pairs one response; `Err` breaks the connection (the paired call, if any, gets the error
     /// too).
-    fn on_response(&mut self, session: &mut Session, frame: &ResponseFrame) -> Result<()> {
+    fn on_response(&mut self, on_paired: &mut OnPaired<'_>, frame: &ResponseFrame) -> Result<()> {
         if self.last_response.as_ref() == Some(frame) {
             // The same bytes again, counter included: the server counts every response, so this
             // is a copy (a network device repeating a segment), not a new answer. Noise, skipped.
             tracing::warn!(
-                counter = frame.header.response_counter,
+                counter = frame.header().response_counter,
                 "repeated response skipped"
             );
             return Ok(());
         }
-        let received = frame.header.response_counter;
-        let lost = self.pairing.counter(received, self.waiting.len())?;
-        for i in 0..lost.count {
+        let received = frame.header().response_counter;
+        let counted = self.pairing.counter(received, self.waiting.len())?;
+        self.record_gap(&counted, frame);
+        for i in 0..counted.lost {
             if let Some(w) = self.waiting.pop_front() {
-                let expected = lost.first_expected.wrapping_add(i as u8);
-                tracing::warn!(expected, received, request = %w.request.header.message_type, "response lost");
+                let expected = counted.expected.wrapping_add(i as u8);
+                tracing::warn!(expected, received, request = %w.request.header().message_type, "response lost");
                 let _ = w
                     .reply
                     .send(Err(Error::ResponseLost { expected, received }));
@@ -237,34 +318,55 @@ impl Link {
         };
         if let Err(e) = check_response(&w.request, frame) {
             // The server answers in order, so a response that does not fit the oldest request
-            // but fits the next one means the oldest was never answered (it was lost before it
-            // reached the server: no counter gap). If its caller has already given up, nobody
-            // is owed anything: drop its slot and go on. A caller still waiting gets the error,
-            // and the connection is closed.
-            let skip = lost.count == 0
-                && w.reply.is_closed()
+            // but fits the next one means the oldest was never answered: it was lost before it
+            // reached the server (no counter gap), or the server answered nothing (the counter
+            // skipped). If its caller has already given up, nobody is owed anything: drop its
+            // slot and go on. A caller still waiting gets [`Error::ResponseLost`] when the
+            // counter skipped too (two signs agree); otherwise the error, and the connection is
+            // closed.
+            let fits_next = counted.lost == 0
                 && self
                     .waiting
                     .front()
                     .is_some_and(|next| check_response(&next.request, frame).is_ok());
-            if !skip {
+            if !fits_next || !(w.reply.is_closed() || counted.gap != 0) {
                 let e = Error::from(e);
                 let _ = w.reply.send(Err(e.clone()));
                 return Err(e);
             }
-            tracing::warn!(request = %w.request.header.message_type, "an abandoned request was never answered; its slot is dropped");
+            tracing::warn!(request = %w.request.header().message_type, "a request was never answered; its slot is dropped");
+            let _ = w.reply.send(Err(Error::ResponseLost {
+                expected: counted.expected,
+                received,
+            }));
             match self.waiting.pop_front() {
                 Some(next) => w = next,
                 None => return Err(Malformed::Unsolicited { counter: received }.into()),
             }
         }
         self.last_response = Some(*frame);
-        session.record(&w.request, frame);
-        if w.reply.send(Ok(*frame)).is_err() {
-            tracing::debug!(request = %w.request.header.message_type, counter = received, "late reply discarded");
+        let frame = normalised(&w.request, frame);
+        on_paired(&w.request, &frame);
+        if w.reply.send(Ok(frame)).is_err() {
+            tracing::debug!(request = %w.request.header().message_type, counter = received, "late reply discarded");
         }
         Ok(())
     }
+}
+
+/// A paired response with the message type of its request: a GET_OBJECT_COUNT answered as type
+/// 17 (see [`answers`](super::pairing::answers)) is read as the count it is.
+fn normalised(request: &RequestFrame, frame: &ResponseFrame) -> ResponseFrame {
+    let mut frame = *frame;
+    if frame.header().message_type != request.header().message_type {
+        tracing::warn!(
+            request = %request.header().message_type,
+            response = %frame.header().message_type,
+            "smartgrasp: response with the manual's erratum message type accepted"
+        );
+        frame.header_mut().message_type = request.header().message_type;
+    }
+    frame
 }
 
 /// Runs a step of connecting (resolving the address, the TCP connect) within `timeout`.

@@ -6,8 +6,8 @@ mod session;
 mod task;
 
 use std::net::SocketAddr;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, OnceLock};
+use std::sync::atomic::{AtomicBool, AtomicU16, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex, OnceLock};
 use std::time::Duration;
 
 use tokio::net::ToSocketAddrs;
@@ -15,7 +15,7 @@ use tokio::sync::{mpsc, oneshot};
 use tokio_util::sync::CancellationToken;
 
 use super::error::{Error, Result};
-use super::frame::ResponseFrame;
+use super::frame::AnyResponseFrame;
 use super::message::{Grasp, GraspRequest, ObjectCount, Request, Response, ResponseBody};
 use super::pose::Pose;
 use super::types::{
@@ -23,7 +23,7 @@ use super::types::{
 };
 use crate::reconnect::{ConnectionEvents, EventSender, EventSubscriber, ReconnectPolicy};
 use link::{Call, Link};
-use session::{success, unexpected_body, Session};
+use session::{success, unexpected_body, Opened, Session};
 
 /// The server's TCP port (manual 1.1).
 pub const DEFAULT_PORT: u16 = 42001;
@@ -49,7 +49,22 @@ pub struct ClientConfig {
     /// manual allows for systems it does not list).
     pub robot_system: Option<RobotSystem>,
     /// Project to activate in the opening sequence (`None`: keep the server's active project).
+    /// V3: the project index; V4: the project ID seen in the web frontend (see
+    /// [`Request::SetProject`]).
     pub project_index: Option<u32>,
+    /// V4 only: the tool ID to choose with SET_TOOL in the opening sequence (`None`: keep the
+    /// server's). Skipped, with a warning, on a V3 connection, where each GET_GRASP names its
+    /// tool ([`GraspRequest::tool`]).
+    pub tool_id: Option<u16>,
+    /// V4 only: the workspace ID to choose with SET_WORKSPACE in the opening sequence (`None`:
+    /// keep the server's). Skipped, with a warning, on a V3 connection.
+    pub workspace_id: Option<u16>,
+    /// The protocol version to speak: `None` (the default) negotiates the highest version both
+    /// speak (3 or 4; GET_PROTOCOL_VERSION first, asked as V3, which every server since V3
+    /// answers); `Some(3)` or `Some(4)` pins it, and a server below the pinned version fails the
+    /// connect with [`Error::ServerTooOld`]. V4's layout is known only from SCHUNK's public KUKA
+    /// example (see the module docs).
+    pub protocol_version: Option<u16>,
     /// Reconnect after a lost connection (`None`, the default: a lost connection stays closed
     /// and every later call fails with [`Error::ConnectionLost`]).
     ///
@@ -69,6 +84,20 @@ pub struct ClientConfig {
     /// When the policy gives up, the client is closed like one without a policy. After
     /// [`Client::close`], nothing reconnects.
     pub reconnect: Option<ReconnectPolicy>,
+    /// How long past a call's timeout a missing response is tolerated before the connection is
+    /// given up as lost ([`Error::ConnectionLost`]; then reconnected if [`reconnect`] is set).
+    /// A server that stays connected but stops answering would otherwise keep every slot busy,
+    /// and every later call would time out for ever. Default 30 s, like GRIPLINK's.
+    ///
+    /// [`reconnect`]: ClientConfig::reconnect
+    pub give_up_after: Duration,
+    /// Trust the response counter (default `false`). Manual 3.2.2.3 only says the counter rises
+    /// with every response and wraps at 256, not whether it counts per connection or across all
+    /// of a server's clients. By default a gap is recorded ([`Client::counter_gaps`] and a
+    /// `tracing` warning) and the call gets its response. With `true`, a gap of `k` fails the
+    /// `k` oldest waiting calls with [`Error::ResponseLost`], and a gap no waiting call explains
+    /// breaks the connection: only for a server known to count per connection.
+    pub strict_response_counter: bool,
 }
 
 impl Default for ClientConfig {
@@ -79,8 +108,48 @@ impl Default for ClientConfig {
             detection_timeout: Duration::from_secs(30),
             robot_system: None,
             project_index: None,
+            tool_id: None,
+            workspace_id: None,
+            protocol_version: None,
             reconnect: None,
+            give_up_after: Duration::from_secs(30),
+            strict_response_counter: false,
         }
+    }
+}
+
+/// What the task shares with the handles besides the call channel.
+#[derive(Debug, Default)]
+pub(crate) struct Shared {
+    /// Responses whose counter skipped (see [`Client::counter_gaps`]).
+    pub counter_gaps: AtomicU64,
+    /// The response code of the last REGISTER_CLIENT of an opening sequence (see
+    /// [`Client::registration`]).
+    pub registration: Mutex<Option<ResponseCode>>,
+    /// The protocol version the connection speaks (see [`Client::protocol_version`]).
+    pub version: AtomicU16,
+    /// The server's highest version (see [`Client::server_version`]).
+    pub server_version: AtomicU16,
+}
+
+impl Shared {
+    /// A connection that has not negotiated yet speaks `version`.
+    fn new(version: u16) -> Shared {
+        Shared {
+            version: AtomicU16::new(version),
+            ..Shared::default()
+        }
+    }
+
+    /// Records what an opening sequence found out.
+    pub(crate) fn set_opened(&self, opened: &Opened) {
+        *self
+            .registration
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner()) = opened.registration;
+        self.version.store(opened.version, Ordering::SeqCst);
+        self.server_version
+            .store(opened.server_version, Ordering::SeqCst);
     }
 }
 
@@ -103,9 +172,11 @@ pub(crate) struct Timeouts {
 impl Timeouts {
     pub(crate) fn for_type(self, message_type: MessageType) -> Duration {
         match message_type {
-            MessageType::GetGrasp | MessageType::GetObjectCount | MessageType::SetProject => {
-                self.detection
-            }
+            MessageType::GetGrasp
+            | MessageType::GetObjectCount
+            | MessageType::SetProject
+            | MessageType::SetTool
+            | MessageType::SetWorkspace => self.detection,
             _ => self.query,
         }
     }
@@ -115,7 +186,7 @@ impl Timeouts {
     async fn run(
         self,
         message_type: MessageType,
-        exchange: impl std::future::Future<Output = Result<ResponseFrame>>,
+        exchange: impl std::future::Future<Output = Result<AnyResponseFrame>>,
     ) -> Result<Response> {
         let timeout = self.for_type(message_type);
         let frame = tokio::time::timeout(timeout, exchange)
@@ -124,7 +195,7 @@ impl Timeouts {
                 message_type,
                 timeout,
             })??;
-        Ok(Response::from_frame(&frame)?)
+        Ok(Response::from_any_frame(&frame)?)
     }
 }
 
@@ -172,6 +243,7 @@ pub struct Client {
     events: EventSubscriber,
     timeouts: Timeouts,
     close: Arc<Close>,
+    shared: Arc<Shared>,
 }
 
 /// What [`Client::close`] shares between the handles and the task.
@@ -193,26 +265,51 @@ impl Client {
     /// a session that was open. Cancel-safe: dropping the future closes the new connection.
     pub async fn connect(addr: impl ToSocketAddrs, config: ClientConfig) -> Result<Client> {
         let addrs = link::within_connect_timeout(config.connect_timeout, resolve(addr)).await?;
-        let mut link = Link::connect(&addrs, &config).await?;
+        let shared = Arc::new(Shared::new(crate::smartgrasp::frame::PROTOCOL_VERSION));
+        let mut link = Link::connect(&addrs, &config, &shared).await?;
         let session = Session::from_config(&config);
-        let server_version = session.open(&mut link, &config).await?;
-        tracing::info!(server_version, "smartgrasp session open");
-        Ok(Client::spawn(link, addrs, session, config))
+        let opened = session.open(&mut link, &config).await?;
+        shared.set_opened(&opened);
+        tracing::info!(
+            server_version = opened.server_version,
+            version = opened.version,
+            "smartgrasp session open"
+        );
+        Ok(Client::spawn(link, addrs, session, config, shared))
     }
 
     /// Connects without sending anything (`config`'s opening-sequence fields are not used; a
     /// reconnect runs GET_PROTOCOL_VERSION and GET_STATE, then restores what the program set up
-    /// with its own calls). Cancel-safe like [`connect`](Self::connect).
+    /// with its own calls). Speaks [`ClientConfig::protocol_version`], V3 if `None` (nothing is
+    /// negotiated). Cancel-safe like [`connect`](Self::connect).
     pub async fn connect_without_opening(
         addr: impl ToSocketAddrs,
         config: ClientConfig,
     ) -> Result<Client> {
         let addrs = link::within_connect_timeout(config.connect_timeout, resolve(addr)).await?;
-        let link = Link::connect(&addrs, &config).await?;
-        Ok(Client::spawn(link, addrs, Session::default(), config))
+        let version = config
+            .protocol_version
+            .unwrap_or(crate::smartgrasp::frame::PROTOCOL_VERSION);
+        session::check_pinned(version)?;
+        let shared = Arc::new(Shared::new(version));
+        let mut link = Link::connect(&addrs, &config, &shared).await?;
+        link.set_version(version);
+        Ok(Client::spawn(
+            link,
+            addrs,
+            Session::default(),
+            config,
+            shared,
+        ))
     }
 
-    fn spawn(link: Link, addrs: Vec<SocketAddr>, session: Session, config: ClientConfig) -> Client {
+    fn spawn(
+        link: Link,
+        addrs: Vec<SocketAddr>,
+        session: Session,
+        config: ClientConfig,
+        shared: Arc<Shared>,
+    ) -> Client {
         let (calls, rx) = mpsc::channel(CALL_QUEUE);
         let closed = Arc::new(OnceLock::new());
         let events = EventSender::new("smartgrasp", EVENT_BUFFER);
@@ -223,6 +320,7 @@ impl Client {
             events: events.subscriber(),
             timeouts: config.timeouts(),
             close: Arc::clone(&close),
+            shared: Arc::clone(&shared),
         };
         let task = task::Task {
             calls: rx,
@@ -232,6 +330,7 @@ impl Client {
             addrs,
             events,
             shutdown: close.shutdown.clone(),
+            shared,
         };
         tokio::spawn(task::run(link, task));
         client
@@ -248,6 +347,40 @@ impl Client {
         }
     }
 
+    /// The protocol version the connection speaks (3 or 4), as the last opening sequence
+    /// negotiated it (see [`ClientConfig::protocol_version`]).
+    pub fn protocol_version(&self) -> u16 {
+        self.shared.version.load(Ordering::SeqCst)
+    }
+
+    /// The server's highest protocol version, from the last opening sequence's
+    /// GET_PROTOCOL_VERSION (0 after [`connect_without_opening`](Self::connect_without_opening)
+    /// until a reconnect).
+    pub fn server_version(&self) -> u16 {
+        self.shared.server_version.load(Ordering::SeqCst)
+    }
+
+    /// How many responses so far carried a response counter other than the one due (one more
+    /// than the last response's, manual 3.2.2.3), over every connection of this client. By
+    /// default such a gap is only recorded (see [`ClientConfig::strict_response_counter`]); a
+    /// rising count with a server shared by several clients suggests the server counts across
+    /// them.
+    pub fn counter_gaps(&self) -> u64 {
+        self.shared.counter_gaps.load(Ordering::Relaxed)
+    }
+
+    /// The response code the server gave the REGISTER_CLIENT of the last opening sequence (the
+    /// connect, or the last reconnect); `None` if none was sent. Manual 3.3.2.3 calls the
+    /// message informational, so a code other than SUCCESS is reported here and in a `tracing`
+    /// warning, and does not fail the connect.
+    pub fn registration(&self) -> Option<ResponseCode> {
+        *self
+            .shared
+            .registration
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner())
+    }
+
     /// Whether the connection is closed for good (every call would fail). While the client
     /// reconnects it is not closed.
     pub fn is_closed(&self) -> bool {
@@ -256,7 +389,7 @@ impl Client {
 
     /// Ends the connection for every clone of this handle, and stops any reconnecting. Calls
     /// waiting for a response and calls queued fail with [`Error::Closed`], and so does every
-    /// later call. None of V3's eight message types ends a session (manual 3.3): the TCP
+    /// later call. No message type of V3 or V4 ends a session (manual 3.3): the TCP
     /// connection is simply closed. Returns once the connection is released; [`Error::Closed`]
     /// if the client was already closed with `close()`.
     ///
@@ -353,8 +486,28 @@ impl Client {
         Ok(())
     }
 
+    /// SET_TOOL (V4 only): chooses the tool with `tool_id`, as configured on the device
+    /// (PROTOCOLS.md 2b). A reconnect chooses the last tool the server accepted again. On a V3
+    /// connection [`Error::Request`], nothing sent: V3 names the tool in each GET_GRASP.
+    /// Cancel-safe (see [`Client`]); a cancelled call may still have switched the tool.
+    pub async fn set_tool(&self, tool_id: u16) -> Result<()> {
+        self.expect_success(Request::SetTool { tool_id }).await?;
+        Ok(())
+    }
+
+    /// SET_WORKSPACE (V4 only): chooses the workspace with `workspace_id`, as configured on the
+    /// device (PROTOCOLS.md 2b). A reconnect chooses it again. On a V3 connection
+    /// [`Error::Request`], nothing sent.
+    /// Cancel-safe (see [`Client`]); a cancelled call may still have switched the workspace.
+    pub async fn set_workspace(&self, workspace_id: u16) -> Result<()> {
+        self.expect_success(Request::SetWorkspace { workspace_id })
+            .await?;
+        Ok(())
+    }
+
     /// GET_GRASP: a grasp for the current scene (manual 3.3.3.1). The pose comes back in
-    /// `request.pose_format`.
+    /// `request.pose_format` (with V4, a quaternion is asked for in ABC and converted: V4 poses
+    /// have six values).
     /// Cancel-safe (see [`Client`]); a cancelled call may still have made the server pick a grasp,
     /// which the next GRASP_FEEDBACK then refers to.
     pub async fn get_grasp(&self, request: GraspRequest) -> Result<GetGraspOutcome> {
@@ -363,9 +516,18 @@ impl Client {
                 "GET_GRASP needs one of the manual's pose formats to read the grasp pose",
             ));
         }
+        // A V4 pose has six values (PROTOCOLS.md 2b): a quaternion is asked for in ABC, the
+        // format SCHUNK's example uses, and converted here, so that cell code works with either
+        // version.
+        let wanted = request.pose_format;
+        let mut request = request;
+        if self.speaks_v4() && wanted == PoseFormat::Quaternion {
+            request.pose_format = PoseFormat::Abc;
+        }
         let response = self.call(Request::GetGrasp(request)).await?;
         match (response.code, response.body) {
-            (ResponseCode::Success, ResponseBody::Grasp(grasp)) => {
+            (ResponseCode::Success, ResponseBody::Grasp(mut grasp)) => {
+                grasp.pose = grasp.pose.to_format(wanted)?;
                 Ok(GetGraspOutcome::Grasp(grasp))
             }
             (ResponseCode::NoObject, _) => Ok(GetGraspOutcome::NoObject),
@@ -379,7 +541,9 @@ impl Client {
         }
     }
 
-    /// GRASP_FEEDBACK: reports the result of the last grasp (manual 3.3.3.2).
+    /// GRASP_FEEDBACK: reports the result of the last grasp (manual 3.3.3.2). In V4 SCHUNK's
+    /// example says the message has no effect ("not yet supported with V4"); it is sent all the
+    /// same, so that cell code works with either version.
     /// Cancel-safe (see [`Client`]), but a cancelled or timed-out OK may still have removed the
     /// object from the scene: check with [`get_object_count`](Self::get_object_count) before
     /// sending it again.
@@ -397,17 +561,28 @@ impl Client {
             .expect_success(Request::GetObjectCount { object_class })
             .await?
         {
-            ResponseBody::ObjectCount(c) => Ok(c),
+            // V3 echoes the class (checked by the pairing); V4 may not (PROTOCOLS.md 2b).
+            ResponseBody::ObjectCount(c) => Ok(ObjectCount { object_class, ..c }),
             other => Err(unexpected_body(other)),
         }
     }
 
     /// ROBOT_POSE: tells the server the end effector's pose in the robot base frame, in any of
-    /// the four formats (manual 3.3.5.1).
+    /// the four formats (manual 3.3.5.1). V4 carries six values (PROTOCOLS.md 2b): there a
+    /// quaternion is sent as ABC, the format SCHUNK's example uses (rounded to the wire's µm and
+    /// µdeg).
     /// Cancel-safe (see [`Client`]); a cancelled call may still have been recorded.
     pub async fn robot_pose(&self, pose: Pose) -> Result<()> {
+        let pose = match pose {
+            Pose::Quaternion(_) if self.speaks_v4() => pose.to_format(PoseFormat::Abc)?,
+            _ => pose,
+        };
         self.expect_success(Request::RobotPose(pose)).await?;
         Ok(())
+    }
+
+    fn speaks_v4(&self) -> bool {
+        self.protocol_version() >= crate::smartgrasp::frame::v4::PROTOCOL_VERSION
     }
 
     /// Sends any request and returns the checked, typed response whatever its response code.
@@ -418,7 +593,7 @@ impl Client {
         let (reply, answer) = oneshot::channel();
         let exchange = async {
             let call = Call {
-                frame: request.to_frame(),
+                frame: request.to_any_frame(self.protocol_version())?,
                 reply,
             };
             self.calls.send(call).await.map_err(|_| self.closed())?;

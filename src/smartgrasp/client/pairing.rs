@@ -3,97 +3,151 @@
 //!
 //! Responses carry no request id; they come back in the order the requests were sent (one TCP
 //! stream, one server loop), so pairing is in order. What the header offers is checked:
-//! - communication type must be "response" and the prefix version 3;
+//! - communication type must be "response" and the prefix version the request's;
 //! - the message type must be the request's (manual 3.3; errata: GET_OBJECT_COUNT answers 32);
-//! - the response counter must advance by one modulo 256 (manual 3.2.2.3). The first response's
-//!   counter is unknown to a fresh connection and is learned. A gap of `k` means the `k`
-//!   responses before this one were lost; with in-order delivery those belong to the `k` oldest
-//!   waiting requests, which get [`Error::ResponseLost`] instead of someone else's answer. A gap
-//!   that no waiting request can explain breaks the connection.
+//! - the response counter (manual 3.2.2.3) rises by one per response and wraps at 256. The manual
+//!   does not say whether it counts per connection or across all of a server's clients (its own
+//!   examples 6.4 and 6.5 both show 3; PROTOCOLS.md errata), so by default a gap is only
+//!   *recorded* ([`Counted::gap`], a `tracing` warning and a count on the client): on TCP a gap
+//!   does not mean a response was mispaired, and pairing rests on the order, the message type and
+//!   the echoed fields. In strict mode ([`Pairing::strict`]) the counter is trusted: a gap of `k`
+//!   means the `k` responses before this one were lost; with in-order delivery those belong to
+//!   the `k` oldest waiting requests, which get [`Error::ResponseLost`] instead of someone else's
+//!   answer, and a gap that no waiting request can explain breaks the connection. Either way the
+//!   first response's counter is unknown to a fresh connection and is learned.
 //! - the fields a SUCCESS response repeats from its request must match ([`check_response`]).
 //!
 //! What no check can see (V3 frames carry no checksum): a corrupted body byte that still makes a
 //! valid value (a count, a pose, a server state, a response code) reaches the caller as it is.
 
 use crate::smartgrasp::error::{Error, Malformed};
-use crate::smartgrasp::frame::{RequestFrame, ResponseFrame, PROTOCOL_VERSION};
+use crate::smartgrasp::frame::{AnyRequestFrame, AnyResponseFrame};
 use crate::smartgrasp::types::{CommunicationType, MessageType, ResponseCode};
 
 /// The response counter's expectations across a connection.
 #[derive(Debug, Default, Clone, Copy)]
 pub(crate) struct Pairing {
-    /// The counter the next response must carry; `None` until the first response.
+    /// The counter the next response should carry; `None` until the first response.
     next_counter: Option<u8>,
+    /// Trust the counter: a gap charges the oldest waiting requests, or breaks the connection.
+    strict: bool,
 }
 
-/// Lost responses found by [`Pairing::counter`].
+/// What [`Pairing::counter`] found.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) struct Lost {
-    /// How many of the oldest waiting requests lost their response.
-    pub count: usize,
-    /// The counter the first lost response would have carried.
-    pub first_expected: u8,
+pub(crate) struct Counted {
+    /// How many of the oldest waiting requests lost their response (strict mode only; 0 in the
+    /// tolerant default).
+    pub lost: usize,
+    /// The counter this response should have carried.
+    pub expected: u8,
+    /// How many counter values were skipped (0: none).
+    pub gap: u8,
 }
 
 impl Pairing {
+    /// Pairing that trusts the response counter (see the module docs).
+    pub(crate) fn strict() -> Pairing {
+        Pairing {
+            next_counter: None,
+            strict: true,
+        }
+    }
+
     /// Checks the counter of a response that arrived while `waiting` requests (the abandoned ones
-    /// included) were outstanding. `Ok(lost)`: fail `lost.count` oldest requests with
-    /// [`Error::ResponseLost`], then pair the response with the next. `Err`: the connection must
-    /// be closed.
-    pub(crate) fn counter(&mut self, received: u8, waiting: usize) -> Result<Lost, Error> {
+    /// included) were outstanding. `Ok`: in strict mode fail `lost` oldest requests with
+    /// [`Error::ResponseLost`], then pair the response with the next; `gap` is what to record.
+    /// `Err`: the connection must be closed.
+    pub(crate) fn counter(&mut self, received: u8, waiting: usize) -> Result<Counted, Error> {
         if waiting == 0 {
             return Err(Malformed::Unsolicited { counter: received }.into());
         }
         let expected = self.next_counter.unwrap_or(received);
-        let count = usize::from(received.wrapping_sub(expected));
-        if count >= waiting {
-            return Err(Error::ResponseLost { expected, received });
-        }
+        let gap = received.wrapping_sub(expected);
+        let lost = if self.strict {
+            let lost = usize::from(gap);
+            if lost >= waiting {
+                return Err(Error::ResponseLost { expected, received });
+            }
+            lost
+        } else {
+            0
+        };
         self.next_counter = Some(received.wrapping_add(1));
-        Ok(Lost {
-            count,
-            first_expected: expected,
+        Ok(Counted {
+            lost,
+            expected,
+            gap,
         })
     }
 }
 
-/// Checks a response's prefix and header against the request it is paired with.
-pub(crate) fn check_header(request: MessageType, frame: &ResponseFrame) -> Result<(), Malformed> {
-    if frame.version != PROTOCOL_VERSION {
+/// Checks a response's prefix and header against the request it is paired with: the version the
+/// request used (a server answers with it, manual 1.3), communication type "response", and a
+/// message type that [`answers`] the request's.
+pub(crate) fn check_header(
+    request: &AnyRequestFrame,
+    frame: &AnyResponseFrame,
+) -> Result<(), Malformed> {
+    if frame.version() != request.version() {
         return Err(Malformed::Version {
-            version: frame.version,
+            version: frame.version(),
         });
     }
-    if frame.header.communication_type != CommunicationType::Response {
-        return Err(Malformed::CommunicationType(
-            frame.header.communication_type,
-        ));
+    let header = frame.header();
+    if header.communication_type != CommunicationType::Response {
+        return Err(Malformed::CommunicationType(header.communication_type));
     }
-    if frame.header.message_type != request {
+    let expected = request.header().message_type;
+    if !answers(expected, header.message_type) {
         return Err(Malformed::MessageType {
-            expected: request,
-            received: frame.header.message_type,
+            expected,
+            received: header.message_type,
         });
     }
     Ok(())
 }
 
+/// Whether a response of type `response` may answer a request of type `request`: the same type,
+/// or 17 for GET_OBJECT_COUNT. The manual's GET_OBJECT_COUNT response table (3.3.4.1) prints 17,
+/// an erratum for 32 (17 is GRASP_FEEDBACK; PROTOCOLS.md), but a firmware that followed the
+/// table would send 17, and refusing it would drop the connection on every count. The echoed
+/// object class still tells a count from a feedback response where the class is not 0.
+pub(crate) fn answers(request: MessageType, response: MessageType) -> bool {
+    request == response
+        || (request == MessageType::GetObjectCount && response == MessageType::GraspFeedback)
+}
+
+/// Whether a response to `a` could be taken for a response to `b` by its message type alone.
+pub(crate) fn ambiguous(a: MessageType, b: MessageType) -> bool {
+    answers(a, b) || answers(b, a) || {
+        // Both could be answered with 17.
+        let either = |t| t == MessageType::GetObjectCount || t == MessageType::GraspFeedback;
+        either(a) && either(b)
+    }
+}
+
 /// Checks a response against the request it is paired with: [`check_header`], then the fields a
-/// SUCCESS response repeats from its request. The manual: GET_GRASP's tool is "the tool of the
+/// SUCCESS V3 response repeats from its request. The manual: GET_GRASP's tool is "the tool of the
 /// request (same value)", its pose is in the pose format the request asked for, and its object is
 /// of the requested class unless that was 0 = any (3.3.3.1); GET_OBJECT_COUNT repeats the
 /// requested class (3.3.4.1). These catch a response paired with another request of the same
-/// type (a request lost on the wire, a corrupted counter) where the header cannot.
+/// type (a request lost on the wire, a corrupted counter) where the header cannot. V4 pins no
+/// echo (PROTOCOLS.md 2b: the example reads no echoed field, and whether the class is echoed is
+/// an open question), so a V4 response is checked by its header only.
 pub(crate) fn check_response(
-    request: &RequestFrame,
-    frame: &ResponseFrame,
+    request: &AnyRequestFrame,
+    frame: &AnyResponseFrame,
 ) -> Result<(), Malformed> {
-    let message_type = request.header.message_type;
-    check_header(message_type, frame)?;
+    check_header(request, frame)?;
+    let (AnyRequestFrame::V3(request), AnyResponseFrame::V3(frame)) = (request, frame) else {
+        return Ok(());
+    };
     if frame.header.response_code != ResponseCode::Success {
         // The rest of the body is meaningless (manual 3.2.2.2).
         return Ok(());
     }
+    let message_type = request.header.message_type;
     let differs = |field| {
         Err(Malformed::Echo {
             request: message_type,
@@ -123,28 +177,77 @@ pub(crate) fn check_response(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::smartgrasp::frame::{v4, RequestFrame, ResponseFrame};
     use crate::smartgrasp::types::ResponseCode;
 
-    #[test]
-    fn first_counter_is_learned_then_must_advance_by_one_and_wrap() {
-        let mut p = Pairing::default();
-        assert_eq!(p.counter(254, 1).unwrap().count, 0);
-        assert_eq!(p.counter(255, 1).unwrap().count, 0);
-        assert_eq!(p.counter(0, 1).unwrap().count, 0);
-        assert_eq!(p.counter(1, 1).unwrap().count, 0);
+    fn v3_header(request: MessageType, frame: &ResponseFrame) -> Result<(), Malformed> {
+        check_header(&RequestFrame::new(request).into(), &(*frame).into())
+    }
+
+    fn v3_response(request: &RequestFrame, frame: &ResponseFrame) -> Result<(), Malformed> {
+        check_response(&(*request).into(), &(*frame).into())
     }
 
     #[test]
-    fn a_gap_fails_the_oldest_requests_or_breaks_the_connection() {
+    fn a_response_must_use_the_requests_version_and_v4_pins_no_echo() {
+        let v4_count = v4::RequestFrame::new(MessageType::GetObjectCount).into();
+        let v3_answer = ResponseFrame::new(MessageType::GetObjectCount, ResponseCode::Success, 0);
+        assert_eq!(
+            check_response(&v4_count, &v3_answer.into()),
+            Err(Malformed::Version { version: 3 })
+        );
+        let mut v4_answer =
+            v4::ResponseFrame::new(MessageType::GetObjectCount, ResponseCode::Success, 0);
+        v4_answer.object_id = 9;
+        assert_eq!(check_response(&v4_count, &v4_answer.into()), Ok(()));
+        let v3_count = RequestFrame::new(MessageType::GetObjectCount).into();
+        assert_eq!(
+            check_response(&v3_count, &v4_answer.into()),
+            Err(Malformed::Version { version: 4 })
+        );
+    }
+
+    #[test]
+    fn first_counter_is_learned_then_must_advance_by_one_and_wrap() {
+        for mut p in [Pairing::default(), Pairing::strict()] {
+            for c in [254, 255, 0, 1] {
+                let counted = p.counter(c, 1).unwrap();
+                assert_eq!((counted.lost, counted.gap), (0, 0));
+            }
+        }
+    }
+
+    #[test]
+    fn by_default_a_gap_is_recorded_and_charges_nobody() {
         let mut p = Pairing::default();
+        p.counter(10, 1).unwrap();
+        // A server counting across all its clients: 12 where 11 was due, one call waiting.
+        assert_eq!(
+            p.counter(12, 1).unwrap(),
+            Counted {
+                lost: 0,
+                expected: 11,
+                gap: 1
+            }
+        );
+        // Learned from the last response: 13 is on time.
+        assert_eq!(p.counter(13, 1).unwrap().gap, 0);
+        // A repeated counter is a gap of 255, recorded too.
+        assert_eq!(p.counter(13, 1).unwrap().gap, 255);
+    }
+
+    #[test]
+    fn in_strict_mode_a_gap_fails_the_oldest_requests_or_breaks_the_connection() {
+        let mut p = Pairing::strict();
         p.counter(10, 1).unwrap();
         // Two requests waiting (the first abandoned by a timeout); the response to the first
         // was lost: 12 arrives where 11 was due.
         assert_eq!(
             p.counter(12, 2).unwrap(),
-            Lost {
-                count: 1,
-                first_expected: 11
+            Counted {
+                lost: 1,
+                expected: 11,
+                gap: 1
             }
         );
         // One request waiting and a gap: nothing can explain it.
@@ -156,13 +259,13 @@ mod tests {
             })
         ));
         // A repeated counter is a gap of 255.
-        let mut p = Pairing::default();
+        let mut p = Pairing::strict();
         p.counter(0, 1).unwrap();
         assert!(p.counter(0, 3).is_err());
         // A gap across the wrap.
-        let mut p = Pairing::default();
+        let mut p = Pairing::strict();
         p.counter(255, 1).unwrap();
-        assert_eq!(p.counter(1, 2).unwrap().count, 1);
+        assert_eq!(p.counter(1, 2).unwrap().lost, 1);
     }
 
     #[test]
@@ -176,21 +279,39 @@ mod tests {
     #[test]
     fn header_checks() {
         let ok = ResponseFrame::new(MessageType::GetObjectCount, ResponseCode::Success, 0);
-        assert_eq!(check_header(MessageType::GetObjectCount, &ok), Ok(()));
-        // Errata: the manual's table says 17 for GET_OBJECT_COUNT's response; it is 32.
-        let mut wrong = ok;
-        wrong.header.message_type = MessageType::GraspFeedback;
+        assert_eq!(v3_header(MessageType::GetObjectCount, &ok), Ok(()));
+        // Errata: the manual's table says 17 for GET_OBJECT_COUNT's response; it is 32, but a
+        // server that follows the table is accepted.
+        let mut seventeen = ok;
+        seventeen.header.message_type = MessageType::GraspFeedback;
+        assert_eq!(v3_header(MessageType::GetObjectCount, &seventeen), Ok(()));
+        // Not the other way round, and no other type.
         assert!(matches!(
-            check_header(MessageType::GetObjectCount, &wrong),
+            v3_header(MessageType::GraspFeedback, &ok),
             Err(Malformed::MessageType { .. })
+        ));
+        let mut state = ok;
+        state.header.message_type = MessageType::GetState;
+        assert!(matches!(
+            v3_header(MessageType::GetObjectCount, &state),
+            Err(Malformed::MessageType { .. })
+        ));
+        assert!(ambiguous(
+            MessageType::GraspFeedback,
+            MessageType::GetObjectCount
+        ));
+        assert!(ambiguous(MessageType::GetGrasp, MessageType::GetGrasp));
+        assert!(!ambiguous(
+            MessageType::GetState,
+            MessageType::GetObjectCount
         ));
         let mut request = ok;
         request.header.communication_type = CommunicationType::Request;
-        assert!(check_header(MessageType::GetObjectCount, &request).is_err());
+        assert!(v3_header(MessageType::GetObjectCount, &request).is_err());
         let mut v4 = ok;
         v4.version = 4;
         assert_eq!(
-            check_header(MessageType::GetObjectCount, &v4),
+            v3_header(MessageType::GetObjectCount, &v4),
             Err(Malformed::Version { version: 4 })
         );
     }
@@ -198,15 +319,15 @@ mod tests {
     #[test]
     fn success_responses_must_repeat_the_request() {
         use crate::smartgrasp::message::{GraspRequest, Request};
-        use crate::smartgrasp::types::{GraspMode, PoseFormat, Tool};
+        use crate::smartgrasp::types::{GraspMode, PoseFormat, SelectionCriterion, Tool};
         let count = Request::GetObjectCount { object_class: 2 }.to_frame();
         let mut ok = ResponseFrame::new(MessageType::GetObjectCount, ResponseCode::Success, 0);
         ok.object_class = 2;
-        assert_eq!(check_response(&count, &ok), Ok(()));
+        assert_eq!(v3_response(&count, &ok), Ok(()));
         let mut other = ok;
         other.object_class = 1;
         assert!(matches!(
-            check_response(&count, &other),
+            v3_response(&count, &other),
             Err(Malformed::Echo {
                 field: "object class",
                 ..
@@ -214,12 +335,13 @@ mod tests {
         ));
         // Without SUCCESS the body means nothing and is not checked.
         other.header.response_code = ResponseCode::InvalidObjectClass;
-        assert_eq!(check_response(&count, &other), Ok(()));
+        assert_eq!(v3_response(&count, &other), Ok(()));
 
         let any = Request::GetGrasp(GraspRequest {
             grasp_mode: GraspMode::AutoGrasp,
             object_class: 0,
             tool: Tool::Exterior,
+            selection_criterion: SelectionCriterion::default(),
             pose_format: PoseFormat::Abc,
         })
         .to_frame();
@@ -228,18 +350,18 @@ mod tests {
         grasp.pose_format = PoseFormat::Abc;
         grasp.object_class = 7;
         assert_eq!(
-            check_response(&any, &grasp),
+            v3_response(&any, &grasp),
             Ok(()),
             "class 0 asks for any class"
         );
         let mut class_one = any;
         class_one.object_class = 1;
-        assert!(check_response(&class_one, &grasp).is_err());
+        assert!(v3_response(&class_one, &grasp).is_err());
         let mut suction = grasp;
         suction.tool = Tool::Contact;
-        assert!(check_response(&any, &suction).is_err());
+        assert!(v3_response(&any, &suction).is_err());
         let mut wpr = grasp;
         wpr.pose_format = PoseFormat::Wpr;
-        assert!(check_response(&any, &wpr).is_err());
+        assert!(v3_response(&any, &wpr).is_err());
     }
 }

@@ -14,7 +14,7 @@ use tokio_util::sync::CancellationToken;
 
 use super::link::{closed_error, Call, Link};
 use super::session::Session;
-use super::ClientConfig;
+use super::{ClientConfig, Shared};
 use crate::reconnect::{self, ConnectionEvent, EventSender};
 use crate::smartgrasp::error::Error;
 
@@ -29,14 +29,21 @@ pub(crate) struct Task {
     pub events: EventSender,
     /// Cancelled by `Client::close`.
     pub shutdown: CancellationToken,
+    /// Counters the handles read.
+    pub shared: Arc<Shared>,
 }
 
 /// Runs until every handle is dropped, the program closes the client, or the connection is lost
 /// for good.
 pub(crate) async fn run(mut link: Link, mut task: Task) {
     let reason = loop {
+        let session = &mut task.session;
         let served = link
-            .serve(&mut task.calls, &mut task.session, &task.shutdown)
+            .serve(
+                &mut task.calls,
+                &mut |request, response| session.record(request, response),
+                &task.shutdown,
+            )
             .await;
         let Some(reason) = served else {
             return;
@@ -60,6 +67,7 @@ pub(crate) async fn run(mut link: Link, mut task: Task) {
             addrs,
             events,
             shutdown,
+            shared,
             ..
         } = &task;
         let retry = reconnect::retry(
@@ -67,9 +75,10 @@ pub(crate) async fn run(mut link: Link, mut task: Task) {
             events,
             || calls.is_closed(),
             |_| async {
-                let mut link = Link::connect(addrs, config).await?;
+                let mut link = Link::connect(addrs, config, shared).await?;
                 events.send(ConnectionEvent::Connected);
-                session.open(&mut link, config).await?;
+                let opened = session.open(&mut link, config).await?;
+                shared.set_opened(&opened);
                 Ok::<_, Error>(link)
             },
         );

@@ -115,7 +115,13 @@ async fn serve(stream: TcpStream, state: Arc<Mutex<SimState>>) {
         let frame = match item {
             Ok(frame) => frame,
             Err(e) => {
-                // No start marker: after a bad length the next frame cannot be found.
+                // No start marker: after a bad length the next frame cannot be found. But a
+                // newer client's frame may have another length: it first gets the "too old"
+                // empty message the manual says a server always sends (1.3), then the close.
+                let too_old = lock(&state).too_old_for(requests.read_buffer());
+                if let Some(prefix) = too_old {
+                    let _ = write.write_all(&prefix.encode()).await;
+                }
                 tracing::debug!(error = %e, "simulator: closing a connection");
                 return;
             }

@@ -6,13 +6,14 @@ use std::collections::VecDeque;
 use std::time::Duration;
 
 use crate::smartgrasp::codec::{peek_frame, Peeked};
-use crate::smartgrasp::frame::{Prefix, RequestFrame, ResponseFrame, FRAME_LEN, PROTOCOL_VERSION};
+use crate::smartgrasp::frame::{v4, AnyRequestFrame, AnyResponseFrame, Prefix, FRAME_LEN};
 use crate::smartgrasp::message::{
-    Grasp, GraspRequest, ObjectCount, Request, Response, ResponseBody,
+    Grasp, GraspRequest, ObjectCount, ObjectOffset, Request, Response, ResponseBody,
 };
 use crate::smartgrasp::pose::{Pose, SiPose, UnitQuaternion};
 use crate::smartgrasp::types::{
-    GraspFeedback, GraspMode, PoseFormat, ResponseCode, RobotSystem, ServerState, Tool,
+    GraspFeedback, GraspMode, PoseFormat, ReferenceFrame, ResponseCode, RobotSystem, ServerState,
+    Tool,
 };
 use crate::smartgrasp::Malformed;
 
@@ -27,8 +28,10 @@ pub struct SimGrasp {
     pub stroke_um: i32,
     /// Angle offset between object model and flange, µdeg.
     pub angle_offset_udeg: i32,
-    /// Offset from the object centre to the grasp point, µm, robot base frame.
+    /// Offset from the object centre to the grasp point, µm, robot base frame (V4 sends x, y).
     pub center_offset_um: [i32; 3],
+    /// V4's object offset (sent in V4 responses only).
+    pub object_offset: ObjectOffset,
     /// The grasp pose in the robot base frame; sent in whatever format the request asks for.
     pub pose: SiPose,
 }
@@ -84,27 +87,43 @@ pub enum Fault {
 /// How the simulated server starts.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SimConfig {
-    /// The highest protocol version the server speaks. Below 3, it answers every V3 request with
-    /// the empty "too old" message (manual 1.3).
-    pub protocol_version: u16,
+    /// The highest protocol version the server speaks (default 4). It answers every request of
+    /// a higher version with the empty "too old" message carrying this number (manual 1.3),
+    /// whatever the request's length: 3 makes it a V3-only server that answers V4 that way.
+    /// Every request of this version or lower is answered in the layout and with the version the
+    /// request used (V4 for 4, V3's otherwise).
+    pub max_version: u16,
     /// What GET_STATE reports. Detection calls fail with ERROR unless OPERATIONAL.
     pub server_state: ServerState,
-    /// The projects, by index.
+    /// The projects, by index (V3's SET_PROJECT) or ID (V4's: the simulator takes the ID as the
+    /// index; how a real server relates them is not public).
     pub projects: Vec<SimProject>,
     /// The project active before any SET_PROJECT.
     pub active_project: Option<u32>,
+    /// The tool IDs V4's SET_TOOL accepts, and the kind of tool each is (which of an object's
+    /// grasps it takes). Default: 1 exterior, 2 interior, 3 contact. Before any SET_TOOL, a V4
+    /// GET_GRASP grasps with an exterior tool.
+    pub tools: Vec<(u16, Tool)>,
+    /// The workspace IDs V4's SET_WORKSPACE accepts (default 0 and 1, what SCHUNK's example
+    /// sends). The simulator records the choice; it does not change the scene.
+    pub workspaces: Vec<u16>,
+    /// What V4 GET_GRASP responses carry as reference frame (byte 19; values not public).
+    pub reference_frame: ReferenceFrame,
     /// The response counter of each connection's first response (to cross 255 quickly in tests).
     pub first_response_counter: u8,
 }
 
 impl Default for SimConfig {
-    /// An operational v3 server with [`SimConfig::demo_project`] as project 0, active.
+    /// An operational v4 server with [`SimConfig::demo_project`] as project 0, active.
     fn default() -> Self {
         SimConfig {
-            protocol_version: PROTOCOL_VERSION,
+            max_version: v4::PROTOCOL_VERSION,
             server_state: ServerState::Operational,
             projects: vec![SimConfig::demo_project()],
             active_project: Some(0),
+            tools: vec![(1, Tool::Exterior), (2, Tool::Interior), (3, Tool::Contact)],
+            workspaces: vec![0, 1],
+            reference_frame: ReferenceFrame(0),
             first_response_counter: 0,
         }
     }
@@ -125,6 +144,11 @@ impl SimConfig {
             stroke_um,
             angle_offset_udeg: -25_210_142,
             center_offset_um: [-911, -310, 68],
+            object_offset: ObjectOffset {
+                x_um: 1_250,
+                y_um: -640,
+                rz_udeg: -25_210_142,
+            },
             pose: p,
         };
         SimProject::from_scene(vec![
@@ -167,13 +191,13 @@ impl SimConfig {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Action {
     /// Send this response.
-    Respond(ResponseFrame),
+    Respond(AnyResponseFrame),
     /// Send the empty "too old" message: a prefix with length 0 and the server's version.
     RespondEmpty(Prefix),
     /// Send nothing (an injected [`Fault::DropReply`]).
     Skip,
     /// Send this response after the delay.
-    Delay(Duration, ResponseFrame),
+    Delay(Duration, AnyResponseFrame),
     /// Send these 80 bytes: a response whose length field was corrupted.
     SendRaw([u8; FRAME_LEN]),
     /// Close the connection.
@@ -199,6 +223,8 @@ struct LastGrasp {
 pub struct SimState {
     config: SimConfig,
     active_project: Option<usize>,
+    active_tool: Option<u16>,
+    active_workspace: Option<u16>,
     last_grasp: Option<LastGrasp>,
     registered_clients: Vec<RobotSystem>,
     robot_poses: Vec<Pose>,
@@ -222,10 +248,10 @@ fn record<T>(log: &mut Vec<T>, item: T) {
 /// Reads one request frame from the front of `bytes`: `Ok(None)` until 80 bytes are there,
 /// `Ok(Some((frame, 80)))` then. Any prefix length but 74 is an error: a server cannot find the
 /// next frame after it. Pure, for fuzzing.
-pub fn parse_request(bytes: &[u8]) -> Result<Option<(RequestFrame, usize)>, Malformed> {
+pub fn parse_request(bytes: &[u8]) -> Result<Option<(AnyRequestFrame, usize)>, Malformed> {
     match peek_frame(bytes) {
         Ok(Peeked::Incomplete { .. }) => Ok(None),
-        Ok(Peeked::Frame(frame)) => Ok(Some((RequestFrame::decode(&frame), FRAME_LEN))),
+        Ok(Peeked::Frame(frame)) => Ok(Some((AnyRequestFrame::decode(&frame), FRAME_LEN))),
         Ok(Peeked::Empty { .. }) => Err(Malformed::FrameLength { length: 0 }),
         Err(prefix) => Err(Malformed::FrameLength {
             length: prefix.length,
@@ -238,6 +264,8 @@ impl SimState {
     pub fn new(config: SimConfig) -> SimState {
         SimState {
             active_project: config.active_project.map(|i| i as usize),
+            active_tool: None,
+            active_workspace: None,
             config,
             last_grasp: None,
             registered_clients: Vec::new(),
@@ -290,33 +318,64 @@ impl SimState {
         self.config.server_state = state;
     }
 
-    /// Handles one request frame.
-    pub fn handle(&mut self, conn: &mut SimConnection, frame: &RequestFrame) -> Action {
+    /// The "too old" empty message for the bytes of a message this server cannot read (a length
+    /// other than 74), if its prefix carries a version newer than the server's: manual 1.3 says
+    /// a server older than the client always answers with it, whatever the rest of the message.
+    /// `None` for an incomplete prefix or a version the server speaks (a plain bad length).
+    pub fn too_old_for(&self, bytes: &[u8]) -> Option<Prefix> {
+        let prefix = Prefix::decode(bytes.first_chunk()?);
+        (prefix.version > self.config.max_version).then_some(Prefix {
+            version: self.config.max_version,
+            length: 0,
+        })
+    }
+
+    /// The tool ID V4's SET_TOOL chose last (`None` before any).
+    pub fn active_tool(&self) -> Option<u16> {
+        self.active_tool
+    }
+
+    /// The workspace ID V4's SET_WORKSPACE chose last (`None` before any).
+    pub fn active_workspace(&self) -> Option<u16> {
+        self.active_workspace
+    }
+
+    /// Handles one request frame of either version.
+    pub fn handle(&mut self, conn: &mut SimConnection, frame: &AnyRequestFrame) -> Action {
+        let version = frame.version();
         // Manual 1.3: a server older than the client answers with an empty message carrying its
-        // highest version; it never answers a V3 frame it does not speak.
-        if frame.version > self.config.protocol_version {
+        // highest version; it never answers a frame of a version it does not speak.
+        if version > self.config.max_version {
             return Action::RespondEmpty(Prefix {
-                version: self.config.protocol_version,
+                version: self.config.max_version,
                 length: 0,
             });
         }
         let counter = conn.next_counter;
         conn.next_counter = counter.wrapping_add(1);
-        let (code, body) = match Request::from_frame(frame) {
-            Ok(request) => self.process(request),
+        let (code, body) = match Request::from_any_frame(frame) {
+            Ok(request) => self.process(request, version),
             Err(e) => {
                 tracing::debug!(error = %e, "simulator refused a request");
                 (ResponseCode::Error, ResponseBody::Empty)
             }
         };
-        let response = Response {
-            message_type: frame.header.message_type,
+        let message_type = frame.header().message_type;
+        let respond = |code, body| Response {
+            message_type,
             code,
             counter,
             body,
-        }
-        // The server answers with the version the request used (manual 1.3).
-        .to_frame(frame.version);
+        };
+        // The server answers with the version the request used (manual 1.3), in its layout.
+        let response: AnyResponseFrame = match frame {
+            AnyRequestFrame::V3(_) => respond(code, body).to_frame(version).into(),
+            AnyRequestFrame::V4(_) => match respond(code, body).to_v4_frame() {
+                Ok(f) => f.into(),
+                // A pose V4 cannot carry (never built: GET_GRASP refuses a quaternion first).
+                Err(_) => v4::ResponseFrame::new(message_type, ResponseCode::Error, counter).into(),
+            },
+        };
         match self.faults.pop_front() {
             None => Action::Respond(response),
             Some(Fault::DropReply) => Action::Skip,
@@ -330,15 +389,15 @@ impl SimState {
         }
     }
 
-    fn process(&mut self, request: Request) -> (ResponseCode, ResponseBody) {
+    /// Carries out a request of protocol `version`.
+    fn process(&mut self, request: Request, version: u16) -> (ResponseCode, ResponseBody) {
         const OK: ResponseCode = ResponseCode::Success;
         const EMPTY: ResponseBody = ResponseBody::Empty;
         const ERROR: (ResponseCode, ResponseBody) = (ResponseCode::Error, ResponseBody::Empty);
         match request {
-            Request::GetProtocolVersion => (
-                OK,
-                ResponseBody::ProtocolVersion(self.config.protocol_version),
-            ),
+            Request::GetProtocolVersion => {
+                (OK, ResponseBody::ProtocolVersion(self.config.max_version))
+            }
             Request::GetState => (OK, ResponseBody::State(self.config.server_state)),
             Request::RegisterClient(robot) => {
                 record(&mut self.registered_clients, robot);
@@ -352,14 +411,45 @@ impl SimState {
                 }
                 _ => ERROR,
             },
+            Request::SetTool { tool_id } => {
+                if !self.config.tools.iter().any(|&(id, _)| id == tool_id) {
+                    return ERROR;
+                }
+                self.active_tool = Some(tool_id);
+                (OK, EMPTY)
+            }
+            Request::SetWorkspace { workspace_id } => {
+                if !self.config.workspaces.contains(&workspace_id) {
+                    return ERROR;
+                }
+                self.active_workspace = Some(workspace_id);
+                (OK, EMPTY)
+            }
             Request::RobotPose(pose) => {
                 record(&mut self.robot_poses, pose);
                 (OK, EMPTY)
             }
-            Request::GetGrasp(g) => match self.operational_project() {
-                Some(p) => self.get_grasp(p, g),
-                None => ERROR,
-            },
+            Request::GetGrasp(mut g) => {
+                let Some(p) = self.operational_project() else {
+                    return ERROR;
+                };
+                if version >= v4::PROTOCOL_VERSION {
+                    // V4 chooses the tool with SET_TOOL, not in the request.
+                    g.tool = self.v4_tool();
+                }
+                let (code, mut body) = self.get_grasp(p, g);
+                if let ResponseBody::Grasp(grasp) = &mut body {
+                    if version >= v4::PROTOCOL_VERSION {
+                        grasp.tool = None;
+                        grasp.angle_offset_udeg = None;
+                        grasp.center_offset_z_um = None;
+                    } else {
+                        grasp.reference_frame = None;
+                        grasp.object_offset = None;
+                    }
+                }
+                (code, body)
+            }
             Request::GetObjectCount { object_class } => {
                 let Some(p) = self.operational_project() else {
                     return ERROR;
@@ -401,6 +491,13 @@ impl SimState {
         }
     }
 
+    /// The kind of tool the last SET_TOOL chose; exterior before any.
+    fn v4_tool(&self) -> Tool {
+        self.active_tool
+            .and_then(|id| self.config.tools.iter().find(|&&(t, _)| t == id))
+            .map_or(Tool::Exterior, |&(_, tool)| tool)
+    }
+
     /// The active project's index when the server is operational.
     fn operational_project(&self) -> Option<usize> {
         if self.config.server_state != ServerState::Operational {
@@ -417,6 +514,7 @@ impl SimState {
         if let PoseFormat::Unknown(_) = request.pose_format {
             return (ResponseCode::Error, ResponseBody::Empty);
         }
+        // Both layouts' fields are filled; `process` keeps those of the request's version.
         let class = request.object_class;
         if class != 0 && !project.classes.contains(&class) {
             return (ResponseCode::InvalidObjectClass, ResponseBody::Empty);
@@ -438,12 +536,18 @@ impl SimState {
             object_class: object.class_id,
             object_instance: object.instance,
             stroke_um: definition.stroke_um,
-            angle_offset_udeg: definition.angle_offset_udeg,
-            center_offset_um: definition.center_offset_um,
-            tool: request.tool,
+            center_offset_um: [
+                definition.center_offset_um[0],
+                definition.center_offset_um[1],
+            ],
             pose,
             object_count: count(project.scene.len()),
             candidate_count,
+            center_offset_z_um: Some(definition.center_offset_um[2]),
+            angle_offset_udeg: Some(definition.angle_offset_udeg),
+            tool: Some(request.tool),
+            reference_frame: Some(self.config.reference_frame),
+            object_offset: Some(definition.object_offset),
         };
         self.last_grasp = Some(LastGrasp {
             project: p,
@@ -490,11 +594,24 @@ fn count(n: usize) -> u16 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::smartgrasp::types::MessageType;
+    use crate::smartgrasp::frame::{RequestFrame, PROTOCOL_VERSION};
+    use crate::smartgrasp::types::{MessageType, SelectionCriterion};
 
     fn respond(state: &mut SimState, conn: &mut SimConnection, request: Request) -> Response {
-        match state.handle(conn, &request.to_frame()) {
-            Action::Respond(f) => Response::from_frame(&f).unwrap(),
+        respond_in(state, conn, request, PROTOCOL_VERSION)
+    }
+
+    fn respond_in(
+        state: &mut SimState,
+        conn: &mut SimConnection,
+        request: Request,
+        version: u16,
+    ) -> Response {
+        match state.handle(conn, &request.to_any_frame(version).unwrap()) {
+            Action::Respond(f) => {
+                assert_eq!(f.version(), version, "answered in the request's version");
+                Response::from_any_frame(&f).unwrap()
+            }
             other => panic!("expected a response, got {other:?}"),
         }
     }
@@ -504,6 +621,7 @@ mod tests {
             grasp_mode: mode,
             object_class: class,
             tool,
+            selection_criterion: SelectionCriterion::default(),
             pose_format: PoseFormat::Abc,
         })
     }
@@ -600,12 +718,12 @@ mod tests {
         assert_eq!(respond(&mut s, &mut c, Request::GetState).counter, 0);
 
         let mut old = SimState::new(SimConfig {
-            protocol_version: 2,
+            max_version: 2,
             ..SimConfig::default()
         });
         let mut c = old.connect();
         assert_eq!(
-            old.handle(&mut c, &Request::GetState.to_frame()),
+            old.handle(&mut c, &Request::GetState.to_frame().into()),
             Action::RespondEmpty(Prefix {
                 version: 2,
                 length: 0
@@ -614,15 +732,133 @@ mod tests {
     }
 
     #[test]
+    fn a_newer_message_of_any_length_gets_too_old_and_a_plain_bad_length_nothing() {
+        let s = SimState::new(SimConfig {
+            max_version: 3,
+            ..SimConfig::default()
+        });
+        // A V4 frame of a length that is not V4's, and a V5 one.
+        for version in [4, 5] {
+            let newer = Prefix {
+                version,
+                length: 200,
+            }
+            .encode();
+            assert_eq!(
+                s.too_old_for(&newer),
+                Some(Prefix {
+                    version: 3,
+                    length: 0
+                })
+            );
+        }
+        let newer = Prefix {
+            version: 4,
+            length: 200,
+        }
+        .encode();
+        assert_eq!(s.too_old_for(&newer[..5]), None);
+        let bad_length = Prefix {
+            version: PROTOCOL_VERSION,
+            length: 200,
+        }
+        .encode();
+        assert_eq!(s.too_old_for(&bad_length), None);
+    }
+
+    #[test]
+    fn v4_requests_get_v4_answers_and_choose_tool_and_workspace() {
+        let mut s = SimState::new(SimConfig::default());
+        let mut c = s.connect();
+        let v4 = v4::PROTOCOL_VERSION;
+        let r = respond_in(
+            &mut s,
+            &mut c,
+            Request::GetProtocolVersion,
+            PROTOCOL_VERSION,
+        );
+        assert_eq!(r.body, ResponseBody::ProtocolVersion(4));
+        assert_eq!(
+            respond_in(&mut s, &mut c, Request::SetTool { tool_id: 9 }, v4).code,
+            ResponseCode::Error
+        );
+        // Tool 3 is a contact tool: class 2's model-free suction grasp.
+        let r = respond_in(&mut s, &mut c, Request::SetTool { tool_id: 3 }, v4);
+        assert_eq!(r.code, ResponseCode::Success);
+        assert_eq!(s.active_tool(), Some(3));
+        let r = respond_in(
+            &mut s,
+            &mut c,
+            Request::SetWorkspace { workspace_id: 1 },
+            v4,
+        );
+        assert_eq!(r.code, ResponseCode::Success);
+        assert_eq!(s.active_workspace(), Some(1));
+        let mut request = get_grasp(2, GraspMode::AutoGrasp, Tool::Unknown(0));
+        if let Request::GetGrasp(g) = &mut request {
+            g.selection_criterion = SelectionCriterion(2);
+        }
+        let r = respond_in(&mut s, &mut c, request, v4);
+        let ResponseBody::Grasp(g) = r.body else {
+            panic!("{r:?}")
+        };
+        assert_eq!(g.grasp_mode, GraspMode::AutoGrasp);
+        assert_eq!(
+            (g.tool, g.angle_offset_udeg, g.center_offset_z_um),
+            (None, None, None)
+        );
+        assert!(g.object_offset.is_some() && g.reference_frame.is_some());
+        // The same request as V3 names its tool, and gets V3's fields.
+        let r = respond_in(
+            &mut s,
+            &mut c,
+            get_grasp(2, GraspMode::AutoGrasp, Tool::Contact),
+            3,
+        );
+        let ResponseBody::Grasp(g) = r.body else {
+            panic!("{r:?}")
+        };
+        assert_eq!(g.tool, Some(Tool::Contact));
+        assert_eq!((g.object_offset, g.reference_frame), (None, None));
+        // SET_TOOL is no V3 message.
+        let r = respond_in(&mut s, &mut c, Request::GetState, 3);
+        assert_eq!(r.code, ResponseCode::Success);
+        let frame = RequestFrame::new(MessageType::SetTool);
+        let Action::Respond(r) = s.handle(&mut c, &frame.into()) else {
+            panic!()
+        };
+        assert_eq!(r.header().response_code, ResponseCode::Error);
+    }
+
+    #[test]
+    fn a_server_pinned_to_v3_answers_v4_with_too_old() {
+        let mut s = SimState::new(SimConfig {
+            max_version: 3,
+            ..SimConfig::default()
+        });
+        let mut c = s.connect();
+        let v4_frame = Request::GetState.to_any_frame(4).unwrap();
+        assert_eq!(
+            s.handle(&mut c, &v4_frame),
+            Action::RespondEmpty(Prefix {
+                version: 3,
+                length: 0
+            })
+        );
+        let r = respond_in(&mut s, &mut c, Request::GetProtocolVersion, 3);
+        assert_eq!(r.body, ResponseBody::ProtocolVersion(3));
+    }
+
+    #[test]
     fn unknown_message_type_gets_error_with_the_same_type() {
         let mut s = SimState::new(SimConfig::default());
         let mut c = s.connect();
         let frame = RequestFrame::new(MessageType::Unknown(99));
-        let Action::Respond(r) = s.handle(&mut c, &frame) else {
+        let Action::Respond(r) = s.handle(&mut c, &frame.into()) else {
             panic!()
         };
-        assert_eq!(r.header.response_code, ResponseCode::Error);
-        assert_eq!(r.header.message_type, MessageType::Unknown(99));
+        assert_eq!(r.header().response_code, ResponseCode::Error);
+        assert_eq!(r.header().message_type, MessageType::Unknown(99));
     }
 
     #[test]
@@ -632,7 +868,7 @@ mod tests {
         assert_eq!(
             parse_request(&bytes)
                 .unwrap()
-                .map(|(f, n)| (f.header.message_type, n)),
+                .map(|(f, n)| (f.header().message_type, n)),
             Some((MessageType::GetState, 80))
         );
         let mut bad = bytes;
@@ -659,7 +895,8 @@ mod tests {
             if let Ok(Some((frame, used))) = parse_request(&bytes) {
                 proptest::prop_assert_eq!(used, FRAME_LEN);
                 if let Action::Respond(r) = s.handle(&mut c, &frame) {
-                    proptest::prop_assert_eq!(r.header.message_type, frame.header.message_type);
+                    proptest::prop_assert_eq!(r.header().message_type, frame.header().message_type);
+                    proptest::prop_assert_eq!(r.version(), frame.version());
                 }
             }
         }
@@ -671,7 +908,7 @@ mod tests {
         let mut conn = state.connect();
         for _ in 0..3 * RECORD_LIMIT {
             let frame = Request::RegisterClient(RobotSystem::Kuka).to_frame();
-            state.handle(&mut conn, &frame);
+            state.handle(&mut conn, &frame.into());
         }
         assert!(state.registered_clients().len() <= RECORD_LIMIT);
         assert!(state.registered_clients().len() >= RECORD_LIMIT * 3 / 4);

@@ -34,6 +34,9 @@ pub const DEFAULT_QUERY_TIMEOUT: Duration = Duration::from_secs(1);
 pub const DEFAULT_MOTION_TIMEOUT: Duration = Duration::from_secs(30);
 /// Default time an unanswered request keeps its command id after its caller's deadline.
 pub const DEFAULT_LATE_REPLY_GRACE: Duration = Duration::from_secs(2);
+/// How long switching a finger's power on takes: its final reply comes "nach etwa 500 ms"
+/// (manual 3.6.3). [`Client::set_finger_power`] waits this long plus the query timeout.
+pub const FINGER_POWER_ON_DURATION: Duration = Duration::from_millis(500);
 /// Default timeout of a TCP connect (see [`ClientBuilder::connect_timeout`]).
 pub const DEFAULT_CONNECT_TIMEOUT: Duration = Duration::from_secs(5);
 /// Default silence after which a partial frame is dropped as noise (see
@@ -86,15 +89,18 @@ impl ClientBuilder {
         self
     }
 
-    /// Timeout of motion commands up to their final reply (default 30 s).
+    /// Timeout of motion commands (homing, pre-position, grasp, release) up to their final reply
+    /// (default 30 s). Past it, the client asks the device whether the move still runs before it
+    /// takes the command id back (see [Lost final replies](Client#lost-final-replies)).
     pub fn motion_timeout(mut self, t: Duration) -> Self {
         self.motion_timeout = t;
         self
     }
 
     /// How long after its caller's deadline an unanswered request keeps its command id, so that
-    /// its late reply is consumed rather than handed to the next caller (default 2 s). See the
-    /// client documentation for the residual risk.
+    /// its late reply is consumed rather than handed to the next caller (default 2 s); also the
+    /// spacing of the two "not moving" answers that release a motion command whose final reply
+    /// is lost. See [Lost final replies](Client#lost-final-replies) for the residual risk.
     pub fn late_reply_grace(mut self, t: Duration) -> Self {
         self.late_reply_grace = t;
         self
@@ -333,9 +339,22 @@ impl Shared {
 /// A handle to a WSG gripper: `Clone + Send + Sync`, any number of tasks may call it at once.
 ///
 /// One background task owns the connection. Replies are paired with requests by command id:
-/// calls with different ids run concurrently, calls with the same id are queued. Motion commands
-/// resolve on their final reply (after E_CMD_PENDING); a stop or fast stop is never blocked by a
-/// pending move, which then fails with E_CMD_ABORTED.
+/// calls with different ids run concurrently, calls with the same id are queued, with two
+/// exceptions:
+/// - **Stop and FAST STOP are never queued** (manual 3.2.3: "stoppt unmittelbar jede laufende
+///   Fingerbewegung"): each [`Client::stop`] / [`Client::fast_stop`] is sent at once, whatever is
+///   on the wire, even while an earlier stop's reply is outstanding or lost. Their replies carry
+///   no data and cannot be told apart, so every stop call waiting when a stop reply arrives (all
+///   were sent before it) completes on it. A pending move then fails with E_CMD_ABORTED.
+/// - **A motion command (homing, pre-position, grasp, release) is never run later**: while one
+///   of the same id runs, a second call is refused with [`Error::Device`] /
+///   [`Status::AlreadyRunning`] without being sent, exactly as the device refuses a motion
+///   command while another runs (3.2.2: E_ALREADY_RUNNING). So a second `pre_position` and a
+///   `grasp` during a `pre_position` fail the same way; a call made while the first one is not
+///   yet acknowledged waits to see whether the device accepts it. Stop the running move first
+///   (or wait for it) to start another.
+///
+/// Motion commands resolve on their final reply (after E_CMD_PENDING).
 ///
 /// Every call has a timeout ([`ClientBuilder::query_timeout`], [`ClientBuilder::motion_timeout`],
 /// or per handle with [`Client::with_timeouts`]) covering queueing, sending and the final reply.
@@ -343,8 +362,30 @@ impl Shared {
 /// keeps its command id until its late reply arrives, and that reply is discarded. Because the
 /// protocol has no sequence numbers, an unanswered (and unacknowledged) request gives up its id
 /// after its deadline plus [`ClientBuilder::late_reply_grace`]; only a reply later than that could
-/// be taken for the next request of the same id. Acknowledged motion commands hold their id until
-/// their final reply.
+/// be taken for the next request of the same id.
+///
+/// # Lost final replies
+/// A request the device acknowledged (E_CMD_PENDING, manual 1.3) holds its command id until its
+/// final reply, but never for good, so one lost frame cannot block an id for the life of the
+/// connection:
+/// - **finger power on** (0x62/0x72): the final reply comes "nach etwa 500 ms" (3.6.3), so the
+///   call waits [`FINGER_POWER_ON_DURATION`] plus the query timeout, then fails with
+///   [`Error::Timeout`]; its id is released a grace period later;
+/// - **raw requests** ([`Client::request`], [`Client::request_with_timeout`]): the call's timeout
+///   is the bound; the id is released a grace period after it;
+/// - **motion commands**: a move may outlast its caller's timeout, so the id is not released on
+///   time alone. From the caller's deadline on, the client asks the device's system state
+///   (0x40) every grace period, and releases the id only when two answers in a row, from
+///   queries sent after the deadline and a grace period apart, say the fingers do not move
+///   (SF_MOVING clear) and no final reply came in between. One answer is not enough: Anhang B
+///   says the flags are not synchronised with the end of a move, UDP may reorder the final
+///   reply behind the answer, and while 0x40 is streamed the answer may be a stream frame sent
+///   just before the query arrived. A call of that id made meanwhile waits for the verdict: it
+///   is sent once the id is released, or refused with E_ALREADY_RUNNING while the device moves.
+///
+/// In each case the residual risk is the same as for unanswered requests: a final reply later
+/// than the grace period (for a move: later than a grace period after the device said twice
+/// that it stopped) would be taken for the next call of the same id.
 ///
 /// # A misbehaving wire
 /// What the client does about each fault (each one is tested through the fault proxy in
@@ -354,8 +395,9 @@ impl Shared {
 /// - a header whose bytes stop coming (a corrupted length) is dropped after
 ///   [`ClientBuilder::partial_frame_timeout`], and the frames behind it are decoded;
 /// - a lost reply ends its call in a timeout; a lost E_CMD_PENDING changes nothing (the final
-///   reply ends the call); a lost final reply of a move times its call out, and the next move
-///   of that id asks the device whether it still moves before taking the id back;
+///   reply ends the call); a lost final reply times its call out, and its id comes back as
+///   [Lost final replies](Client#lost-final-replies) says; a lost stop reply holds up no later
+///   stop;
 /// - a duplicated reply is dropped when no request of its id is on the wire. Frames already
 ///   received are paired before the next request goes out, and a loop reply must echo its own
 ///   payload; otherwise, without sequence numbers, a copy arriving after the next request of
@@ -476,10 +518,11 @@ impl Client {
     /// even if the call is dropped (see [Cancellation](Client#cancellation)).
     pub async fn command(&self, command: Command) -> Result<Bytes> {
         command.validate().map_err(Error::InvalidArgument)?;
-        let timeout = if command.is_async() {
-            self.motion_timeout
-        } else {
-            self.query_timeout
+        let timeout = match command {
+            // Not a move: its final reply comes after a known time (3.6.3).
+            Command::FingerPower(_, true) => self.query_timeout + FINGER_POWER_ON_DURATION,
+            _ if command.is_async() => self.motion_timeout,
+            _ => self.query_timeout,
         };
         let reply = self.exchange(command.to_frame(), timeout).await?;
         success(reply)
@@ -487,7 +530,10 @@ impl Client {
 
     /// Sends a command the crate has no type for (e.g. scripting commands) and returns its final
     /// reply (after E_CMD_PENDING, if the device sends one) with whatever status it has, within
-    /// the query timeout.
+    /// the query timeout. If the final reply does not come by then, the call fails with
+    /// [`Error::Timeout`] and the id is released [`ClientBuilder::late_reply_grace`] later (see
+    /// [Lost final replies](Client#lost-final-replies)); use
+    /// [`Client::request_with_timeout`] for a command that takes longer.
     ///
     /// Cancel-safe for the connection; a command that was sent takes effect (a motion keeps moving)
     /// even if the call is dropped (see [Cancellation](Client#cancellation)).
@@ -496,7 +542,8 @@ impl Client {
             .await
     }
 
-    /// [`Client::request`] with an explicit timeout.
+    /// [`Client::request`] with an explicit timeout, which also bounds how long an acknowledged
+    /// request may wait for its final reply (see [Lost final replies](Client#lost-final-replies)).
     ///
     /// Cancel-safe for the connection; a command that was sent takes effect (a motion keeps moving)
     /// even if the call is dropped (see [Cancellation](Client#cancellation)).
@@ -549,6 +596,9 @@ impl Client {
 
     /// Homing (0x20): references the fingers; needed before any other motion.
     ///
+    /// Refused with E_ALREADY_RUNNING, unsent, while a move of the same command runs (manual
+    /// 3.2.2; see [`Client`]).
+    ///
     /// Cancel-safe for the connection, but dropping the call does **not** stop the fingers: once
     /// sent, the move runs to its end; send [`Client::stop`] (see [Cancellation](Client#cancellation)).
     pub async fn home(&self, direction: HomingDirection) -> Result<()> {
@@ -556,6 +606,9 @@ impl Client {
     }
 
     /// Pre-position (0x21) to an absolute width, stopping if blocked.
+    ///
+    /// Refused with E_ALREADY_RUNNING, unsent, while a move of the same command runs (manual
+    /// 3.2.2; see [`Client`]).
     ///
     /// Cancel-safe for the connection, but dropping the call does **not** stop the fingers: once
     /// sent, the move runs to its end; send [`Client::stop`] (see [Cancellation](Client#cancellation)).
@@ -571,6 +624,9 @@ impl Client {
 
     /// Pre-position (0x21) by a distance relative to the current width, stopping if blocked.
     ///
+    /// Refused with E_ALREADY_RUNNING, unsent, while a move of the same command runs (manual
+    /// 3.2.2; see [`Client`]).
+    ///
     /// Cancel-safe for the connection, but dropping the call does **not** stop the fingers: once
     /// sent, the move runs to its end; send [`Client::stop`] (see [Cancellation](Client#cancellation)).
     pub async fn pre_position_relative(&self, distance_mm: f32, speed_mm_per_s: f32) -> Result<()> {
@@ -585,6 +641,10 @@ impl Client {
 
     /// Stop (0x22): stops any motion (a pending motion fails with E_CMD_ABORTED).
     ///
+    /// Sent at once, never queued behind anything, even an earlier stop whose reply is
+    /// outstanding or lost; completes on the first stop reply that arrives after it was sent
+    /// (see [`Client`]).
+    ///
     /// Cancel-safe for the connection; once sent, the command takes effect even if the call is
     /// dropped (see [Cancellation](Client#cancellation)).
     pub async fn stop(&self) -> Result<()> {
@@ -592,6 +652,10 @@ impl Client {
     }
 
     /// Fast stop (0x23): stops and refuses motion until [`Client::acknowledge_fast_stop`].
+    ///
+    /// Sent at once, never queued behind anything, even an earlier FAST STOP whose reply is
+    /// outstanding or lost; completes on the first FAST STOP reply that arrives after it was
+    /// sent (see [`Client`]).
     ///
     /// Cancel-safe for the connection; once sent, the command takes effect even if the call is
     /// dropped (see [Cancellation](Client#cancellation)).
@@ -610,6 +674,9 @@ impl Client {
     /// Grasp a part (0x25) of nominal width `width_mm`. No part found is
     /// `Error::Device { status: Status::CmdFailed, .. }`.
     ///
+    /// Refused with E_ALREADY_RUNNING, unsent, while a move of the same command runs (manual
+    /// 3.2.2; see [`Client`]).
+    ///
     /// Cancel-safe for the connection, but dropping the call does **not** stop the fingers: once
     /// sent, the move runs to its end; send [`Client::stop`] (see [Cancellation](Client#cancellation)).
     pub async fn grasp(&self, width_mm: f32, speed_mm_per_s: f32) -> Result<()> {
@@ -621,6 +688,9 @@ impl Client {
     }
 
     /// Release the part (0x26), opening to `width_mm`.
+    ///
+    /// Refused with E_ALREADY_RUNNING, unsent, while a move of the same command runs (manual
+    /// 3.2.2; see [`Client`]).
     ///
     /// Cancel-safe for the connection, but dropping the call does **not** stop the fingers: once
     /// sent, the move runs to its end; send [`Client::stop`] (see [Cancellation](Client#cancellation)).
@@ -811,7 +881,8 @@ impl Client {
             .await
     }
 
-    /// Finger power (0x62 / 0x72); switching on waits for the final reply (about 500 ms).
+    /// Finger power (0x62 / 0x72); switching on waits for the final reply, which comes after
+    /// about 500 ms (manual 3.6.3), for [`FINGER_POWER_ON_DURATION`] plus the query timeout.
     ///
     /// Cancel-safe for the connection, but dropping the call does **not** stop the fingers: once
     /// sent, the move runs to its end; send [`Client::stop`] (see [Cancellation](Client#cancellation)).

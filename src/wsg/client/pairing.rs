@@ -9,15 +9,33 @@
 //!   (the late reply is consumed here and discarded by the task), so the reply can never reach
 //!   the next caller of that id.
 //!
-//! How long an id stays "poisoned" by a request that got no reply: until its caller's deadline
-//! plus a grace period ([`Pairing::new`]); then the id is released so a lost frame cannot block it
-//! forever. The residual risk is a reply arriving later than that grace: it would be taken as the
-//! reply to the next request of the same id. Once a device has acknowledged an asynchronous
-//! command (E_CMD_PENDING) it always sends a final reply (manual 1.3; a stop ends a motion with
-//! E_CMD_ABORTED), so an acknowledged request is never released early: the next motion command of
-//! that id waits for the final reply of the previous one, whatever the callers' timeouts.
-//! (If that reply is lost on the wire, the task, not this state machine, finds out by asking the
-//! device whether it still moves, and [`Pairing::abandon`]s the request.)
+//! Three kinds of command are treated apart:
+//! - **Stop (0x22) and FAST STOP (0x23)** are never queued (manual 3.2.3/3.2.4: they stop
+//!   "unmittelbar"): each is sent at once, whatever is on the wire. They carry no data and are
+//!   idempotent, so their replies cannot be told apart: every caller of that id waiting when a
+//!   reply arrives was sent before it, and completes on it (see [`Event::Stopped`]).
+//! - **Motion commands** (0x20, 0x21, 0x25, 0x26): the device refuses a motion command while
+//!   another one runs (3.2.1/3.2.2/3.2.6/3.2.7: E_ALREADY_RUNNING). A second call of the id on
+//!   the wire is refused the same way instead of being run later ([`Submit::Refused`]): at once
+//!   when the first is acknowledged, or as soon as it is ([`Pairing::refuse_queued`]).
+//! - Everything else queues behind the request of its id on the wire.
+//!
+//! How long an id stays "poisoned" by a request that got no (final) reply: until its caller's
+//! deadline plus a grace period ([`Pairing::new`]); then the id is released, acknowledged or
+//! not, so a lost frame cannot block it forever. The residual risk is a reply arriving later
+//! than that grace: it would be taken as the reply to the next request of the same id.
+//!
+//! An acknowledged motion command is not released that way: it may still be moving (a move
+//! can outlast its caller's timeout), and its final reply, E_CMD_ABORTED after a stop included,
+//! always comes (1.3). From its caller's deadline on it is under *recovery*: the task asks the
+//! device's system state ([`Due::Probe`]), and the request is abandoned only on evidence that
+//! its final reply is lost: two "not moving" observations, each from a probe sent after the
+//! deadline, the second probe sent a full grace period after the first answer arrived, with no
+//! final reply in between ([`Pairing::on_probe`]). One observation is not enough: SF_MOVING is
+//! not synchronised with the end of the move (Anhang B), UDP reorders, and while 0x40 is
+//! streamed the answer may be a stream frame sent just before the probe arrived. The residual
+//! risk is a final reply sent more than a grace period after the device said twice that it no
+//! longer moves.
 //!
 //! Two kinds of reply provably answer another request of the same id and are treated as
 //! unsolicited: a loop reply that does not echo the payload on the wire, and E_ALREADY_RUNNING
@@ -35,6 +53,17 @@ use crate::wsg::{Frame, Reply, Status};
 /// Identifies one request for the task.
 pub(crate) type Token = u64;
 
+/// Whether `id` is a motion command (manual 3.2.1, 3.2.2, 3.2.6, 3.2.7): asynchronous, refused
+/// by the device with E_ALREADY_RUNNING while another motion runs.
+pub(crate) fn is_motion(id: u8) -> bool {
+    matches!(id, id::HOMING | id::PRE_POSITION | id::GRASP | id::RELEASE)
+}
+
+/// Whether `id` is stop or FAST STOP (manual 3.2.3, 3.2.4): never queued.
+pub(crate) fn is_stop(id: u8) -> bool {
+    matches!(id, id::STOP | id::FAST_STOP)
+}
+
 /// A request waiting to be sent or on the wire.
 #[derive(Debug)]
 pub(crate) struct Request {
@@ -49,7 +78,14 @@ struct InFlight {
     token: Token,
     /// E_CMD_PENDING seen: a final reply is guaranteed to follow.
     acknowledged: bool,
+    deadline: Instant,
+    /// When an unanswered request gives its id up: deadline + grace.
     release_at: Instant,
+    /// An acknowledged motion command under recovery: when the next probe is due (`None`
+    /// while one is out).
+    probe_at: Option<Instant>,
+    /// The last probe said "not moving" (the first of the two observations needed).
+    idle_seen: bool,
     /// The payload sent: a loop reply (0x06) must echo it.
     payload: Bytes,
 }
@@ -59,7 +95,10 @@ impl InFlight {
         Self {
             token: req.token,
             acknowledged: false,
+            deadline: req.deadline,
             release_at: req.deadline + grace,
+            probe_at: None,
+            idle_seen: false,
             payload: req.frame.payload.clone(),
         }
     }
@@ -76,6 +115,15 @@ impl InFlight {
         let refused_duplicate = self.acknowledged && reply.status == Status::AlreadyRunning;
         foreign_echo || refused_duplicate
     }
+
+    /// When this request needs the task next: its release, or its next recovery probe.
+    fn due(&self, id: u8) -> Option<Instant> {
+        if self.acknowledged && is_motion(id) {
+            self.probe_at
+        } else {
+            Some(self.release_at)
+        }
+    }
 }
 
 #[derive(Debug, Default)]
@@ -89,6 +137,9 @@ struct IdState {
 pub(crate) enum Event {
     /// The final reply of the request `Token`.
     Resolved(Token, Reply),
+    /// The final reply of every stop (or FAST STOP) request listed: all were sent before it
+    /// arrived, and their replies cannot be told apart.
+    Stopped(Vec<Token>, Reply),
     /// The asynchronous request `Token` was accepted (E_CMD_PENDING); its result follows.
     Accepted(Token),
     /// No request of this id is on the wire (an auto-update, or a reply that came after its id
@@ -96,54 +147,136 @@ pub(crate) enum Event {
     Unsolicited(Reply),
 }
 
+/// What became of a submitted request.
+#[derive(Debug)]
+pub(crate) enum Submit {
+    /// Its id is free (or it is a stop): send it now.
+    Send(Request),
+    /// It waits behind the request of its id on the wire.
+    Queued,
+    /// A motion command whose id is running (acknowledged, its caller's deadline not passed):
+    /// refused without sending, as the device would (E_ALREADY_RUNNING).
+    Refused(Request),
+}
+
+/// What the task has to do for a request whose time has come ([`Pairing::due`]).
+#[derive(Debug, PartialEq)]
+pub(crate) enum Due {
+    /// The request `Token` of this id got no final reply by its deadline plus grace: its id is
+    /// released. Call [`Pairing::next`] for the id.
+    Released(u8, Token),
+    /// The acknowledged motion `Token` of this id is past its deadline: ask the device whether
+    /// it still moves, and report the answer with [`Pairing::on_probe`].
+    Probe(u8, Token),
+}
+
+/// What a recovery probe found out about a motion command (see [`Pairing::on_probe`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) enum Observation {
+    /// The device moves (SF_MOVING set).
+    Moving,
+    /// The device does not move.
+    Idle,
+    /// The probe got no usable answer.
+    Unknown,
+}
+
+/// The outcome of a recovery probe.
+#[derive(Debug, PartialEq)]
+pub(crate) enum Verdict {
+    /// The final reply is lost: the request is abandoned and its id free. Call
+    /// [`Pairing::next`].
+    Abandoned,
+    /// The move runs: the calls queued behind it are to be refused ([`Pairing::refuse_queued`]).
+    Running,
+    /// No conclusion yet (or the request is gone): another probe follows.
+    Undecided,
+}
+
 /// The pairing state of one connection.
 #[derive(Debug)]
 pub(crate) struct Pairing {
     ids: HashMap<u8, IdState>,
+    /// The stop and FAST STOP requests sent and not answered yet, by id.
+    stops: HashMap<u8, Vec<Token>>,
     grace: Duration,
 }
 
 impl Pairing {
-    /// `grace`: how long after its caller's deadline an unanswered request keeps its id.
+    /// `grace`: how long after its caller's deadline an unanswered request keeps its id, and
+    /// the spacing of the two observations that release a motion command under recovery.
     pub(crate) fn new(grace: Duration) -> Self {
         Self {
             ids: HashMap::new(),
+            stops: HashMap::new(),
             grace,
         }
     }
 
-    /// Queues `req`; returns it back when it may be sent now (its id is free).
-    pub(crate) fn submit(&mut self, req: Request) -> Option<Request> {
-        let st = self.ids.entry(req.frame.id).or_default();
-        if st.in_flight.is_none() && st.queue.is_empty() {
-            st.in_flight = Some(InFlight::new(&req, self.grace));
-            Some(req)
-        } else {
-            st.queue.push_back(req);
-            None
+    /// Takes `req` in at `now`: send it, queue it, or refuse it.
+    pub(crate) fn submit(&mut self, req: Request, now: Instant) -> Submit {
+        let id = req.frame.id;
+        if is_stop(id) {
+            self.stops.entry(id).or_default().push(req.token);
+            return Submit::Send(req);
+        }
+        let st = self.ids.entry(id).or_default();
+        match &st.in_flight {
+            None if st.queue.is_empty() => {
+                st.in_flight = Some(InFlight::new(&req, self.grace));
+                Submit::Send(req)
+            }
+            // Under recovery (past its deadline) the move may be over with its final reply
+            // lost: the new call waits for the verdict.
+            Some(f) if is_motion(id) && f.acknowledged && now < f.deadline => Submit::Refused(req),
+            _ => {
+                st.queue.push_back(req);
+                Submit::Queued
+            }
         }
     }
 
-    /// Drops the queued (never sent) requests of `id` whose caller is gone; returns their
-    /// tokens. Called before queueing another, so that callers who keep timing out behind a
-    /// long move cannot grow the queue: it holds at most one request per live caller.
+    /// Drops the queued (never sent) requests of `id` whose caller is gone, and the waiting stop
+    /// requests whose caller is gone; returns their tokens. Called before queueing another, so
+    /// that callers who keep timing out cannot grow the queue: it holds at most one request per
+    /// live caller.
     pub(crate) fn prune(&mut self, id: u8, alive: impl Fn(Token) -> bool) -> Vec<Token> {
-        let Some(st) = self.ids.get_mut(&id) else {
-            return Vec::new();
-        };
         let mut gone = Vec::new();
-        st.queue.retain(|r| {
-            let keep = alive(r.token);
-            if !keep {
-                gone.push(r.token);
-            }
-            keep
-        });
+        if let Some(stops) = self.stops.get_mut(&id) {
+            stops.retain(|t| {
+                let keep = alive(*t);
+                if !keep {
+                    gone.push(*t);
+                }
+                keep
+            });
+        }
+        if let Some(st) = self.ids.get_mut(&id) {
+            st.queue.retain(|r| {
+                let keep = alive(r.token);
+                if !keep {
+                    gone.push(r.token);
+                }
+                keep
+            });
+        }
         gone
     }
 
     /// Pairs a received reply.
     pub(crate) fn on_reply(&mut self, reply: Reply) -> Event {
+        if is_stop(reply.id) {
+            let waiting = self
+                .stops
+                .get_mut(&reply.id)
+                .map(std::mem::take)
+                .unwrap_or_default();
+            return if waiting.is_empty() {
+                Event::Unsolicited(reply)
+            } else {
+                Event::Stopped(waiting, reply)
+            };
+        }
         let Some(f) = self
             .ids
             .get_mut(&reply.id)
@@ -157,7 +290,10 @@ impl Pairing {
             return Event::Unsolicited(reply);
         }
         if reply.status == Status::CmdPending {
-            f.acknowledged = true;
+            if !f.acknowledged {
+                f.acknowledged = true;
+                f.probe_at = Some(f.deadline);
+            }
             return Event::Accepted(f.token);
         }
         let token = f.token;
@@ -167,10 +303,18 @@ impl Pairing {
         Event::Resolved(token, reply)
     }
 
-    /// A reply of `id` too short to carry a status code: it still ends the request on the wire
-    /// (it is that request's answer, just unusable). Returns its token.
-    pub(crate) fn on_malformed(&mut self, id: u8) -> Option<Token> {
-        self.ids.get_mut(&id)?.in_flight.take().map(|f| f.token)
+    /// A reply of `id` too short to carry a status code: it still ends the request(s) on the
+    /// wire (it is their answer, just unusable). Returns their tokens.
+    pub(crate) fn on_malformed(&mut self, id: u8) -> Vec<Token> {
+        if is_stop(id) {
+            return self.stops.remove(&id).unwrap_or_default();
+        }
+        self.ids
+            .get_mut(&id)
+            .and_then(|st| st.in_flight.take())
+            .map(|f| f.token)
+            .into_iter()
+            .collect()
     }
 
     /// The next request of `id` to send once its id is free, skipping requests whose caller is
@@ -199,46 +343,78 @@ impl Pairing {
         (None, skipped)
     }
 
-    /// The token of the acknowledged request of `id` on the wire, if there is one.
-    pub(crate) fn acknowledged(&self, id: u8) -> Option<Token> {
-        let f = self.ids.get(&id)?.in_flight.as_ref()?;
-        f.acknowledged.then_some(f.token)
-    }
-
-    /// Gives up on request `token` of `id` (still on the wire) because its final reply is known
-    /// to be lost; returns whether it was. Call [`Pairing::next`] for `id` afterwards.
-    pub(crate) fn abandon(&mut self, id: u8, token: Token) -> bool {
-        let Some(st) = self.ids.get_mut(&id) else {
-            return false;
-        };
-        if st.in_flight.as_ref().is_some_and(|f| f.token == token) {
-            st.in_flight = None;
-            true
-        } else {
-            false
+    /// Takes every request queued behind the motion command of `id` on the wire, to be refused
+    /// with E_ALREADY_RUNNING: the device runs that command, and would refuse them (3.2.2).
+    pub(crate) fn refuse_queued(&mut self, id: u8) -> Vec<Token> {
+        match self.ids.get_mut(&id) {
+            Some(st) if is_motion(id) && st.in_flight.is_some() => {
+                st.queue.drain(..).map(|r| r.token).collect()
+            }
+            _ => Vec::new(),
         }
     }
 
-    /// When the next unanswered, unacknowledged request is released.
-    pub(crate) fn next_release(&self) -> Option<Instant> {
+    /// Records what a recovery probe of the acknowledged motion `token` of `id` observed, at
+    /// `now` (when its answer arrived, or when the probe was given up).
+    ///
+    /// The request is abandoned on the second "not moving" in a row; the probe after the first
+    /// is due a grace period later, so a final reply sent after the device stopped moving has
+    /// that long to arrive (Anhang B: the flags are not synchronised with the end of a move).
+    pub(crate) fn on_probe(
+        &mut self,
+        id: u8,
+        token: Token,
+        seen: Observation,
+        now: Instant,
+    ) -> Verdict {
+        let grace = self.grace;
+        let Some(st) = self.ids.get_mut(&id) else {
+            return Verdict::Undecided;
+        };
+        let Some(f) = st.in_flight.as_mut().filter(|f| f.token == token) else {
+            return Verdict::Undecided;
+        };
+        match seen {
+            Observation::Idle if f.idle_seen => {
+                st.in_flight = None;
+                return Verdict::Abandoned;
+            }
+            Observation::Idle => f.idle_seen = true,
+            Observation::Moving | Observation::Unknown => f.idle_seen = false,
+        }
+        f.probe_at = Some(now + grace);
+        if seen == Observation::Moving {
+            Verdict::Running
+        } else {
+            Verdict::Undecided
+        }
+    }
+
+    /// When the next request needs the task ([`Pairing::due`]).
+    pub(crate) fn next_due(&self) -> Option<Instant> {
         self.ids
-            .values()
-            .filter_map(|st| st.in_flight.as_ref())
-            .filter(|f| !f.acknowledged)
-            .map(|f| f.release_at)
+            .iter()
+            .filter_map(|(id, st)| st.in_flight.as_ref()?.due(*id))
             .min()
     }
 
-    /// Releases the ids whose request got no reply by `now` (deadline + grace); returns the ids
-    /// and tokens released. Call [`Pairing::next`] for each id afterwards.
-    pub(crate) fn release_expired(&mut self, now: Instant) -> Vec<(u8, Token)> {
+    /// The requests whose time has come by `now`: released ids (call [`Pairing::next`] for each
+    /// afterwards) and recovery probes to send.
+    pub(crate) fn due(&mut self, now: Instant) -> Vec<Due> {
         let mut out = Vec::new();
         for (id, st) in &mut self.ids {
-            if let Some(f) = &st.in_flight {
-                if !f.acknowledged && f.release_at <= now {
-                    out.push((*id, f.token));
-                    st.in_flight = None;
-                }
+            let Some(f) = &mut st.in_flight else {
+                continue;
+            };
+            if f.due(*id).is_none_or(|at| at > now) {
+                continue;
+            }
+            if f.acknowledged && is_motion(*id) {
+                f.probe_at = None;
+                out.push(Due::Probe(*id, f.token));
+            } else {
+                out.push(Due::Released(*id, f.token));
+                st.in_flight = None;
             }
         }
         out
@@ -250,6 +426,9 @@ impl Pairing {
         for (_, st) in self.ids.drain() {
             out.extend(st.in_flight.map(|f| f.token));
             out.extend(st.queue.into_iter().map(|r| r.token));
+        }
+        for (_, stops) in self.stops.drain() {
+            out.extend(stops);
         }
         out
     }
@@ -271,13 +450,21 @@ mod tests {
         Reply::new(id, status, Bytes::new())
     }
 
+    fn sent(s: Submit) -> Option<Token> {
+        match s {
+            Submit::Send(r) => Some(r.token),
+            _ => None,
+        }
+    }
+
     #[test]
     fn same_id_queues_different_ids_run() {
-        let t = Instant::now() + Duration::from_secs(1);
+        let now = Instant::now();
+        let t = now + Duration::from_secs(1);
         let mut p = Pairing::new(Duration::from_secs(1));
-        assert!(p.submit(req(1, 0x43, t)).is_some());
-        assert!(p.submit(req(2, 0x43, t)).is_none());
-        assert!(p.submit(req(3, 0x40, t)).is_some());
+        assert_eq!(sent(p.submit(req(1, 0x43, t), now)), Some(1));
+        assert!(matches!(p.submit(req(2, 0x43, t), now), Submit::Queued));
+        assert_eq!(sent(p.submit(req(3, 0x40, t), now)), Some(3));
         assert_eq!(
             p.on_reply(reply(0x40, Status::Success)),
             Event::Resolved(3, reply(0x40, Status::Success))
@@ -301,20 +488,22 @@ mod tests {
 
     #[test]
     fn pending_then_final_and_stop_is_not_blocked() {
-        let t = Instant::now() + Duration::from_secs(1);
+        let now = Instant::now();
+        let t = now + Duration::from_secs(1);
         let mut p = Pairing::new(Duration::from_secs(1));
-        assert!(p.submit(req(1, 0x21, t)).is_some());
+        assert_eq!(sent(p.submit(req(1, 0x21, t), now)), Some(1));
         assert_eq!(
             p.on_reply(reply(0x21, Status::CmdPending)),
             Event::Accepted(1)
         );
-        assert!(
-            p.submit(req(2, 0x22, t)).is_some(),
+        assert_eq!(
+            sent(p.submit(req(2, 0x22, t), now)),
+            Some(2),
             "stop must not wait for the move"
         );
         assert!(matches!(
             p.on_reply(reply(0x22, Status::Success)),
-            Event::Resolved(2, _)
+            Event::Stopped(ref t, _) if t == &[2]
         ));
         assert!(
             matches!(p.on_reply(reply(0x21, Status::CmdAborted)), Event::Resolved(1, r) if r.status == Status::CmdAborted)
@@ -322,17 +511,44 @@ mod tests {
     }
 
     #[test]
+    fn stops_are_never_queued_and_every_waiting_stop_completes_on_the_next_reply() {
+        let now = Instant::now();
+        let t = now + Duration::from_secs(1);
+        let mut p = Pairing::new(Duration::from_secs(1));
+        for id in [id::STOP, id::FAST_STOP] {
+            // The first stop's reply is lost: the second still goes out at once.
+            assert_eq!(sent(p.submit(req(1, id, t), now)), Some(1));
+            assert_eq!(sent(p.submit(req(2, id, t), now)), Some(2));
+            assert_eq!(p.next_due(), None, "a stop never holds its id");
+            assert_eq!(
+                p.on_reply(reply(id, Status::Success)),
+                Event::Stopped(vec![1, 2], reply(id, Status::Success))
+            );
+            // A third stop, sent after that reply, waits for a reply of its own; the second
+            // stop's reply (arriving late) is that one.
+            assert_eq!(sent(p.submit(req(3, id, t), now)), Some(3));
+            // A caller that went away is forgotten before the next stop goes out.
+            assert_eq!(p.prune(id, |t| t != 3), vec![3]);
+            assert!(matches!(
+                p.on_reply(reply(id, Status::Success)),
+                Event::Unsolicited(_)
+            ));
+        }
+        assert!(p.drain().is_empty());
+    }
+
+    #[test]
     fn dead_queued_callers_are_skipped_and_unanswered_ids_released_after_grace() {
         let now = Instant::now();
         let mut p = Pairing::new(Duration::from_millis(500));
-        assert!(p.submit(req(1, 0x50, now)).is_some());
-        assert!(p.submit(req(2, 0x50, now)).is_none());
-        assert!(p.submit(req(3, 0x50, now)).is_none());
-        assert_eq!(p.next_release(), Some(now + Duration::from_millis(500)));
-        assert!(p.release_expired(now).is_empty());
+        assert!(matches!(p.submit(req(1, 0x50, now), now), Submit::Send(_)));
+        assert!(matches!(p.submit(req(2, 0x50, now), now), Submit::Queued));
+        assert!(matches!(p.submit(req(3, 0x50, now), now), Submit::Queued));
+        assert_eq!(p.next_due(), Some(now + Duration::from_millis(500)));
+        assert!(p.due(now).is_empty());
         assert_eq!(
-            p.release_expired(now + Duration::from_millis(500)),
-            vec![(0x50, 1)]
+            p.due(now + Duration::from_millis(500)),
+            vec![Due::Released(0x50, 1)]
         );
         let (next, skipped) = p.next(0x50, |t| t != 2);
         assert_eq!(next.map(|r| r.token), Some(3));
@@ -340,34 +556,153 @@ mod tests {
     }
 
     #[test]
-    fn acknowledged_motion_is_never_released() {
+    fn an_acknowledged_non_motion_request_is_released_after_its_deadline_and_grace() {
+        // Finger power (0x62) answers E_CMD_PENDING and its final reply "nach etwa 500 ms"
+        // (3.6.3): a lost final reply must not hold the id for good.
         let now = Instant::now();
-        let mut p = Pairing::new(Duration::ZERO);
-        assert!(p.submit(req(1, 0x25, now)).is_some());
+        let grace = Duration::from_millis(500);
+        let mut p = Pairing::new(grace);
+        assert!(matches!(p.submit(req(1, 0x62, now), now), Submit::Send(_)));
+        assert_eq!(
+            p.on_reply(reply(0x62, Status::CmdPending)),
+            Event::Accepted(1)
+        );
+        assert!(matches!(p.submit(req(2, 0x62, now), now), Submit::Queued));
+        assert_eq!(p.next_due(), Some(now + grace));
+        assert_eq!(p.due(now + grace), vec![Due::Released(0x62, 1)]);
+        assert_eq!(p.next(0x62, |_| true).0.map(|r| r.token), Some(2));
+    }
+
+    #[test]
+    fn a_running_motion_refuses_a_second_call_of_its_id() {
+        let now = Instant::now();
+        let t = now + Duration::from_secs(10);
+        let mut p = Pairing::new(Duration::from_secs(1));
+        for id in [id::HOMING, id::PRE_POSITION, id::GRASP, id::RELEASE] {
+            assert!(matches!(p.submit(req(1, id, t), now), Submit::Send(_)));
+            // Not acknowledged yet: the second waits to see whether the first runs ...
+            assert!(matches!(p.submit(req(2, id, t), now), Submit::Queued));
+            assert_eq!(
+                p.on_reply(reply(id, Status::CmdPending)),
+                Event::Accepted(1)
+            );
+            // ... and is refused once it does, like any later one.
+            assert_eq!(p.refuse_queued(id), vec![2]);
+            assert!(matches!(p.submit(req(3, id, t), now), Submit::Refused(r) if r.token == 3));
+            assert!(matches!(
+                p.on_reply(reply(id, Status::Success)),
+                Event::Resolved(1, _)
+            ));
+            assert_eq!(p.next(id, |_| true).0.map(|r| r.token), None);
+        }
+        // A refused first call frees the id for the one queued behind it.
+        assert!(matches!(p.submit(req(4, 0x21, t), now), Submit::Send(_)));
+        assert!(matches!(p.submit(req(5, 0x21, t), now), Submit::Queued));
+        assert!(matches!(
+            p.on_reply(reply(0x21, Status::AccessDenied)),
+            Event::Resolved(4, _)
+        ));
+        assert_eq!(p.next(0x21, |_| true).0.map(|r| r.token), Some(5));
+    }
+
+    #[test]
+    fn recovery_needs_two_idle_observations_a_grace_apart() {
+        let now = Instant::now();
+        let grace = Duration::from_millis(200);
+        let deadline = now + Duration::from_secs(1);
+        let mut p = Pairing::new(grace);
+        assert!(matches!(
+            p.submit(req(1, 0x25, deadline), now),
+            Submit::Send(_)
+        ));
         assert_eq!(
             p.on_reply(reply(0x25, Status::CmdPending)),
             Event::Accepted(1)
         );
-        assert_eq!(p.next_release(), None);
-        assert!(p
-            .release_expired(now + Duration::from_secs(3600))
-            .is_empty());
-        assert!(p.submit(req(2, 0x25, now)).is_none());
+        // Nothing is due before the caller's deadline, and then a probe, never a release.
+        assert_eq!(p.next_due(), Some(deadline));
+        assert!(p.due(deadline - Duration::from_millis(1)).is_empty());
+        assert_eq!(p.due(deadline), vec![Due::Probe(0x25, 1)]);
+        assert_eq!(p.next_due(), None, "one probe at a time");
+        // Past the deadline a new call waits for the verdict instead of being refused.
+        let later = deadline + Duration::from_millis(1);
+        assert!(matches!(
+            p.submit(req(2, 0x25, later + grace), later),
+            Submit::Queued
+        ));
+        // Moving: the waiting call is refused, the next probe comes a grace later.
+        assert_eq!(
+            p.on_probe(0x25, 1, Observation::Moving, later),
+            Verdict::Running
+        );
+        assert_eq!(p.refuse_queued(0x25), vec![2]);
+        assert_eq!(p.next_due(), Some(later + grace));
+        // One "idle" is not enough ...
+        let t1 = later + grace;
+        assert_eq!(p.due(t1), vec![Due::Probe(0x25, 1)]);
+        assert_eq!(
+            p.on_probe(0x25, 1, Observation::Idle, t1),
+            Verdict::Undecided
+        );
+        // ... a failed probe starts over ...
+        assert_eq!(p.due(t1 + grace), vec![Due::Probe(0x25, 1)]);
+        assert_eq!(
+            p.on_probe(0x25, 1, Observation::Unknown, t1 + grace),
+            Verdict::Undecided
+        );
+        let t2 = t1 + grace * 2;
+        assert_eq!(p.due(t2), vec![Due::Probe(0x25, 1)]);
+        assert_eq!(
+            p.on_probe(0x25, 1, Observation::Idle, t2),
+            Verdict::Undecided
+        );
+        // ... and a final reply in between ends the recovery: it answers its own request.
+        assert!(matches!(
+            p.submit(req(3, 0x25, t2 + grace), t2),
+            Submit::Queued
+        ));
+        assert!(matches!(
+            p.on_reply(reply(0x25, Status::AxisBlocked)),
+            Event::Resolved(1, r) if r.status == Status::AxisBlocked
+        ));
+        assert_eq!(
+            p.on_probe(0x25, 1, Observation::Idle, t2 + grace),
+            Verdict::Undecided
+        );
+        let (next, _) = p.next(0x25, |_| true);
+        let next = next.unwrap();
+        assert_eq!(next.token, 3);
+        // Two idle observations in a row with no final reply: abandoned, the id is free.
+        assert_eq!(
+            p.on_reply(reply(0x25, Status::CmdPending)),
+            Event::Accepted(3)
+        );
+        let d = next.deadline;
+        assert_eq!(p.due(d), vec![Due::Probe(0x25, 3)]);
+        assert_eq!(
+            p.on_probe(0x25, 3, Observation::Idle, d),
+            Verdict::Undecided
+        );
+        assert_eq!(p.due(d + grace), vec![Due::Probe(0x25, 3)]);
+        assert_eq!(
+            p.on_probe(0x25, 3, Observation::Idle, d + grace),
+            Verdict::Abandoned
+        );
         assert!(matches!(
             p.on_reply(reply(0x25, Status::Success)),
-            Event::Resolved(1, _)
+            Event::Unsolicited(_)
         ));
-        assert_eq!(p.drain(), vec![2]);
     }
 
     #[test]
     fn replies_that_cannot_answer_the_request_on_the_wire_are_unsolicited() {
-        let t = Instant::now() + Duration::from_secs(1);
+        let now = Instant::now();
+        let t = now + Duration::from_secs(1);
         let mut p = Pairing::new(Duration::from_secs(1));
         let looped = |data: &'static [u8]| Reply::new(id::LOOP, Status::Success, data);
         let mut echo = req(1, id::LOOP, t);
         echo.frame.payload = Bytes::from_static(b"mine");
-        assert!(p.submit(echo).is_some());
+        assert!(matches!(p.submit(echo, now), Submit::Send(_)));
         // A copy of an earlier loop reply: another payload.
         assert_eq!(
             p.on_reply(looped(b"old")),
@@ -378,7 +713,7 @@ mod tests {
             Event::Resolved(1, looped(b"mine"))
         );
         // An acknowledged move refuses a duplicate of itself; its final reply still ends it.
-        assert!(p.submit(req(2, 0x21, t)).is_some());
+        assert!(matches!(p.submit(req(2, 0x21, t), now), Submit::Send(_)));
         assert_eq!(
             p.on_reply(reply(0x21, Status::CmdPending)),
             Event::Accepted(2)
@@ -392,7 +727,7 @@ mod tests {
             Event::Resolved(2, reply(0x21, Status::Success))
         );
         // Not acknowledged: E_ALREADY_RUNNING is this request's own refusal.
-        assert!(p.submit(req(3, 0x21, t)).is_some());
+        assert!(matches!(p.submit(req(3, 0x21, t), now), Submit::Send(_)));
         assert!(matches!(
             p.on_reply(reply(0x21, Status::AlreadyRunning)),
             Event::Resolved(3, _)
@@ -401,18 +736,19 @@ mod tests {
 
     #[test]
     fn prune_drops_only_queued_dead_callers() {
-        let t = Instant::now() + Duration::from_secs(1);
+        let now = Instant::now();
+        let t = now + Duration::from_secs(1);
         let mut p = Pairing::new(Duration::from_secs(1));
-        assert!(p.submit(req(1, 0x21, t)).is_some());
+        assert!(matches!(p.submit(req(1, 0x50, t), now), Submit::Send(_)));
         for token in 2..=5 {
-            assert!(p.submit(req(token, 0x21, t)).is_none());
+            assert!(matches!(p.submit(req(token, 0x50, t), now), Submit::Queued));
         }
-        assert_eq!(p.prune(0x21, |t| t == 1 || t == 4), vec![2, 3, 5]);
+        assert_eq!(p.prune(0x50, |t| t == 1 || t == 4), vec![2, 3, 5]);
         assert!(matches!(
-            p.on_reply(reply(0x21, Status::Success)),
+            p.on_reply(reply(0x50, Status::Success)),
             Event::Resolved(1, _)
         ));
-        let (next, skipped) = p.next(0x21, |_| true);
+        let (next, skipped) = p.next(0x50, |_| true);
         assert_eq!(next.map(|r| r.token), Some(4));
         assert!(skipped.is_empty());
         assert_eq!(p.drain(), vec![4]);
@@ -440,7 +776,7 @@ mod tests {
                     next_token += 1;
                     is_async.insert(next_token, asynchronous);
                     let r = Request { token: next_token, frame: Frame::new(id, Bytes::new()), deadline };
-                    if let Some(r) = p.submit(r) {
+                    if let Submit::Send(r) = p.submit(r, Instant::now()) {
                         wire.entry(id).or_default().push_back((r.token, asynchronous, false));
                         sent += 1;
                     }

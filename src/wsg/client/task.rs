@@ -12,11 +12,11 @@ use bytes::Bytes;
 use tokio::sync::{mpsc, oneshot};
 use tokio::time::{sleep_until, timeout, Instant};
 
-use super::pairing::{Event, Pairing, Request, Token};
+use super::pairing::{Due, Event, Observation, Pairing, Request, Submit, Token, Verdict};
 use super::Reconnect;
 use crate::reconnect::{self, ConnectionEvent, EventSender};
 use crate::wsg::command::{id, Command, UpdateMode};
-use crate::wsg::subscription::Subscriber;
+use crate::wsg::subscription::{Subscriber, UpdateOptions};
 use crate::wsg::transport::Link;
 use crate::wsg::{Error, Frame, Reply, Result, Status, SystemState};
 
@@ -48,7 +48,7 @@ enum Waiter {
     /// A request the task made itself (turning updates off): its reply is discarded.
     Internal,
     /// A system-state query asking whether the acknowledged motion `token` of command `id`,
-    /// whose caller is gone, is still running (see [`Task::probe_if_orphaned`]).
+    /// past its caller's deadline, is still running (see [`Task::send_probe`]).
     Probe {
         id: u8,
         token: Token,
@@ -234,11 +234,14 @@ impl Task {
         for frame in restore {
             let token = self.waiter(Waiter::Internal);
             // The ids are all free on a fresh connection: this only records what was sent.
-            let _ = self.pairing.submit(Request {
-                token,
-                frame,
-                deadline,
-            });
+            let _ = self.pairing.submit(
+                Request {
+                    token,
+                    frame,
+                    deadline,
+                },
+                Instant::now(),
+            );
         }
         true
     }
@@ -247,7 +250,7 @@ impl Task {
     /// (returns the reason).
     async fn serve(&mut self) -> std::result::Result<Closing, String> {
         loop {
-            let release = self.pairing.next_release();
+            let due = self.pairing.next_due();
             let stale = self.partial_frame_deadline();
             tokio::select! {
                 // Input first: a frame already received cannot answer a request sent after it,
@@ -275,6 +278,18 @@ impl Task {
                     }
                     Some(Msg::Subscribe { id, mode, subscriber, deadline, reply }) => {
                         let st = self.streams.entry(id).or_insert(StreamState { mode, subscribers: Vec::new() });
+                        // Subscriptions already dropped do not count (their unsubscribe
+                        // message may still be on its way).
+                        st.subscribers.retain(|s| !s.tx.is_closed());
+                        if !st.subscribers.is_empty() && st.mode != mode {
+                            // Re-configuring the device's stream would change it under the
+                            // subscribers it already has (3.4.1: one stream per value).
+                            let _ = reply.send(Err(Error::SubscriptionConflict {
+                                command: id,
+                                active: UpdateOptions::from_mode(st.mode),
+                            }));
+                            continue;
+                        }
                         st.mode = mode;
                         st.subscribers.push(subscriber);
                         let token = self.waiter(Waiter::Caller(reply));
@@ -294,12 +309,9 @@ impl Task {
                 Some((id, key)) = self.unsubscribe.recv() => {
                     self.unsubscribe(id, key).await.map_err(io_reason)?;
                 }
-                _ = sleep_until(release.unwrap_or_else(Instant::now)), if release.is_some() => {
-                    for (id, token) in self.pairing.release_expired(Instant::now()) {
-                        tracing::warn!(id, "no reply within timeout + grace: command id released; \
-                            a reply arriving later would be taken for the next request of this id");
-                        self.waiters.remove(&token);
-                        self.send_next(id).await.map_err(io_reason)?;
+                _ = sleep_until(due.unwrap_or_else(Instant::now)), if due.is_some() => {
+                    for due in self.pairing.due(Instant::now()) {
+                        self.on_due(due).await.map_err(io_reason)?;
                     }
                 }
             }
@@ -329,60 +341,79 @@ impl Task {
         for gone in self.pairing.prune(id, |t| alive(waiters, t)) {
             self.waiters.remove(&gone);
         }
-        match self.pairing.submit(req) {
-            Some(req) => self.transmit(req).await,
-            None => self.probe_if_orphaned(id).await,
+        match self.pairing.submit(req, Instant::now()) {
+            Submit::Send(req) => self.transmit(req).await,
+            Submit::Queued => Ok(()),
+            Submit::Refused(req) => {
+                self.refuse(id, req.token);
+                Ok(())
+            }
         }
     }
 
-    /// A request of motion command `id` waits behind an acknowledged one whose caller is gone.
-    /// The pairing holds an acknowledged request until its final reply (manual 1.3 promises
-    /// one), but a lossy link can lose it, which would block the id for good. So the task asks
-    /// the device whether it is still moving: the final reply of a move is sent before the
-    /// answer to a later query, so on an ordered link (TCP, serial) "not moving" proves that
-    /// reply lost, and the id is released.
-    async fn probe_if_orphaned(&mut self, id: u8) -> io::Result<()> {
-        if !matches!(id, id::HOMING | id::PRE_POSITION | id::GRASP | id::RELEASE) {
-            return Ok(());
+    /// Fails call `token` of motion command `id` with E_ALREADY_RUNNING without sending it: a
+    /// motion command of that id runs, and the device would refuse it the same way (3.2.2).
+    fn refuse(&mut self, id: u8, token: Token) {
+        tracing::debug!(id, "motion command refused: one of this id is running");
+        if let Some(Waiter::Caller(tx)) = self.waiters.remove(&token) {
+            let _ = tx.send(Err(Error::Device {
+                command: id,
+                status: Status::AlreadyRunning,
+            }));
         }
-        let Some(token) = self.pairing.acknowledged(id) else {
-            return Ok(());
-        };
-        let orphaned = match self.waiters.get(&token) {
-            Some(Waiter::Caller(tx)) => tx.is_closed(),
-            _ => true,
-        };
-        let probing = self
-            .waiters
-            .values()
-            .any(|w| matches!(w, Waiter::Probe { id: p, .. } if *p == id));
-        if !orphaned || probing {
-            return Ok(());
+    }
+
+    /// A request's time has come: its id is released, or its recovery needs a probe.
+    async fn on_due(&mut self, due: Due) -> io::Result<()> {
+        match due {
+            Due::Released(id, token) => {
+                tracing::warn!(
+                    id,
+                    "no (final) reply within timeout + grace: command id released; \
+                    a reply arriving later would be taken for the next request of this id"
+                );
+                if let Some(Waiter::Probe { id: motion, token }) = self.waiters.remove(&token) {
+                    self.on_probe(motion, token, Observation::Unknown).await?;
+                }
+                self.send_next(id).await
+            }
+            Due::Probe(id, token) => self.send_probe(id, token).await,
         }
+    }
+
+    /// Asks the device whether the acknowledged motion `token` of command `id` still runs: its
+    /// caller's deadline has passed, and its final reply may be lost (see [`super::pairing`]
+    /// for the rule that decides).
+    async fn send_probe(&mut self, id: u8, token: Token) -> io::Result<()> {
         let probe = self.waiter(Waiter::Probe { id, token });
         let req = Request {
             token: probe,
             frame: Command::SystemState(UpdateMode::ONCE).to_frame(),
             deadline: Instant::now() + self.query_timeout,
         };
-        match self.pairing.submit(req) {
-            Some(req) => self.transmit(req).await,
-            None => Ok(()),
-        }
+        self.submit(req).await
     }
 
-    async fn on_probe(&mut self, id: u8, token: Token, reply: &Reply) -> io::Result<()> {
-        let still_moving = reply.status != Status::Success
-            || SystemState::decode(&reply.data).map_or(true, |s| s.contains(SystemState::MOVING));
-        if still_moving || !self.pairing.abandon(id, token) {
-            return Ok(());
+    /// Hands what a probe saw to the pairing and acts on its verdict.
+    async fn on_probe(&mut self, id: u8, token: Token, seen: Observation) -> io::Result<()> {
+        match self.pairing.on_probe(id, token, seen, Instant::now()) {
+            Verdict::Abandoned => {
+                tracing::warn!(
+                    id,
+                    "the final reply of a motion command was lost (the device said twice, a \
+                     grace period apart, that it does not move): id released"
+                );
+                self.waiters.remove(&token);
+                self.send_next(id).await
+            }
+            Verdict::Running => {
+                for t in self.pairing.refuse_queued(id) {
+                    self.refuse(id, t);
+                }
+                Ok(())
+            }
+            Verdict::Undecided => Ok(()),
         }
-        tracing::warn!(
-            id,
-            "the final reply of a motion command was lost (the device is not moving): id released"
-        );
-        self.waiters.remove(&token);
-        self.send_next(id).await
     }
 
     async fn transmit(&mut self, req: Request) -> io::Result<()> {
@@ -417,20 +448,42 @@ impl Task {
             Ok(r) => r,
             Err(reason) => {
                 tracing::warn!(id, %reason, "malformed WSG reply");
-                if let Some(token) = self.pairing.on_malformed(id) {
-                    if let Some(Waiter::Caller(tx)) = self.waiters.remove(&token) {
-                        let _ = tx.send(Err(Error::MalformedReply {
-                            command: id,
-                            reason,
-                        }));
+                let tokens = self.pairing.on_malformed(id);
+                for token in &tokens {
+                    match self.waiters.remove(token) {
+                        Some(Waiter::Caller(tx)) => {
+                            let _ = tx.send(Err(Error::MalformedReply {
+                                command: id,
+                                reason: reason.clone(),
+                            }));
+                        }
+                        Some(Waiter::Probe { id: motion, token }) => {
+                            self.on_probe(motion, token, Observation::Unknown).await?;
+                        }
+                        Some(Waiter::Internal) | None => {}
                     }
+                }
+                if !tokens.is_empty() {
                     self.send_next(id).await?;
                 }
                 return Ok(());
             }
         };
         match self.pairing.on_reply(reply) {
-            Event::Accepted(_) => tracing::debug!(id, "WSG command accepted (E_CMD_PENDING)"),
+            Event::Accepted(_) => {
+                tracing::debug!(id, "WSG command accepted (E_CMD_PENDING)");
+                // The device runs it: motion calls of the id queued behind it are refused.
+                for t in self.pairing.refuse_queued(id) {
+                    self.refuse(id, t);
+                }
+            }
+            Event::Stopped(tokens, reply) => {
+                for token in tokens {
+                    if let Some(Waiter::Caller(tx)) = self.waiters.remove(&token) {
+                        let _ = tx.send(Ok(reply.clone()));
+                    }
+                }
+            }
             Event::Resolved(token, reply) => {
                 if reply.status == Status::Success {
                     self.fan_out(id, &reply.data).await?;
@@ -445,7 +498,17 @@ impl Task {
                         }
                     }
                     Some(Waiter::Probe { id: motion, token }) => {
-                        self.on_probe(motion, token, &reply).await?;
+                        let seen = match SystemState::decode(&reply.data) {
+                            Ok(s) if reply.status == Status::Success => {
+                                if s.contains(SystemState::MOVING) {
+                                    Observation::Moving
+                                } else {
+                                    Observation::Idle
+                                }
+                            }
+                            _ => Observation::Unknown,
+                        };
+                        self.on_probe(motion, token, seen).await?;
                     }
                     Some(Waiter::Internal) | None => {}
                 }

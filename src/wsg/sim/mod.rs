@@ -5,16 +5,53 @@
 //! model's limits, the grip states of Anhang C, stop and FAST STOP, soft limits, force,
 //! overdrive, auto-updates, tag, statistics, finger interface); [`SimServer`] serves it.
 //!
-//! Simulated motion costs no wall time with [`SimConfig::time_scale`] = 0 (the default): a move's
-//! final reply follows its E_CMD_PENDING at once. Give it a large scale (e.g. 1000) to have a move
-//! still running when a stop arrives.
+//! # Time scale
+//!
+//! [`SimConfig::time_scale`] is wall seconds per simulated second of motion. In-process,
+//! [`SimConfig::new`] uses 0: a move's final reply follows its E_CMD_PENDING at once, so tests
+//! cost no wall time (use [`SimServer::set_time_scale`] with e.g. 1000 to have a move still
+//! running when a stop arrives). The standalone simulators (`wsg_simulator`, `gripctl sim wsg`)
+//! serve [`SimConfig::standalone`], **real time** (1): a move lasts as long as on the device, so
+//! any client can exercise stop, FAST STOP, E_CMD_ABORTED and E_ALREADY_RUNNING (manual 1.3,
+//! 3.2); `--time-scale 0` makes them instant. Auto-update periods are always wall-clock.
+//!
+//! # Transports as on the device
+//!
+//! - **TCP**: an unannounced close (no 0x07 first, manual 3.1.2) triggers FAST STOP (1.4.2); the
+//!   move it aborts answers its owner with E_CMD_ABORTED, whichever session that is. The end of
+//!   a client's byte stream (half-close) ends its session, but every reply due up to then is
+//!   written first; frames received before a failed write (e.g. a reset) are still handled, so a
+//!   0x07 sent before closing always counts. A client that does not read its replies is not
+//!   read either once 256 replies wait (backpressure): no reply is dropped for want of room,
+//!   and its auto-updates pause meanwhile.
+//! - **UDP**: one frame per datagram. Replies go to the sender's address, or with
+//!   [`SimConfig::udp_remote_port`] to the sender's IP address at that port whatever port the
+//!   request came from: the device's "UDP remote port" setting, which public UDP drivers rely
+//!   on (`PROTOCOLS.md`, WSG field notes). A UDP session silent for
+//!   [`SimConfig::udp_idle_timeout`] (60 s) is forgotten, unless a move's final reply or
+//!   auto-updates it switched on are still due to it; at most [`MAX_UDP_SESSIONS`] are kept.
+//! - **Bytes that make no frame**: a partial frame that gets no new byte for
+//!   [`DEFAULT_PARTIAL_FRAME_TIMEOUT`](crate::wsg::client::DEFAULT_PARTIAL_FRAME_TIMEOUT) is
+//!   dropped as noise, as the client does. A frame with a bad checksum is discarded unanswered:
+//!   the manual lists E_CHECKSUM_ERROR (Anhang A) under no command and discards what it cannot
+//!   read (1.2.1), and an answer under a possibly corrupted id could fail an unrelated caller.
+//!   [`SimConfig::answer_bad_checksum`] answers E_CHECKSUM_ERROR instead, to test a client's
+//!   handling of that code.
+//!
+//! Where the manual is silent the simulator's choice is documented on the item concerned: an
+//! auto-update period under the 10 ms minimum runs at 10 ms (0x40–0x45 list no refusal for
+//! it); finger queries with parameters get E_CMD_FORMAT_ERROR (3.6.1–3.6.4).
 
+mod commands;
 pub mod device;
 mod model;
+mod motion;
 mod server;
+mod sessions;
 
 // Inlined, so that this page lists them with their summaries.
 #[doc(inline)]
 pub use device::{Device, Out, SessionId, SessionKind};
-pub use model::{Model, Part, SimConfig, SimFinger};
+pub use model::{Model, Part, SimConfig, SimFinger, DEFAULT_UDP_IDLE_TIMEOUT, MAX_UDP_SESSIONS};
 pub use server::{SimServer, SimSnapshot};
+pub use sessions::MIN_UPDATE_PERIOD_MS;

@@ -1,5 +1,7 @@
 //! Simulator configuration: the gripper model, the part to find, timing and device identity.
 
+use std::time::Duration;
+
 use crate::wsg::{DeviceType, FingerType, FirmwareVersion, SystemLimits};
 
 /// A WSG gripper model, with its limits.
@@ -78,6 +80,13 @@ impl Default for SimFinger {
     }
 }
 
+/// How many UDP sessions the simulator keeps at once (the real device answers one remote
+/// port); a new sender beyond this replaces the session that has been silent longest.
+pub const MAX_UDP_SESSIONS: usize = 256;
+
+/// The default of [`SimConfig::udp_idle_timeout`].
+pub const DEFAULT_UDP_IDLE_TIMEOUT: Duration = Duration::from_secs(60);
+
 /// Everything the simulator can be configured with.
 #[derive(Clone, Debug)]
 pub struct SimConfig {
@@ -87,9 +96,10 @@ pub struct SimConfig {
     pub limits: SystemLimits,
     /// The part to be found by a grasp, if any.
     pub part: Option<Part>,
-    /// Wall seconds per simulated second of motion: 0.0 makes motion instant (tests), 1.0 is
-    /// real time, 1000.0 makes a move last long enough to be stopped. Auto-update periods are
-    /// always wall-clock periods.
+    /// Wall seconds per simulated second of motion: 0.0 makes motion instant (the default of
+    /// [`SimConfig::new`], for tests), 1.0 is real time (the default of the standalone
+    /// simulators, [`SimConfig::standalone`]), 1000.0 makes a move last long enough to be
+    /// stopped. Auto-update periods are always wall-clock periods.
     pub time_scale: f64,
     /// Distance a grasp travels past its nominal width before reporting "no part", mm.
     pub clamping_travel_mm: f32,
@@ -111,6 +121,26 @@ pub struct SimConfig {
     pub homing_speed_mm_per_s: f32,
     /// Fingers 1 and 2.
     pub fingers: [SimFinger; 2],
+    /// Answer a frame with a bad checksum with E_CHECKSUM_ERROR under the id it carries, instead
+    /// of discarding it (the default). The manual names the code (Anhang A) but lists it under
+    /// no command, and says frames the device cannot read are discarded (1.2.1); since the id
+    /// of a corrupted frame may be the corrupted byte, such an answer can fail a caller that
+    /// sent another command with that id. Turn it on to test a client's handling of the code.
+    pub answer_bad_checksum: bool,
+    /// The device's "UDP remote port" setting (web interface, "Settings -> Command
+    /// Interface"): UDP replies go to the sender's IP address at this port, whatever port the
+    /// request came from, as public UDP drivers expect (they send from one socket and listen on
+    /// another; see the WSG field notes in `PROTOCOLS.md`). `None` (the default) answers the
+    /// sender's address and port. All senders with one IP address are then one session.
+    pub udp_remote_port: Option<u16>,
+    /// A UDP session (a peer, or with [`SimConfig::udp_remote_port`] an IP address) from which
+    /// no datagram came for this long is forgotten, unless it is still owed something: the
+    /// final reply of a move or finger power-on, or auto-updates it switched on (the device keeps
+    /// streaming to its remote port, and drivers that subscribe once and then only listen rely
+    /// on that). UDP has no connection to close, so without this every sender address would
+    /// stay a session for the life of the simulator. At most [`MAX_UDP_SESSIONS`] are kept: a
+    /// new sender beyond that replaces the longest-silent one. Default 60 s.
+    pub udp_idle_timeout: Duration,
 }
 
 impl SimConfig {
@@ -132,7 +162,20 @@ impl SimConfig {
             grasping_force_n: limits.nominal_force_n / 2.0,
             homing_speed_mm_per_s: limits.max_speed_mm_per_s / 4.0,
             fingers: [SimFinger::default(), SimFinger::default()],
+            answer_bad_checksum: false,
+            udp_remote_port: None,
+            udp_idle_timeout: DEFAULT_UDP_IDLE_TIMEOUT,
         }
+    }
+
+    /// What the standalone simulators (`wsg_simulator`, `gripctl sim wsg`) serve without
+    /// options: a WSG 50 with a 40 mm part (±2 mm) in **real time** (time scale 1), so a move
+    /// lasts as long as on the device and a client's stop, abort and E_ALREADY_RUNNING handling
+    /// can be exercised against it. In-process tests usually want [`SimConfig::new`] (instant).
+    pub fn standalone() -> Self {
+        Self::new(Model::Wsg50)
+            .with_part(40.0, 2.0)
+            .with_time_scale(1.0)
     }
 
     /// With a part to find.

@@ -1,7 +1,10 @@
 //! The wire frames as pure code: the 6-byte prefix every protocol version shares (manual 2.2) and
 //! the 80-byte V3 request and response frames (manual 3.2), every field at the offset of the
-//! layout table, big endian (manual 1.1). Padding and unused fields are written as zeros and
-//! ignored on read. No I/O here: the codec and the simulator both build on these functions.
+//! layout table, big endian (manual 1.1); the V4 frames in [`v4`]. Padding and unused fields are
+//! written as zeros and ignored on read. No I/O here: the codec and the simulator both build on
+//! these functions.
+
+pub mod v4;
 
 use super::types::{
     CommunicationType, GraspFeedback, GraspMode, MessageType, PoseFormat, ResponseCode,
@@ -10,11 +13,12 @@ use super::types::{
 
 /// Length of the prefix: version u16 + length u32 (manual 2.2).
 pub const PREFIX_LEN: usize = 6;
-/// Length of every V3 frame, prefix included (manual 3.1: "Jede Meldung ist 80 Byte lang. Immer.").
+/// Length of every V3 frame, prefix included (manual 3.1: "Jede Meldung ist 80 Byte lang. Immer."),
+/// and of every V4 frame (PROTOCOLS.md 2b).
 pub const FRAME_LEN: usize = 80;
 /// The prefix's length field of a V3 frame: the bytes after the prefix (manual 3.2.1).
 pub const V3_LENGTH: u32 = 74;
-/// The protocol version this module speaks.
+/// The V3 protocol version (the frames of this module).
 pub const PROTOCOL_VERSION: u16 = 3;
 
 /// Byte offsets of the layout table (manual 3.2), named after the manual's fields.
@@ -316,6 +320,127 @@ impl ResponseFrame {
             object_count: get_u16(b, RESP_OBJECT_COUNT),
             candidate_count: get_u16(b, RESP_CANDIDATE_COUNT),
         }
+    }
+}
+
+/// A request frame of either version, as the prefix's version says: 4 is the V4 layout, every
+/// other version V3's (a V3 server reads any 74-byte frame as V3 and judges the version itself).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum AnyRequestFrame {
+    /// The V3 layout (manual 3.2).
+    V3(RequestFrame),
+    /// The V4 layout (PROTOCOLS.md 2b).
+    V4(v4::RequestFrame),
+}
+
+impl AnyRequestFrame {
+    /// Reads a frame in the layout of its prefix's version.
+    pub fn decode(b: &[u8; FRAME_LEN]) -> AnyRequestFrame {
+        if get_u16(b, offset::VERSION) == v4::PROTOCOL_VERSION {
+            AnyRequestFrame::V4(v4::RequestFrame::decode(b))
+        } else {
+            AnyRequestFrame::V3(RequestFrame::decode(b))
+        }
+    }
+
+    /// The 80 bytes of the frame.
+    pub fn encode(&self) -> [u8; FRAME_LEN] {
+        match self {
+            AnyRequestFrame::V3(f) => f.encode(),
+            AnyRequestFrame::V4(f) => f.encode(),
+        }
+    }
+
+    /// The prefix's version.
+    pub fn version(&self) -> u16 {
+        match self {
+            AnyRequestFrame::V3(f) => f.version,
+            AnyRequestFrame::V4(f) => f.version,
+        }
+    }
+
+    /// The header.
+    pub fn header(&self) -> Header {
+        match self {
+            AnyRequestFrame::V3(f) => f.header,
+            AnyRequestFrame::V4(f) => f.header,
+        }
+    }
+}
+
+/// A response frame of either version, as the prefix's version says (see [`AnyRequestFrame`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum AnyResponseFrame {
+    /// The V3 layout (manual 3.2).
+    V3(ResponseFrame),
+    /// The V4 layout (PROTOCOLS.md 2b).
+    V4(v4::ResponseFrame),
+}
+
+impl AnyResponseFrame {
+    /// Reads a frame in the layout of its prefix's version.
+    pub fn decode(b: &[u8; FRAME_LEN]) -> AnyResponseFrame {
+        if get_u16(b, offset::VERSION) == v4::PROTOCOL_VERSION {
+            AnyResponseFrame::V4(v4::ResponseFrame::decode(b))
+        } else {
+            AnyResponseFrame::V3(ResponseFrame::decode(b))
+        }
+    }
+
+    /// The 80 bytes of the frame.
+    pub fn encode(&self) -> [u8; FRAME_LEN] {
+        match self {
+            AnyResponseFrame::V3(f) => f.encode(),
+            AnyResponseFrame::V4(f) => f.encode(),
+        }
+    }
+
+    /// The prefix's version.
+    pub fn version(&self) -> u16 {
+        match self {
+            AnyResponseFrame::V3(f) => f.version,
+            AnyResponseFrame::V4(f) => f.version,
+        }
+    }
+
+    /// The header.
+    pub fn header(&self) -> Header {
+        match self {
+            AnyResponseFrame::V3(f) => f.header,
+            AnyResponseFrame::V4(f) => f.header,
+        }
+    }
+
+    /// The header, to change.
+    pub fn header_mut(&mut self) -> &mut Header {
+        match self {
+            AnyResponseFrame::V3(f) => &mut f.header,
+            AnyResponseFrame::V4(f) => &mut f.header,
+        }
+    }
+}
+
+impl From<RequestFrame> for AnyRequestFrame {
+    fn from(f: RequestFrame) -> Self {
+        AnyRequestFrame::V3(f)
+    }
+}
+
+impl From<v4::RequestFrame> for AnyRequestFrame {
+    fn from(f: v4::RequestFrame) -> Self {
+        AnyRequestFrame::V4(f)
+    }
+}
+
+impl From<ResponseFrame> for AnyResponseFrame {
+    fn from(f: ResponseFrame) -> Self {
+        AnyResponseFrame::V3(f)
+    }
+}
+
+impl From<v4::ResponseFrame> for AnyResponseFrame {
+    fn from(f: v4::ResponseFrame) -> Self {
+        AnyResponseFrame::V4(f)
     }
 }
 

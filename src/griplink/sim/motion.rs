@@ -1,0 +1,221 @@
+//! Finger motion: HOME, GRIP, RELEASE, the FLEX commands and SETVAL move the fingers at a
+//! speed, in simulated time; where they stop decides the device state they end in.
+//!
+//! - `HOME` (always blocking, 3.4.3) moves the fingers to the open end of the stroke and ends
+//!   idle, `DS_DISABLED` (the GRIP polling example shows a freshly homed gripper in state 2,
+//!   "DS_IDLE").
+//! - `GRIP`/`FLEXGRIP` move towards the no-part limit and end `DS_HOLDING` where they meet the
+//!   configured part, else `DS_NO_PART`; refused with `E_STATE_CONFLICT` in `DS_HOLDING` or
+//!   `DS_NO_PART` (3.4.4).
+//! - `RELEASE`/`FLEXRELEASE` move to the release limit and end `DS_RELEASED` (3.4.5, 3.4.7).
+//! - GRIP, RELEASE and HOME (and their FLEX forms) re-enable a gripper in `DS_FAULT` or
+//!   disabled by DISABLE ("Grippers by WEISS ROBOTICS: The device will be (re-)enabled
+//!   automatically when executing a GRIP(), RELEASE() or HOME() command", 3.4.1).
+//! - While the fingers move, the state keeps its start value (the polling examples of 3.4.4 and
+//!   3.4.5 show the start state until the end), so a RELEASE from `DS_RELEASED` or a motion from
+//!   `DS_FAULT` may end with no transition at all (3.4.7: "a state transition may not occur").
+//!   This is the hardest case for a client and the one the manual warns about.
+//! - `SETVAL` index 0 pre-positions the fingers and keeps the state.
+
+use std::time::Duration;
+
+use super::controller::{Controller, Step};
+use super::dispatch::ack;
+use super::wait::Wait;
+use crate::griplink::command::{Blocking, PortNumber};
+use crate::griplink::state::DeviceState;
+use crate::griplink::status::Status;
+
+/// How a motion ended, for a blocking command that waits for it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) enum MotionEnd {
+    Done(DeviceState),
+    Aborted,
+}
+
+/// A motion in progress: straight from `from_um` to `to_um` between `start` and `end`.
+#[derive(Debug, Clone)]
+pub(super) struct Motion {
+    pub(super) id: u64,
+    from_um: i64,
+    pub(super) to_um: i64,
+    start: Duration,
+    pub(super) end: Duration,
+    pub(super) end_state: DeviceState,
+}
+
+impl Motion {
+    /// The finger position at `now` (before `end`).
+    pub(super) fn position_at(&self, now: Duration) -> i64 {
+        let total = self.end.saturating_sub(self.start).as_secs_f64();
+        let done = now.saturating_sub(self.start).as_secs_f64();
+        let frac = if total > 0.0 {
+            (done / total).min(1.0)
+        } else {
+            1.0
+        };
+        self.from_um + ((self.to_um - self.from_um) as f64 * frac).round() as i64
+    }
+}
+
+impl Controller {
+    /// Starts a motion on port `i` to `to_um`, ending in `end_state` (or `DS_FAULT` if a fault
+    /// was armed). Replaces any motion in progress.
+    pub(super) fn start_motion(
+        &mut self,
+        i: usize,
+        to_um: i64,
+        speed_um_per_s: f64,
+        end_state: DeviceState,
+        now: Duration,
+    ) -> Result<u64, Status> {
+        let id = self.next_motion;
+        self.next_motion += 1;
+        let from_um = self.port_sim(i)?.position_um;
+        let seconds = if speed_um_per_s > 0.0 {
+            (to_um - from_um).unsigned_abs() as f64 / speed_um_per_s
+        } else {
+            0.0
+        };
+        let duration = self.scaled(Duration::try_from_secs_f64(seconds).unwrap_or(Duration::ZERO));
+        let p = self.port_sim(i)?;
+        p.abort_motion();
+        p.actuator_on = true;
+        let end_state = if std::mem::take(&mut p.fault_next_motion) {
+            DeviceState::Fault
+        } else {
+            end_state
+        };
+        p.motion = Some(Motion {
+            id,
+            from_um,
+            to_um,
+            start: now,
+            end: now + duration,
+            end_state,
+        });
+        p.advance(now);
+        Ok(id)
+    }
+
+    /// What GRIP and RELEASE check before they move to `to_um` (3.4.1, 3.4.4), then the start
+    /// of a manipulating command. Returns the port index, the device's default speed and the
+    /// part width, µm.
+    fn begin_motion(
+        &mut self,
+        port: PortNumber,
+        to_um: i64,
+        grip: bool,
+    ) -> Result<(usize, f64, Option<i64>), Status> {
+        let (i, device) = self.device(port)?;
+        let stroke = device.stroke_um();
+        let default_speed = device.default_speed_um_per_s();
+        let part = device.part_width_mm.map(super::device::um);
+        let p = self.port_sim(i)?;
+        match p.state() {
+            DeviceState::NotInitialized => return Err(Status::NotInitialized),
+            DeviceState::Holding | DeviceState::NoPart if grip => {
+                return Err(Status::StateConflict)
+            }
+            // DS_FAULT and DS_DISABLED: re-enabled automatically (3.4.1).
+            _ => {}
+        }
+        if !(0..=stroke).contains(&to_um) {
+            return Err(Status::RangeError);
+        }
+        p.transitions.command();
+        Ok((i, default_speed, part))
+    }
+
+    /// `HOME`: to the open end of the stroke, always blocking (3.4.3). Also the way out of
+    /// `DS_NOT_INITIALIZED`.
+    pub(super) fn home(&mut self, port: PortNumber, now: Duration) -> Step {
+        let (i, d) = self.device(port)?;
+        let (open, speed) = (d.stroke_um(), d.default_speed_um_per_s());
+        self.port_sim(i)?.transitions.command();
+        let id = self.start_motion(i, open, speed, DeviceState::Disabled, now)?;
+        Ok(motion_reply(i, id, Blocking::UntilDone))
+    }
+
+    /// A grip towards `limit_um`: holds the part if the fingers meet it on the way.
+    pub(super) fn grip(
+        &mut self,
+        port: PortNumber,
+        limit_um: i64,
+        speed_um_per_s: f64,
+        blocking: Blocking,
+        now: Duration,
+    ) -> Step {
+        let (i, default_speed, part) = self.begin_motion(port, limit_um, true)?;
+        let from = self.port_sim(i)?.position_um;
+        let (stop, end) = match part {
+            Some(w) if (limit_um < w && w < from) || (from < w && w < limit_um) => {
+                (w, DeviceState::Holding)
+            }
+            _ => (limit_um, DeviceState::NoPart),
+        };
+        let speed = or_default(speed_um_per_s, default_speed);
+        let id = self.start_motion(i, stop, speed, end, now)?;
+        Ok(motion_reply(i, id, blocking))
+    }
+
+    /// A release (or pre-position) to `target_um`, ending `DS_RELEASED`.
+    pub(super) fn release(
+        &mut self,
+        port: PortNumber,
+        target_um: i64,
+        speed_um_per_s: f64,
+        blocking: Blocking,
+        now: Duration,
+    ) -> Step {
+        let (i, default_speed, _) = self.begin_motion(port, target_um, false)?;
+        let speed = or_default(speed_um_per_s, default_speed);
+        let id = self.start_motion(i, target_um, speed, DeviceState::Released, now)?;
+        Ok(motion_reply(i, id, blocking))
+    }
+
+    /// `SETVAL` index 0: pre-positions the fingers, keeping the state (3.4.11).
+    pub(super) fn set_value(
+        &mut self,
+        port: PortNumber,
+        index: u32,
+        target_um: i64,
+        now: Duration,
+    ) -> Step {
+        let (i, d) = self.device(port)?;
+        let (stroke, speed) = (d.stroke_um(), d.default_speed_um_per_s());
+        if index != 0 {
+            return Err(Status::IndexOutOfBounds);
+        }
+        let p = self.port_sim(i)?;
+        let state = p.state();
+        match state {
+            DeviceState::NotInitialized => return Err(Status::NotInitialized),
+            // Only GRIP, RELEASE and HOME re-enable (3.4.1).
+            DeviceState::Fault => return Err(Status::StateConflict),
+            _ => {}
+        }
+        if !(0..=stroke).contains(&target_um) {
+            return Err(Status::RangeError);
+        }
+        p.transitions.command();
+        self.start_motion(i, target_um, speed, state, now)?;
+        ack()
+    }
+}
+
+fn or_default(speed_um_per_s: f64, default: f64) -> f64 {
+    if speed_um_per_s > 0.0 {
+        speed_um_per_s
+    } else {
+        default
+    }
+}
+
+fn motion_reply(port: usize, id: u64, blocking: Blocking) -> super::controller::Outcome {
+    use super::controller::Outcome;
+    match blocking {
+        Blocking::Immediate => Outcome::Reply("ACK".to_owned()),
+        Blocking::UntilDone => Outcome::Wait(Wait::Motion { port, id }),
+    }
+}

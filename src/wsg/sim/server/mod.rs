@@ -1,0 +1,295 @@
+//! Serving the simulated gripper over TCP, UDP, a serial pseudo-terminal or any byte stream.
+//!
+//! One actor task (`actor.rs`) owns the [`Device`] (no locks around the state machine); every
+//! connection is a task (`stream.rs`, `udp.rs`) that forwards decoded frames to it and writes
+//! the bytes it gets back. The actor applies the injected faults on the way out. No reply is
+//! dropped for want of room: a connection whose client does not read stops being read.
+
+mod actor;
+mod stream;
+mod udp;
+
+use std::collections::{HashMap, VecDeque};
+use std::io;
+use std::net::SocketAddr;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard};
+use std::time::Duration;
+
+use tokio::io::{AsyncRead, AsyncWrite};
+use tokio::net::{TcpListener, ToSocketAddrs, UdpSocket};
+use tokio::sync::{mpsc, watch};
+use tokio::time::Instant;
+
+use self::actor::{Actor, Control, Event, SimClock};
+use self::stream::serve_stream;
+use self::udp::{serve_udp, UdpSettings};
+use super::device::{Device, SessionKind};
+use super::model::SimConfig;
+use crate::wsg::{GripState, Status, SystemState};
+
+#[derive(Debug, Default)]
+pub(super) struct Faults {
+    drop: Vec<u8>,
+    corrupt: Vec<u8>,
+    delay: Vec<(u8, Duration)>,
+    forced: Vec<(u8, Status)>,
+}
+
+pub(super) fn take<T>(v: &mut Vec<T>, pred: impl Fn(&T) -> bool) -> Option<T> {
+    let i = v.iter().position(pred)?;
+    Some(v.remove(i))
+}
+
+/// What the simulator looked like after its last step.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SimSnapshot {
+    /// The grip state.
+    pub grip_state: GripState,
+    /// The system state flags.
+    pub system_state: SystemState,
+    /// The opening width, mm.
+    pub width_mm: f32,
+    /// Connections open now.
+    pub sessions: usize,
+    /// Auto-update streams running now (all sessions).
+    pub streams: usize,
+}
+
+#[derive(Debug)]
+pub(super) struct Shared {
+    faults: Faults,
+    /// Command ids received, oldest first (the last 4096).
+    received: VecDeque<u8>,
+    snapshot: SimSnapshot,
+}
+
+pub(super) fn lock(shared: &Mutex<Shared>) -> MutexGuard<'_, Shared> {
+    // A panic elsewhere must not take the simulator down with a poisoned lock.
+    shared.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// A running simulator. Shuts down when [`SimServer::shutdown`] is called or it is dropped.
+#[derive(Debug)]
+pub struct SimServer {
+    local_addr: Option<SocketAddr>,
+    serial_path: Option<String>,
+    shared: Arc<Mutex<Shared>>,
+    control: mpsc::UnboundedSender<Control>,
+    shutdown: watch::Sender<bool>,
+    /// Held so the pseudo-terminal stays open while the server runs.
+    _keep: Option<Box<dyn std::any::Any + Send + Sync>>,
+}
+
+pub(super) struct Parts {
+    events: mpsc::Sender<Event>,
+    shutdown: watch::Receiver<bool>,
+    next_session: Arc<AtomicU64>,
+}
+
+impl SimServer {
+    fn start(config: SimConfig) -> (SimServer, Parts) {
+        let (events_tx, events) = mpsc::channel(1024);
+        let (control_tx, control) = mpsc::unbounded_channel();
+        let (shutdown_tx, shutdown) = watch::channel(false);
+        let device = Device::new(config);
+        let shared = Arc::new(Mutex::new(Shared {
+            faults: Faults::default(),
+            received: VecDeque::new(),
+            snapshot: SimSnapshot {
+                grip_state: device.grip_state(),
+                system_state: device.system_state(),
+                width_mm: 0.0,
+                sessions: 0,
+                streams: 0,
+            },
+        }));
+        let now = Instant::now();
+        let actor = Actor {
+            clock: SimClock {
+                scale: device.config().time_scale,
+                base_wall: now,
+                base_sim: 0.0,
+            },
+            device,
+            started: now,
+            sessions: HashMap::new(),
+            shared: shared.clone(),
+            events,
+            control,
+            shutdown: shutdown.clone(),
+        };
+        tokio::spawn(actor.run());
+        let server = SimServer {
+            local_addr: None,
+            serial_path: None,
+            shared,
+            control: control_tx,
+            shutdown: shutdown_tx,
+            _keep: None,
+        };
+        (
+            server,
+            Parts {
+                events: events_tx,
+                shutdown,
+                next_session: Arc::new(AtomicU64::new(1)),
+            },
+        )
+    }
+
+    /// Serves the simulator over TCP on `addr` (port 0 picks a free port; see
+    /// [`SimServer::local_addr`]). Any number of connections share the one simulated gripper.
+    pub async fn bind(addr: impl ToSocketAddrs, config: SimConfig) -> io::Result<SimServer> {
+        let listener = TcpListener::bind(addr).await?;
+        let (mut server, parts) = Self::start(config);
+        server.local_addr = Some(listener.local_addr()?);
+        tokio::spawn(accept(listener, parts));
+        Ok(server)
+    }
+
+    /// Serves the simulator over UDP on `addr`: each datagram carries one frame; replies go to
+    /// the sender's address, or with [`SimConfig::udp_remote_port`] to the sender's IP address
+    /// at that port (the device's "UDP remote port"). A peer silent for
+    /// [`SimConfig::udp_idle_timeout`] is forgotten (its auto-updates stop).
+    pub async fn bind_udp(addr: impl ToSocketAddrs, config: SimConfig) -> io::Result<SimServer> {
+        let socket = Arc::new(UdpSocket::bind(addr).await?);
+        let settings = UdpSettings {
+            remote_port: config.udp_remote_port,
+            idle_timeout: config.udp_idle_timeout,
+        };
+        let (mut server, parts) = Self::start(config);
+        server.local_addr = Some(socket.local_addr()?);
+        tokio::spawn(serve_udp(socket, parts, settings));
+        Ok(server)
+    }
+
+    /// Serves the simulator on a new pseudo-terminal; open [`SimServer::serial_path`] with a
+    /// serial client (any baud rate). The simulator keeps the terminal open with a shared lock
+    /// (so it survives the client closing it): open it non-exclusively, e.g. with
+    /// [`ClientBuilder::serial_exclusive(false)`](crate::wsg::ClientBuilder::serial_exclusive).
+    #[cfg(all(unix, feature = "serial"))]
+    pub fn serial_pty(config: SimConfig) -> io::Result<SimServer> {
+        use tokio_serial::SerialPort;
+        let (master, mut slave) = tokio_serial::SerialStream::pair().map_err(io::Error::other)?;
+        // The client opens the slave by path; our own handle on it keeps the pty alive.
+        slave.set_exclusive(false).map_err(io::Error::other)?;
+        let path = slave
+            .name()
+            .ok_or_else(|| io::Error::other("pseudo-terminal without a path"))?;
+        let mut server = Self::attach(config, master, SessionKind::Serial);
+        server.serial_path = Some(path);
+        server._keep = Some(Box::new(Mutex::new(slave)));
+        Ok(server)
+    }
+
+    /// Serves the simulator on one byte stream the caller provides (e.g. one end of
+    /// `tokio::io::duplex`).
+    pub fn attach(
+        config: SimConfig,
+        io: impl AsyncRead + AsyncWrite + Send + 'static,
+        kind: SessionKind,
+    ) -> SimServer {
+        let (server, parts) = Self::start(config);
+        let session = parts.next_session.fetch_add(1, Ordering::Relaxed);
+        tokio::spawn(serve_stream(
+            io,
+            session,
+            kind,
+            parts.events,
+            parts.shutdown,
+        ));
+        server
+    }
+
+    /// The bound address (TCP and UDP servers).
+    pub fn local_addr(&self) -> Option<SocketAddr> {
+        self.local_addr
+    }
+
+    /// The pseudo-terminal to open (serial servers).
+    pub fn serial_path(&self) -> Option<&str> {
+        self.serial_path.as_deref()
+    }
+
+    /// The state after the simulator's last step.
+    pub fn snapshot(&self) -> SimSnapshot {
+        lock(&self.shared).snapshot.clone()
+    }
+
+    /// The command ids received so far (the last 4096), oldest first.
+    pub fn received_ids(&self) -> Vec<u8> {
+        lock(&self.shared).received.iter().copied().collect()
+    }
+
+    /// Fault: the next reply with command id `id` is not sent.
+    pub fn drop_next_reply(&self, id: u8) {
+        lock(&self.shared).faults.drop.push(id);
+    }
+
+    /// Fault: the next reply with command id `id` is sent with a broken checksum.
+    pub fn corrupt_next_reply(&self, id: u8) {
+        lock(&self.shared).faults.corrupt.push(id);
+    }
+
+    /// Fault: the next reply with command id `id` is sent `delay` late (later replies are not
+    /// held back, so it may overtake nothing but be overtaken).
+    pub fn delay_next_reply(&self, id: u8, delay: Duration) {
+        lock(&self.shared).faults.delay.push((id, delay));
+    }
+
+    /// Fault: the next command with id `id` is answered with `status` (and not executed).
+    pub fn force_status(&self, id: u8, status: Status) {
+        lock(&self.shared).faults.forced.push((id, status));
+    }
+
+    /// The held part slips out: HOLDING → PART LOST.
+    pub fn lose_part(&self) {
+        let _ = self.control.send(Control::LosePart);
+    }
+
+    /// Changes the time scale (see [`SimConfig::time_scale`]) from now on, e.g. home instantly,
+    /// then make moves slow enough to be stopped.
+    pub fn set_time_scale(&self, time_scale: f64) {
+        let _ = self.control.send(Control::TimeScale(time_scale));
+    }
+
+    /// Drops every stream connection (TCP, serial) without warning, like a pulled cable; an
+    /// unannounced TCP close puts the gripper into FAST STOP. UDP peers are not affected.
+    pub fn unplug(&self) {
+        let _ = self.control.send(Control::Unplug);
+    }
+
+    /// Stops serving and closes every connection.
+    pub fn shutdown(self) {
+        drop(self);
+    }
+}
+
+impl Drop for SimServer {
+    fn drop(&mut self) {
+        let _ = self.shutdown.send(true);
+    }
+}
+
+async fn accept(listener: TcpListener, parts: Parts) {
+    let Parts {
+        events,
+        mut shutdown,
+        next_session,
+    } = parts;
+    loop {
+        tokio::select! {
+            r = listener.accept() => match r {
+                Ok((stream, peer)) => {
+                    let _ = stream.set_nodelay(true);
+                    let session = next_session.fetch_add(1, Ordering::Relaxed);
+                    tracing::debug!(%peer, session, "simulator: TCP connection");
+                    tokio::spawn(serve_stream(stream, session, SessionKind::Tcp, events.clone(), shutdown.clone()));
+                }
+                Err(e) => tracing::warn!(error = %e, "simulator: accept failed"),
+            },
+            _ = shutdown.changed() => return,
+        }
+    }
+}

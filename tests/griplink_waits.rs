@@ -1,0 +1,229 @@
+//! The wait helpers and the simulator's waiting rules over real TCP on loopback: completion
+//! decided from evidence that the motion ended (manual 3.4.4, 3.4.7), WSTR timeouts (3.4.10),
+//! WAITVAL reach/cross (3.4.12) and the automatic re-enable (3.4.1).
+#![cfg(feature = "sim")]
+
+mod common;
+
+use std::time::Duration;
+
+use gripper::griplink::client::{GripOutcome, ReleaseOutcome, WaitBy, TARGET_TOLERANCE_UM};
+use gripper::griplink::command::{FlexGrip, FlexRelease};
+use gripper::griplink::sim::{SimConfig, SimDevice, SimServer};
+use gripper::griplink::{Client, DeviceState, Error, Status};
+use tokio::io::{AsyncBufReadExt, AsyncWriteExt, BufReader};
+use tokio::net::TcpStream;
+use tokio::time::Instant;
+
+const POLL: WaitBy = WaitBy::Polling(Duration::from_millis(1));
+
+/// An ET4 whose IEG 55-020 on port 0 has a 12 mm part between its fingers, homed (fingers at
+/// 20 mm); motion takes no time until a test slows it down.
+async fn homed(config: SimConfig) -> (SimServer, Client) {
+    let config = config
+        .device(0, Some(SimDevice::ieg_55_020().with_part(12.0)))
+        .time_scale(0.0);
+    let server = SimServer::bind("127.0.0.1:0", config).await.unwrap();
+    let client = Client::connect(server.local_addr()).await.unwrap();
+    client.port(0).home().await.unwrap();
+    (server, client)
+}
+
+fn slow_down(server: &SimServer, scale: f64) {
+    server.with_controller(|c, _| c.set_time_scale(scale));
+}
+
+fn at_target(position_um: i32, target_um: i32) -> bool {
+    (position_um - target_um).abs() <= TARGET_TOLERANCE_UM
+}
+
+/// RELEASE from DS_RELEASED causes no transition (3.4.7): the helpers must wait for the
+/// fingers to reach the release limit, not report the state read right after the ACK.
+#[tokio::test]
+async fn release_from_released_returns_only_at_the_target() {
+    let (server, client) = homed(SimConfig::et4()).await;
+    let g = client.port(0);
+    // The default recipe releases to the open end, 20 mm.
+    assert_eq!(
+        g.release_and_wait(0, POLL).await.unwrap(),
+        ReleaseOutcome::Released
+    );
+    // From DS_RELEASED, and from DS_FAULT: RELEASE re-enables the gripper (3.4.1) and the
+    // state stays DS_FAULT while the fingers move.
+    for start in [DeviceState::Released, DeviceState::Fault] {
+        for by in [POLL, WaitBy::Transition] {
+            slow_down(&server, 0.0);
+            g.set_value(0, 5000).await.unwrap();
+            if start == DeviceState::Fault {
+                server.inject_device_fault(0);
+            }
+            assert_eq!(g.position_um().await.unwrap(), 5000);
+            assert_eq!(g.state().await.unwrap(), start);
+            // 15 mm at 50 mm/s: 300 ms simulated, 60 ms of wall time.
+            slow_down(&server, 0.2);
+            assert_eq!(
+                g.release_and_wait(0, by).await.unwrap(),
+                ReleaseOutcome::Released
+            );
+            let position = g.position_um().await.unwrap();
+            assert!(
+                at_target(position, 20_000),
+                "{start:?} {by:?}: returned at {position} µm"
+            );
+        }
+    }
+    // FLEXRELEASE to its own position, from DS_RELEASED too.
+    for by in [POLL, WaitBy::Transition] {
+        slow_down(&server, 0.0);
+        g.set_value(0, 2000).await.unwrap();
+        slow_down(&server, 0.2);
+        let params = FlexRelease {
+            position_mm: 17.5,
+            ..Default::default()
+        };
+        assert_eq!(
+            g.flex_release_and_wait(params, by).await.unwrap(),
+            ReleaseOutcome::Released
+        );
+        let position = g.position_um().await.unwrap();
+        assert!(
+            at_target(position, 17_500),
+            "{by:?}: returned at {position} µm"
+        );
+    }
+}
+
+/// A WSTR that answers ERR 05 (no transition within the controller's WSTR timeout, 3.4.10)
+/// inside the helper's own deadline is asked again; the wait completes with the outcome.
+#[tokio::test]
+async fn wstr_timeout_inside_the_deadline_is_asked_again() {
+    let config = SimConfig::et4().wstr_timeout(Duration::from_millis(20));
+    let (server, client) = homed(config).await;
+    let g = client.port(0);
+    slow_down(&server, 1.0);
+    // 20 mm to the part at 12 mm at 1 mm/s: 8 s, far longer than the WSTR timeout.
+    let grip = tokio::spawn({
+        let g = g.clone();
+        async move {
+            let params = FlexGrip {
+                position_mm: 0.0,
+                force_n: 10.0,
+                speed_mm_per_s: 1.0,
+                acceleration_mm_per_s2: 0.0,
+            };
+            g.flex_grip_and_wait(params, WaitBy::Transition).await
+        }
+    });
+    common::griplink_until(&server, Duration::from_secs(10), "no WSTR timed out", |s| {
+        s.with_controller(|c, _| c.wstr_timeouts(0) >= 1)
+    })
+    .await;
+    assert!(!grip.is_finished());
+    server.with_controller(|c, now| c.finish_motion(0, now));
+    assert_eq!(grip.await.unwrap().unwrap(), GripOutcome::Holding);
+    assert_eq!(g.position_um().await.unwrap(), 12_000);
+}
+
+/// WAITVAL is reach/cross (3.4.12): a window of size 0 over a moving position is ACKed, from
+/// above and from below.
+#[tokio::test]
+async fn waitval_with_window_0_over_a_moving_position_acks() {
+    let (server, client) = homed(SimConfig::et4()).await;
+    let g = client.port(0);
+    // 20 mm to 0 at 50 mm/s: 400 ms simulated, 40 ms of wall time; sampled every 0.5 ms.
+    slow_down(&server, 0.1);
+    g.set_value(0, 0).await.unwrap();
+    g.wait_value(0, 10_013, 0, Duration::from_secs(5))
+        .await
+        .unwrap();
+    assert!(g.position_um().await.unwrap() < 10_013);
+    server.with_controller(|c, now| c.finish_motion(0, now));
+    g.set_value_f(0, 20.0).await.unwrap();
+    g.wait_value_f(0, 7.0071, 0.0, Duration::from_secs(5))
+        .await
+        .unwrap();
+    assert!(g.position_um().await.unwrap() > 7007);
+}
+
+/// GRIP from DS_FAULT re-enables the gripper (3.4.1) and grips; the state stays DS_FAULT while
+/// the fingers move, so the helpers must not take it for the outcome.
+#[tokio::test]
+async fn grip_from_fault_succeeds() {
+    let (server, client) = homed(SimConfig::et4()).await;
+    let g = client.port(0);
+    for by in [POLL, WaitBy::Transition] {
+        slow_down(&server, 0.0);
+        g.release_and_wait(0, POLL).await.unwrap();
+        server.inject_device_fault(0);
+        assert_eq!(g.state().await.unwrap(), DeviceState::Fault);
+        // 8 mm at 50 mm/s: 160 ms simulated, 32 ms of wall time.
+        slow_down(&server, 0.2);
+        assert_eq!(
+            g.grip_and_wait(0, by).await.unwrap(),
+            GripOutcome::Holding,
+            "{by:?}"
+        );
+        assert_eq!(g.position_um().await.unwrap(), 12_000);
+    }
+}
+
+/// A grip from DS_FAULT that faults again ends with no transition at all: the helpers report
+/// the fault once the fingers stand still, not while they move.
+#[tokio::test]
+async fn grip_from_fault_that_faults_again_reports_the_fault_once_still() {
+    let config = SimConfig::et4().wstr_timeout(Duration::from_millis(100));
+    let (server, client) = homed(config).await;
+    let g = client.port(0);
+    for by in [POLL, WaitBy::Transition] {
+        slow_down(&server, 0.0);
+        g.release_and_wait(0, POLL).await.unwrap();
+        server.inject_device_fault(0);
+        server.fault_next_motion(0);
+        slow_down(&server, 0.2);
+        assert_eq!(g.grip_and_wait(0, by).await.unwrap(), GripOutcome::Fault);
+        assert_eq!(g.position_um().await.unwrap(), 12_000, "{by:?}");
+    }
+}
+
+/// WSTR on an idle port waits for a transition and answers ERR 05 after the controller's WSTR
+/// timeout (3.4.10); only a WSTR right after a reported transition answers at once.
+#[tokio::test]
+async fn wstr_on_an_idle_port_answers_err_05_after_its_timeout() {
+    // 2 s at time scale 0.01: 20 ms of wall time.
+    let config = SimConfig::et4().wstr_timeout(Duration::from_secs(2));
+    let (server, client) = homed(config).await;
+    slow_down(&server, 0.01);
+    let g = client.port(0);
+    // HOME's transition, not yet reported by a WSTR, then the same state again ("issued
+    // twice").
+    assert_eq!(
+        g.wait_for_transition().await.unwrap(),
+        DeviceState::Disabled
+    );
+    assert_eq!(
+        g.wait_for_transition().await.unwrap(),
+        DeviceState::Disabled
+    );
+
+    let stream = TcpStream::connect(server.local_addr()).await.unwrap();
+    let (read, mut write) = stream.into_split();
+    let mut lines = BufReader::new(read).lines();
+    let sent = Instant::now();
+    write.write_all(b"WSTR[0]?\n").await.unwrap();
+    // `next_line` is cancel-safe: the line, when it comes, is read below.
+    let early = tokio::time::timeout(Duration::from_millis(10), lines.next_line()).await;
+    assert!(
+        early.is_err(),
+        "WSTR answered within its timeout: {early:?}"
+    );
+    let line = lines.next_line().await.unwrap();
+    assert_eq!(line.as_deref(), Some("ERR 05"));
+    assert!(sent.elapsed() >= Duration::from_millis(20));
+
+    // Through the client: a device error with E_TIMEOUT, and the connection stays usable.
+    match g.wait_for_transition().await {
+        Err(Error::Device { status, .. }) => assert_eq!(status, Status::Timeout),
+        other => panic!("expected ERR 05, got {other:?}"),
+    }
+    assert_eq!(g.state().await.unwrap(), DeviceState::Disabled);
+}
