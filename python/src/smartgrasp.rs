@@ -5,7 +5,7 @@ use std::net::SocketAddr;
 
 use gripper::smartgrasp::{
     self, Error, GetGraspOutcome, Grasp, GraspFeedback, GraspMode, GraspRequest, ObjectCount, Pose,
-    PoseFormat, RobotSystem, ServerState, Tool,
+    PoseFormat, RobotSystem, SelectionCriterion, ServerState, Tool,
 };
 use pyo3::prelude::*;
 use pyo3::IntoPyObjectExt;
@@ -35,7 +35,9 @@ pub fn error(e: Error) -> PyErr {
         Error::ConnectionLost { .. } => errors::connection_lost(message),
         Error::Closed => errors::closed(message),
         Error::MalformedReply(_) => errors::malformed(message),
-        Error::InvalidArgument(_) | Error::Pose(_) => errors::invalid_argument(message),
+        Error::InvalidArgument(_) | Error::Pose(_) | Error::Request(_) => {
+            errors::invalid_argument(message)
+        }
         Error::Io(_) => errors::transport(message),
         Error::ServerTooOld { .. } | Error::NotOperational { .. } | Error::ResponseLost { .. } => {
             errors::raise("ProtocolError", message, &[])
@@ -79,8 +81,26 @@ fn pose_record(py: Python<'_>, pose: &Pose) -> PyResult<Py<PyAny>> {
 impl ToPy for Grasp {
     fn to_py(self, py: Python<'_>) -> PyResult<Py<PyAny>> {
         let grasp_mode = enum_value(py, PY, "GraspMode", i64::from(u8::from(self.grasp_mode)))?;
-        let tool = enum_value(py, PY, "Tool", i64::from(u8::from(self.tool)))?;
+        let tool = self
+            .tool
+            .map(|t| enum_value(py, PY, "Tool", i64::from(u8::from(t))))
+            .transpose()?;
         let pose = pose_record(py, &self.pose)?;
+        let object_offset = self
+            .object_offset
+            .map(|o| {
+                record(
+                    py,
+                    PY,
+                    "ObjectOffset",
+                    &[
+                        ("x_um", field(py, o.x_um)?),
+                        ("y_um", field(py, o.y_um)?),
+                        ("rz_udeg", field(py, o.rz_udeg)?),
+                    ],
+                )
+            })
+            .transpose()?;
         record(
             py,
             PY,
@@ -90,12 +110,19 @@ impl ToPy for Grasp {
                 ("object_class", field(py, self.object_class)?),
                 ("object_instance", field(py, self.object_instance)?),
                 ("stroke_um", field(py, self.stroke_um)?),
-                ("angle_offset_udeg", field(py, self.angle_offset_udeg)?),
                 ("center_offset_um", field(py, self.center_offset_um)?),
-                ("tool", tool.into_bound(py)),
                 ("pose", pose.into_bound(py)),
                 ("object_count", field(py, self.object_count)?),
                 ("candidate_count", field(py, self.candidate_count)?),
+                // What only one protocol version delivers is None from the other.
+                ("center_offset_z_um", field(py, self.center_offset_z_um)?),
+                ("angle_offset_udeg", field(py, self.angle_offset_udeg)?),
+                ("tool", field(py, tool)?),
+                (
+                    "reference_frame",
+                    field(py, self.reference_frame.map(u8::from))?,
+                ),
+                ("object_offset", field(py, object_offset)?),
             ],
         )
     }
@@ -159,6 +186,7 @@ fn config(
     connect_timeout_s: Option<f64>,
     robot_system: Option<u8>,
     project_index: Option<u32>,
+    v4: V4Options,
 ) -> PyResult<smartgrasp::ClientConfig> {
     let mut c = smartgrasp::ClientConfig::default();
     if let Some(s) = query_timeout_s {
@@ -174,7 +202,18 @@ fn config(
         .map(|n| known("robot system", n, |v| matches!(v, RobotSystem::Unknown(_))))
         .transpose()?;
     c.project_index = project_index;
+    c.protocol_version = v4.protocol_version;
+    c.tool_id = v4.tool_id;
+    c.workspace_id = v4.workspace_id;
     Ok(c)
+}
+
+/// The connect options protocol V4 added: a pinned version (3 or 4; None negotiates), and the
+/// tool and workspace IDs to choose after opening (V4 only).
+struct V4Options {
+    protocol_version: Option<u16>,
+    tool_id: Option<u16>,
+    workspace_id: Option<u16>,
 }
 
 fn grasp_request(
@@ -182,6 +221,7 @@ fn grasp_request(
     object_class: u16,
     tool: u8,
     pose_format: u8,
+    selection_criterion: u8,
 ) -> PyResult<GraspRequest> {
     Ok(GraspRequest {
         grasp_mode: known("grasp mode", grasp_mode, |v| {
@@ -189,6 +229,7 @@ fn grasp_request(
         })?,
         object_class,
         tool: known("tool", tool, |v| matches!(v, Tool::Unknown(_)))?,
+        selection_criterion: SelectionCriterion(selection_criterion),
         pose_format: known("pose format", pose_format, |v| {
             matches!(v, PoseFormat::Unknown(_))
         })?,
@@ -246,7 +287,9 @@ twins! {
         /// Connects to "host:port" and opens the session (protocol version, state, and the
         /// `robot_system` registration and `project_index` when given).
         #[staticmethod]
-        #[pyo3(signature = (addr, *, query_timeout_s=None, detection_timeout_s=None, connect_timeout_s=None, robot_system=None, project_index=None))]
+        // Python's keyword-only arguments mirror the fields of the Rust `ClientConfig`.
+        #[allow(clippy::too_many_arguments)]
+        #[pyo3(signature = (addr, *, query_timeout_s=None, detection_timeout_s=None, connect_timeout_s=None, robot_system=None, project_index=None, protocol_version=None, tool_id=None, workspace_id=None))]
         fn connect(
             py: Python<'_>,
             addr: String,
@@ -255,8 +298,12 @@ twins! {
             connect_timeout_s: Option<f64>,
             robot_system: Option<u8>,
             project_index: Option<u32>,
+            protocol_version: Option<u16>,
+            tool_id: Option<u16>,
+            workspace_id: Option<u16>,
         ) -> PyResult<Client> {
-            let c = config(query_timeout_s, detection_timeout_s, connect_timeout_s, robot_system, project_index)?;
+            let v4 = V4Options { protocol_version, tool_id, workspace_id };
+            let c = config(query_timeout_s, detection_timeout_s, connect_timeout_s, robot_system, project_index, v4)?;
             let inner = runtime::block_on(py, smartgrasp::Client::connect(addr, c), error)?;
             Ok(Client { inner })
         }
@@ -265,6 +312,21 @@ twins! {
         #[getter]
         fn is_closed(&self) -> bool {
             self.inner.is_closed()
+        }
+
+        /// The protocol version this connection speaks (3 or 4).
+        fn protocol_version(&self) -> u16 {
+            self.inner.protocol_version()
+        }
+
+        /// The server's highest protocol version, as it answered when connecting.
+        fn server_version(&self) -> u16 {
+            self.inner.server_version()
+        }
+
+        /// How many gaps in the response counter were seen (recorded, not fatal by default).
+        fn counter_gaps(&self) -> u64 {
+            self.inner.counter_gaps()
         }
 
 
@@ -277,7 +339,9 @@ twins! {
     aio {
         /// Connects to "host:port" and opens the session.
         #[staticmethod]
-        #[pyo3(signature = (addr, *, query_timeout_s=None, detection_timeout_s=None, connect_timeout_s=None, robot_system=None, project_index=None))]
+        // Python's keyword-only arguments mirror the fields of the Rust `ClientConfig`.
+        #[allow(clippy::too_many_arguments)]
+        #[pyo3(signature = (addr, *, query_timeout_s=None, detection_timeout_s=None, connect_timeout_s=None, robot_system=None, project_index=None, protocol_version=None, tool_id=None, workspace_id=None))]
         fn connect<'py>(
             py: Python<'py>,
             addr: String,
@@ -286,8 +350,12 @@ twins! {
             connect_timeout_s: Option<f64>,
             robot_system: Option<u8>,
             project_index: Option<u32>,
+            protocol_version: Option<u16>,
+            tool_id: Option<u16>,
+            workspace_id: Option<u16>,
         ) -> PyResult<Bound<'py, PyAny>> {
-            let c = config(query_timeout_s, detection_timeout_s, connect_timeout_s, robot_system, project_index)?;
+            let v4 = V4Options { protocol_version, tool_id, workspace_id };
+            let c = config(query_timeout_s, detection_timeout_s, connect_timeout_s, robot_system, project_index, v4)?;
             runtime::awaitable(
                 py,
                 async move { smartgrasp::Client::connect(addr, c).await.map(|inner| AioClient { inner }) },
@@ -300,6 +368,21 @@ twins! {
             Ok(AioClient { inner: self.inner.with_timeout(seconds("timeout_s", timeout_s)?) })
         }
 
+        /// The protocol version this connection speaks (3 or 4).
+        fn protocol_version(&self) -> u16 {
+            self.inner.protocol_version()
+        }
+
+        /// The server's highest protocol version, as it answered when connecting.
+        fn server_version(&self) -> u16 {
+            self.inner.server_version()
+        }
+
+        /// How many gaps in the response counter were seen (recorded, not fatal by default).
+        fn counter_gaps(&self) -> u64 {
+            self.inner.counter_gaps()
+        }
+
 
     }
 
@@ -309,12 +392,18 @@ twins! {
     fn get_state(&self) => |c| c.get_state();
     /// REGISTER_CLIENT (a `RobotSystem`).
     fn register_client(&self, robot: u8) [let robot = known("robot system", robot, |v| matches!(v, RobotSystem::Unknown(_)))?;] => |c| c.register_client(robot);
-    /// SET_PROJECT.
+    /// SET_PROJECT (V3: the project index; V4: the project ID).
     fn set_project(&self, project_index: u32) => |c| c.set_project(project_index);
+    /// SET_TOOL (V4 only): the tool ID seen in the web frontend.
+    fn set_tool(&self, tool_id: u16) => |c| c.set_tool(tool_id);
+    /// SET_WORKSPACE (V4 only): the workspace ID seen in the web frontend.
+    fn set_workspace(&self, workspace_id: u16) => |c| c.set_workspace(workspace_id);
     /// GET_GRASP: a `GraspResult` (its `grasp` is None when the outcome is not GRASP).
-    #[pyo3(signature = (grasp_mode, object_class, tool, pose_format))]
-    fn get_grasp(&self, grasp_mode: u8, object_class: u16, tool: u8, pose_format: u8)
-        [let request = grasp_request(grasp_mode, object_class, tool, pose_format)?;]
+    /// `tool` is sent in V3 only, `selection_criterion` in V4 only (its values are not public;
+    /// SCHUNK's example sends 1 to 3).
+    #[pyo3(signature = (grasp_mode, object_class, tool, pose_format, selection_criterion=1))]
+    fn get_grasp(&self, grasp_mode: u8, object_class: u16, tool: u8, pose_format: u8, selection_criterion: u8)
+        [let request = grasp_request(grasp_mode, object_class, tool, pose_format, selection_criterion)?;]
         => |c| c.get_grasp(request);
     /// GRASP_FEEDBACK: whether the last grasp was fine.
     fn grasp_feedback(&self, ok: bool) => |c| c.grasp_feedback(feedback(ok));
@@ -348,22 +437,22 @@ impl SimServer {
 
 #[pymethods]
 impl SimServer {
-    /// Starts a simulated Grasping-Kit on `addr`; `server_state` and `protocol_version` are the
-    /// Rust `SimConfig`'s (defaults: OPERATIONAL, this client's version).
+    /// Starts a simulated Grasping-Kit on `addr`; `server_state` and `max_version` are the
+    /// Rust `SimConfig`'s (defaults: OPERATIONAL, 4; 3 acts as a V3-only server).
     #[new]
-    #[pyo3(signature = (*, server_state=None, protocol_version=None, addr="127.0.0.1:0"))]
+    #[pyo3(signature = (*, server_state=None, max_version=None, addr="127.0.0.1:0"))]
     fn new(
         py: Python<'_>,
         server_state: Option<u8>,
-        protocol_version: Option<u16>,
+        max_version: Option<u16>,
         addr: &str,
     ) -> PyResult<Self> {
         let mut config = smartgrasp::sim::SimConfig::default();
         if let Some(s) = server_state {
             config.server_state = ServerState::from(s);
         }
-        if let Some(v) = protocol_version {
-            config.protocol_version = v;
+        if let Some(v) = max_version {
+            config.max_version = v;
         }
         let addr = addr.to_owned();
         let server = runtime::block_on(py, smartgrasp::sim::SimServer::bind(addr, config), |e| {

@@ -12,7 +12,11 @@ from gripper.smartgrasp.sim import SimServer
 
 def test_session(kit: smartgrasp.Client, kit_sim: SimServer) -> None:
     assert kit.get_state() is smartgrasp.ServerState.OPERATIONAL
-    assert kit.get_protocol_version() == 3
+    # The simulator speaks V4, and the client negotiates the highest version both speak.
+    assert kit.get_protocol_version() == 4
+    assert kit.protocol_version() == 4
+    assert kit.server_version() == 4
+    assert kit.counter_gaps() == 0
     kit.register_client(smartgrasp.RobotSystem.UR)
     assert kit_sim.registered_clients() == [smartgrasp.RobotSystem.UR]
     kit.set_project(0)
@@ -40,7 +44,10 @@ def test_grasp_loop(kit: smartgrasp.Client) -> None:
     assert count.object_count >= 1
 
 
-def test_robot_pose(kit: smartgrasp.Client, kit_sim: SimServer) -> None:
+def test_robot_pose(kit_sim: SimServer) -> None:
+    # V3 carries a quaternion pose as it is (V4 poses have six values: the client sends ABC).
+    kit = smartgrasp.Client.connect(kit_sim.address, protocol_version=3)
+    assert kit.protocol_version() == 3
     wire = [450000, -120000, 50000, 1000000, 0, 0, 0]
     kit.robot_pose(PoseFormat.QUATERNION, wire)
     [received] = kit_sim.robot_poses()
@@ -70,3 +77,33 @@ def test_not_operational_is_a_protocol_error() -> None:
     with SimServer(server_state=smartgrasp.ServerState.STOPPED) as sim:
         with pytest.raises(gripper.ProtocolError):
             smartgrasp.Client.connect(sim.address)
+
+
+def test_v4_tool_workspace_and_grasp_fields(kit_sim: SimServer) -> None:
+    with smartgrasp.Client.connect(kit_sim.address, tool_id=1, workspace_id=0) as kit:
+        assert kit.protocol_version() == 4
+        kit.set_tool(1)
+        kit.set_workspace(0)
+        result = kit.get_grasp(GraspMode.ACTIVE_GRASP, 1, Tool.EXTERIOR, PoseFormat.ABC, 2)
+        grasp = result.grasp
+        assert grasp is not None
+        # V4 delivers an object offset and a reference frame, and no V3-only fields.
+        assert grasp.object_offset is not None
+        assert grasp.reference_frame is not None
+        assert grasp.tool is None and grasp.angle_offset_udeg is None
+    with smartgrasp.Client.connect(kit_sim.address, protocol_version=3) as kit:
+        result = kit.get_grasp(GraspMode.ACTIVE_GRASP, 1, Tool.EXTERIOR, PoseFormat.ABC)
+        grasp = result.grasp
+        assert grasp is not None
+        assert grasp.tool is Tool.EXTERIOR and grasp.angle_offset_udeg is not None
+        assert grasp.object_offset is None and grasp.reference_frame is None
+        # V3 names the tool in each GET_GRASP: SET_TOOL is refused before sending.
+        with pytest.raises(ValueError):
+            kit.set_tool(1)
+
+
+def test_v3_only_server_is_served() -> None:
+    with SimServer(max_version=3) as sim:
+        with smartgrasp.Client.connect(sim.address) as kit:
+            assert kit.protocol_version() == 3
+            assert kit.server_version() == 3

@@ -114,19 +114,34 @@ class Pose:
 
 
 @dataclass(frozen=True)
+class ObjectOffset:
+    """Protocol V4's object offset in a grasp (its frame is not public)."""
+
+    x_um: int
+    y_um: int
+    rz_udeg: int
+
+
+@dataclass(frozen=True)
 class Grasp:
-    """A grasp from GET_GRASP (manual 3.3.2)."""
+    """A grasp from GET_GRASP (V3 manual 3.3.3.1; V4 as SCHUNK's public KUKA example reads it).
+    What only one protocol version delivers is ``None`` from the other."""
 
     grasp_mode: GraspMode
     object_class: int
     object_instance: int
     stroke_um: int
-    angle_offset_udeg: int
     center_offset_um: list[int]
-    tool: Tool
     pose: Pose
     object_count: int
     candidate_count: int
+    # V3 only.
+    center_offset_z_um: int | None
+    angle_offset_udeg: int | None
+    tool: Tool | None
+    # V4 only (the reference frame's values are not public: kept as the number received).
+    reference_frame: int | None
+    object_offset: ObjectOffset | None
 
     @property
     def stroke_m(self) -> float:
