@@ -14,11 +14,11 @@ use crate::error::{CliError, Kind};
 use crate::output::Out;
 
 /// The latest of each streamed value.
-struct Sample {
-    width_mm: f32,
-    speed_mm_per_s: f32,
-    force_n: f32,
-    grip: GripState,
+pub(super) struct Sample {
+    pub(super) width_mm: f32,
+    pub(super) speed_mm_per_s: f32,
+    pub(super) force_n: f32,
+    pub(super) grip: GripState,
 }
 
 pub(super) async fn watch(
@@ -68,7 +68,7 @@ pub(super) async fn watch(
     }
 }
 
-async fn next<T>(stream: &mut Subscription<T>) -> Result<T, CliError> {
+pub(super) async fn next<T>(stream: &mut Subscription<T>) -> Result<T, CliError> {
     poll_fn(|cx| Pin::new(&mut *stream).poll_next(cx))
         .await
         .ok_or_else(|| {
@@ -79,7 +79,7 @@ async fn next<T>(stream: &mut Subscription<T>) -> Result<T, CliError> {
         })
 }
 
-fn emit_sample(s: &Sample, elapsed: Duration, out: Out) -> Result<(), CliError> {
+pub(super) fn emit_sample(s: &Sample, elapsed: Duration, out: Out) -> Result<(), CliError> {
     out.emit(
         format!(
             "{:8.3} s  width {:7.2} mm  speed {:7.2} mm/s  force {:6.1} N  {}",

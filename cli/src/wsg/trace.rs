@@ -1,0 +1,153 @@
+//! `--plot FILE.svg` of `home`, `move`, `grasp` and `release`: width, speed and force from
+//! auto-updates (manual 3.4.1, 0x43/0x44/0x45 every 10 ms, the fastest period the protocol allows),
+//! from the command's start to its final reply, drawn over time; grip state changes (0x41) are
+//! marked.
+
+use std::future::Future;
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+use gripper::wsg::{Client, Error, UpdateOptions};
+
+use super::live::{emit_sample, next, Sample};
+use super::show::grip_name;
+use super::{classify, optional};
+use crate::error::CliError;
+use crate::output::Out;
+use crate::plot::{Panel, Trace};
+
+/// The auto-update period of a trace: the manual's minimum (3.4.1: 10 ms).
+const TRACE_PERIOD: Duration = Duration::from_millis(10);
+
+/// What a motion command asks for, for the plot's title and reference lines.
+#[derive(Debug, Clone)]
+pub(super) struct Motion {
+    /// The command as the user wrote it, e.g. `grasp 20.0 mm at 20.0 mm/s`.
+    pub(super) what: String,
+    /// The width the command moves to, mm (none for homing).
+    pub(super) target_mm: Option<f32>,
+}
+
+/// Runs `command` (the motion, not yet polled) while recording a trace, and writes the trace to
+/// `path` whatever the outcome: a failed grasp is exactly the curve an engineer wants to see.
+pub(super) async fn traced(
+    client: &Client,
+    path: &Path,
+    motion: Motion,
+    command: impl Future<Output = gripper::wsg::Result<()>>,
+    out: Out,
+) -> Result<(), CliError> {
+    // The force limit of grasps (0x33); a gripper without it just gets no reference line.
+    let force_limit_n = optional(client.grasping_force_n().await)?;
+    let options = UpdateOptions::periodic(TRACE_PERIOD);
+    let mut width = client.subscribe_width_mm(options).await.map_err(classify)?;
+    let mut speed = client
+        .subscribe_speed_mm_per_s(options)
+        .await
+        .map_err(classify)?;
+    let mut force = client.subscribe_force_n(options).await.map_err(classify)?;
+    let mut grip = client
+        .subscribe_grip_state(options)
+        .await
+        .map_err(classify)?;
+    // Each stream's first item answers its subscription: the state before the motion.
+    let mut sample = Sample {
+        width_mm: next(&mut width).await?,
+        speed_mm_per_s: next(&mut speed).await?,
+        force_n: next(&mut force).await?,
+        grip: next(&mut grip).await?,
+    };
+    let mut width_panel = Panel::new("width", "mm");
+    let mut speed_panel = Panel::new("speed", "mm/s");
+    let mut force_panel = Panel::new("force", "N");
+    let mut events = Vec::new();
+    width_panel.push(0.0, sample.width_mm.into());
+    speed_panel.push(0.0, sample.speed_mm_per_s.into());
+    force_panel.push(0.0, sample.force_n.into());
+
+    let start = Instant::now();
+    tokio::pin!(command);
+    // A stream that ends (the connection broke) stops being sampled; the command's own reply
+    // then says what happened.
+    let mut streaming = true;
+    let result = loop {
+        let t = || start.elapsed().as_secs_f64();
+        tokio::select! {
+            // The final reply first: samples after it are not part of the command.
+            biased;
+            r = &mut command => break r,
+            w = next(&mut width), if streaming => match w {
+                Ok(w) => {
+                    sample.width_mm = w;
+                    width_panel.push(t(), w.into());
+                    if out.is_json() {
+                        emit_sample(&sample, start.elapsed(), out)?;
+                    }
+                }
+                Err(_) => streaming = false,
+            },
+            s = next(&mut speed), if streaming => match s {
+                Ok(s) => {
+                    sample.speed_mm_per_s = s;
+                    speed_panel.push(t(), s.into());
+                }
+                Err(_) => streaming = false,
+            },
+            f = next(&mut force), if streaming => match f {
+                Ok(f) => {
+                    sample.force_n = f;
+                    force_panel.push(t(), f.into());
+                }
+                Err(_) => streaming = false,
+            },
+            g = next(&mut grip), if streaming => match g {
+                Ok(g) => {
+                    if g != sample.grip {
+                        events.push((t(), grip_name(g)));
+                    }
+                    sample.grip = g;
+                }
+                Err(_) => streaming = false,
+            },
+        }
+    };
+    let end_s = start.elapsed().as_secs_f64();
+    // Unsubscribe before anything else is asked (dropping turns the updates off).
+    drop((width, speed, force, grip));
+    for panel in [&mut width_panel, &mut speed_panel, &mut force_panel] {
+        panel.hold_until(end_s);
+    }
+    if let Some(target) = motion.target_mm {
+        width_panel.reference(format!("target {target:.1} mm"), target.into());
+    }
+    if let Some(limit) = force_limit_n {
+        force_panel.reference(format!("force limit {limit:.1} N"), limit.into());
+    }
+    let status = match &result {
+        // The grip state after the final reply (its update may still be on the way).
+        Ok(()) => match client.grip_state().await {
+            Ok(grip) => format!("E_SUCCESS, grip state {}", grip_name(grip)),
+            Err(_) => "E_SUCCESS".to_owned(),
+        },
+        Err(Error::Device { status, .. }) => status.symbol().to_owned(),
+        Err(e) => e.to_string(),
+    };
+    let samples = width_panel.samples.len();
+    Trace {
+        title: format!("wsg {}: {status}", motion.what),
+        panels: vec![width_panel, speed_panel, force_panel],
+        events,
+    }
+    .write(path)?;
+    if !out.is_json() {
+        // In JSON mode the samples themselves were the output; the text reader gets a pointer.
+        out.emit(
+            format!(
+                "trace: {samples} width samples written to {}",
+                path.display()
+            ),
+            serde_json::Value::Null,
+        )?;
+    }
+    result.map_err(classify)
+}
