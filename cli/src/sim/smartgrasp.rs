@@ -5,6 +5,7 @@ use gripper::smartgrasp::sim::{SimConfig, SimServer};
 use gripper::smartgrasp::ServerState;
 use serde_json::json;
 
+use super::monitor;
 use super::{announce, cannot_listen, wait_for_ctrl_c};
 use crate::error::CliError;
 use crate::output::Out;
@@ -27,6 +28,10 @@ pub struct SmartgraspSim {
     /// The highest protocol version the server speaks (below 3 it answers "too old").
     #[arg(long, default_value_t = gripper::smartgrasp::frame::PROTOCOL_VERSION)]
     protocol_version: u16,
+    /// Also serve a picture of the scene over HTTP on this address, at /monitor/latest_result
+    /// as the kit does; port 0 picks a free port.
+    #[arg(long, value_name = "ADDR")]
+    http: Option<String>,
 }
 
 #[derive(Debug, Clone, Copy, ValueEnum)]
@@ -56,7 +61,12 @@ pub async fn run(args: SmartgraspSim, out: Out) -> Result<(), CliError> {
         format!("smartgrasp simulator: {parts} parts in project 0, {state}"),
         json!({ "device": "smartgrasp", "parts": parts, "state": state.to_string() }),
     )?;
+    let monitor = match &args.http {
+        Some(http) => Some(monitor::serve(&server, http, out).await?),
+        None => None,
+    };
     wait_for_ctrl_c().await?;
+    drop(monitor);
     server.shutdown();
     Ok(())
 }
