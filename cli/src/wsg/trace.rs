@@ -66,6 +66,10 @@ pub(super) async fn traced(
     force_panel.push(0.0, sample.force_n.into());
 
     let start = Instant::now();
+    if out.is_json() {
+        // As `watch`: the first sample is the state the command starts from.
+        emit_sample(&sample, Duration::ZERO, out)?;
+    }
     tokio::pin!(command);
     // A stream that ends (the connection broke) stops being sampled; the command's own reply
     // then says what happened.
