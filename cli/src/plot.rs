@@ -167,7 +167,9 @@ impl Trace {
                     color.stroke_width(2),
                 ))?
                 .label(format!("{} ({})", panel.quantity, panel.unit))
-                .legend(move |(x, y)| Rectangle::new([(x, y - 2), (x + 16, y + 2)], color));
+                .legend(move |(x, y)| {
+                    Rectangle::new([(x, y - 2), (x + 16, y + 2)], color.filled())
+                });
             for (name, value) in &panel.references {
                 chart
                     .draw_series(LineSeries::new(
@@ -192,7 +194,7 @@ impl Trace {
             }
             chart
                 .configure_series_labels()
-                .position(SeriesLabelPosition::UpperRight)
+                .position(SeriesLabelPosition::MiddleRight)
                 .background_style(WHITE.mix(0.8))
                 .border_style(BLACK)
                 .draw()?;

@@ -282,3 +282,18 @@ async fn an_answer_that_is_not_an_image_is_a_clear_error_and_writes_nothing() {
     assert!(out.failed().contains("HTTP 404"), "{out:#?}");
     assert!(!path.exists());
 }
+
+#[test]
+fn the_pictures_in_the_readme_render() {
+    let docs = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../docs");
+    let copy = |name: &str| {
+        let path = scratch(name);
+        std::fs::copy(docs.join(name), &path).expect("docs/ holds the README's pictures");
+        path
+    };
+    let trace = rendered(&copy("wsg-grasp-trace.svg"));
+    assert_eq!(count_polylines(&trace, SERIES), 3);
+    assert_eq!(count_polylines(&trace, REFERENCE), 2);
+    let scene = rendered(&copy("smartgrasp-scene.svg"));
+    assert_eq!(scene.matches(r#"<g class="part""#).count(), 3);
+}

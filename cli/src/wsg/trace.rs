@@ -115,11 +115,30 @@ pub(super) async fn traced(
             },
         }
     };
-    let end_s = start.elapsed().as_secs_f64();
     // Unsubscribe before anything else is asked (dropping turns the updates off).
     drop((width, speed, force, grip));
-    for panel in [&mut width_panel, &mut speed_panel, &mut force_panel] {
-        panel.hold_until(end_s);
+    // Where the command left the fingers: a grasp's force and grip state change with its final
+    // reply, before the next update could report them. Best effort: the trace is drawn anyway.
+    let (w, s, f, g) = tokio::join!(
+        client.width_mm(),
+        client.speed_mm_per_s(),
+        client.force_n(),
+        client.grip_state()
+    );
+    let end_s = start.elapsed().as_secs_f64();
+    for (panel, value) in [
+        (&mut width_panel, w),
+        (&mut speed_panel, s),
+        (&mut force_panel, f),
+    ] {
+        match value {
+            Ok(v) => panel.push(end_s, v.into()),
+            Err(_) => panel.hold_until(end_s),
+        }
+    }
+    let final_grip = g.ok();
+    if let Some(g) = final_grip.filter(|&g| g != sample.grip) {
+        events.push((end_s, grip_name(g)));
     }
     if let Some(target) = motion.target_mm {
         width_panel.reference(format!("target {target:.1} mm"), target.into());
@@ -128,10 +147,9 @@ pub(super) async fn traced(
         force_panel.reference(format!("force limit {limit:.1} N"), limit.into());
     }
     let status = match &result {
-        // The grip state after the final reply (its update may still be on the way).
-        Ok(()) => match client.grip_state().await {
-            Ok(grip) => format!("E_SUCCESS, grip state {}", grip_name(grip)),
-            Err(_) => "E_SUCCESS".to_owned(),
+        Ok(()) => match final_grip {
+            Some(grip) => format!("E_SUCCESS, grip state {}", grip_name(grip)),
+            None => "E_SUCCESS".to_owned(),
         },
         Err(Error::Device { status, .. }) => status.symbol().to_owned(),
         Err(e) => e.to_string(),
