@@ -5,7 +5,7 @@
 
 mod common;
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use common::{gripctl, Run, PATIENCE};
 use resvg::tiny_skia::{Pixmap, Transform};
@@ -25,7 +25,7 @@ fn scratch(name: &str) -> PathBuf {
 /// Reads `path` as SVG, renders it, saves the pixels beside it (`.png`, to look at when a test
 /// fails) and asserts it is not blank: a good share of its pixels differ from the background,
 /// in more than two colours. Returns the document.
-fn rendered(path: &PathBuf) -> String {
+fn rendered(path: &Path) -> String {
     let svg = std::fs::read_to_string(path).expect("the picture was written");
     let tree = resvg::usvg::Tree::from_str(&svg, &resvg::usvg::Options::default())
         .unwrap_or_else(|e| panic!("{} is not valid SVG: {e}", path.display()));
@@ -79,12 +79,12 @@ async fn wsg_traces_draw_width_speed_and_force_with_the_commands_limits() {
     let wsg = |args: &[&str]| {
         let mut all = vec!["wsg", "--addr", addr.as_str()];
         all.extend_from_slice(args);
-        all.iter().map(|s| s.to_string()).collect::<Vec<_>>()
+        let all: Vec<String> = all.iter().map(|s| s.to_string()).collect();
+        async move { run(&all.iter().map(String::as_str).collect::<Vec<_>>()).await }
     };
 
     let home = scratch("wsg-home.svg");
-    let args = wsg(&["home", "--plot", home.to_str().expect("UTF-8 path")]);
-    let out = run(&args.iter().map(String::as_str).collect::<Vec<_>>()).await;
+    let out = wsg(&["home", "--plot", home.to_str().expect("UTF-8 path")]).await;
     assert!(out.ok().contains("homed"), "{out:#?}");
     let svg = rendered(&home);
     assert_eq!(count_polylines(&svg, SERIES), 3, "width, speed, force");
@@ -95,7 +95,7 @@ async fn wsg_traces_draw_width_speed_and_force_with_the_commands_limits() {
     assert!(svg.contains("E_SUCCESS"));
 
     let grasp = scratch("wsg-grasp.svg");
-    let args = wsg(&[
+    let out = wsg(&[
         "--json",
         "grasp",
         "40",
@@ -103,8 +103,8 @@ async fn wsg_traces_draw_width_speed_and_force_with_the_commands_limits() {
         "30",
         "--plot",
         grasp.to_str().expect("UTF-8 path"),
-    ]);
-    let out = run(&args.iter().map(String::as_str).collect::<Vec<_>>()).await;
+    ])
+    .await;
     out.ok();
     let lines = out.json_lines();
     // The samples as `watch` prints them, then the result.
@@ -121,23 +121,17 @@ async fn wsg_traces_draw_width_speed_and_force_with_the_commands_limits() {
 
     // A failed grasp is drawn too, its status in the title.
     let failed = scratch("wsg-grasp-failed.svg");
-    let args = wsg(&[
-        "release",
-        "100",
-        "--plot",
-        scratch("wsg-release.svg").to_str().expect("UTF-8 path"),
-    ]);
-    run(&args.iter().map(String::as_str).collect::<Vec<_>>())
-        .await
-        .ok();
-    let args = wsg(&["grasp", "90", "--plot", failed.to_str().expect("UTF-8")]);
-    let out = run(&args.iter().map(String::as_str).collect::<Vec<_>>()).await;
+    let release = scratch("wsg-release.svg");
+    let out = wsg(&["release", "100", "--plot", release.to_str().expect("UTF-8")]).await;
+    out.ok();
+    assert_eq!(count_polylines(&rendered(&release), SERIES), 3);
+    // The part is 40 mm wide: a grasp of a 90 mm part finds none.
+    let out = wsg(&["grasp", "90", "--plot", failed.to_str().expect("UTF-8")]).await;
     assert!(out.failed().contains("E_CMD_FAILED"), "{out:#?}");
     assert!(rendered(&failed).contains("E_CMD_FAILED"));
 
     // Only motions are traced.
-    let args = wsg(&["info", "--plot", "x.svg"]);
-    let out = run(&args.iter().map(String::as_str).collect::<Vec<_>>()).await;
+    let out = wsg(&["info", "--plot", "x.svg"]).await;
     assert!(out.failed().contains("--plot traces"), "{out:#?}");
 }
 
@@ -172,7 +166,7 @@ async fn griplink_traces_draw_the_position_with_state_changes_marked() {
 }
 
 /// `gripctl smartgrasp image --http HTTP --out PATH`.
-async fn image(http: &str, path: &PathBuf, json: bool) -> Run {
+async fn image(http: &str, path: &Path, json: bool) -> Run {
     let file = path.to_str().expect("UTF-8 path");
     let mut args = vec!["smartgrasp", "image", "--http", http, "--out", file];
     if json {
