@@ -32,7 +32,12 @@ const CLASS_COLORS: [&str; 6] = [
     "#4e79a7", "#f28e2b", "#59a14f", "#b07aa1", "#76b7b2", "#edc948",
 ];
 
-/// The active project's scene as an SVG document (see the [module docs](self)).
+/// The active project's scene as an SVG document: a top view of the bin (robot base frame, x to
+/// the right, y up, mm) with every part still in it, its class and instance, and every grasp it
+/// could return for it (finger stroke as a bar along the tool's x axis, a ring for a contact
+/// tool; solid: active, dashed: other user-defined, dotted: model-free). Each part is one
+/// `<g class="part">`, each grasp one `<g class="grasp">` inside it, with `data-*` attributes
+/// giving the numbers. [`SimServer::serve_monitor`](super::SimServer::serve_monitor) serves it.
 pub fn scene_svg(state: &SimState) -> String {
     let project = state
         .active_project()
