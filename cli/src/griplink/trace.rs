@@ -79,19 +79,29 @@ impl Tracer {
         ticker.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
         let start = Instant::now();
         tokio::pin!(command);
+        // A failed poll (or a sample that cannot be printed) ends the polling, not the wait for
+        // the motion's reply: that reply says what became of the motion.
+        let mut polling = true;
         let result = loop {
             tokio::select! {
                 // The final reply first: polls after it are not part of the command.
                 biased;
                 r = &mut command => break r,
-                _ = ticker.tick() => {
-                    self.poll(start, &mut position, &mut events, &mut state, out).await?;
+                _ = ticker.tick(), if polling => {
+                    polling = self
+                        .poll(start, &mut position, &mut events, &mut state, out)
+                        .await
+                        .is_ok();
                 }
             }
         };
-        // One last poll: where the command left the fingers, and in which state.
-        self.poll(start, &mut position, &mut events, &mut state, out)
-            .await?;
+        // One last poll: where the command left the fingers, and in which state (best effort:
+        // the trace is drawn anyway).
+        if polling {
+            let _ = self
+                .poll(start, &mut position, &mut events, &mut state, out)
+                .await;
+        }
         position.hold_until(start.elapsed().as_secs_f64());
         if let Some(target) = motion.target_mm {
             position.reference(format!("target {target:.1} mm"), target);

@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 
 use gripper::wsg::{Client, Error, UpdateOptions};
 
-use super::live::{emit_sample, next, Sample};
+use super::live::{emit_sample, next, Streams};
 use super::show::grip_name;
 use super::{classify, optional};
 use crate::error::CliError;
@@ -39,24 +39,14 @@ pub(super) async fn traced(
 ) -> Result<(), CliError> {
     // The force limit of grasps (0x33); a gripper without it just gets no reference line.
     let force_limit_n = optional(client.grasping_force_n().await)?;
-    let options = UpdateOptions::periodic(TRACE_PERIOD);
-    let mut width = client.subscribe_width_mm(options).await.map_err(classify)?;
-    let mut speed = client
-        .subscribe_speed_mm_per_s(options)
-        .await
-        .map_err(classify)?;
-    let mut force = client.subscribe_force_n(options).await.map_err(classify)?;
-    let mut grip = client
-        .subscribe_grip_state(options)
-        .await
-        .map_err(classify)?;
-    // Each stream's first item answers its subscription: the state before the motion.
-    let mut sample = Sample {
-        width_mm: next(&mut width).await?,
-        speed_mm_per_s: next(&mut speed).await?,
-        force_n: next(&mut force).await?,
-        grip: next(&mut grip).await?,
-    };
+    // The first sample is the state before the motion.
+    let Streams {
+        mut width,
+        mut speed,
+        mut force,
+        mut grip,
+        first: mut sample,
+    } = Streams::subscribe(client, UpdateOptions::periodic(TRACE_PERIOD)).await?;
     let mut width_panel = Panel::new("width", "mm");
     let mut speed_panel = Panel::new("speed", "mm/s");
     let mut force_panel = Panel::new("force", "N");
@@ -74,6 +64,9 @@ pub(super) async fn traced(
     // A stream that ends (the connection broke) stops being sampled; the command's own reply
     // then says what happened.
     let mut streaming = true;
+    // A sample that cannot be printed (a closed pipe) is reported once the motion has ended:
+    // returning at once would leave the fingers moving unwatched.
+    let mut output_error = None;
     let result = loop {
         let t = || start.elapsed().as_secs_f64();
         tokio::select! {
@@ -84,8 +77,8 @@ pub(super) async fn traced(
                 Ok(w) => {
                     sample.width_mm = w;
                     width_panel.push(t(), w.into());
-                    if out.is_json() {
-                        emit_sample(&sample, start.elapsed(), out)?;
+                    if out.is_json() && output_error.is_none() {
+                        output_error = emit_sample(&sample, start.elapsed(), out).err();
                     }
                 }
                 Err(_) => streaming = false,
@@ -154,6 +147,9 @@ pub(super) async fn traced(
         Err(Error::Device { status, .. }) => status.symbol().to_owned(),
         Err(e) => e.to_string(),
     };
+    if let Some(e) = output_error {
+        return Err(e);
+    }
     let samples = width_panel.samples.len();
     Trace {
         title: format!("wsg {}: {status}", motion.what),
