@@ -16,6 +16,10 @@ pub struct SmartgraspSim {
     /// Address to serve on; port 0 picks a free port.
     #[arg(long, default_value = "127.0.0.1:42001")]
     listen: String,
+    /// Also serve a picture of the scene over HTTP on this address, at /monitor/latest_result
+    /// as the kit does; port 0 picks a free port.
+    #[arg(long, value_name = "ADDR")]
+    http: Option<String>,
     /// The scene of project 0: the demo bin (two parts of class 1, one of class 2) or empty.
     #[arg(long, value_enum, default_value_t = Scene::Demo)]
     scene: Scene,
@@ -28,10 +32,6 @@ pub struct SmartgraspSim {
     /// The highest protocol version the server speaks (below 3 it answers "too old").
     #[arg(long, default_value_t = gripper::smartgrasp::frame::PROTOCOL_VERSION)]
     protocol_version: u16,
-    /// Also serve a picture of the scene over HTTP on this address, at /monitor/latest_result
-    /// as the kit does; port 0 picks a free port.
-    #[arg(long, value_name = "ADDR")]
-    http: Option<String>,
 }
 
 #[derive(Debug, Clone, Copy, ValueEnum)]
