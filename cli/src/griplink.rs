@@ -228,8 +228,8 @@ async fn run_motion<T>(
     }
 }
 
-/// The target and force of a grip recipe, for a trace; `None` when there is no trace, or the
-/// recipe cannot be read (the trace then just has no reference line).
+/// A recipe motion for a trace, with the recipe's target and force limit; read only when there
+/// is a trace, and without them when the recipe cannot be read (no reference line then).
 async fn recipe_motion(
     tracer: Option<&Tracer>,
     port: &Port,
