@@ -78,10 +78,16 @@ impl Tracer {
         // A slow controller delays the next poll rather than bunching polls up.
         ticker.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
         let start = Instant::now();
+        // Where the fingers start: `command` is not sent before it is first polled.
+        let mut polling = self
+            .poll(start, &mut position, &mut events, &mut state, out)
+            .await
+            .is_ok();
+        // The next poll one period later, not at once.
+        ticker.reset();
         tokio::pin!(command);
         // A failed poll (or a sample that cannot be printed) ends the polling, not the wait for
         // the motion's reply: that reply says what became of the motion.
-        let mut polling = true;
         let result = loop {
             tokio::select! {
                 // The final reply first: polls after it are not part of the command.
