@@ -1,6 +1,10 @@
 //! `gripctl griplink …`: Weiss GRIPLINK controllers (Unified Command Set, manual seed 004), ASCII
 //! lines over TCP, one command per run. Every run ends with `BYE()` (manual 3.3.1).
 
+mod trace;
+
+use std::future::Future;
+use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use clap::{Args as ClapArgs, Subcommand};
@@ -17,6 +21,7 @@ use serde_json::{json, Value};
 use crate::common::{parse_duration, with_default_port};
 use crate::error::{CliError, DeviceCode, Kind};
 use crate::output::Out;
+use trace::{Motion, Tracer};
 
 /// How often `grip` and `release` poll the device state for the outcome (DEVSTATE, manual
 /// 3.4.4 option 2), leaving the connection free in between.
@@ -31,6 +36,10 @@ pub struct Args {
     /// The device port the command addresses (0 to 31).
     #[arg(long, global = true, default_value_t = 0, value_parser = clap::value_parser!(u8).range(0..=i64::from(MAX_PORT)))]
     port: PortNumber,
+    /// With home, grip, release, flexgrip or flexrelease: poll the position and device state
+    /// every 20 ms (over a second connection) until the final reply and draw them in this SVG.
+    #[arg(long, global = true, value_name = "FILE.svg")]
+    plot: Option<PathBuf>,
     #[command(subcommand)]
     command: Command,
 }
@@ -140,6 +149,19 @@ enum Recipe {
 
 /// Runs one `gripctl griplink` command.
 pub async fn run(args: Args, timeout: Option<Duration>, out: Out) -> Result<(), CliError> {
+    let is_motion = matches!(
+        args.command,
+        Command::Home
+            | Command::Grip { .. }
+            | Command::Release { .. }
+            | Command::Flexgrip { .. }
+            | Command::Flexrelease { .. }
+    );
+    if args.plot.is_some() && !is_motion {
+        return Err(CliError::argument(
+            "--plot traces home, grip, release, flexgrip and flexrelease only",
+        ));
+    }
     let addr = with_default_port(&args.addr, DEFAULT_PORT);
     let mut context = format!("griplink {addr}");
     let mut config = ClientConfig::default();
@@ -148,9 +170,19 @@ pub async fn run(args: Args, timeout: Option<Duration>, out: Out) -> Result<(), 
         config.query_timeout = t;
         config.motion_timeout = t;
     }
-    let client = Client::connect_with(addr.as_str(), config)
+    let client = Client::connect_with(addr.as_str(), config.clone())
         .await
         .map_err(|e| classify(e).context(format!("{context}: cannot connect")))?;
+    let tracer = match &args.plot {
+        Some(path) => match Tracer::connect(&addr, config, args.port, path).await {
+            Ok(tracer) => Some(tracer),
+            Err(e) => {
+                let _ = tokio::time::timeout(close_timeout(timeout), client.close()).await;
+                return Err(e.context(context));
+            }
+        },
+        None => None,
+    };
     let port = client.port(args.port);
     // Controller-wide commands do not name a port in their errors.
     if !matches!(args.command, Command::Info | Command::Raw { .. }) {
@@ -158,7 +190,7 @@ pub async fn run(args: Args, timeout: Option<Duration>, out: Out) -> Result<(), 
     }
     let is_watch = matches!(args.command, Command::Watch { .. });
     let result = tokio::select! {
-        r = execute(&client, &port, args.command, out) => r,
+        r = execute(&client, &port, args.command, tracer.as_ref(), out) => r,
         _ = tokio::signal::ctrl_c() => if is_watch {
             Ok(())
         } else {
@@ -167,26 +199,82 @@ pub async fn run(args: Args, timeout: Option<Duration>, out: Out) -> Result<(), 
     };
     // BYE() in every case, so the controller ends the session cleanly (manual 3.3.1); bounded,
     // since it queues behind a blocking motion that Ctrl-C left running.
-    let close_timeout = timeout.unwrap_or(ClientConfig::default().query_timeout);
-    let closed = match tokio::time::timeout(close_timeout, client.close()).await {
+    if let Some(tracer) = tracer {
+        // Best effort: the motion's own connection is the one whose close matters.
+        let _ = tokio::time::timeout(close_timeout(timeout), tracer.close()).await;
+    }
+    let closed = match tokio::time::timeout(close_timeout(timeout), client.close()).await {
         Ok(r) => r.map_err(classify),
         Err(_) => Err(CliError::new(Kind::Timeout, "no answer to BYE()")),
     };
     result.and(closed).map_err(|e| e.context(context))
 }
 
-async fn execute(client: &Client, port: &Port, command: Command, out: Out) -> Result<(), CliError> {
+/// How long `BYE()` may take.
+fn close_timeout(timeout: Option<Duration>) -> Duration {
+    timeout.unwrap_or(ClientConfig::default().query_timeout)
+}
+
+/// Runs a motion command, traced when `--plot` asked.
+async fn run_motion<T>(
+    tracer: Option<&Tracer>,
+    motion: impl FnOnce() -> Motion,
+    command: impl Future<Output = gripper::griplink::Result<T>>,
+    out: Out,
+) -> Result<T, CliError> {
+    match tracer {
+        Some(tracer) => tracer.traced(motion(), command, out).await,
+        None => command.await.map_err(classify),
+    }
+}
+
+/// A recipe motion for a trace, with the recipe's target and force limit; read only when there
+/// is a trace, and without them when the recipe cannot be read (no reference line then).
+async fn recipe_motion(
+    tracer: Option<&Tracer>,
+    port: &Port,
+    what: String,
+    index: u32,
+    grip: bool,
+) -> Motion {
+    let recipe = match tracer {
+        Some(_) => port.grip_config_f(index).await.ok(),
+        None => None,
+    };
+    // GRIPCFGF parameters of a gripper: no-part limit, release limit, force factor (3.6.1).
+    Motion {
+        what,
+        target_mm: recipe
+            .as_ref()
+            .map(|r| if grip { r.params[0] } else { r.params[1] }),
+        force: recipe
+            .filter(|_| grip)
+            .map(|r| format!("{} %", r.params[2])),
+    }
+}
+
+async fn execute(
+    client: &Client,
+    port: &Port,
+    command: Command,
+    tracer: Option<&Tracer>,
+    out: Out,
+) -> Result<(), CliError> {
     match command {
         Command::Info => info(client, out).await,
         Command::Home => {
-            port.home().await.map_err(classify)?;
+            let motion = || Motion {
+                what: "home".to_owned(),
+                ..Motion::default()
+            };
+            run_motion(tracer, motion, port.home(), out).await?;
             after_motion(port, "homed", out).await
         }
         Command::Grip { recipe } => {
-            let outcome = port
-                .grip_and_wait(recipe, WaitBy::Polling(OUTCOME_POLL))
-                .await
-                .map_err(classify)?;
+            let motion =
+                recipe_motion(tracer, port, format!("grip recipe {recipe}"), recipe, true).await;
+            let waiting = port.grip_and_wait(recipe, WaitBy::Polling(OUTCOME_POLL));
+            let outcome = run_motion(tracer, || motion, waiting, out).await?;
             match outcome {
                 GripOutcome::Holding => after_motion(port, "gripped", out).await,
                 GripOutcome::NoPart => {
@@ -198,10 +286,10 @@ async fn execute(client: &Client, port: &Port, command: Command, out: Out) -> Re
             }
         }
         Command::Release { recipe } => {
-            let outcome = port
-                .release_and_wait(recipe, WaitBy::Polling(OUTCOME_POLL))
-                .await
-                .map_err(classify)?;
+            let what = format!("release recipe {recipe}");
+            let motion = recipe_motion(tracer, port, what, recipe, false).await;
+            let waiting = port.release_and_wait(recipe, WaitBy::Polling(OUTCOME_POLL));
+            let outcome = run_motion(tracer, || motion, waiting, out).await?;
             match outcome {
                 ReleaseOutcome::Released => after_motion(port, "released", out).await,
                 ReleaseOutcome::Fault => Err(state_error(
@@ -222,9 +310,13 @@ async fn execute(client: &Client, port: &Port, command: Command, out: Out) -> Re
                 speed_mm_per_s: speed,
                 acceleration_mm_per_s2: acceleration,
             };
-            port.flex_grip(params, Blocking::UntilDone)
-                .await
-                .map_err(classify)?;
+            let motion = || Motion {
+                what: format!("flexgrip to {position_mm:.1} mm"),
+                target_mm: Some(position_mm),
+                force: Some(format!("{force_n:.1} N")),
+            };
+            let gripping = port.flex_grip(params, Blocking::UntilDone);
+            run_motion(tracer, motion, gripping, out).await?;
             match port.state().await.map_err(classify)? {
                 DeviceState::Holding => after_motion(port, "gripped", out).await,
                 DeviceState::NoPart => {
@@ -244,9 +336,13 @@ async fn execute(client: &Client, port: &Port, command: Command, out: Out) -> Re
                 speed_mm_per_s: speed,
                 acceleration_mm_per_s2: acceleration,
             };
-            port.flex_release(params, Blocking::UntilDone)
-                .await
-                .map_err(classify)?;
+            let motion = || Motion {
+                what: format!("flexrelease to {position_mm:.1} mm"),
+                target_mm: Some(position_mm),
+                force: None,
+            };
+            let releasing = port.flex_release(params, Blocking::UntilDone);
+            run_motion(tracer, motion, releasing, out).await?;
             match port.state().await.map_err(classify)? {
                 DeviceState::Fault => Err(state_error(
                     "the release ended in a fault",

@@ -10,6 +10,7 @@ mod common;
 mod error;
 mod griplink;
 mod output;
+mod plot;
 mod sim;
 mod smartgrasp;
 mod wsg;

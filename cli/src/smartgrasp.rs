@@ -2,6 +2,8 @@
 //! V4 (known from SCHUNK's public KUKA example, PROTOCOLS.md 2b), one request per command over a
 //! fresh connection. V4 is used when the server offers it, unless `--protocol 3` pins V3.
 
+mod image;
+
 use std::time::Duration;
 
 use clap::{Args as ClapArgs, Subcommand, ValueEnum};
@@ -88,6 +90,9 @@ enum Command {
     /// ROBOT_POSE: tell the server the end effector's pose in the robot base frame
     /// (manual 3.3.5.1).
     RobotPose(RobotPoseArgs),
+    /// The latest detection result, an image the kit serves over HTTP at
+    /// /monitor/latest_result (the simulator: its scene, with `sim smartgrasp --http`).
+    Image(image::ImageArgs),
 }
 
 #[derive(Debug, ClapArgs)]
@@ -243,6 +248,9 @@ async fn execute(
     timeout: Option<Duration>,
     out: Out,
 ) -> Result<(), CliError> {
+    if let Command::Image(args) = command {
+        return image::fetch(addr, args, timeout, out).await;
+    }
     if let Command::RobotPose(args) = &command {
         // The values are checked before connecting: a typo needs no server to be reported.
         let pose = pose_from_args(args)?;
@@ -355,7 +363,7 @@ async fn execute(
                 json!({ "feedback": named(u8::from(feedback), feedback) }),
             )
         }
-        Command::RobotPose(_) => Ok(()), // answered above
+        Command::RobotPose(_) | Command::Image(_) => Ok(()), // answered above
     }
 }
 

@@ -5,6 +5,7 @@
 //! it, as they do with the `*_simulator` examples.
 
 mod griplink;
+mod monitor;
 mod smartgrasp;
 mod wsg;
 

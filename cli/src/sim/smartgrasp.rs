@@ -5,6 +5,7 @@ use gripper::smartgrasp::sim::{SimConfig, SimServer};
 use gripper::smartgrasp::ServerState;
 use serde_json::json;
 
+use super::monitor;
 use super::{announce, cannot_listen, wait_for_ctrl_c};
 use crate::error::CliError;
 use crate::output::Out;
@@ -15,6 +16,10 @@ pub struct SmartgraspSim {
     /// Address to serve on; port 0 picks a free port.
     #[arg(long, default_value = "127.0.0.1:42001")]
     listen: String,
+    /// Also serve a picture of the scene over HTTP on this address, at /monitor/latest_result
+    /// as the kit does; port 0 picks a free port.
+    #[arg(long, value_name = "ADDR")]
+    http: Option<String>,
     /// The scene of project 0: the demo bin (two parts of class 1, one of class 2) or empty.
     #[arg(long, value_enum, default_value_t = Scene::Demo)]
     scene: Scene,
@@ -58,7 +63,12 @@ pub async fn run(args: SmartgraspSim, out: Out) -> Result<(), CliError> {
         format!("smartgrasp simulator: {parts} parts in project 0, {state}"),
         json!({ "device": "smartgrasp", "parts": parts, "state": state.to_string() }),
     )?;
+    let monitor = match &args.http {
+        Some(http) => Some(monitor::serve(&server, http, out).await?),
+        None => None,
+    };
     wait_for_ctrl_c().await?;
+    drop(monitor);
     server.shutdown();
     Ok(())
 }

@@ -14,11 +14,54 @@ use crate::error::{CliError, Kind};
 use crate::output::Out;
 
 /// The latest of each streamed value.
-struct Sample {
-    width_mm: f32,
-    speed_mm_per_s: f32,
-    force_n: f32,
-    grip: GripState,
+pub(super) struct Sample {
+    pub(super) width_mm: f32,
+    pub(super) speed_mm_per_s: f32,
+    pub(super) force_n: f32,
+    pub(super) grip: GripState,
+}
+
+/// The four auto-update streams of `watch` and of a trace, and the first sample they gave.
+pub(super) struct Streams {
+    pub(super) width: Subscription<f32>,
+    pub(super) speed: Subscription<f32>,
+    pub(super) force: Subscription<f32>,
+    pub(super) grip: Subscription<GripState>,
+    /// The state when the streams started.
+    pub(super) first: Sample,
+}
+
+impl Streams {
+    /// Subscribes to width, speed, force and grip state (manual 3.4.1 with 0x41, 0x43-0x45).
+    pub(super) async fn subscribe(
+        client: &Client,
+        options: UpdateOptions,
+    ) -> Result<Streams, CliError> {
+        let mut width = client.subscribe_width_mm(options).await.map_err(classify)?;
+        let mut speed = client
+            .subscribe_speed_mm_per_s(options)
+            .await
+            .map_err(classify)?;
+        let mut force = client.subscribe_force_n(options).await.map_err(classify)?;
+        let mut grip = client
+            .subscribe_grip_state(options)
+            .await
+            .map_err(classify)?;
+        // Each stream's first item answers the subscription: a complete first sample.
+        let first = Sample {
+            width_mm: next(&mut width).await?,
+            speed_mm_per_s: next(&mut speed).await?,
+            force_n: next(&mut force).await?,
+            grip: next(&mut grip).await?,
+        };
+        Ok(Streams {
+            width,
+            speed,
+            force,
+            grip,
+            first,
+        })
+    }
 }
 
 pub(super) async fn watch(
@@ -27,24 +70,13 @@ pub(super) async fn watch(
     period: Duration,
     out: Out,
 ) -> Result<(), CliError> {
-    let options = UpdateOptions::periodic(period);
-    let mut width = client.subscribe_width_mm(options).await.map_err(classify)?;
-    let mut speed = client
-        .subscribe_speed_mm_per_s(options)
-        .await
-        .map_err(classify)?;
-    let mut force = client.subscribe_force_n(options).await.map_err(classify)?;
-    let mut grip = client
-        .subscribe_grip_state(options)
-        .await
-        .map_err(classify)?;
-    // Each stream's first item answers the subscription: a complete first sample.
-    let mut sample = Sample {
-        width_mm: next(&mut width).await?,
-        speed_mm_per_s: next(&mut speed).await?,
-        force_n: next(&mut force).await?,
-        grip: next(&mut grip).await?,
-    };
+    let Streams {
+        mut width,
+        mut speed,
+        mut force,
+        mut grip,
+        first: mut sample,
+    } = Streams::subscribe(client, UpdateOptions::periodic(period)).await?;
     let start = Instant::now();
     let mut emitted = 0;
     loop {
@@ -68,7 +100,7 @@ pub(super) async fn watch(
     }
 }
 
-async fn next<T>(stream: &mut Subscription<T>) -> Result<T, CliError> {
+pub(super) async fn next<T>(stream: &mut Subscription<T>) -> Result<T, CliError> {
     poll_fn(|cx| Pin::new(&mut *stream).poll_next(cx))
         .await
         .ok_or_else(|| {
@@ -79,7 +111,7 @@ async fn next<T>(stream: &mut Subscription<T>) -> Result<T, CliError> {
         })
 }
 
-fn emit_sample(s: &Sample, elapsed: Duration, out: Out) -> Result<(), CliError> {
+pub(super) fn emit_sample(s: &Sample, elapsed: Duration, out: Out) -> Result<(), CliError> {
     out.emit(
         format!(
             "{:8.3} s  width {:7.2} mm  speed {:7.2} mm/s  force {:6.1} N  {}",

@@ -8,8 +8,11 @@
 mod info;
 mod live;
 mod show;
+mod trace;
 
+use std::future::Future;
 use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use clap::{Args as ClapArgs, Subcommand, ValueEnum};
@@ -53,6 +56,10 @@ pub struct Args {
     /// Open --serial without exclusive access (needed for the simulator's pseudo-terminal).
     #[arg(long, requires = "serial")]
     shared: bool,
+    /// With home, move, grasp or release: record width, speed and force every 10 ms until the
+    /// final reply and draw them in this SVG file.
+    #[arg(long, global = true, value_name = "FILE.svg")]
+    plot: Option<PathBuf>,
     #[command(subcommand)]
     command: Command,
 }
@@ -187,13 +194,25 @@ fn parse_id(text: &str) -> Result<u8, String> {
 
 /// Runs one `gripctl wsg` command.
 pub async fn run(args: Args, timeout: Option<Duration>, out: Out) -> Result<(), CliError> {
+    let is_motion = matches!(
+        args.command,
+        Command::Home { .. }
+            | Command::Move { .. }
+            | Command::Grasp { .. }
+            | Command::Release { .. }
+    );
+    if args.plot.is_some() && !is_motion {
+        return Err(CliError::argument(
+            "--plot traces home, move, grasp and release only",
+        ));
+    }
     let (client, place) = connect(&args, timeout)
         .await
         .map_err(|e| e.context(format!("wsg {}", describe(&args))))?;
     let context = format!("wsg {place}");
     let is_watch = matches!(args.command, Command::Watch { .. });
     let result = tokio::select! {
-        r = execute(&client, args.command, timeout, out) => r,
+        r = execute(&client, args.command, args.plot.as_deref(), timeout, out) => r,
         _ = tokio::signal::ctrl_c() => {
             if is_watch {
                 Ok(())
@@ -269,6 +288,7 @@ async fn open(args: &Args, builder: ClientBuilder, addr: &str) -> Result<Client,
 async fn execute(
     client: &Client,
     command: Command,
+    plot: Option<&Path>,
     timeout: Option<Duration>,
     out: Out,
 ) -> Result<(), CliError> {
@@ -280,7 +300,8 @@ async fn execute(
                 Direction::Positive => HomingDirection::Positive,
                 Direction::Negative => HomingDirection::Negative,
             };
-            client.home(direction).await.map_err(classify)?;
+            let what = format!("home ({direction:?})");
+            run_motion(client, plot, what, None, client.home(direction), out).await?;
             after_motion(client, "homed", out).await
         }
         Command::Move {
@@ -289,11 +310,28 @@ async fn execute(
             relative,
         } => {
             if relative {
-                client.pre_position_relative(width_mm, speed).await
+                let what = format!("move by {width_mm:.1} mm at {speed:.1} mm/s");
+                run_motion(
+                    client,
+                    plot,
+                    what,
+                    None,
+                    client.pre_position_relative(width_mm, speed),
+                    out,
+                )
+                .await?;
             } else {
-                client.pre_position(width_mm, speed).await
+                let what = format!("move to {width_mm:.1} mm at {speed:.1} mm/s");
+                run_motion(
+                    client,
+                    plot,
+                    what,
+                    Some(width_mm),
+                    client.pre_position(width_mm, speed),
+                    out,
+                )
+                .await?;
             }
-            .map_err(classify)?;
             after_motion(client, "moved", out).await
         }
         Command::Grasp {
@@ -304,11 +342,29 @@ async fn execute(
             if let Some(force_n) = force {
                 client.set_grasping_force(force_n).await.map_err(classify)?;
             }
-            client.grasp(width_mm, speed).await.map_err(classify)?;
+            let what = format!("grasp {width_mm:.1} mm at {speed:.1} mm/s");
+            run_motion(
+                client,
+                plot,
+                what,
+                Some(width_mm),
+                client.grasp(width_mm, speed),
+                out,
+            )
+            .await?;
             after_motion(client, "grasped", out).await
         }
         Command::Release { width_mm, speed } => {
-            client.release(width_mm, speed).await.map_err(classify)?;
+            let what = format!("release to {width_mm:.1} mm at {speed:.1} mm/s");
+            run_motion(
+                client,
+                plot,
+                what,
+                Some(width_mm),
+                client.release(width_mm, speed),
+                out,
+            )
+            .await?;
             after_motion(client, "released", out).await
         }
         Command::Stop => {
@@ -358,6 +414,24 @@ async fn execute(
                 }),
             )
         }
+    }
+}
+
+/// Runs a motion command, traced into `plot` when asked.
+async fn run_motion(
+    client: &Client,
+    plot: Option<&Path>,
+    what: String,
+    target_mm: Option<f32>,
+    command: impl Future<Output = gripper::wsg::Result<()>>,
+    out: Out,
+) -> Result<(), CliError> {
+    match plot {
+        Some(path) => {
+            let motion = trace::Motion { what, target_mm };
+            trace::traced(client, path, motion, command, out).await
+        }
+        None => command.await.map_err(classify),
     }
 }
 

@@ -9,9 +9,17 @@
 //! connection that wraps (configurable start); a configurable highest protocol version; V4's tools and
 //! workspaces by id; and [`Fault`]s to inject. Nothing in it moves, so it costs no wall time,
 //! except a [`Fault::DelayReply`] a test asks for.
+//!
+//! [`SimServer::serve_monitor`] serves a picture of the scene ([`scene_svg`]) over HTTP at the
+//! path where the real kit serves its latest detection result.
 
+mod http;
+mod scene_svg;
 mod server;
 mod state;
+
+pub use http::{MonitorServer, MAX_REQUEST_BYTES, MONITOR_PATH, REQUEST_TIMEOUT};
+pub use scene_svg::scene_svg;
 
 pub use server::SimServer;
 pub use state::{

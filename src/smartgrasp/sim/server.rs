@@ -69,6 +69,11 @@ impl SimServer {
         f(&mut lock(&self.state))
     }
 
+    /// The shared state, for the monitor page (`http.rs`).
+    pub(super) fn shared_state(&self) -> &Arc<Mutex<SimState>> {
+        &self.state
+    }
+
     /// Stops the server and closes every connection.
     pub fn shutdown(self) {
         // Drop does it.
@@ -83,7 +88,7 @@ impl Drop for SimServer {
 }
 
 /// A panic elsewhere must not make the simulator unusable: the state is plain data.
-fn lock(state: &Mutex<SimState>) -> MutexGuard<'_, SimState> {
+pub(super) fn lock(state: &Mutex<SimState>) -> MutexGuard<'_, SimState> {
     state
         .lock()
         .unwrap_or_else(|poisoned| poisoned.into_inner())
