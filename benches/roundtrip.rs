@@ -23,6 +23,9 @@
 //! - `client multi_thread`: a 2-worker runtime (`client-mt`), the `#[tokio::main]` default on
 //!   this machine; the caller runs in `block_on` on the bench thread and the connection task on
 //!   a worker, so every round trip crosses threads twice more;
+//! - `client multi_thread(2), caller spawned`: the same runtime and client, the calls made from a
+//!   task spawned on it (a worker thread), as a program that runs its control loop in a task
+//!   does; tokio then often runs the connection task and the caller on the same worker;
 //! - `raw std::net`: blocking `write_all` + `read` on the bench thread.
 //!
 //! The variants alternate in blocks of 100 queries, so a change of the machine's load during the
@@ -36,6 +39,7 @@ mod counting_alloc;
 
 use std::io::{Read, Write};
 use std::net::{SocketAddr, TcpStream};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use bytes::BytesMut;
@@ -222,6 +226,18 @@ async fn client_block(c: &AnyClient, out: &mut Vec<Duration>) {
     }
 }
 
+/// [`client_block`] in a task spawned on the runtime (a worker thread) instead of the thread that
+/// calls `block_on`.
+async fn spawned_block(c: &Arc<AnyClient>, mut out: Vec<Duration>) -> Vec<Duration> {
+    let c = c.clone();
+    tokio::spawn(async move {
+        client_block(&c, &mut out).await;
+        out
+    })
+    .await
+    .expect("caller task")
+}
+
 fn measure(proto: Proto, addr: SocketAddr, rounds: usize) -> Vec<Samples> {
     let ct = tokio::runtime::Builder::new_current_thread()
         .enable_all()
@@ -229,16 +245,18 @@ fn measure(proto: Proto, addr: SocketAddr, rounds: usize) -> Vec<Samples> {
         .expect("runtime");
     let mt: Runtime = common::runtime("client-mt", 2);
     let ct_client = ct.block_on(AnyClient::connect(proto, addr));
-    let mt_client = mt.block_on(AnyClient::connect(proto, addr));
+    let mt_client = Arc::new(mt.block_on(AnyClient::connect(proto, addr)));
     let mut raw = Raw::connect(proto, addr);
 
     let mut s_ct = Samples::new("client current_thread");
     let mut s_mt = Samples::new("client multi_thread(2)");
+    let mut s_mt_task = Samples::new("client multi_thread(2), caller spawned");
     let mut s_raw = Samples::new("raw std::net (floor)");
     // Warm-up: one block each, not recorded.
     let mut scratch = Vec::new();
     ct.block_on(client_block(&ct_client, &mut scratch));
     mt.block_on(client_block(&mt_client, &mut scratch));
+    mt.block_on(spawned_block(&mt_client, Vec::new()));
     for _ in 0..BLOCK {
         raw.query();
     }
@@ -253,12 +271,13 @@ fn measure(proto: Proto, addr: SocketAddr, rounds: usize) -> Vec<Samples> {
             s_raw.v.push(t.elapsed());
         }
         mt.block_on(client_block(&mt_client, &mut s_mt.v));
+        s_mt_task.v = mt.block_on(spawned_block(&mt_client, std::mem::take(&mut s_mt_task.v)));
     }
     s_ct.allocations = Some(ct_allocations);
     ct.block_on(ct_client.close());
     mt.block_on(mt_client.close());
     raw.close();
-    vec![s_raw, s_ct, s_mt]
+    vec![s_raw, s_ct, s_mt, s_mt_task]
 }
 
 /// One variant's figures in one run.
