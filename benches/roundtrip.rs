@@ -5,10 +5,14 @@
 //! Queries: WSG width (0x43), GRIPLINK `VALUE[0][0]?`, SmartGrasp GET_STATE.
 //!
 //! ```text
-//! cargo bench --bench roundtrip                 # quick: 10 rounds of 100 queries per variant
-//! cargo bench --bench roundtrip -- --long       # 100 rounds (10,000 queries per variant)
-//! cargo bench --bench roundtrip -- --rounds N
+//! cargo bench --bench roundtrip                 # quick: 3 runs of 10 rounds of 100 queries
+//! cargo bench --bench roundtrip -- --long       # 5 runs of 100 rounds (10,000 queries each)
+//! cargo bench --bench roundtrip -- --runs R --rounds N
 //! ```
+//!
+//! Each run measures the three protocols in turn, each with its variants interleaved; the table
+//! gives the median over the runs of each variant's p50 and p99, of its p50 ÷ the floor's p50 in
+//! the same run (with the lowest and highest such ratio) and of its p99 − the floor's p99.
 //!
 //! Runtimes, chosen deliberately:
 //! - the three simulators share one multi-thread runtime with **one** worker thread (`sim`),
@@ -19,6 +23,9 @@
 //! - `client multi_thread`: a 2-worker runtime (`client-mt`), the `#[tokio::main]` default on
 //!   this machine; the caller runs in `block_on` on the bench thread and the connection task on
 //!   a worker, so every round trip crosses threads twice more;
+//! - `client multi_thread(2), caller spawned`: the same runtime and client, the calls made from a
+//!   task spawned on it (a worker thread), as a program that runs its control loop in a task
+//!   does; tokio then often runs the connection task and the caller on the same worker;
 //! - `raw std::net`: blocking `write_all` + `read` on the bench thread.
 //!
 //! The variants alternate in blocks of 100 queries, so a change of the machine's load during the
@@ -32,6 +39,7 @@ mod counting_alloc;
 
 use std::io::{Read, Write};
 use std::net::{SocketAddr, TcpStream};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use bytes::BytesMut;
@@ -218,6 +226,18 @@ async fn client_block(c: &AnyClient, out: &mut Vec<Duration>) {
     }
 }
 
+/// [`client_block`] in a task spawned on the runtime (a worker thread) instead of the thread that
+/// calls `block_on`.
+async fn spawned_block(c: &Arc<AnyClient>, mut out: Vec<Duration>) -> Vec<Duration> {
+    let c = c.clone();
+    tokio::spawn(async move {
+        client_block(&c, &mut out).await;
+        out
+    })
+    .await
+    .expect("caller task")
+}
+
 fn measure(proto: Proto, addr: SocketAddr, rounds: usize) -> Vec<Samples> {
     let ct = tokio::runtime::Builder::new_current_thread()
         .enable_all()
@@ -225,16 +245,18 @@ fn measure(proto: Proto, addr: SocketAddr, rounds: usize) -> Vec<Samples> {
         .expect("runtime");
     let mt: Runtime = common::runtime("client-mt", 2);
     let ct_client = ct.block_on(AnyClient::connect(proto, addr));
-    let mt_client = mt.block_on(AnyClient::connect(proto, addr));
+    let mt_client = Arc::new(mt.block_on(AnyClient::connect(proto, addr)));
     let mut raw = Raw::connect(proto, addr);
 
     let mut s_ct = Samples::new("client current_thread");
     let mut s_mt = Samples::new("client multi_thread(2)");
+    let mut s_mt_task = Samples::new("client multi_thread(2), caller spawned");
     let mut s_raw = Samples::new("raw std::net (floor)");
     // Warm-up: one block each, not recorded.
     let mut scratch = Vec::new();
     ct.block_on(client_block(&ct_client, &mut scratch));
     mt.block_on(client_block(&mt_client, &mut scratch));
+    mt.block_on(spawned_block(&mt_client, Vec::new()));
     for _ in 0..BLOCK {
         raw.query();
     }
@@ -249,18 +271,66 @@ fn measure(proto: Proto, addr: SocketAddr, rounds: usize) -> Vec<Samples> {
             s_raw.v.push(t.elapsed());
         }
         mt.block_on(client_block(&mt_client, &mut s_mt.v));
+        s_mt_task.v = mt.block_on(spawned_block(&mt_client, std::mem::take(&mut s_mt_task.v)));
     }
     s_ct.allocations = Some(ct_allocations);
     ct.block_on(ct_client.close());
     mt.block_on(mt_client.close());
     raw.close();
-    vec![s_raw, s_ct, s_mt]
+    vec![s_raw, s_ct, s_mt, s_mt_task]
+}
+
+/// One variant's figures in one run.
+#[derive(Clone, Copy)]
+struct RunStats {
+    p50: Duration,
+    p99: Duration,
+    /// p50 ÷ the floor's p50 of the same run.
+    ratio: f64,
+    /// p99 − the floor's p99 of the same run, in µs (negative: below the floor).
+    added_p99_us: f64,
+    allocations: Option<f64>,
+}
+
+fn run_stats(results: Vec<Samples>) -> Vec<(&'static str, RunStats)> {
+    let mut floor = None;
+    results
+        .into_iter()
+        .map(|mut s| {
+            s.v.sort();
+            let p50 = percentile(&s.v, 50.0);
+            let p99 = percentile(&s.v, 99.0);
+            let (f50, f99) = *floor.get_or_insert((p50, p99));
+            let stats = RunStats {
+                p50,
+                p99,
+                ratio: p50.as_secs_f64() / f50.as_secs_f64(),
+                added_p99_us: (p99.as_secs_f64() - f99.as_secs_f64()) * 1e6,
+                allocations: s.allocations.map(|a| a as f64 / s.v.len() as f64),
+            };
+            (s.name, stats)
+        })
+        .collect()
+}
+
+/// The median of `v` (the lower middle one for an even count).
+fn median<T: Copy + PartialOrd>(v: &[T]) -> T {
+    let mut v = v.to_vec();
+    v.sort_by(|a, b| a.partial_cmp(b).expect("no NaN"));
+    v[(v.len() - 1) / 2]
 }
 
 fn main() {
     let rounds = flag_value("--rounds").unwrap_or(if has_flag("--long") { 100 } else { 10 });
-    println!("round trip over loopback TCP, {rounds} rounds of {BLOCK} queries per variant");
+    let runs: usize = flag_value("--runs")
+        .unwrap_or(if has_flag("--long") { 5 } else { 3 })
+        .max(1);
+    println!(
+        "round trip over loopback TCP, {runs} runs of {rounds} rounds of {BLOCK} queries per \
+         variant; medians over the runs"
+    );
     println!("machine: {}", common::machine());
+    println!("load average at the start: {}", common::load());
 
     let sim_rt = common::runtime("sim", 1);
     let (wsg_sim, griplink_sim, sg_sim) = sim_rt.block_on(async {
@@ -288,41 +358,56 @@ fn main() {
         (Proto::SmartGrasp, sg_sim.local_addr()),
     ];
 
+    // Every run measures each protocol in turn (its variants interleaved in blocks); the
+    // figures reported are the medians over the runs, with the spread of the ratio.
+    let mut stats: Vec<Vec<(&'static str, Vec<RunStats>)>> = vec![Vec::new(); targets.len()];
+    for run in 0..runs {
+        for (i, &(proto, addr)) in targets.iter().enumerate() {
+            // A fresh thread per protocol, owning that protocol's client runtimes.
+            let results = std::thread::Builder::new()
+                .name("client".into())
+                .spawn(move || measure(proto, addr, rounds))
+                .expect("thread")
+                .join()
+                .expect("measurement panicked");
+            for (j, (name, s)) in run_stats(results).into_iter().enumerate() {
+                if run == 0 {
+                    stats[i].push((name, Vec::new()));
+                }
+                stats[i][j].1.push(s);
+            }
+        }
+    }
+
     println!();
-    println!("| query | variant | n | p50 µs | p99 µs | p50 / floor p50 | p99 − floor p99 µs | allocations per round trip |");
+    println!("| query | variant | n per run | p50 µs | p99 µs | p50 / floor p50 (min–max) | p99 − floor p99 µs | allocations per round trip |");
     println!("|---|---|---:|---:|---:|---:|---:|---:|");
-    for (proto, addr) in targets {
-        // A fresh thread per protocol, owning that protocol's client runtimes.
-        let results = std::thread::Builder::new()
-            .name("client".into())
-            .spawn(move || measure(proto, addr, rounds))
-            .expect("thread")
-            .join()
-            .expect("measurement panicked");
-        let mut floor = None;
-        for mut s in results {
-            s.v.sort();
-            let p50 = percentile(&s.v, 50.0);
-            let p99 = percentile(&s.v, 99.0);
-            let (f50, f99) = *floor.get_or_insert((p50, p99));
-            let allocs = s
-                .allocations
-                .map(|a| format!("{:.1}", a as f64 / s.v.len() as f64))
-                .unwrap_or_else(|| "–".into());
+    for (i, &(proto, _)) in targets.iter().enumerate() {
+        for (name, runs) in &stats[i] {
+            let p50: Vec<Duration> = runs.iter().map(|s| s.p50).collect();
+            let p99: Vec<Duration> = runs.iter().map(|s| s.p99).collect();
+            let ratio: Vec<f64> = runs.iter().map(|s| s.ratio).collect();
+            let added: Vec<f64> = runs.iter().map(|s| s.added_p99_us).collect();
+            let allocs: Vec<f64> = runs.iter().filter_map(|s| s.allocations).collect();
+            let (lo, hi) = ratio
+                .iter()
+                .fold((f64::MAX, f64::MIN), |(lo, hi), r| (lo.min(*r), hi.max(*r)));
             println!(
-                "| {} | {} | {} | {} | {} | {:.2} | {} | {} |",
+                "| {} | {} | {} | {} | {} | {:.2} ({:.2}–{:.2}) | {:+.2} | {} |",
                 proto.query(),
-                s.name,
-                s.v.len(),
-                us(p50),
-                us(p99),
-                p50.as_secs_f64() / f50.as_secs_f64(),
-                if p99 >= f99 {
-                    us(p99 - f99)
+                name,
+                rounds * BLOCK,
+                us(median(&p50)),
+                us(median(&p99)),
+                median(&ratio),
+                lo,
+                hi,
+                median(&added),
+                if allocs.is_empty() {
+                    "–".into()
                 } else {
-                    format!("-{}", us(f99 - p99))
+                    format!("{:.1}", median(&allocs))
                 },
-                allocs,
             );
         }
     }

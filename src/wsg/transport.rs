@@ -98,11 +98,22 @@ impl Link {
                 // Only the read half of `Framed` is used: encode here and write through.
                 use tokio::io::AsyncWriteExt;
                 use tokio_util::codec::Encoder;
-                let mut buf = BytesMut::with_capacity(f.encoded_len());
+                // Encoded into `Framed`'s own write buffer (unused otherwise), so a steady state
+                // does not allocate per frame; it keeps the capacity of the largest frame sent
+                // (bounded by the u16 length field). Taken out for the write and put back empty:
+                // a write cancelled by its timeout drops it, and the next frame allocates anew.
+                let mut buf = std::mem::take(framed.write_buffer_mut());
+                buf.clear();
                 framed.codec_mut().encode(f, &mut buf)?;
                 let io = framed.get_mut();
-                io.write_all(&buf).await?;
-                io.flush().await
+                let written = async {
+                    io.write_all(&buf).await?;
+                    io.flush().await
+                }
+                .await;
+                buf.clear();
+                *framed.write_buffer_mut() = buf;
+                written
             }
             Link::Udp { socket, peer, .. } => {
                 let mut b = BytesMut::with_capacity(f.encoded_len());
