@@ -477,8 +477,8 @@ impl SimServer {
     }
 }
 
-#[pymethods]
-impl SimServer {
+// `shutdown`, `with` and `repr` come with the macro (crate::sim).
+sim_pymethods! { SimServer, "gripper.griplink.sim.SimServer";
     /// Starts a simulated controller on `addr`. `preset` is the Rust `SimConfig` constructor
     /// ("ET4": a GRIPLINK-ET4 with an IEG 55-020 on port 0 and a CRG 200-085 on port 2; "WPG":
     /// a WPG 100-090); `devices` replaces devices by port (a name, or None for an empty port),
@@ -606,24 +606,6 @@ impl SimServer {
         self.inject(griplink::sim::Fault::Close)
     }
 
-    /// Stops serving and closes every connection (idempotent).
-    fn shutdown(&self) -> PyResult<()> {
-        self.server.shutdown()
-    }
-
-    fn __enter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {
-        slf
-    }
-
-    #[pyo3(signature = (*_exc))]
-    fn __exit__(&self, _exc: Bound<'_, pyo3::types::PyTuple>) -> PyResult<bool> {
-        self.shutdown()?;
-        Ok(false)
-    }
-
-    fn __repr__(&self) -> String {
-        format!("<gripper.griplink.sim.SimServer at {}>", self.addr)
-    }
 }
 
 /// Every status code the manual lists, as (code, identifier, description).

@@ -3,13 +3,15 @@
 //! records these bindings build, and re-exports the classes under the Rust API's module names.
 #![forbid(unsafe_code)]
 
+// The macros first: `macro_rules!` are visible to the modules declared after them.
+#[macro_use]
+mod sim;
 #[macro_use]
 mod twins;
 mod convert;
 mod errors;
 mod griplink;
 mod runtime;
-mod sim;
 mod smartgrasp;
 mod stream;
 mod wsg;

@@ -40,3 +40,34 @@ impl<T> Slot<T> {
         Ok(())
     }
 }
+
+/// The `#[pymethods]` of a `SimServer` class (a struct with a `server: Slot<_>` and an `addr`):
+/// the given methods, and what every simulator has: `shutdown()`, `with` support and `repr`.
+/// (pyo3 takes one `#[pymethods]` block per class, so the shared methods are added here.)
+macro_rules! sim_pymethods {
+    ($ty:ident, $path:literal; $($methods:tt)*) => {
+        #[pymethods]
+        impl $ty {
+            $($methods)*
+
+            /// Stops serving and closes every connection (idempotent).
+            fn shutdown(&self) -> PyResult<()> {
+                self.server.shutdown()
+            }
+
+            fn __enter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {
+                slf
+            }
+
+            #[pyo3(signature = (*_exc))]
+            fn __exit__(&self, _exc: Bound<'_, pyo3::types::PyTuple>) -> PyResult<bool> {
+                self.shutdown()?;
+                Ok(false)
+            }
+
+            fn __repr__(&self) -> String {
+                format!(concat!("<", $path, " at {}>"), self.addr)
+            }
+        }
+    };
+}

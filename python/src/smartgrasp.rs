@@ -435,8 +435,8 @@ impl SimServer {
     }
 }
 
-#[pymethods]
-impl SimServer {
+// `shutdown`, `with` and `repr` come with the macro (crate::sim).
+sim_pymethods! { SimServer, "gripper.smartgrasp.sim.SimServer";
     /// Starts a simulated Grasping-Kit on `addr`; `server_state` and `max_version` are the
     /// Rust `SimConfig`'s (defaults: OPERATIONAL, 4; 3 acts as a V3-only server).
     #[new]
@@ -519,24 +519,6 @@ impl SimServer {
         self.inject(smartgrasp::sim::Fault::Close)
     }
 
-    /// Stops serving and closes every connection (idempotent).
-    fn shutdown(&self) -> PyResult<()> {
-        self.server.shutdown()
-    }
-
-    fn __enter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {
-        slf
-    }
-
-    #[pyo3(signature = (*_exc))]
-    fn __exit__(&self, _exc: Bound<'_, pyo3::types::PyTuple>) -> PyResult<bool> {
-        self.shutdown()?;
-        Ok(false)
-    }
-
-    fn __repr__(&self) -> String {
-        format!("<gripper.smartgrasp.sim.SimServer at {}>", self.addr)
-    }
 }
 
 /// `gripper._native.smartgrasp`.

@@ -499,8 +499,8 @@ impl SimServer {
     }
 }
 
-#[pymethods]
-impl SimServer {
+// `shutdown`, `with` and `repr` come with the macro (crate::sim).
+sim_pymethods! { SimServer, "gripper.wsg.sim.SimServer";
     /// Starts a simulator on `addr` (port 0: a free port; see `address`). The options are the
     /// Rust `SimConfig`'s: the model, a part of `part_width_mm` found by a grasp within
     /// `part_tolerance_mm`, the time scale (0: motion is instant; 1: real time), the force
@@ -626,24 +626,6 @@ impl SimServer {
         self.with(|s| s.unplug())
     }
 
-    /// Stops serving and closes every connection (idempotent).
-    fn shutdown(&self) -> PyResult<()> {
-        self.server.shutdown()
-    }
-
-    fn __enter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {
-        slf
-    }
-
-    #[pyo3(signature = (*_exc))]
-    fn __exit__(&self, _exc: Bound<'_, pyo3::types::PyTuple>) -> PyResult<bool> {
-        self.shutdown()?;
-        Ok(false)
-    }
-
-    fn __repr__(&self) -> String {
-        format!("<gripper.wsg.sim.SimServer at {}>", self.addr)
-    }
 }
 
 /// `gripper._native.wsg`.
