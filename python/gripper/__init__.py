@@ -9,6 +9,8 @@ they wait; any number of threads may share one; Ctrl-C ends a wait), each protoc
 
 from __future__ import annotations
 
+import atexit
+
 from gripper import _native
 from gripper.errors import (
     ClosedError,
@@ -23,6 +25,10 @@ from gripper.errors import (
 )
 
 Stream = _native.Stream
+
+# Before the interpreter is finalized, let the runtime's last completions reach Python (see
+# `_quiesce` in python/src/runtime.rs): one that arrives during finalization crashes the process.
+atexit.register(_native._quiesce)
 
 from gripper import griplink, smartgrasp, wsg  # noqa: E402  (they use the names above)
 

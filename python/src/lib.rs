@@ -23,6 +23,7 @@ use pyo3::prelude::*;
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = m.py();
     m.add_class::<stream::Stream>()?;
+    m.add_function(wrap_pyfunction!(runtime::_quiesce, m)?)?;
     m.add_submodule(&wsg::module(py)?)?;
     m.add_submodule(&griplink::module(py)?)?;
     m.add_submodule(&smartgrasp::module(py)?)?;

@@ -70,6 +70,28 @@ where
     })
 }
 
+/// How long [`quiesce`] waits at most for the runtime's tasks to end.
+const QUIESCE_LIMIT: Duration = Duration::from_millis(500);
+
+/// Called at interpreter exit (`atexit`, registered by `gripper/__init__.py`), while Python is
+/// still whole: waits, with the GIL released, until no task is left on the runtime (or
+/// [`QUIESCE_LIMIT`] passed), then a moment more for the completions those tasks handed to
+/// the blocking pool. An asyncio call's completion attaches to Python from a runtime thread
+/// (pyo3-async-runtimes sets the future's result there, even for a cancelled one); one that
+/// attaches while the interpreter is being finalized crashes the process (seen: about one exit
+/// in four of `examples/cell.py`, which cancels a stream's pending `__anext__`).
+#[pyfunction]
+pub fn _quiesce(py: Python<'_>) {
+    let metrics = runtime().metrics();
+    py.detach(|| {
+        let start = std::time::Instant::now();
+        while metrics.num_alive_tasks() > 0 && start.elapsed() < QUIESCE_LIMIT {
+            std::thread::sleep(Duration::from_millis(2));
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    });
+}
+
 /// Runs a synchronous constructor that spawns tasks (serial clients, simulators) inside the
 /// runtime's context.
 pub fn enter<T>(f: impl FnOnce() -> T) -> T {

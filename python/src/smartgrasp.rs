@@ -314,21 +314,6 @@ twins! {
             self.inner.is_closed()
         }
 
-        /// The protocol version this connection speaks (3 or 4).
-        fn protocol_version(&self) -> u16 {
-            self.inner.protocol_version()
-        }
-
-        /// The server's highest protocol version, as it answered when connecting.
-        fn server_version(&self) -> u16 {
-            self.inner.server_version()
-        }
-
-        /// How many gaps in the response counter were seen (recorded, not fatal by default).
-        fn counter_gaps(&self) -> u64 {
-            self.inner.counter_gaps()
-        }
-
 
         /// A handle on the same connection whose calls use another timeout.
         fn with_timeout(&self, timeout_s: f64) -> PyResult<Client> {
@@ -368,6 +353,9 @@ twins! {
             Ok(AioClient { inner: self.inner.with_timeout(seconds("timeout_s", timeout_s)?) })
         }
 
+
+    }
+    both {
         /// The protocol version this connection speaks (3 or 4).
         fn protocol_version(&self) -> u16 {
             self.inner.protocol_version()
@@ -382,8 +370,6 @@ twins! {
         fn counter_gaps(&self) -> u64 {
             self.inner.counter_gaps()
         }
-
-
     }
 
     /// GET_PROTOCOL_VERSION.

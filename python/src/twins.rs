@@ -8,6 +8,7 @@
 ///     Blocking, Aio, error_fn;
 ///     blocking { extra #[pymethods] items of the blocking class }
 ///     aio { extra items of the asyncio class }
+///     both { plain (non-async) items both classes have }   (optional)
 ///     /// doc
 ///     #[pyo3(signature = (a, b = 1.0))]
 ///     fn name(&self, a: f32, b: f32) [let x = prelude(a)?;] => |c| c.rust_method(x, b);
@@ -23,6 +24,7 @@ macro_rules! twins {
         $(closing $closing:path;)?
         blocking { $($blocking_extra:item)* }
         aio { $($aio_extra:item)* }
+        $(both { $($both:item)* })?
         $(
             $(#[$meta:meta])*
             fn $name:ident(&self $(, $arg:ident : $ty:ty)* $(,)?)
@@ -33,6 +35,7 @@ macro_rules! twins {
         #[pymethods]
         impl $Blocking {
             $($blocking_extra)*
+            $($($both)*)?
             $(
                 /// The asyncio view of this connection (same connection, same pairing).
                 #[getter]
@@ -67,6 +70,7 @@ macro_rules! twins {
         #[pymethods]
         impl $Aio {
             $($aio_extra)*
+            $($($both)*)?
             $(
                 /// The blocking view of this connection (same connection, same pairing).
                 #[getter]

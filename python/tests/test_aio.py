@@ -102,6 +102,9 @@ def test_griplink_aio(griplink_sim: griplink.sim.SimServer) -> None:
 def test_smartgrasp_aio(kit_sim: smartgrasp.sim.SimServer) -> None:
     async def main() -> None:
         kit = await gripper.aio.smartgrasp.Client.connect(kit_sim.address)
+        # The negotiated version is known at once, on either view of the connection.
+        assert kit.protocol_version() == kit.blocking.protocol_version() == 4
+        assert kit.counter_gaps() == 0
         async with kit:
             kit_sim.delay_next_reply(0.3)
             with pytest.raises(asyncio.TimeoutError):
