@@ -477,7 +477,7 @@ impl SimServer {
     }
 }
 
-// `shutdown`, `with` and `repr` come with the macro (crate::sim).
+// `address`, `port`, `shutdown`, `with` and `repr` come with the macro (crate::sim).
 sim_pymethods! { SimServer, "gripper.griplink.sim.SimServer";
     /// Starts a simulated controller on `addr`. `preset` is the Rust `SimConfig` constructor
     /// ("ET4": a GRIPLINK-ET4 with an IEG 55-020 on port 0 and a CRG 200-085 on port 2; "WPG":
@@ -537,18 +537,6 @@ sim_pymethods! { SimServer, "gripper.griplink.sim.SimServer";
             server: Slot::new(server),
             addr,
         })
-    }
-
-    /// "host:port" to connect to.
-    #[getter]
-    fn address(&self) -> String {
-        self.addr.to_string()
-    }
-
-    /// The port it listens on.
-    #[getter]
-    fn port(&self) -> u16 {
-        self.addr.port()
     }
 
     /// The state of the device on `port` (None: no device).

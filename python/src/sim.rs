@@ -42,13 +42,26 @@ impl<T> Slot<T> {
 }
 
 /// The `#[pymethods]` of a `SimServer` class (a struct with a `server: Slot<_>` and an `addr`):
-/// the given methods, and what every simulator has: `shutdown()`, `with` support and `repr`.
+/// the given methods, and what every simulator has: `address`, `port`, `shutdown()`, `with`
+/// support and `repr`.
 /// (pyo3 takes one `#[pymethods]` block per class, so the shared methods are added here.)
 macro_rules! sim_pymethods {
     ($ty:ident, $path:literal; $($methods:tt)*) => {
         #[pymethods]
         impl $ty {
             $($methods)*
+
+            /// "host:port" to connect to.
+            #[getter]
+            fn address(&self) -> String {
+                self.addr.to_string()
+            }
+
+            /// The port it listens on.
+            #[getter]
+            fn port(&self) -> u16 {
+                self.addr.port()
+            }
 
             /// Stops serving and closes every connection (idempotent).
             fn shutdown(&self) -> PyResult<()> {

@@ -421,7 +421,7 @@ impl SimServer {
     }
 }
 
-// `shutdown`, `with` and `repr` come with the macro (crate::sim).
+// `address`, `port`, `shutdown`, `with` and `repr` come with the macro (crate::sim).
 sim_pymethods! { SimServer, "gripper.smartgrasp.sim.SimServer";
     /// Starts a simulated Grasping-Kit on `addr`; `server_state` and `max_version` are the
     /// Rust `SimConfig`'s (defaults: OPERATIONAL, 4; 3 acts as a V3-only server).
@@ -449,18 +449,6 @@ sim_pymethods! { SimServer, "gripper.smartgrasp.sim.SimServer";
             server: Slot::new(server),
             addr,
         })
-    }
-
-    /// "host:port" to connect to.
-    #[getter]
-    fn address(&self) -> String {
-        self.addr.to_string()
-    }
-
-    /// The port it listens on.
-    #[getter]
-    fn port(&self) -> u16 {
-        self.addr.port()
     }
 
     /// The robot systems registered so far (numbers of `RobotSystem`).

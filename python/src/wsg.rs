@@ -499,7 +499,7 @@ impl SimServer {
     }
 }
 
-// `shutdown`, `with` and `repr` come with the macro (crate::sim).
+// `address`, `port`, `shutdown`, `with` and `repr` come with the macro (crate::sim).
 sim_pymethods! { SimServer, "gripper.wsg.sim.SimServer";
     /// Starts a simulator on `addr` (port 0: a free port; see `address`). The options are the
     /// Rust `SimConfig`'s: the model, a part of `part_width_mm` found by a grasp within
@@ -551,18 +551,6 @@ sim_pymethods! { SimServer, "gripper.wsg.sim.SimServer";
             server: Slot::new(server),
             addr,
         })
-    }
-
-    /// "host:port" to connect to.
-    #[getter]
-    fn address(&self) -> String {
-        self.addr.to_string()
-    }
-
-    /// The port it listens on.
-    #[getter]
-    fn port(&self) -> u16 {
-        self.addr.port()
     }
 
     /// The simulated gripper now: grip state, system state, width, connections, streams.
