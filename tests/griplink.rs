@@ -744,6 +744,21 @@ async fn controller_closing_fails_pending_and_later_calls() {
     assert_eq!(connect(&server).await.id().await.unwrap(), "GRIPLINK-ET4");
 }
 
+/// A caller told the connection is lost (no reconnect) finds the client closed at once: the
+/// queue is closed before anyone hears why. On two workers the caller resumes on another
+/// thread than the connection task, which used to lose this race now and then.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_lost_connection_is_closed_when_its_callers_hear_of_it() {
+    let server = sim().await;
+    for round in 0..50 {
+        let client = connect(&server).await;
+        assert!(!client.is_closed());
+        server.inject(Fault::Close);
+        assert!(matches!(client.id().await, Err(Error::ConnectionLost(_))));
+        assert!(client.is_closed(), "round {round}: not closed after ConnectionLost");
+    }
+}
+
 #[tokio::test]
 async fn blocking_commands_hold_only_their_own_connection() {
     let server = sim().await;

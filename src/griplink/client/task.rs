@@ -233,7 +233,8 @@ async fn next_line(
 pub(crate) async fn run(stream: TcpStream, mut task: Task) {
     let mut conn = Conn::new(stream, task.config.max_line_len);
     let end = loop {
-        let end = serve(conn, &mut task.requests, &task.config).await;
+        let reconnects = task.reconnect.is_some();
+        let end = serve(conn, &mut task.requests, &task.config, reconnects).await;
         // `Closed`: BYE, or nobody left to call; nothing to report or restore.
         if matches!(end, Error::Closed) {
             break end;
@@ -281,8 +282,16 @@ pub(crate) async fn run(stream: TcpStream, mut task: Task) {
 }
 
 /// Serves calls over one connection until it closes, fails or every handle is dropped; fails
-/// the calls in flight with the reason, which it returns.
-async fn serve(conn: Conn, requests: &mut mpsc::Receiver<Request>, config: &TaskConfig) -> Error {
+/// the calls in flight with the reason, which it returns. When the connection is over for good
+/// (closed, or lost with no reconnect to follow), the request queue is closed before any caller
+/// hears why, so a caller that got the error finds [`Client::is_closed`](super::Client::is_closed)
+/// already true.
+async fn serve(
+    conn: Conn,
+    requests: &mut mpsc::Receiver<Request>,
+    config: &TaskConfig,
+    reconnects: bool,
+) -> Error {
     let Conn {
         mut reader,
         mut write,
@@ -291,6 +300,8 @@ async fn serve(conn: Conn, requests: &mut mpsc::Receiver<Request>, config: &Task
     let mut pipeline =
         Pipeline::new(config.pipeline_depth).with_probe_timeout(config.probe_timeout);
     let mut closing = false;
+    // A request whose write failed: told why after the queue is closed (below).
+    let mut unsent = None;
 
     let end: Error = loop {
         let give_up = pipeline.give_up_at();
@@ -347,7 +358,7 @@ async fn serve(conn: Conn, requests: &mut mpsc::Receiver<Request>, config: &Task
                         continue;
                     }
                     Err(err) => {
-                        let _ = request.waiter.send(Err(err.clone()));
+                        unsent = Some(request.waiter);
                         break err;
                     }
                 }
@@ -364,6 +375,12 @@ async fn serve(conn: Conn, requests: &mut mpsc::Receiver<Request>, config: &Task
         }
     };
 
+    if closing || matches!(end, Error::Closed) || !reconnects {
+        requests.close();
+    }
+    if let Some(waiter) = unsent {
+        let _ = waiter.send(Err(end.clone()));
+    }
     pipeline.fail_all(&end);
     let _ = write.shutdown().await;
     // After BYE the program is done with the connection, however it ended.
