@@ -755,7 +755,10 @@ async fn a_lost_connection_is_closed_when_its_callers_hear_of_it() {
         assert!(!client.is_closed());
         server.inject(Fault::Close);
         assert!(matches!(client.id().await, Err(Error::ConnectionLost(_))));
-        assert!(client.is_closed(), "round {round}: not closed after ConnectionLost");
+        assert!(
+            client.is_closed(),
+            "round {round}: not closed after ConnectionLost"
+        );
     }
 }
 
