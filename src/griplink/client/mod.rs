@@ -118,6 +118,7 @@ use super::error::{Error, Result};
 use super::reply::{Answer, Data};
 use super::state::DeviceState;
 use super::value::Value;
+use crate::connection::Connection;
 use crate::reconnect::{ConnectionEvents, EventSender, EventSubscriber, ReconnectPolicy};
 
 /// Connection events each [`Client::connection_events`] stream buffers, at most.
@@ -202,6 +203,8 @@ impl ClientConfig {
 /// (`client.port(2).home()`).
 #[derive(Debug, Clone)]
 pub struct Client {
+    /// The background task; calls poll it inline to send their lines (see `crate::connection`).
+    connection: Connection,
     requests: mpsc::Sender<Request>,
     shared: Arc<Shared>,
     events: EventSubscriber,
@@ -339,8 +342,8 @@ impl Client {
             events: events.clone(),
             addrs,
         };
-        tokio::spawn(task::run(stream, task));
         Client {
+            connection: Connection::spawn(task::run(stream, task)),
             requests,
             shared,
             events: events.subscriber(),
@@ -443,7 +446,8 @@ impl Client {
                 .map_err(|_| self.shared.failure())?;
             answer.await.map_err(|_| self.shared.failure())?
         };
-        match tokio::time::timeout_at(deadline, exchange).await {
+        let exchange = tokio::time::timeout_at(deadline, exchange);
+        match self.connection.call(exchange).await {
             Ok(result) => result,
             Err(_) => Err(Error::Timeout {
                 command: line,

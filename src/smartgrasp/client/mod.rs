@@ -21,6 +21,7 @@ use super::pose::Pose;
 use super::types::{
     GraspFeedback, MessageType, PoseFormat, ResponseCode, RobotSystem, ServerState,
 };
+use crate::connection::Connection;
 use crate::reconnect::{ConnectionEvents, EventSender, EventSubscriber, ReconnectPolicy};
 use link::{Call, Link};
 use session::{success, unexpected_body, Opened, Session};
@@ -238,6 +239,9 @@ pub enum GetGraspOutcome {
 /// Query the server (GET_OBJECT_COUNT) rather than repeat a GRASP_FEEDBACK blindly.
 #[derive(Debug, Clone)]
 pub struct Client {
+    /// The background task; calls poll it inline to send their requests (see
+    /// `crate::connection`).
+    connection: Connection,
     calls: mpsc::Sender<Call>,
     closed: Arc<OnceLock<Error>>,
     events: EventSubscriber,
@@ -314,26 +318,25 @@ impl Client {
         let closed = Arc::new(OnceLock::new());
         let events = EventSender::new("smartgrasp", EVENT_BUFFER);
         let close = Arc::new(Close::default());
-        let client = Client {
-            calls,
-            closed: Arc::clone(&closed),
-            events: events.subscriber(),
-            timeouts: config.timeouts(),
-            close: Arc::clone(&close),
-            shared: Arc::clone(&shared),
-        };
         let task = task::Task {
             calls: rx,
-            closed,
+            closed: Arc::clone(&closed),
             session,
-            config,
+            config: config.clone(),
             addrs,
-            events,
+            events: events.clone(),
             shutdown: close.shutdown.clone(),
-            shared,
+            shared: Arc::clone(&shared),
         };
-        tokio::spawn(task::run(link, task));
-        client
+        Client {
+            connection: Connection::spawn(task::run(link, task)),
+            calls,
+            closed,
+            events: events.subscriber(),
+            timeouts: config.timeouts(),
+            close,
+            shared,
+        }
     }
 
     /// A handle to the same connection whose calls all use `timeout`.
@@ -599,7 +602,8 @@ impl Client {
             self.calls.send(call).await.map_err(|_| self.closed())?;
             answer.await.map_err(|_| self.closed())?
         };
-        self.timeouts.run(request.message_type(), exchange).await
+        let exchange = self.timeouts.run(request.message_type(), exchange);
+        self.connection.call(exchange).await
     }
 
     async fn expect_success(&self, request: Request) -> Result<ResponseBody> {

@@ -25,6 +25,7 @@ use super::{
     Error, Finger, FingerFlags, FingerInfo, Frame, GraspingStatistics, GripState, Reply, Result,
     SoftLimits, Status, SystemInfo, SystemLimits, SystemState, WsgCodec,
 };
+use crate::connection::Connection;
 use crate::reconnect::{ConnectionEvents, EventSubscriber, ReconnectPolicy};
 
 /// Default timeout of queries and settings.
@@ -287,9 +288,10 @@ impl ClientBuilder {
             });
         let events = task.events.subscriber();
         let closing = task.closing.clone();
-        tokio::spawn(task.run());
+        let connection = Connection::spawn(task.run());
         Client {
             shared: Arc::new(Shared {
+                connection,
                 tx,
                 unsubscribe: unsub_tx,
                 subscription_buffer: self.subscription_buffer,
@@ -314,6 +316,8 @@ fn stream_link(io: Box<dyn AsyncReadWrite>, max_payload_len: usize) -> Link {
 
 #[derive(Debug)]
 struct Shared {
+    /// The background task; calls poll it inline to send their requests (see `crate::connection`).
+    connection: Connection,
     tx: mpsc::Sender<Msg>,
     unsubscribe: mpsc::UnboundedSender<(u8, u64)>,
     subscription_buffer: usize,
@@ -506,7 +510,9 @@ impl Client {
                 .map_err(|_| self.shared.gone())?;
             rx.await.map_err(|_| self.shared.gone())?
         };
-        timeout_at(deadline, work)
+        self.shared
+            .connection
+            .call(timeout_at(deadline, work))
             .await
             .map_err(|_| Error::Timeout { command, timeout })?
     }
@@ -996,12 +1002,15 @@ impl Client {
         // Seen by a reconnecting task before its next attempt: it gives up instead.
         self.shared.closing.store(true, Ordering::Release);
         let (done, rx) = oneshot::channel();
-        self.shared
-            .tx
-            .send(Msg::Close { done })
-            .await
-            .map_err(|_| self.shared.gone())?;
-        rx.await.map_err(|_| self.shared.gone())?
+        let close = async {
+            self.shared
+                .tx
+                .send(Msg::Close { done })
+                .await
+                .map_err(|_| self.shared.gone())?;
+            rx.await.map_err(|_| self.shared.gone())?
+        };
+        self.shared.connection.call(close).await
     }
 }
 

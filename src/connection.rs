@@ -1,0 +1,438 @@
+//! Where a client's connection task runs: inline in the caller that just queued a request, and
+//! otherwise in a spawned *keeper* task (issue 14, BENCHMARKS.md "Round trip").
+//!
+//! Each client owns its transport in one future, the connection task (it writes requests, pairs
+//! replies, runs the timers, fans out auto-updates, reconnects). Spawned on its own, every call
+//! costs two hand-overs: the request goes to the task over a channel, and the reply comes back
+//! over a oneshot. On tokio's multi-thread runtime, with the caller in `block_on` (where
+//! `#[tokio::main]` runs `main`), each hand-over is a cross-thread wake-up — two futex
+//! wake/wait pairs per round trip where a blocking driver has none.
+//!
+//! [`Connection::call`] removes the first one: the caller queues its request as before and then
+//! polls the connection future itself, so the request is written from the caller's thread at
+//! once. Replies, timers, auto-updates and reconnects wake the keeper, which polls the same
+//! future. Nothing about the connection's logic changes: it is one future, polled by one party at
+//! a time (a mutex), always with the same waker, so every rule it keeps (pairing, stops never
+//! queued, one place where requests fail) holds whoever polls it.
+//!
+//! Why the reply still goes through the keeper (no leader/follower): a caller that waited for
+//! its reply by polling the connection would have to be woken for every event on it, and a
+//! caller's future may legally be left unpolled for a while (a `select!` that went elsewhere,
+//! a future kept for later); the connection would then stall for every other caller. The keeper
+//! is always polled when woken. And a caller in `block_on` cannot be woken by the socket any
+//! cheaper than by the keeper: tokio's I/O driver runs on a worker thread either way.
+//!
+//! # Wake-ups, and why none is lost
+//!
+//! The connection future is always polled with one waker, [`Signal`]'s: it sets `notified` and,
+//! unless a caller is inside [`Connection::call`]'s poll (`inline` > 0), notifies the keeper.
+//! Whoever polls the connection clears `notified` first, under the mutex. A caller leaving its
+//! poll decrements `inline` and then, if `notified` is set, notifies the keeper: a wake-up that
+//! saw `inline` > 0 is always seen by the caller that made it so (both sides store, then load,
+//! sequentially consistent). A party that finds the mutex taken does nothing: the holder polls
+//! after the wake-up's `notified` was set, or the flag is still set when the holder's caller
+//! leaves or the keeper looks again.
+
+use std::future::Future;
+use std::pin::Pin;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering::SeqCst};
+use std::sync::{Arc, Mutex, MutexGuard, TryLockError};
+use std::task::{Context, Poll, Wake, Waker};
+
+use tokio::runtime::Handle;
+use tokio::sync::Notify;
+
+type Task = Pin<Box<dyn Future<Output = ()> + Send>>;
+
+/// A handle to a running connection task; cheap to clone.
+#[derive(Clone)]
+pub(crate) struct Connection {
+    shared: Arc<Shared>,
+}
+
+struct Shared {
+    /// The connection task; `None` once it ended (or its keeper was dropped with the runtime).
+    task: Mutex<Option<Task>>,
+    signal: Arc<Signal>,
+    /// `signal` as a waker, made once.
+    waker: Waker,
+    /// The runtime the keeper runs on: an inline poll enters it, so the timers and sockets the
+    /// connection creates belong to that runtime even when the caller runs on another one.
+    runtime: Handle,
+}
+
+/// The connection task's waker (see the module docs).
+struct Signal {
+    notified: AtomicBool,
+    /// Callers inside [`Connection::call`]'s poll, each of which looks at `notified` on leaving.
+    inline: AtomicUsize,
+    keeper: Notify,
+}
+
+impl Wake for Signal {
+    fn wake(self: Arc<Self>) {
+        self.wake_by_ref();
+    }
+
+    fn wake_by_ref(self: &Arc<Self>) {
+        self.notified.store(true, SeqCst);
+        if self.inline.load(SeqCst) == 0 {
+            self.keeper.notify_one();
+        }
+    }
+}
+
+/// What one attempt to poll the connection task did.
+#[derive(Debug, PartialEq, Eq)]
+enum Step {
+    /// Polled; it is still running.
+    Polled,
+    /// Somebody else is polling it.
+    Busy,
+    /// It has ended.
+    Ended,
+}
+
+impl std::fmt::Debug for Connection {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Connection").finish_non_exhaustive()
+    }
+}
+
+impl Connection {
+    /// Runs `task` as a connection task on the current runtime.
+    ///
+    /// # Panics
+    /// Outside a tokio runtime, as [`tokio::spawn`] does.
+    pub(crate) fn spawn(task: impl Future<Output = ()> + Send + 'static) -> Connection {
+        let signal = Arc::new(Signal {
+            // The keeper polls once at the start.
+            notified: AtomicBool::new(true),
+            inline: AtomicUsize::new(0),
+            keeper: Notify::new(),
+        });
+        let shared = Arc::new(Shared {
+            task: Mutex::new(Some(Box::pin(task))),
+            waker: Waker::from(Arc::clone(&signal)),
+            signal,
+            runtime: Handle::current(),
+        });
+        tokio::spawn(Keeper(Arc::clone(&shared)).run());
+        Connection { shared }
+    }
+
+    /// Awaits `call` (a future that queues a request for the connection task and waits for its
+    /// answer), polling the connection task inline after each poll of `call` that left it
+    /// something to do: the request goes out from this thread, without waking another one.
+    pub(crate) async fn call<F: Future>(&self, call: F) -> F::Output {
+        let mut call = std::pin::pin!(call);
+        std::future::poll_fn(|cx| self.shared.poll_call(call.as_mut(), cx)).await
+    }
+
+    /// Whether the connection task has ended.
+    #[cfg(test)]
+    fn ended(&self) -> bool {
+        self.shared.lock_task().is_none()
+    }
+}
+
+impl Shared {
+    fn poll_call<F: Future>(&self, mut call: Pin<&mut F>, cx: &mut Context<'_>) -> Poll<F::Output> {
+        let _inline = Inline::enter(&self.signal);
+        if let Poll::Ready(out) = call.as_mut().poll(cx) {
+            return Poll::Ready(out);
+        }
+        if !self.signal.notified.load(SeqCst) {
+            return Poll::Pending;
+        }
+        match self.poll_task() {
+            // The answer may be there already (a refusal decided without the wire).
+            Step::Polled | Step::Ended => call.poll(cx),
+            Step::Busy => Poll::Pending,
+        }
+    }
+
+    /// Polls the connection task once if nobody else is polling it.
+    fn poll_task(&self) -> Step {
+        let mut task = match self.task.try_lock() {
+            Ok(task) => task,
+            Err(TryLockError::WouldBlock) => return Step::Busy,
+            Err(TryLockError::Poisoned(poisoned)) => {
+                // It panicked while polled: what is left of it cannot run again. Dropping it
+                // fails its callers (their answer channels close).
+                let mut task = poisoned.into_inner();
+                *task = None;
+                self.task.clear_poison();
+                return Step::Ended;
+            }
+        };
+        let Some(running) = task.as_mut() else {
+            return Step::Ended;
+        };
+        self.signal.notified.store(false, SeqCst);
+        let ready = {
+            let _runtime = self.runtime.enter();
+            running.as_mut().poll(&mut Context::from_waker(&self.waker))
+        };
+        if ready.is_pending() {
+            return Step::Polled;
+        }
+        *task = None;
+        drop(task);
+        // It may have ended in a caller's poll: the keeper has to hear of it to end too.
+        self.signal.keeper.notify_one();
+        Step::Ended
+    }
+
+    /// The task slot, taken even after a panic (to drop what is left).
+    fn lock_task(&self) -> MutexGuard<'_, Option<Task>> {
+        self.task
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner())
+    }
+}
+
+/// Counts a caller as inside its poll; on leaving, hands a wake-up that arrived meanwhile to the
+/// keeper (a `Drop`, so that a panicking call leaves the count right and the keeper told).
+struct Inline<'a>(&'a Signal);
+
+impl<'a> Inline<'a> {
+    fn enter(signal: &'a Signal) -> Self {
+        signal.inline.fetch_add(1, SeqCst);
+        Inline(signal)
+    }
+}
+
+impl Drop for Inline<'_> {
+    fn drop(&mut self) {
+        self.0.inline.fetch_sub(1, SeqCst);
+        // After a panic in an inline poll, the keeper drops what is left of the task.
+        if self.0.notified.load(SeqCst) || std::thread::panicking() {
+            self.0.keeper.notify_one();
+        }
+    }
+}
+
+/// The spawned task that polls the connection task whenever something other than a caller's
+/// request wakes it. Dropped with its runtime, it drops the connection task (and so fails the
+/// calls in flight), as a spawned connection task would have been dropped.
+struct Keeper(Arc<Shared>);
+
+impl Keeper {
+    async fn run(self) {
+        loop {
+            match self.0.poll_task() {
+                Step::Ended => return,
+                // Woken again while polled (a yield, or the budget ran out): let other tasks
+                // run before polling again.
+                Step::Polled if self.0.signal.notified.load(SeqCst) => {
+                    tokio::task::yield_now().await;
+                    continue;
+                }
+                Step::Polled | Step::Busy => {}
+            }
+            self.0.signal.keeper.notified().await;
+        }
+    }
+}
+
+impl Drop for Keeper {
+    fn drop(&mut self) {
+        let task = self.0.lock_task().take();
+        drop(task);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::thread::ThreadId;
+    use std::time::Duration;
+    use tokio::sync::{mpsc, oneshot};
+
+    /// A connection task in miniature: answers each request with the thread it was taken on,
+    /// after a round trip through a socket pair, so a reply needs a wake-up from the I/O driver.
+    fn echo() -> (Connection, mpsc::Sender<oneshot::Sender<ThreadId>>) {
+        let (tx, mut rx) = mpsc::channel::<oneshot::Sender<ThreadId>>(64);
+        let connection = Connection::spawn(async move {
+            let (mut a, mut b) = tokio::io::duplex(64);
+            use tokio::io::{AsyncReadExt, AsyncWriteExt};
+            let mut waiting = std::collections::VecDeque::new();
+            let mut byte = [0u8; 1];
+            loop {
+                tokio::select! {
+                    request = rx.recv() => match request {
+                        Some(answer) => {
+                            waiting.push_back((answer, std::thread::current().id()));
+                            if a.write_all(&[1]).await.is_err() {
+                                return;
+                            }
+                        }
+                        None => return,
+                    },
+                    read = b.read(&mut byte) => {
+                        if !matches!(read, Ok(1)) {
+                            return;
+                        }
+                        if let Some((answer, thread)) = waiting.pop_front() {
+                            let _ = answer.send(thread);
+                        }
+                    }
+                }
+            }
+        });
+        (connection, tx)
+    }
+
+    async fn ask(
+        connection: &Connection,
+        tx: &mpsc::Sender<oneshot::Sender<ThreadId>>,
+    ) -> ThreadId {
+        connection
+            .call(async {
+                let (answer, rx) = oneshot::channel();
+                tx.send(answer).await.expect("the task runs");
+                rx.await.expect("the task answers")
+            })
+            .await
+    }
+
+    #[test]
+    fn a_request_from_block_on_is_taken_on_the_callers_thread() {
+        let rt = tokio::runtime::Builder::new_multi_thread()
+            .worker_threads(2)
+            .enable_all()
+            .build()
+            .expect("runtime");
+        let (connection, tx) = rt.block_on(async { echo() });
+        let caller = std::thread::current().id();
+        let inline = rt.block_on(async {
+            let mut inline = 0;
+            for _ in 0..200 {
+                if ask(&connection, &tx).await == caller {
+                    inline += 1;
+                }
+            }
+            inline
+        });
+        // The keeper may take one now and then (it is woken after each reply and can be
+        // polling when the next request arrives); without inline polling it takes them all.
+        assert!(
+            inline >= 150,
+            "only {inline} of 200 requests were taken inline"
+        );
+    }
+
+    #[tokio::test]
+    async fn the_keeper_alone_serves_requests_sent_around_call() {
+        let (_connection, tx) = echo();
+        for _ in 0..100 {
+            let (answer, rx) = oneshot::channel();
+            tx.send(answer).await.expect("the task runs");
+            rx.await.expect("the keeper polls the task");
+        }
+    }
+
+    #[test]
+    fn many_callers_on_two_workers_all_get_their_answers() {
+        let rt = tokio::runtime::Builder::new_multi_thread()
+            .worker_threads(2)
+            .enable_all()
+            .build()
+            .expect("runtime");
+        rt.block_on(async {
+            let (connection, tx) = echo();
+            let mut callers = Vec::new();
+            for _ in 0..16 {
+                let (connection, tx) = (connection.clone(), tx.clone());
+                callers.push(tokio::spawn(async move {
+                    for round in 0..500 {
+                        // Some calls are abandoned half-way, as a timed-out call is.
+                        if round % 7 == 0 {
+                            let abandoned = ask(&connection, &tx);
+                            let _ = tokio::time::timeout(Duration::ZERO, abandoned).await;
+                        } else {
+                            ask(&connection, &tx).await;
+                        }
+                    }
+                }));
+            }
+            for caller in callers {
+                tokio::time::timeout(Duration::from_secs(60), caller)
+                    .await
+                    .expect("no wake-up was lost")
+                    .expect("the caller ran");
+            }
+        });
+    }
+
+    #[test]
+    fn the_task_ends_with_its_runtime() {
+        let rt = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .expect("runtime");
+        let (connection, tx) = rt.block_on(async { echo() });
+        let (answer, rx) = oneshot::channel();
+        rt.block_on(tx.send(answer)).expect("the task runs");
+        drop(rt);
+        assert!(connection.ended(), "the keeper dropped the task");
+        assert!(rx.blocking_recv().is_err(), "the waiting call failed");
+    }
+
+    #[tokio::test]
+    async fn the_keeper_ends_when_the_task_ends_inline() {
+        let (connection, tx) = echo();
+        ask(&connection, &tx).await;
+        drop(tx);
+        // The task ends when its request channel closes; a caller's poll may be the one that
+        // sees it, and the keeper (which holds the other reference) must end anyway.
+        connection.call(async {}).await;
+        tokio::time::timeout(Duration::from_secs(10), async {
+            while Arc::strong_count(&connection.shared) > 1 {
+                tokio::task::yield_now().await;
+            }
+        })
+        .await
+        .expect("the keeper ended");
+        assert!(connection.ended());
+    }
+
+    #[tokio::test]
+    async fn a_task_that_panicked_is_dropped_and_its_callers_hear_of_it() {
+        let (tx, mut rx) = mpsc::channel::<oneshot::Sender<()>>(1);
+        let connection = Connection::spawn(async move {
+            if let Some(_answer) = rx.recv().await {
+                panic!("a bug in a connection task");
+            }
+        });
+        let (answer, reply) = oneshot::channel();
+        let caller = {
+            let connection = connection.clone();
+            tokio::spawn(async move {
+                connection
+                    .call(async {
+                        tx.send(answer).await.expect("the task runs");
+                        reply.await
+                    })
+                    .await
+            })
+        };
+        let result = tokio::time::timeout(Duration::from_secs(10), caller)
+            .await
+            .expect("the call does not hang");
+        // Whoever polled the task when it panicked (the caller inline, or the keeper), the call
+        // ends: it panics with the task, or its answer channel closes.
+        match result {
+            Err(joined) => assert!(joined.is_panic()),
+            Ok(answer) => assert!(answer.is_err(), "no answer can have come"),
+        }
+        tokio::time::timeout(Duration::from_secs(10), async {
+            while !connection.ended() {
+                tokio::task::yield_now().await;
+            }
+        })
+        .await
+        .expect("what was left of the task was dropped");
+    }
+}
