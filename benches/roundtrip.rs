@@ -26,7 +26,11 @@
 //! - `client multi_thread(2), caller spawned`: the same runtime and client, the calls made from a
 //!   task spawned on it (a worker thread), as a program that runs its control loop in a task
 //!   does; tokio then often runs the connection task and the caller on the same worker;
-//! - `raw std::net`: blocking `write_all` + `read` on the bench thread.
+//! - `raw std::net`: blocking `write_all` + `read` on the bench thread (the floor every ratio is
+//!   taken against);
+//! - `raw tokio current_thread` / `raw tokio multi_thread(2)`: the same bytes through a bare
+//!   `tokio::net::TcpStream` awaited in `block_on` on each runtime — what any tokio client pays
+//!   before it adds a channel, a task or pairing, so the client's own cost is the difference.
 //!
 //! The variants alternate in blocks of 100 queries, so a change of the machine's load during the
 //! run hits all of them alike. Allocations per round trip are counted on the bench thread for the
@@ -157,35 +161,9 @@ impl Raw {
             let n = self.stream.read(&mut self.buf[have..]).expect("read");
             assert!(n > 0, "simulator closed the connection");
             have += n;
-            if self.complete(have) {
+            if complete(self.proto, &self.buf[..have]) {
                 return;
             }
-        }
-    }
-
-    fn complete(&self, have: usize) -> bool {
-        let b = &self.buf[..have];
-        match self.proto {
-            // AA AA AA | id | len LE | status LE, f32 | crc (manual 1.2.1).
-            Proto::Wsg => {
-                if have < 6 {
-                    return false;
-                }
-                let len = usize::from(u16::from_le_bytes([b[4], b[5]]));
-                if have < 6 + len + 2 {
-                    return false;
-                }
-                assert_eq!((b[3], b[6], b[7]), (0x43, 0, 0), "width reply, E_SUCCESS");
-                true
-            }
-            Proto::Griplink => {
-                if b.last() != Some(&b'\n') {
-                    return false;
-                }
-                assert!(b.starts_with(b"VALUE[0][0]="), "VALUE reply");
-                true
-            }
-            Proto::SmartGrasp => have >= smartgrasp::frame::FRAME_LEN,
         }
     }
 
@@ -198,6 +176,86 @@ impl Raw {
             self.request = b.to_vec();
             self.stream.write_all(&self.request).expect("write");
             let _ = self.stream.read(&mut self.buf);
+        }
+    }
+}
+
+/// Whether `b` holds the whole reply to the request of `proto` (checking just enough to know it is
+/// the reply).
+fn complete(proto: Proto, b: &[u8]) -> bool {
+    let have = b.len();
+    match proto {
+        // AA AA AA | id | len LE | status LE, f32 | crc (manual 1.2.1).
+        Proto::Wsg => {
+            if have < 6 {
+                return false;
+            }
+            let len = usize::from(u16::from_le_bytes([b[4], b[5]]));
+            if have < 6 + len + 2 {
+                return false;
+            }
+            assert_eq!((b[3], b[6], b[7]), (0x43, 0, 0), "width reply, E_SUCCESS");
+            true
+        }
+        Proto::Griplink => {
+            if b.last() != Some(&b'\n') {
+                return false;
+            }
+            assert!(b.starts_with(b"VALUE[0][0]="), "VALUE reply");
+            true
+        }
+        Proto::SmartGrasp => have >= smartgrasp::frame::FRAME_LEN,
+    }
+}
+
+/// The floor of any tokio client: the same bytes through a bare `tokio::net::TcpStream` (no
+/// channel, no task, no pairing), awaited on the runtime under test.
+struct RawTokio {
+    proto: Proto,
+    stream: tokio::net::TcpStream,
+    request: Vec<u8>,
+    buf: [u8; 512],
+}
+
+impl RawTokio {
+    async fn connect(proto: Proto, addr: SocketAddr) -> RawTokio {
+        let stream = tokio::net::TcpStream::connect(addr).await.expect("connect");
+        stream.set_nodelay(true).expect("nodelay");
+        RawTokio {
+            proto,
+            stream,
+            request: proto.request_bytes(),
+            buf: [0; 512],
+        }
+    }
+
+    async fn block(&mut self, out: &mut Vec<Duration>) {
+        use tokio::io::{AsyncReadExt, AsyncWriteExt};
+        for _ in 0..BLOCK {
+            let t = Instant::now();
+            self.stream.write_all(&self.request).await.expect("write");
+            let mut have = 0;
+            loop {
+                let n = self.stream.read(&mut self.buf[have..]).await.expect("read");
+                assert!(n > 0, "simulator closed the connection");
+                have += n;
+                if complete(self.proto, &self.buf[..have]) {
+                    break;
+                }
+            }
+            out.push(t.elapsed());
+        }
+    }
+
+    /// WSG: announce the disconnect first, so the simulated gripper does not go into FAST STOP.
+    async fn close(mut self) {
+        use tokio::io::{AsyncReadExt, AsyncWriteExt};
+        if let Proto::Wsg = self.proto {
+            let mut b = BytesMut::new();
+            wsg::frame::encode(&wsg::Command::AnnounceDisconnect.to_frame(), &mut b)
+                .expect("encode");
+            self.stream.write_all(&b).await.expect("write");
+            let _ = self.stream.read(&mut self.buf).await;
         }
     }
 }
@@ -247,11 +305,15 @@ fn measure(proto: Proto, addr: SocketAddr, rounds: usize) -> Vec<Samples> {
     let ct_client = ct.block_on(AnyClient::connect(proto, addr));
     let mt_client = Arc::new(mt.block_on(AnyClient::connect(proto, addr)));
     let mut raw = Raw::connect(proto, addr);
+    let mut ct_raw = ct.block_on(RawTokio::connect(proto, addr));
+    let mut mt_raw = mt.block_on(RawTokio::connect(proto, addr));
 
     let mut s_ct = Samples::new("client current_thread");
     let mut s_mt = Samples::new("client multi_thread(2)");
     let mut s_mt_task = Samples::new("client multi_thread(2), caller spawned");
     let mut s_raw = Samples::new("raw std::net (floor)");
+    let mut s_ct_raw = Samples::new("raw tokio current_thread");
+    let mut s_mt_raw = Samples::new("raw tokio multi_thread(2)");
     // Warm-up: one block each, not recorded.
     let mut scratch = Vec::new();
     ct.block_on(client_block(&ct_client, &mut scratch));
@@ -260,6 +322,8 @@ fn measure(proto: Proto, addr: SocketAddr, rounds: usize) -> Vec<Samples> {
     for _ in 0..BLOCK {
         raw.query();
     }
+    ct.block_on(ct_raw.block(&mut scratch));
+    mt.block_on(mt_raw.block(&mut scratch));
     let mut ct_allocations = 0;
     for _ in 0..rounds {
         let before = allocations();
@@ -270,14 +334,18 @@ fn measure(proto: Proto, addr: SocketAddr, rounds: usize) -> Vec<Samples> {
             raw.query();
             s_raw.v.push(t.elapsed());
         }
+        ct.block_on(ct_raw.block(&mut s_ct_raw.v));
         mt.block_on(client_block(&mt_client, &mut s_mt.v));
+        mt.block_on(mt_raw.block(&mut s_mt_raw.v));
         s_mt_task.v = mt.block_on(spawned_block(&mt_client, std::mem::take(&mut s_mt_task.v)));
     }
     s_ct.allocations = Some(ct_allocations);
     ct.block_on(ct_client.close());
     mt.block_on(mt_client.close());
     raw.close();
-    vec![s_raw, s_ct, s_mt, s_mt_task]
+    ct.block_on(ct_raw.close());
+    mt.block_on(mt_raw.close());
+    vec![s_raw, s_ct_raw, s_ct, s_mt_raw, s_mt, s_mt_task]
 }
 
 /// One variant's figures in one run.
