@@ -35,11 +35,11 @@
 
 use std::future::Future;
 use std::pin::Pin;
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering::SeqCst};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering::SeqCst};
 use std::sync::{Arc, Mutex, MutexGuard, TryLockError};
 use std::task::{Context, Poll, Wake, Waker};
 
-use tokio::runtime::Handle;
+use tokio::runtime::{Handle, RuntimeFlavor};
 use tokio::sync::Notify;
 
 type Task = Pin<Box<dyn Future<Output = ()> + Send>>;
@@ -59,6 +59,9 @@ struct Shared {
     /// The runtime the keeper runs on: an inline poll enters it, so the timers and sockets the
     /// connection creates belong to that runtime even when the caller runs on another one.
     runtime: Handle,
+    /// Whether a waiting caller becomes the leader: on a `current_thread` runtime only (see
+    /// [`Connection::call`]).
+    leads: bool,
 }
 
 /// The connection task's waker (see the module docs).
@@ -67,6 +70,17 @@ struct Signal {
     /// Callers inside [`Connection::call`]'s poll, each of which looks at `notified` on leaving.
     inline: AtomicUsize,
     keeper: Notify,
+    /// The waiting caller woken together with the keeper (see [`Connection::call`]).
+    leader: Mutex<Option<Leader>>,
+    /// Numbers the calls, to tell the leader apart.
+    next_call: AtomicU64,
+}
+
+/// A waiting caller that is woken for every event on the connection, so that it can read its
+/// reply itself before the keeper gets to it.
+struct Leader {
+    call: u64,
+    waker: Waker,
 }
 
 impl Wake for Signal {
@@ -77,9 +91,68 @@ impl Wake for Signal {
     fn wake_by_ref(self: &Arc<Self>) {
         self.notified.store(true, SeqCst);
         if self.inline.load(SeqCst) == 0 {
+            let leader = lock(&self.leader).as_ref().map(|l| l.waker.clone());
+            if let Some(leader) = leader {
+                leader.wake();
+            }
             self.keeper.notify_one();
         }
     }
+}
+
+impl Signal {
+    /// The task ended, maybe in a caller's poll: the keeper has to look to end too.
+    fn ended(&self) {
+        self.notified.store(true, SeqCst);
+        self.keeper.notify_one();
+    }
+
+    #[cfg(test)]
+    fn has_leader(&self) -> bool {
+        lock(&self.leader).is_some()
+    }
+
+    /// Makes call `id` the leader if there is none, or updates its waker if it is.
+    fn lead(&self, id: u64, waker: &Waker) {
+        let mut leader = lock(&self.leader);
+        match leader.as_mut() {
+            Some(leader) if leader.call == id => {
+                if !leader.waker.will_wake(waker) {
+                    leader.waker = waker.clone();
+                }
+            }
+            Some(_) => {}
+            None => {
+                *leader = Some(Leader {
+                    call: id,
+                    waker: waker.clone(),
+                })
+            }
+        }
+    }
+}
+
+/// Gives up a call's leadership when it ends or is dropped.
+struct Leaving<'a> {
+    signal: &'a Signal,
+    call: u64,
+}
+
+impl Drop for Leaving<'_> {
+    fn drop(&mut self) {
+        let mut leader = lock(&self.signal.leader);
+        if leader.as_ref().is_some_and(|l| l.call == self.call) {
+            *leader = None;
+        }
+    }
+}
+
+/// A mutex's content, even after a panic elsewhere (the leader slot stays consistent: it is
+/// only ever replaced or cleared whole).
+fn lock<T>(mutex: &Mutex<T>) -> MutexGuard<'_, T> {
+    mutex
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner())
 }
 
 /// What one attempt to poll the connection task did.
@@ -110,11 +183,14 @@ impl Connection {
             notified: AtomicBool::new(true),
             inline: AtomicUsize::new(0),
             keeper: Notify::new(),
+            leader: Mutex::new(None),
+            next_call: AtomicU64::new(0),
         });
         let shared = Arc::new(Shared {
             task: Mutex::new(Some(Box::pin(task))),
             waker: Waker::from(Arc::clone(&signal)),
             signal,
+            leads: Handle::current().runtime_flavor() == RuntimeFlavor::CurrentThread,
             runtime: Handle::current(),
         });
         tokio::spawn(Keeper(Arc::clone(&shared)).run());
@@ -124,9 +200,29 @@ impl Connection {
     /// Awaits `call` (a future that queues a request for the connection task and waits for its
     /// answer), polling the connection task inline after each poll of `call` that left it
     /// something to do: the request goes out from this thread, without waking another one.
+    ///
+    /// On a `current_thread` runtime, while it waits, the call may be the *leader*: the one
+    /// caller woken, with the keeper, for every event on the connection. A `block_on` future is
+    /// polled before any task, and tasks run in the order they were woken, so the leader reads
+    /// its reply itself, as a bare socket would; the keeper then finds nothing left to do. If
+    /// the leader was not polled (its future kept but left alone, say by a `select!` that went
+    /// elsewhere), the keeper polls the connection: such a leader delays nobody. On a multi-thread runtime no call leads: waking two tasks per event costs more
+    /// than it saves (a worker is woken to steal one of them; measured, BENCHMARKS.md), and the
+    /// keeper, on the worker that saw the event, hands the reply over at once.
     pub(crate) async fn call<F: Future>(&self, call: F) -> F::Output {
+        let signal = &self.shared.signal;
+        let leaving = Leaving {
+            signal,
+            call: signal.next_call.fetch_add(1, SeqCst),
+        };
         let mut call = std::pin::pin!(call);
-        std::future::poll_fn(|cx| self.shared.poll_call(call.as_mut(), cx)).await
+        std::future::poll_fn(|cx| self.shared.poll_call(call.as_mut(), cx, leaving.call)).await
+    }
+
+    /// Whether somebody polls the connection task at this moment.
+    #[cfg(test)]
+    fn polled_now(&self) -> bool {
+        matches!(self.shared.task.try_lock(), Err(TryLockError::WouldBlock))
     }
 
     /// Whether the connection task has ended.
@@ -137,19 +233,28 @@ impl Connection {
 }
 
 impl Shared {
-    fn poll_call<F: Future>(&self, mut call: Pin<&mut F>, cx: &mut Context<'_>) -> Poll<F::Output> {
+    fn poll_call<F: Future>(
+        &self,
+        mut call: Pin<&mut F>,
+        cx: &mut Context<'_>,
+        id: u64,
+    ) -> Poll<F::Output> {
         let _inline = Inline::enter(&self.signal);
-        if let Poll::Ready(out) = call.as_mut().poll(cx) {
+        // First without a waker: an answer this poll or the connection task below delivers is
+        // seen by the second poll, instead of waking this caller, whose future then returns
+        // anyway. (On a `current_thread` runtime such a stale wake-up costs an extra trip
+        // through the I/O driver before the next call can wait.)
+        if let Poll::Ready(out) = call.as_mut().poll(&mut Context::from_waker(Waker::noop())) {
             return Poll::Ready(out);
         }
-        if !self.signal.notified.load(SeqCst) {
-            return Poll::Pending;
+        if self.signal.notified.load(SeqCst) {
+            self.poll_task();
         }
-        match self.poll_task() {
-            // The answer may be there already (a refusal decided without the wire).
-            Step::Polled | Step::Ended => call.poll(cx),
-            Step::Busy => Poll::Pending,
+        let polled = call.poll(cx);
+        if polled.is_pending() && self.leads {
+            self.signal.lead(id, cx.waker());
         }
+        polled
     }
 
     /// Polls the connection task once if nobody else is polling it.
@@ -163,6 +268,8 @@ impl Shared {
                 let mut task = poisoned.into_inner();
                 *task = None;
                 self.task.clear_poison();
+                drop(task);
+                self.signal.ended();
                 return Step::Ended;
             }
         };
@@ -179,16 +286,13 @@ impl Shared {
         }
         *task = None;
         drop(task);
-        // It may have ended in a caller's poll: the keeper has to hear of it to end too.
-        self.signal.keeper.notify_one();
+        self.signal.ended();
         Step::Ended
     }
 
     /// The task slot, taken even after a panic (to drop what is left).
     fn lock_task(&self) -> MutexGuard<'_, Option<Task>> {
-        self.task
-            .lock()
-            .unwrap_or_else(|poisoned| poisoned.into_inner())
+        lock(&self.task)
     }
 }
 
@@ -206,8 +310,10 @@ impl<'a> Inline<'a> {
 impl Drop for Inline<'_> {
     fn drop(&mut self) {
         self.0.inline.fetch_sub(1, SeqCst);
-        // After a panic in an inline poll, the keeper drops what is left of the task.
-        if self.0.notified.load(SeqCst) || std::thread::panicking() {
+        if std::thread::panicking() {
+            // The keeper drops what is left of the task (it finds the mutex poisoned).
+            self.0.ended();
+        } else if self.0.notified.load(SeqCst) {
             self.0.keeper.notify_one();
         }
     }
@@ -220,18 +326,24 @@ struct Keeper(Arc<Shared>);
 
 impl Keeper {
     async fn run(self) {
+        let signal = &self.0.signal;
         loop {
-            match self.0.poll_task() {
-                Step::Ended => return,
-                // Woken again while polled (a yield, or the budget ran out): let other tasks
-                // run before polling again.
-                Step::Polled if self.0.signal.notified.load(SeqCst) => {
-                    tokio::task::yield_now().await;
-                    continue;
+            if signal.notified.load(SeqCst) {
+                match self.0.poll_task() {
+                    Step::Ended => return,
+                    // Woken again while polled (a yield, or the budget ran out): let other
+                    // tasks run before polling again.
+                    Step::Polled if signal.notified.load(SeqCst) => {
+                        tokio::task::yield_now().await;
+                        continue;
+                    }
+                    Step::Polled | Step::Busy => {}
                 }
-                Step::Polled | Step::Busy => {}
             }
-            self.0.signal.keeper.notified().await;
+            // On a current_thread runtime a leader, woken before the keeper, has been polled by
+            // now: a `block_on` future is polled before any task, and tasks run in the order
+            // they were woken. If it read the event, `notified` is clear again.
+            signal.keeper.notified().await;
         }
     }
 }
@@ -250,13 +362,30 @@ mod tests {
     use std::time::Duration;
     use tokio::sync::{mpsc, oneshot};
 
-    /// A connection task in miniature: answers each request with the thread it was taken on,
-    /// after a round trip through a socket pair, so a reply needs a wake-up from the I/O driver.
-    fn echo() -> (Connection, mpsc::Sender<oneshot::Sender<ThreadId>>) {
-        let (tx, mut rx) = mpsc::channel::<oneshot::Sender<ThreadId>>(64);
+    /// Who did what for one request.
+    #[derive(Debug)]
+    struct Seen {
+        /// The thread the request was taken on.
+        request: ThreadId,
+        /// The task that polled the connection when the reply was read (`None`: a `block_on`
+        /// future, not a task).
+        reply: Option<tokio::task::Id>,
+    }
+
+    type Requests = mpsc::Sender<oneshot::Sender<Seen>>;
+
+    /// A connection task in miniature: answers each request with [`Seen`], after a round trip
+    /// over loopback TCP, so that a reply needs a wake-up from the I/O driver.
+    fn echo() -> (Connection, Requests) {
+        let (tx, mut rx) = mpsc::channel::<oneshot::Sender<Seen>>(64);
         let connection = Connection::spawn(async move {
-            let (mut a, mut b) = tokio::io::duplex(64);
             use tokio::io::{AsyncReadExt, AsyncWriteExt};
+            let listener = tokio::net::TcpListener::bind("127.0.0.1:0")
+                .await
+                .expect("bind");
+            let addr = listener.local_addr().expect("address");
+            let (a, b) = tokio::join!(tokio::net::TcpStream::connect(addr), listener.accept());
+            let (mut a, (mut b, _)) = (a.expect("connect"), b.expect("accept"));
             let mut waiting = std::collections::VecDeque::new();
             let mut byte = [0u8; 1];
             loop {
@@ -274,8 +403,9 @@ mod tests {
                         if !matches!(read, Ok(1)) {
                             return;
                         }
-                        if let Some((answer, thread)) = waiting.pop_front() {
-                            let _ = answer.send(thread);
+                        if let Some((answer, request)) = waiting.pop_front() {
+                            let reply = tokio::task::try_id();
+                            let _ = answer.send(Seen { request, reply });
                         }
                     }
                 }
@@ -284,10 +414,7 @@ mod tests {
         (connection, tx)
     }
 
-    async fn ask(
-        connection: &Connection,
-        tx: &mpsc::Sender<oneshot::Sender<ThreadId>>,
-    ) -> ThreadId {
+    async fn ask(connection: &Connection, tx: &Requests) -> Seen {
         connection
             .call(async {
                 let (answer, rx) = oneshot::channel();
@@ -309,18 +436,69 @@ mod tests {
         let inline = rt.block_on(async {
             let mut inline = 0;
             for _ in 0..200 {
-                if ask(&connection, &tx).await == caller {
+                // The keeper polls the task after it delivered the last reply; a request that
+                // arrives meanwhile is left to it (it is awake, on its worker). Wait for it to
+                // finish, so that what is measured is the path of a request to an idle
+                // connection.
+                while connection.polled_now() {
+                    std::hint::spin_loop();
+                }
+                if ask(&connection, &tx).await.request == caller {
                     inline += 1;
                 }
             }
             inline
         });
-        // The keeper may take one now and then (it is woken after each reply and can be
-        // polling when the next request arrives); without inline polling it takes them all.
+        // Without inline polling the keeper takes them all.
         assert!(
-            inline >= 150,
+            inline >= 190,
             "only {inline} of 200 requests were taken inline"
         );
+    }
+
+    #[test]
+    fn on_current_thread_the_caller_reads_its_own_reply() {
+        let rt = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .expect("runtime");
+        let (connection, tx) = rt.block_on(async { echo() });
+        let mut own = 0;
+        for _ in 0..200 {
+            if rt.block_on(ask(&connection, &tx)).reply.is_none() {
+                own += 1;
+            }
+        }
+        // Without a leader the keeper task reads every reply.
+        assert!(own >= 150, "the caller read only {own} of 200 replies");
+    }
+
+    #[tokio::test]
+    async fn a_leader_left_unpolled_delays_nobody() {
+        let (connection, tx) = echo();
+        let mut stalled = std::pin::pin!(ask(&connection, &tx));
+        // Polled once: it sent its request and leads; then it is kept but not polled.
+        tokio::select! {
+            biased;
+            _ = &mut stalled => panic!("answered before the task ran"),
+            _ = std::future::ready(()) => {}
+        }
+        assert!(connection.shared.signal.has_leader());
+        let other = {
+            let (connection, tx) = (connection.clone(), tx.clone());
+            tokio::spawn(async move {
+                for _ in 0..100 {
+                    ask(&connection, &tx).await;
+                }
+            })
+        };
+        tokio::time::timeout(Duration::from_secs(10), other)
+            .await
+            .expect("the keeper served the other caller")
+            .expect("the other caller ran");
+        // And the stalled call's answer is waiting for it.
+        let seen = stalled.await;
+        assert!(seen.reply.is_some(), "read by the keeper: {seen:?}");
     }
 
     #[tokio::test]
