@@ -21,8 +21,8 @@
 //!   `current_thread` runtime on the bench thread, `client`): no cross-thread wake-ups. This is
 //!   the cheapest way to run the client and what a single control loop would use;
 //! - `client multi_thread`: a 2-worker runtime (`client-mt`), the `#[tokio::main]` default on
-//!   this machine; the caller runs in `block_on` on the bench thread and the connection task on
-//!   a worker, so every round trip crosses threads twice more;
+//!   this machine; the caller runs in `block_on` on the bench thread, which tokio's I/O driver
+//!   (on a worker) has to wake for every reply — the same as for the bare tokio stream below;
 //! - `client multi_thread(2), caller spawned`: the same runtime and client, the calls made from a
 //!   task spawned on it (a worker thread), as a program that runs its control loop in a task
 //!   does; tokio then often runs the connection task and the caller on the same worker;

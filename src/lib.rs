@@ -12,6 +12,17 @@
 //! share between tasks), and — behind the default-on `sim` feature — a simulator that behaves like
 //! the device, for tests that run without hardware.
 //!
+//! # Where a client's work runs
+//!
+//! Each client's connection is one task that owns the transport, pairs replies and runs the
+//! timers. A call queues its request and then polls that task itself, so the request leaves from
+//! the caller's thread without waking another one; replies, timers, auto-updates and reconnects
+//! wake a spawned *keeper* task that polls the same task (on a `current_thread` runtime, the
+//! waiting caller reads its own reply first). On a multi-thread runtime, calls made from a
+//! spawned task are the cheapest: a call from the thread in `block_on` (where `#[tokio::main]`
+//! runs `main`) waits for the reply to be handed over from a worker thread, as any tokio I/O
+//! there does. The repository's `BENCHMARKS.md` has the figures.
+//!
 //! # Example
 //!
 //! A Grasping-Kit tells where the next part is; a WSG gripper pre-positions to the returned

@@ -1,7 +1,8 @@
 //! The async GRIPLINK client.
 //!
-//! One background task owns the TCP connection (`task.rs`); [`Client`] is a cheap handle to it
-//! (`Clone + Send + Sync`) that any number of tasks use at once. Replies are paired with
+//! One background task owns the TCP connection (`task.rs`; calls poll it inline to send their
+//! lines, see [Where a client's work runs](crate#where-a-clients-work-runs)); [`Client`] is a
+//! cheap handle to it (`Clone + Send + Sync`) that any number of tasks use at once. Replies are paired with
 //! commands strictly in order (`pipeline.rs`), as the controller answers every line exactly once,
 //! in order (manual 2.1).
 //!

@@ -1,4 +1,6 @@
-//! The async client: a cheap, cloneable handle to a background task that owns the TCP connection.
+//! The async client: a cheap, cloneable handle to a background task that owns the TCP connection
+//! (calls poll it inline to send their requests, see
+//! [Where a client's work runs](crate#where-a-clients-work-runs)).
 
 mod link;
 mod pairing;

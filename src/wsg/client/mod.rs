@@ -342,7 +342,8 @@ impl Shared {
 
 /// A handle to a WSG gripper: `Clone + Send + Sync`, any number of tasks may call it at once.
 ///
-/// One background task owns the connection. Replies are paired with requests by command id:
+/// One background task owns the connection (calls poll it inline to send their requests: see
+/// [Where a client's work runs](crate#where-a-clients-work-runs)). Replies are paired with requests by command id:
 /// calls with different ids run concurrently, calls with the same id are queued, with two
 /// exceptions:
 /// - **Stop and FAST STOP are never queued** (manual 3.2.3: "stoppt unmittelbar jede laufende
