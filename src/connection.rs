@@ -544,6 +544,104 @@ mod tests {
         });
     }
 
+    /// A caller's mix of calls: most complete, some are abandoned at once (as a timed-out call
+    /// is), some are polled once and then kept unpolled while the caller makes another call,
+    /// and then awaited or dropped.
+    async fn mixed_calls(connection: Connection, tx: Requests, seed: u64, rounds: u32) {
+        let mut state = seed | 1;
+        let mut next = move || {
+            // xorshift64: enough to vary the mix, and reproducible from the seed.
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        for _ in 0..rounds {
+            match next() % 8 {
+                0 => {
+                    let _ = tokio::time::timeout(Duration::ZERO, ask(&connection, &tx)).await;
+                }
+                1 => {
+                    let mut kept = std::pin::pin!(ask(&connection, &tx));
+                    let polled = tokio::select! {
+                        biased;
+                        seen = &mut kept => Some(seen),
+                        _ = std::future::ready(()) => None,
+                    };
+                    ask(&connection, &tx).await;
+                    if polled.is_none() && next() % 2 == 0 {
+                        kept.await;
+                    }
+                }
+                _ => {
+                    ask(&connection, &tx).await;
+                }
+            }
+        }
+    }
+
+    /// Callers on the keeper's runtime (tasks and `block_on`) and on a second runtime's
+    /// threads, with calls abandoned and kept unpolled: every call that is awaited gets its
+    /// answer (a lost wake-up hangs one, and the timeout fails the test).
+    fn callers_everywhere(keeper_runtime: tokio::runtime::Runtime) {
+        let other = tokio::runtime::Builder::new_multi_thread()
+            .worker_threads(1)
+            .enable_all()
+            .build()
+            .expect("runtime");
+        let (connection, tx) = keeper_runtime.block_on(async { echo() });
+        let mut elsewhere = Vec::new();
+        for seed in 0..3 {
+            elsewhere.push(other.spawn(mixed_calls(
+                connection.clone(),
+                tx.clone(),
+                100 + seed,
+                60,
+            )));
+        }
+        keeper_runtime.block_on(async {
+            let mut here = Vec::new();
+            for seed in 0..3 {
+                here.push(tokio::spawn(mixed_calls(
+                    connection.clone(),
+                    tx.clone(),
+                    200 + seed,
+                    60,
+                )));
+            }
+            tokio::time::timeout(Duration::from_secs(20), async {
+                mixed_calls(connection.clone(), tx.clone(), 300, 60).await;
+                for caller in here.into_iter().chain(elsewhere) {
+                    caller.await.expect("the caller ran");
+                }
+            })
+            .await
+            .expect("no wake-up was lost");
+        });
+        drop(other);
+    }
+
+    #[test]
+    fn callers_on_two_runtimes_all_get_their_answers_current_thread() {
+        callers_everywhere(
+            tokio::runtime::Builder::new_current_thread()
+                .enable_all()
+                .build()
+                .expect("runtime"),
+        );
+    }
+
+    #[test]
+    fn callers_on_two_runtimes_all_get_their_answers_multi_thread() {
+        callers_everywhere(
+            tokio::runtime::Builder::new_multi_thread()
+                .worker_threads(2)
+                .enable_all()
+                .build()
+                .expect("runtime"),
+        );
+    }
+
     #[test]
     fn the_task_ends_with_its_runtime() {
         let rt = tokio::runtime::Builder::new_current_thread()
