@@ -15,12 +15,13 @@
 //! a time (a mutex), always with the same waker, so every rule it keeps (pairing, stops never
 //! queued, one place where requests fail) holds whoever polls it.
 //!
-//! Why the reply still goes through the keeper (no leader/follower): a caller that waited for
-//! its reply by polling the connection would have to be woken for every event on it, and a
-//! caller's future may legally be left unpolled for a while (a `select!` that went elsewhere,
-//! a future kept for later); the connection would then stall for every other caller. The keeper
-//! is always polled when woken. And a caller in `block_on` cannot be woken by the socket any
-//! cheaper than by the keeper: tokio's I/O driver runs on a worker thread either way.
+//! Why the keeper is woken for every event even when a caller reads its own reply (the
+//! *leader*, on a `current_thread` runtime only: see [`Connection::call`]): a caller's future
+//! may legally be left unpolled for a while (a `select!` that went elsewhere, a future kept for
+//! later); a connection that relied on it would then stall for every other caller. The keeper
+//! is always polled when woken. On a multi-thread runtime the reply goes through the keeper: a
+//! caller in `block_on` cannot be woken by the socket any cheaper than by the keeper (tokio's
+//! I/O driver runs on a worker thread either way).
 //!
 //! # Wake-ups, and why none is lost
 //!
@@ -206,7 +207,8 @@ impl Connection {
     /// polled before any task, and tasks run in the order they were woken, so the leader reads
     /// its reply itself, as a bare socket would; the keeper then finds nothing left to do. If
     /// the leader was not polled (its future kept but left alone, say by a `select!` that went
-    /// elsewhere), the keeper polls the connection: such a leader delays nobody. On a multi-thread runtime no call leads: waking two tasks per event costs more
+    /// elsewhere), the keeper polls the connection: such a leader delays nobody. On a
+    /// multi-thread runtime (the keeper's) no call leads: waking two tasks per event costs more
     /// than it saves (a worker is woken to steal one of them; measured, BENCHMARKS.md), and the
     /// keeper, on the worker that saw the event, hands the reply over at once.
     pub(crate) async fn call<F: Future>(&self, call: F) -> F::Output {
@@ -654,6 +656,50 @@ mod tests {
         drop(rt);
         assert!(connection.ended(), "the keeper dropped the task");
         assert!(rx.blocking_recv().is_err(), "the waiting call failed");
+    }
+
+    #[test]
+    fn a_call_from_another_runtime_fails_when_the_keepers_runtime_shuts_down() {
+        let keeper_runtime = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .expect("runtime");
+        let other = tokio::runtime::Builder::new_multi_thread()
+            .worker_threads(1)
+            .enable_all()
+            .build()
+            .expect("runtime");
+        let (tx, mut rx) = mpsc::channel::<oneshot::Sender<()>>(1);
+        let (held, is_held) = std::sync::mpsc::channel();
+        // Keeps each request unanswered.
+        let connection = keeper_runtime.block_on(async {
+            Connection::spawn(async move {
+                let mut unanswered = Vec::new();
+                while let Some(answer) = rx.recv().await {
+                    unanswered.push(answer);
+                    let _ = held.send(());
+                }
+            })
+        });
+        let caller = other.spawn(async move {
+            connection
+                .call(async {
+                    let (answer, reply) = oneshot::channel();
+                    tx.send(answer).await.expect("the task runs");
+                    reply.await
+                })
+                .await
+        });
+        // Taken by the caller's inline poll: nobody drives the keeper's runtime.
+        is_held
+            .recv_timeout(Duration::from_secs(10))
+            .expect("the request was taken inline");
+        drop(keeper_runtime);
+        let answer = other
+            .block_on(async { tokio::time::timeout(Duration::from_secs(10), caller).await })
+            .expect("the call fails instead of hanging")
+            .expect("the caller ran");
+        assert!(answer.is_err(), "no answer can have come");
     }
 
     #[tokio::test]
