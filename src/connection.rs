@@ -644,6 +644,85 @@ mod tests {
         );
     }
 
+    /// A task that panics on its 20th request, called from the keeper's runtime and from a
+    /// second one: every call ends (it panics with the task or its answer channel closes), what
+    /// is left of the task is dropped and the keeper ends, whoever polled it when it panicked.
+    fn a_panic_anywhere_ends_everything(keeper_runtime: tokio::runtime::Runtime) {
+        let other = tokio::runtime::Builder::new_multi_thread()
+            .worker_threads(1)
+            .enable_all()
+            .build()
+            .expect("runtime");
+        let (tx, mut rx) = mpsc::channel::<oneshot::Sender<()>>(4);
+        let connection = keeper_runtime.block_on(async {
+            Connection::spawn(async move {
+                let mut taken = 0;
+                while let Some(answer) = rx.recv().await {
+                    taken += 1;
+                    assert!(taken < 20, "a bug in a connection task");
+                    let _ = answer.send(());
+                }
+            })
+        });
+        let calls = |connection: Connection, tx: mpsc::Sender<oneshot::Sender<()>>| async move {
+            loop {
+                let answered = connection
+                    .call(async {
+                        let (answer, reply) = oneshot::channel();
+                        if tx.send(answer).await.is_err() {
+                            return false;
+                        }
+                        reply.await.is_ok()
+                    })
+                    .await;
+                if !answered {
+                    return;
+                }
+            }
+        };
+        let mut callers = Vec::new();
+        for _ in 0..3 {
+            callers.push(other.spawn(calls(connection.clone(), tx.clone())));
+            callers.push(keeper_runtime.spawn(calls(connection.clone(), tx.clone())));
+        }
+        drop(tx);
+        keeper_runtime.block_on(async {
+            tokio::time::timeout(Duration::from_secs(20), async {
+                for caller in callers {
+                    // Ended: normally, or with the task's panic.
+                    let _ = caller.await;
+                }
+                while Arc::strong_count(&connection.shared) > 1 {
+                    tokio::task::yield_now().await;
+                }
+            })
+            .await
+            .expect("every call ended, and the keeper too");
+        });
+        assert!(connection.ended(), "what was left of the task was dropped");
+    }
+
+    #[test]
+    fn a_panic_anywhere_ends_everything_current_thread() {
+        a_panic_anywhere_ends_everything(
+            tokio::runtime::Builder::new_current_thread()
+                .enable_all()
+                .build()
+                .expect("runtime"),
+        );
+    }
+
+    #[test]
+    fn a_panic_anywhere_ends_everything_multi_thread() {
+        a_panic_anywhere_ends_everything(
+            tokio::runtime::Builder::new_multi_thread()
+                .worker_threads(2)
+                .enable_all()
+                .build()
+                .expect("runtime"),
+        );
+    }
+
     #[test]
     fn the_task_ends_with_its_runtime() {
         let rt = tokio::runtime::Builder::new_current_thread()
