@@ -15,12 +15,13 @@
 //! a time (a mutex), always with the same waker, so every rule it keeps (pairing, stops never
 //! queued, one place where requests fail) holds whoever polls it.
 //!
-//! Why the reply still goes through the keeper (no leader/follower): a caller that waited for
-//! its reply by polling the connection would have to be woken for every event on it, and a
-//! caller's future may legally be left unpolled for a while (a `select!` that went elsewhere,
-//! a future kept for later); the connection would then stall for every other caller. The keeper
-//! is always polled when woken. And a caller in `block_on` cannot be woken by the socket any
-//! cheaper than by the keeper: tokio's I/O driver runs on a worker thread either way.
+//! Why the keeper is woken for every event even when a caller reads its own reply (the
+//! *leader*, on a `current_thread` runtime only: see [`Connection::call`]): a caller's future
+//! may legally be left unpolled for a while (a `select!` that went elsewhere, a future kept for
+//! later); a connection that relied on it would then stall for every other caller. The keeper
+//! is always polled when woken. On a multi-thread runtime the reply goes through the keeper: a
+//! caller in `block_on` cannot be woken by the socket any cheaper than by the keeper (tokio's
+//! I/O driver runs on a worker thread either way).
 //!
 //! # Wake-ups, and why none is lost
 //!
@@ -206,7 +207,8 @@ impl Connection {
     /// polled before any task, and tasks run in the order they were woken, so the leader reads
     /// its reply itself, as a bare socket would; the keeper then finds nothing left to do. If
     /// the leader was not polled (its future kept but left alone, say by a `select!` that went
-    /// elsewhere), the keeper polls the connection: such a leader delays nobody. On a multi-thread runtime no call leads: waking two tasks per event costs more
+    /// elsewhere), the keeper polls the connection: such a leader delays nobody. On a
+    /// multi-thread runtime (the keeper's) no call leads: waking two tasks per event costs more
     /// than it saves (a worker is woken to steal one of them; measured, BENCHMARKS.md), and the
     /// keeper, on the worker that saw the event, hands the reply over at once.
     pub(crate) async fn call<F: Future>(&self, call: F) -> F::Output {
@@ -544,6 +546,183 @@ mod tests {
         });
     }
 
+    /// A caller's mix of calls: most complete, some are abandoned at once (as a timed-out call
+    /// is), some are polled once and then kept unpolled while the caller makes another call,
+    /// and then awaited or dropped.
+    async fn mixed_calls(connection: Connection, tx: Requests, seed: u64, rounds: u32) {
+        let mut state = seed | 1;
+        let mut next = move || {
+            // xorshift64: enough to vary the mix, and reproducible from the seed.
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        for _ in 0..rounds {
+            match next() % 8 {
+                0 => {
+                    let _ = tokio::time::timeout(Duration::ZERO, ask(&connection, &tx)).await;
+                }
+                1 => {
+                    let mut kept = std::pin::pin!(ask(&connection, &tx));
+                    let polled = tokio::select! {
+                        biased;
+                        seen = &mut kept => Some(seen),
+                        _ = std::future::ready(()) => None,
+                    };
+                    ask(&connection, &tx).await;
+                    if polled.is_none() && next() % 2 == 0 {
+                        kept.await;
+                    }
+                }
+                _ => {
+                    ask(&connection, &tx).await;
+                }
+            }
+        }
+    }
+
+    /// Callers on the keeper's runtime (tasks and `block_on`) and on a second runtime's
+    /// threads, with calls abandoned and kept unpolled: every call that is awaited gets its
+    /// answer (a lost wake-up hangs one, and the timeout fails the test).
+    fn callers_everywhere(keeper_runtime: tokio::runtime::Runtime) {
+        let other = tokio::runtime::Builder::new_multi_thread()
+            .worker_threads(1)
+            .enable_all()
+            .build()
+            .expect("runtime");
+        let (connection, tx) = keeper_runtime.block_on(async { echo() });
+        let mut elsewhere = Vec::new();
+        for seed in 0..3 {
+            elsewhere.push(other.spawn(mixed_calls(
+                connection.clone(),
+                tx.clone(),
+                100 + seed,
+                60,
+            )));
+        }
+        keeper_runtime.block_on(async {
+            let mut here = Vec::new();
+            for seed in 0..3 {
+                here.push(tokio::spawn(mixed_calls(
+                    connection.clone(),
+                    tx.clone(),
+                    200 + seed,
+                    60,
+                )));
+            }
+            tokio::time::timeout(Duration::from_secs(20), async {
+                mixed_calls(connection.clone(), tx.clone(), 300, 60).await;
+                for caller in here.into_iter().chain(elsewhere) {
+                    caller.await.expect("the caller ran");
+                }
+            })
+            .await
+            .expect("no wake-up was lost");
+        });
+        drop(other);
+    }
+
+    #[test]
+    fn callers_on_two_runtimes_all_get_their_answers_current_thread() {
+        callers_everywhere(
+            tokio::runtime::Builder::new_current_thread()
+                .enable_all()
+                .build()
+                .expect("runtime"),
+        );
+    }
+
+    #[test]
+    fn callers_on_two_runtimes_all_get_their_answers_multi_thread() {
+        callers_everywhere(
+            tokio::runtime::Builder::new_multi_thread()
+                .worker_threads(2)
+                .enable_all()
+                .build()
+                .expect("runtime"),
+        );
+    }
+
+    /// A task that panics on its 20th request, called from the keeper's runtime and from a
+    /// second one: every call ends (it panics with the task or its answer channel closes), what
+    /// is left of the task is dropped and the keeper ends, whoever polled it when it panicked.
+    fn a_panic_anywhere_ends_everything(keeper_runtime: tokio::runtime::Runtime) {
+        let other = tokio::runtime::Builder::new_multi_thread()
+            .worker_threads(1)
+            .enable_all()
+            .build()
+            .expect("runtime");
+        let (tx, mut rx) = mpsc::channel::<oneshot::Sender<()>>(4);
+        let connection = keeper_runtime.block_on(async {
+            Connection::spawn(async move {
+                let mut taken = 0;
+                while let Some(answer) = rx.recv().await {
+                    taken += 1;
+                    assert!(taken < 20, "a bug in a connection task");
+                    let _ = answer.send(());
+                }
+            })
+        });
+        let calls = |connection: Connection, tx: mpsc::Sender<oneshot::Sender<()>>| async move {
+            loop {
+                let answered = connection
+                    .call(async {
+                        let (answer, reply) = oneshot::channel();
+                        if tx.send(answer).await.is_err() {
+                            return false;
+                        }
+                        reply.await.is_ok()
+                    })
+                    .await;
+                if !answered {
+                    return;
+                }
+            }
+        };
+        let mut callers = Vec::new();
+        for _ in 0..3 {
+            callers.push(other.spawn(calls(connection.clone(), tx.clone())));
+            callers.push(keeper_runtime.spawn(calls(connection.clone(), tx.clone())));
+        }
+        drop(tx);
+        keeper_runtime.block_on(async {
+            tokio::time::timeout(Duration::from_secs(20), async {
+                for caller in callers {
+                    // Ended: normally, or with the task's panic.
+                    let _ = caller.await;
+                }
+                while Arc::strong_count(&connection.shared) > 1 {
+                    tokio::task::yield_now().await;
+                }
+            })
+            .await
+            .expect("every call ended, and the keeper too");
+        });
+        assert!(connection.ended(), "what was left of the task was dropped");
+    }
+
+    #[test]
+    fn a_panic_anywhere_ends_everything_current_thread() {
+        a_panic_anywhere_ends_everything(
+            tokio::runtime::Builder::new_current_thread()
+                .enable_all()
+                .build()
+                .expect("runtime"),
+        );
+    }
+
+    #[test]
+    fn a_panic_anywhere_ends_everything_multi_thread() {
+        a_panic_anywhere_ends_everything(
+            tokio::runtime::Builder::new_multi_thread()
+                .worker_threads(2)
+                .enable_all()
+                .build()
+                .expect("runtime"),
+        );
+    }
+
     #[test]
     fn the_task_ends_with_its_runtime() {
         let rt = tokio::runtime::Builder::new_current_thread()
@@ -556,6 +735,50 @@ mod tests {
         drop(rt);
         assert!(connection.ended(), "the keeper dropped the task");
         assert!(rx.blocking_recv().is_err(), "the waiting call failed");
+    }
+
+    #[test]
+    fn a_call_from_another_runtime_fails_when_the_keepers_runtime_shuts_down() {
+        let keeper_runtime = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .expect("runtime");
+        let other = tokio::runtime::Builder::new_multi_thread()
+            .worker_threads(1)
+            .enable_all()
+            .build()
+            .expect("runtime");
+        let (tx, mut rx) = mpsc::channel::<oneshot::Sender<()>>(1);
+        let (held, is_held) = std::sync::mpsc::channel();
+        // Keeps each request unanswered.
+        let connection = keeper_runtime.block_on(async {
+            Connection::spawn(async move {
+                let mut unanswered = Vec::new();
+                while let Some(answer) = rx.recv().await {
+                    unanswered.push(answer);
+                    let _ = held.send(());
+                }
+            })
+        });
+        let caller = other.spawn(async move {
+            connection
+                .call(async {
+                    let (answer, reply) = oneshot::channel();
+                    tx.send(answer).await.expect("the task runs");
+                    reply.await
+                })
+                .await
+        });
+        // Taken by the caller's inline poll: nobody drives the keeper's runtime.
+        is_held
+            .recv_timeout(Duration::from_secs(10))
+            .expect("the request was taken inline");
+        drop(keeper_runtime);
+        let answer = other
+            .block_on(async { tokio::time::timeout(Duration::from_secs(10), caller).await })
+            .expect("the call fails instead of hanging")
+            .expect("the caller ran");
+        assert!(answer.is_err(), "no answer can have come");
     }
 
     #[tokio::test]
