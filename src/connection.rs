@@ -60,9 +60,6 @@ struct Shared {
     /// The runtime the keeper runs on: an inline poll enters it, so the timers and sockets the
     /// connection creates belong to that runtime even when the caller runs on another one.
     runtime: Handle,
-    /// Whether a waiting caller becomes the leader: on a `current_thread` runtime only (see
-    /// [`Connection::call`]).
-    leads: bool,
 }
 
 /// The connection task's waker (see the module docs).
@@ -71,6 +68,9 @@ struct Signal {
     /// Callers inside [`Connection::call`]'s poll, each of which looks at `notified` on leaving.
     inline: AtomicUsize,
     keeper: Notify,
+    /// Whether a waiting caller becomes the leader: when the keeper runs on a `current_thread`
+    /// runtime only (see [`Connection::call`]).
+    leads: bool,
     /// The waiting caller woken together with the keeper (see [`Connection::call`]).
     leader: Mutex<Option<Leader>>,
     /// Numbers the calls, to tell the leader apart.
@@ -92,9 +92,11 @@ impl Wake for Signal {
     fn wake_by_ref(self: &Arc<Self>) {
         self.notified.store(true, SeqCst);
         if self.inline.load(SeqCst) == 0 {
-            let leader = lock(&self.leader).as_ref().map(|l| l.waker.clone());
-            if let Some(leader) = leader {
-                leader.wake();
+            if self.leads {
+                let leader = lock(&self.leader).as_ref().map(|l| l.waker.clone());
+                if let Some(leader) = leader {
+                    leader.wake();
+                }
             }
             self.keeper.notify_one();
         }
@@ -116,20 +118,25 @@ impl Signal {
     /// Makes call `id` the leader if there is none, or updates its waker if it is.
     fn lead(&self, id: u64, waker: &Waker) {
         let mut leader = lock(&self.leader);
-        match leader.as_mut() {
+        // A replaced waker is dropped after the lock is released: dropping a waker runs code
+        // that is not ours.
+        let _replaced = match leader.as_mut() {
             Some(leader) if leader.call == id => {
-                if !leader.waker.will_wake(waker) {
-                    leader.waker = waker.clone();
+                if leader.waker.will_wake(waker) {
+                    return;
                 }
+                std::mem::replace(&mut leader.waker, waker.clone())
             }
-            Some(_) => {}
+            Some(_) => return,
             None => {
                 *leader = Some(Leader {
                     call: id,
                     waker: waker.clone(),
-                })
+                });
+                return;
             }
-        }
+        };
+        drop(leader);
     }
 }
 
@@ -141,10 +148,17 @@ struct Leaving<'a> {
 
 impl Drop for Leaving<'_> {
     fn drop(&mut self) {
-        let mut leader = lock(&self.signal.leader);
-        if leader.as_ref().is_some_and(|l| l.call == self.call) {
-            *leader = None;
+        if !self.signal.leads {
+            return;
         }
+        let mut leader = lock(&self.signal.leader);
+        let _gone = if leader.as_ref().is_some_and(|l| l.call == self.call) {
+            leader.take()
+        } else {
+            None
+        };
+        // The waker is dropped after the lock is released (see `lead`).
+        drop(leader);
     }
 }
 
@@ -184,6 +198,7 @@ impl Connection {
             notified: AtomicBool::new(true),
             inline: AtomicUsize::new(0),
             keeper: Notify::new(),
+            leads: Handle::current().runtime_flavor() == RuntimeFlavor::CurrentThread,
             leader: Mutex::new(None),
             next_call: AtomicU64::new(0),
         });
@@ -191,7 +206,6 @@ impl Connection {
             task: Mutex::new(Some(Box::pin(task))),
             waker: Waker::from(Arc::clone(&signal)),
             signal,
-            leads: Handle::current().runtime_flavor() == RuntimeFlavor::CurrentThread,
             runtime: Handle::current(),
         });
         tokio::spawn(Keeper(Arc::clone(&shared)).run());
@@ -253,7 +267,7 @@ impl Shared {
             self.poll_task();
         }
         let polled = call.poll(cx);
-        if polled.is_pending() && self.leads {
+        if polled.is_pending() && self.signal.leads {
             self.signal.lead(id, cx.waker());
         }
         polled
