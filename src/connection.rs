@@ -26,7 +26,8 @@
 //! # Wake-ups, and why none is lost
 //!
 //! The connection future is always polled with one waker, [`Signal`]'s: it sets `notified` and,
-//! unless a caller is inside [`Connection::call`]'s poll (`inline` > 0), notifies the keeper.
+//! unless a caller is inside [`Connection::call`]'s poll (`inline` > 0), notifies the keeper (and
+//! wakes the leader, where callers lead).
 //! Whoever polls the connection clears `notified` first, under the mutex. A caller leaving its
 //! poll decrements `inline` and then, if `notified` is set, notifies the keeper: a wake-up that
 //! saw `inline` > 0 is always seen by the caller that made it so (both sides store, then load,
