@@ -379,6 +379,21 @@ mod tests {
     use std::time::Duration;
     use tokio::sync::{mpsc, oneshot};
 
+    fn multi_thread(workers: usize) -> tokio::runtime::Runtime {
+        tokio::runtime::Builder::new_multi_thread()
+            .worker_threads(workers)
+            .enable_all()
+            .build()
+            .expect("runtime")
+    }
+
+    fn current_thread() -> tokio::runtime::Runtime {
+        tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .expect("runtime")
+    }
+
     /// Who did what for one request.
     #[derive(Debug)]
     struct Seen {
@@ -443,11 +458,7 @@ mod tests {
 
     #[test]
     fn a_request_from_block_on_is_taken_on_the_callers_thread() {
-        let rt = tokio::runtime::Builder::new_multi_thread()
-            .worker_threads(2)
-            .enable_all()
-            .build()
-            .expect("runtime");
+        let rt = multi_thread(2);
         let (connection, tx) = rt.block_on(async { echo() });
         let caller = std::thread::current().id();
         let inline = rt.block_on(async {
@@ -475,10 +486,7 @@ mod tests {
 
     #[test]
     fn on_current_thread_the_caller_reads_its_own_reply() {
-        let rt = tokio::runtime::Builder::new_current_thread()
-            .enable_all()
-            .build()
-            .expect("runtime");
+        let rt = current_thread();
         let (connection, tx) = rt.block_on(async { echo() });
         let mut own = 0;
         for _ in 0..200 {
@@ -530,11 +538,7 @@ mod tests {
 
     #[test]
     fn many_callers_on_two_workers_all_get_their_answers() {
-        let rt = tokio::runtime::Builder::new_multi_thread()
-            .worker_threads(2)
-            .enable_all()
-            .build()
-            .expect("runtime");
+        let rt = multi_thread(2);
         rt.block_on(async {
             let (connection, tx) = echo();
             let mut callers = Vec::new();
@@ -601,11 +605,7 @@ mod tests {
     /// threads, with calls abandoned and kept unpolled: every call that is awaited gets its
     /// answer (a lost wake-up hangs one, and the timeout fails the test).
     fn callers_everywhere(keeper_runtime: tokio::runtime::Runtime) {
-        let other = tokio::runtime::Builder::new_multi_thread()
-            .worker_threads(1)
-            .enable_all()
-            .build()
-            .expect("runtime");
+        let other = multi_thread(1);
         let (connection, tx) = keeper_runtime.block_on(async { echo() });
         let mut elsewhere = Vec::new();
         for seed in 0..3 {
@@ -640,34 +640,19 @@ mod tests {
 
     #[test]
     fn callers_on_two_runtimes_all_get_their_answers_current_thread() {
-        callers_everywhere(
-            tokio::runtime::Builder::new_current_thread()
-                .enable_all()
-                .build()
-                .expect("runtime"),
-        );
+        callers_everywhere(current_thread());
     }
 
     #[test]
     fn callers_on_two_runtimes_all_get_their_answers_multi_thread() {
-        callers_everywhere(
-            tokio::runtime::Builder::new_multi_thread()
-                .worker_threads(2)
-                .enable_all()
-                .build()
-                .expect("runtime"),
-        );
+        callers_everywhere(multi_thread(2));
     }
 
     /// A task that panics on its 20th request, called from the keeper's runtime and from a
     /// second one: every call ends (it panics with the task or its answer channel closes), what
     /// is left of the task is dropped and the keeper ends, whoever polled it when it panicked.
     fn a_panic_anywhere_ends_everything(keeper_runtime: tokio::runtime::Runtime) {
-        let other = tokio::runtime::Builder::new_multi_thread()
-            .worker_threads(1)
-            .enable_all()
-            .build()
-            .expect("runtime");
+        let other = multi_thread(1);
         let (tx, mut rx) = mpsc::channel::<oneshot::Sender<()>>(4);
         let connection = keeper_runtime.block_on(async {
             Connection::spawn(async move {
@@ -719,31 +704,17 @@ mod tests {
 
     #[test]
     fn a_panic_anywhere_ends_everything_current_thread() {
-        a_panic_anywhere_ends_everything(
-            tokio::runtime::Builder::new_current_thread()
-                .enable_all()
-                .build()
-                .expect("runtime"),
-        );
+        a_panic_anywhere_ends_everything(current_thread());
     }
 
     #[test]
     fn a_panic_anywhere_ends_everything_multi_thread() {
-        a_panic_anywhere_ends_everything(
-            tokio::runtime::Builder::new_multi_thread()
-                .worker_threads(2)
-                .enable_all()
-                .build()
-                .expect("runtime"),
-        );
+        a_panic_anywhere_ends_everything(multi_thread(2));
     }
 
     #[test]
     fn the_task_ends_with_its_runtime() {
-        let rt = tokio::runtime::Builder::new_current_thread()
-            .enable_all()
-            .build()
-            .expect("runtime");
+        let rt = current_thread();
         let (connection, tx) = rt.block_on(async { echo() });
         let (answer, rx) = oneshot::channel();
         rt.block_on(tx.send(answer)).expect("the task runs");
@@ -754,15 +725,8 @@ mod tests {
 
     #[test]
     fn a_call_from_another_runtime_fails_when_the_keepers_runtime_shuts_down() {
-        let keeper_runtime = tokio::runtime::Builder::new_current_thread()
-            .enable_all()
-            .build()
-            .expect("runtime");
-        let other = tokio::runtime::Builder::new_multi_thread()
-            .worker_threads(1)
-            .enable_all()
-            .build()
-            .expect("runtime");
+        let keeper_runtime = current_thread();
+        let other = multi_thread(1);
         let (tx, mut rx) = mpsc::channel::<oneshot::Sender<()>>(1);
         let (held, is_held) = std::sync::mpsc::channel();
         // Keeps each request unanswered.
