@@ -2,9 +2,9 @@
 //!
 //! One background task owns the TCP connection (`task.rs`; calls poll it inline to send their
 //! lines, see [Where a client's work runs](crate#where-a-clients-work-runs)); [`Client`] is a
-//! cheap handle to it (`Clone + Send + Sync`) that any number of tasks use at once. Replies are paired with
-//! commands strictly in order (`pipeline.rs`), as the controller answers every line exactly once,
-//! in order (manual 2.1).
+//! cheap handle to it (`Clone + Send + Sync`) that any number of tasks use at once. Replies are
+//! paired with commands strictly in order (`pipeline.rs`), as the controller answers every line
+//! exactly once, in order (manual 2.1).
 //!
 //! # Timeouts and late replies
 //! Every call has a timeout: [`ClientConfig::query_timeout`] for commands answered at once,

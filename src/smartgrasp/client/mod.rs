@@ -320,13 +320,14 @@ impl Client {
         let closed = Arc::new(OnceLock::new());
         let events = EventSender::new("smartgrasp", EVENT_BUFFER);
         let close = Arc::new(Close::default());
+        let (subscriber, timeouts) = (events.subscriber(), config.timeouts());
         let task = task::Task {
             calls: rx,
             closed: Arc::clone(&closed),
             session,
-            config: config.clone(),
+            config,
             addrs,
-            events: events.clone(),
+            events,
             shutdown: close.shutdown.clone(),
             shared: Arc::clone(&shared),
         };
@@ -334,8 +335,8 @@ impl Client {
             connection: Connection::spawn(task::run(link, task)),
             calls,
             closed,
-            events: events.subscriber(),
-            timeouts: config.timeouts(),
+            events: subscriber,
+            timeouts,
             close,
             shared,
         }
