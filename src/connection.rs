@@ -529,11 +529,16 @@ mod tests {
     #[tokio::test]
     async fn the_keeper_alone_serves_requests_sent_around_call() {
         let (_connection, tx) = echo();
-        for _ in 0..100 {
-            let (answer, rx) = oneshot::channel();
-            tx.send(answer).await.expect("the task runs");
-            rx.await.expect("the keeper polls the task");
-        }
+        // Bounded, so that a keeper that stops polling fails the test instead of hanging it.
+        tokio::time::timeout(Duration::from_secs(10), async {
+            for _ in 0..100 {
+                let (answer, rx) = oneshot::channel();
+                tx.send(answer).await.expect("the task runs");
+                rx.await.expect("the keeper polls the task");
+            }
+        })
+        .await
+        .expect("the keeper served every request");
     }
 
     #[test]
