@@ -75,6 +75,7 @@ mod connection;
 #[cfg(feature = "sim")]
 pub mod fault;
 pub mod griplink;
+mod int_map;
 /// Reconnecting after a lost connection: backoff policy and connection events, shared by the
 /// `smartgrasp`, `griplink` and `wsg` clients (wsg over TCP and serial; UDP has no connection).
 pub mod reconnect;

@@ -41,12 +41,13 @@
 //! unsolicited: a loop reply that does not echo the payload on the wire, and E_ALREADY_RUNNING
 //! for an acknowledged request (the device's refusal of a duplicate of it).
 
-use std::collections::{HashMap, VecDeque};
+use std::collections::VecDeque;
 use std::time::Duration;
 
 use bytes::Bytes;
 use tokio::time::Instant;
 
+use crate::int_map::IntMap;
 use crate::wsg::command::id;
 use crate::wsg::{Frame, Reply, Status};
 
@@ -196,9 +197,9 @@ pub(crate) enum Verdict {
 /// The pairing state of one connection.
 #[derive(Debug)]
 pub(crate) struct Pairing {
-    ids: HashMap<u8, IdState>,
+    ids: IntMap<u8, IdState>,
     /// The stop and FAST STOP requests sent and not answered yet, by id.
-    stops: HashMap<u8, Vec<Token>>,
+    stops: IntMap<u8, Vec<Token>>,
     grace: Duration,
 }
 
@@ -207,8 +208,8 @@ impl Pairing {
     /// the spacing of the two observations that release a motion command under recovery.
     pub(crate) fn new(grace: Duration) -> Self {
         Self {
-            ids: HashMap::new(),
-            stops: HashMap::new(),
+            ids: IntMap::default(),
+            stops: IntMap::default(),
             grace,
         }
     }

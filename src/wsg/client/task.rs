@@ -2,8 +2,8 @@
 //! requests, pairs replies (see [`super::pairing`]), fans auto-updates out to
 //! subscribers, and is the one place where requests fail when the connection goes.
 
-use std::collections::HashMap;
 use std::io;
+use std::pin::pin;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, OnceLock};
 use std::time::Duration;
@@ -14,6 +14,7 @@ use tokio::time::{sleep_until, timeout, Instant};
 
 use super::pairing::{Due, Event, Observation, Pairing, Request, Submit, Token, Verdict};
 use super::Reconnect;
+use crate::int_map::IntMap;
 use crate::reconnect::{self, ConnectionEvent, EventSender};
 use crate::wsg::command::{id, Command, UpdateMode};
 use crate::wsg::subscription::{Subscriber, UpdateOptions};
@@ -85,10 +86,13 @@ pub(crate) struct Task {
     pub(crate) closing: Arc<AtomicBool>,
     /// The transport is TCP: a loss puts the gripper into FAST STOP.
     pub(crate) tcp: bool,
-    waiters: HashMap<Token, Waiter>,
-    streams: HashMap<u8, StreamState>,
+    waiters: IntMap<Token, Waiter>,
+    streams: IntMap<u8, StreamState>,
     next_token: Token,
 }
+
+/// Where the connection's timers wait while nothing is due (they are not polled then).
+const IDLE_TIMER: Duration = Duration::from_secs(3600);
 
 fn stream_command(id: u8, mode: UpdateMode) -> Frame {
     match id {
@@ -126,8 +130,8 @@ impl Task {
             query_timeout,
             write_timeout: query_timeout.saturating_add(grace),
             announce_on_close,
-            waiters: HashMap::new(),
-            streams: HashMap::new(),
+            waiters: IntMap::default(),
+            streams: IntMap::default(),
             next_token: 0,
         }
     }
@@ -249,9 +253,28 @@ impl Task {
     /// Runs until closed (returns who to tell and how it went) or the connection breaks
     /// (returns the reason).
     async fn serve(&mut self) -> std::result::Result<Closing, String> {
+        // One timer each for the pairing's next due time and a stalled partial frame, kept
+        // across iterations: a new `Sleep` per iteration costs a timer-wheel insert and removal
+        // for every request and reply (issue 14). Unpolled, a timer costs nothing.
+        let mut due_timer = pin!(sleep_until(Instant::now() + IDLE_TIMER));
+        let mut stale_timer = pin!(sleep_until(Instant::now() + IDLE_TIMER));
         loop {
             let due = self.pairing.next_due();
+            if let Some(at) = due {
+                // Early is harmless (the pairing says what is due when the timer fires, and the
+                // timer is then set again): one set for an earlier request's deadline serves
+                // the later ones, so a stream of calls does not move it every time.
+                if due_timer.is_elapsed() || at < due_timer.deadline() {
+                    due_timer.as_mut().reset(at);
+                }
+            }
             let stale = self.partial_frame_deadline();
+            if let Some(at) = stale {
+                // Exact: the handler below takes the deadline as reached.
+                if at != stale_timer.deadline() {
+                    stale_timer.as_mut().reset(at);
+                }
+            }
             tokio::select! {
                 // Input first: a frame already received cannot answer a request sent after it,
                 // so it is paired before the next request of its id goes out (a duplicated
@@ -262,7 +285,7 @@ impl Task {
                     Some(Err(e)) => return Err(e.to_string()),
                     None => return Err("the gripper closed the connection".into()),
                 },
-                _ = sleep_until(stale.unwrap_or_else(Instant::now)), if stale.is_some() => {
+                () = &mut stale_timer, if stale.is_some() => {
                     if self.link.partial_len() == self.partial.0 {
                         for frame in self.link.resync() {
                             self.on_frame(frame).await.map_err(io_reason)?;
@@ -309,7 +332,7 @@ impl Task {
                 Some((id, key)) = self.unsubscribe.recv() => {
                     self.unsubscribe(id, key).await.map_err(io_reason)?;
                 }
-                _ = sleep_until(due.unwrap_or_else(Instant::now)), if due.is_some() => {
+                () = &mut due_timer, if due.is_some() => {
                     for due in self.pairing.due(Instant::now()) {
                         self.on_due(due).await.map_err(io_reason)?;
                     }
@@ -629,7 +652,7 @@ async fn send_within(link: &mut Link, frame: &Frame, limit: Duration) -> io::Res
 }
 
 /// Whether anyone still waits for request `token`.
-fn alive(waiters: &HashMap<Token, Waiter>, token: Token) -> bool {
+fn alive(waiters: &IntMap<Token, Waiter>, token: Token) -> bool {
     match waiters.get(&token) {
         Some(Waiter::Caller(tx)) => !tx.is_closed(),
         Some(Waiter::Internal | Waiter::Probe { .. }) => true,
