@@ -32,6 +32,20 @@
 //!   `tokio::net::TcpStream` awaited in `block_on` on each runtime — what any tokio client pays
 //!   before it adds a channel, a task or pairing, so the client's own cost is the difference.
 //!
+//! `--only wsg|griplink|smartgrasp [--raw] [--calls N]` runs one protocol's client (or, with
+//! `--raw`, the bare tokio stream) alone on a `current_thread` runtime on the main thread, N
+//! queries (default 10,000), and prints the wall time and the main thread's CPU time per query.
+//! It is the program to count a round trip's instructions with, a figure that does not move with
+//! the machine's load (the simulators run on other threads, so the main thread's count is the
+//! client's):
+//!
+//! ```text
+//! cargo bench --bench roundtrip --no-run     # prints the binary's path
+//! valgrind --tool=callgrind --separate-threads=yes <binary> --only wsg --calls 1000
+//! valgrind --tool=callgrind --separate-threads=yes <binary> --only wsg --calls 5000
+//! # the difference of the two runs' totals in callgrind.out.<pid>-01 (the main thread) ÷ 4000
+//! ```
+//!
 //! The variants alternate in blocks of 100 queries, so a change of the machine's load during the
 //! run hits all of them alike. Allocations per round trip are counted on the bench thread for the
 //! `current_thread` variant, where the caller and the client's task both run.
@@ -348,6 +362,74 @@ fn measure(proto: Proto, addr: SocketAddr, rounds: usize) -> Vec<Samples> {
     vec![s_raw, s_ct_raw, s_ct, s_mt_raw, s_mt, s_mt_task]
 }
 
+/// What `--only` measures: the client, or the bare stream.
+enum Subject {
+    Client(AnyClient),
+    Raw(RawTokio),
+}
+
+impl Subject {
+    async fn block(&mut self, out: &mut Vec<Duration>) {
+        match self {
+            Subject::Client(c) => client_block(c, out).await,
+            Subject::Raw(r) => r.block(out).await,
+        }
+    }
+
+    async fn close(self) {
+        match self {
+            Subject::Client(c) => c.close().await,
+            Subject::Raw(r) => r.close().await,
+        }
+    }
+}
+
+/// `--only`: `calls` queries of one protocol on a `current_thread` runtime on this thread, through
+/// the client or (`raw`) the bare tokio stream; prints wall and CPU time per query.
+fn cost(targets: &[(Proto, SocketAddr)], only: &str, calls: usize, raw: bool) {
+    let Some(&(proto, addr)) = targets
+        .iter()
+        .find(|(p, _)| format!("{p:?}").eq_ignore_ascii_case(only))
+    else {
+        eprintln!("--only takes wsg, griplink or smartgrasp, not {only:?}");
+        std::process::exit(2);
+    };
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .expect("runtime");
+    let blocks = calls.div_ceil(BLOCK).max(1);
+    let mut times = Vec::with_capacity(blocks * BLOCK);
+    let (wall, cpu_ns) = rt.block_on(async {
+        // Connect and warm up outside the measured part.
+        let mut subject = match raw {
+            true => Subject::Raw(RawTokio::connect(proto, addr).await),
+            false => Subject::Client(AnyClient::connect(proto, addr).await),
+        };
+        subject.block(&mut Vec::new()).await;
+        let (t, cpu) = (Instant::now(), common::this_thread_cpu_ns());
+        for _ in 0..blocks {
+            subject.block(&mut times).await;
+        }
+        let measured = (t.elapsed(), common::this_thread_cpu_ns() - cpu);
+        subject.close().await;
+        measured
+    });
+    let n = (blocks * BLOCK) as f64;
+    println!(
+        "{} through {}: {} queries, {:.2} µs wall and {:.2} µs CPU on this thread per query",
+        proto.query(),
+        if raw {
+            "a bare tokio stream"
+        } else {
+            "the client"
+        },
+        blocks * BLOCK,
+        wall.as_secs_f64() * 1e6 / n,
+        cpu_ns as f64 / 1e3 / n,
+    );
+}
+
 /// One variant's figures in one run.
 #[derive(Clone, Copy)]
 struct RunStats {
@@ -425,6 +507,12 @@ fn main() {
         (Proto::Griplink, griplink_sim.local_addr()),
         (Proto::SmartGrasp, sg_sim.local_addr()),
     ];
+
+    if let Some(only) = flag_value::<String>("--only") {
+        let calls = flag_value("--calls").unwrap_or(10_000);
+        cost(&targets, &only, calls, has_flag("--raw"));
+        return;
+    }
 
     // Every run measures each protocol in turn (its variants interleaved in blocks); the
     // figures reported are the medians over the runs, with the spread of the ratio.

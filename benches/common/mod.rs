@@ -81,6 +81,15 @@ fn ticks_ns(stat: &std::path::Path) -> u64 {
     (f.get(11).copied().unwrap_or(0) + f.get(12).copied().unwrap_or(0)) * 10_000_000
 }
 
+/// CPU nanoseconds used so far by the calling thread (`/proc/thread-self/schedstat`; 0 where
+/// there is none).
+pub fn this_thread_cpu_ns() -> u64 {
+    fs::read_to_string("/proc/thread-self/schedstat")
+        .ok()
+        .and_then(|s| s.split_whitespace().next()?.parse().ok())
+        .unwrap_or(0)
+}
+
 /// CPU nanoseconds of the whole process (all threads, including exited ones), from
 /// `/proc/self/stat` (10 ms ticks).
 pub fn process_cpu_ns() -> u64 {
