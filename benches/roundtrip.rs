@@ -365,7 +365,7 @@ fn measure(proto: Proto, addr: SocketAddr, rounds: usize) -> Vec<Samples> {
 /// What `--only` measures: the client, or the bare stream.
 enum Subject {
     Client(AnyClient),
-    Raw(RawTokio),
+    Raw(Box<RawTokio>),
 }
 
 impl Subject {
@@ -379,7 +379,7 @@ impl Subject {
     async fn close(self) {
         match self {
             Subject::Client(c) => c.close().await,
-            Subject::Raw(r) => r.close().await,
+            Subject::Raw(r) => (*r).close().await,
         }
     }
 }
@@ -403,7 +403,7 @@ fn cost(targets: &[(Proto, SocketAddr)], only: &str, calls: usize, raw: bool) {
     let (wall, cpu_ns) = rt.block_on(async {
         // Connect and warm up outside the measured part.
         let mut subject = match raw {
-            true => Subject::Raw(RawTokio::connect(proto, addr).await),
+            true => Subject::Raw(Box::new(RawTokio::connect(proto, addr).await)),
             false => Subject::Client(AnyClient::connect(proto, addr).await),
         };
         subject.block(&mut Vec::new()).await;
