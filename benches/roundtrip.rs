@@ -32,9 +32,10 @@
 //!   `tokio::net::TcpStream` awaited in `block_on` on each runtime — what any tokio client pays
 //!   before it adds a channel, a task or pairing, so the client's own cost is the difference.
 //!
-//! `--only wsg|griplink|smartgrasp [--raw] [--calls N]` runs one protocol's client (or, with
-//! `--raw`, the bare tokio stream) alone on a `current_thread` runtime on the main thread, N
-//! queries (default 10,000), and prints the wall time and the main thread's CPU time per query.
+//! `--only wsg|griplink|smartgrasp [--raw] [--mt] [--calls N]` runs one protocol's client (or,
+//! with `--raw`, the bare tokio stream) alone from the main thread, N queries (default 10,000), on
+//! a `current_thread` runtime (or, with `--mt`, from `block_on` on a `multi_thread(2)` one), and
+//! prints the wall time and the main thread's CPU time per query.
 //! It is the program to count a round trip's instructions with, a figure that does not move with
 //! the machine's load (the simulators run on other threads, so the main thread's count is the
 //! client's):
@@ -384,9 +385,10 @@ impl Subject {
     }
 }
 
-/// `--only`: `calls` queries of one protocol on a `current_thread` runtime on this thread, through
-/// the client or (`raw`) the bare tokio stream; prints wall and CPU time per query.
-fn cost(targets: &[(Proto, SocketAddr)], only: &str, calls: usize, raw: bool) {
+/// `--only`: `calls` queries of one protocol from this thread, on a `current_thread` runtime (or
+/// `mt`, a `multi_thread(2)` one), through the client or (`raw`) the bare tokio stream; prints
+/// wall and CPU time per query.
+fn cost(targets: &[(Proto, SocketAddr)], only: &str, calls: usize, raw: bool, mt: bool) {
     let Some(&(proto, addr)) = targets
         .iter()
         .find(|(p, _)| format!("{p:?}").eq_ignore_ascii_case(only))
@@ -394,10 +396,14 @@ fn cost(targets: &[(Proto, SocketAddr)], only: &str, calls: usize, raw: bool) {
         eprintln!("--only takes wsg, griplink or smartgrasp, not {only:?}");
         std::process::exit(2);
     };
-    let rt = tokio::runtime::Builder::new_current_thread()
-        .enable_all()
-        .build()
-        .expect("runtime");
+    let rt = if mt {
+        common::runtime("client-mt", 2)
+    } else {
+        tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .expect("runtime")
+    };
     let blocks = calls.div_ceil(BLOCK).max(1);
     let mut times = Vec::with_capacity(blocks * BLOCK);
     let (wall, cpu_ns) = rt.block_on(async {
@@ -417,12 +423,17 @@ fn cost(targets: &[(Proto, SocketAddr)], only: &str, calls: usize, raw: bool) {
     });
     let n = (blocks * BLOCK) as f64;
     println!(
-        "{} through {}: {} queries, {:.2} µs wall and {:.2} µs CPU on this thread per query",
+        "{} through {} on {}: {} queries, {:.2} µs wall and {:.2} µs CPU on this thread per query",
         proto.query(),
         if raw {
             "a bare tokio stream"
         } else {
             "the client"
+        },
+        if mt {
+            "multi_thread(2), from block_on"
+        } else {
+            "current_thread"
         },
         blocks * BLOCK,
         wall.as_secs_f64() * 1e6 / n,
@@ -510,7 +521,7 @@ fn main() {
 
     if let Some(only) = flag_value::<String>("--only") {
         let calls = flag_value("--calls").unwrap_or(10_000);
-        cost(&targets, &only, calls, has_flag("--raw"));
+        cost(&targets, &only, calls, has_flag("--raw"), has_flag("--mt"));
         return;
     }
 
