@@ -178,12 +178,9 @@ pub fn interpret(command: &str, expect: Expect, line: &str) -> Result<Answer> {
         (Reply::Ack, Expect::Ack | Expect::Any) => Ok(Answer::Ack),
         (Reply::Data(data), Expect::Any) => Ok(Answer::Data(data)),
         (Reply::Data(data), Expect::Data { key, port, index }) => {
-            let want: Vec<i64> = port
-                .map(i64::from)
-                .into_iter()
-                .chain(index.map(i64::from))
-                .collect();
-            if key_matches(key, &data.key) && data.indices == want {
+            // Compared in place: collecting the expected indices would allocate on every reply.
+            let want = port.map(i64::from).into_iter().chain(index.map(i64::from));
+            if key_matches(key, &data.key) && data.indices.iter().copied().eq(want) {
                 Ok(Answer::Data(data))
             } else {
                 Err(unexpected())

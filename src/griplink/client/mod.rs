@@ -215,14 +215,16 @@ pub struct Client {
 
 /// A `KEY[…]=value` reply together with the command it answers, for typed extraction.
 struct Reading {
-    command: String,
+    /// Encoded again only for an error message, so a read encodes its line once.
+    command: Command,
     data: Data,
 }
 
 impl Reading {
     fn wrong(&self, expected: &str) -> Error {
         Error::UnexpectedReply {
-            command: self.command.clone(),
+            // It was encoded before it was sent, so it encodes again.
+            command: self.command.encode().unwrap_or_default(),
             line: self.data.to_string(),
             expected: expected.to_owned(),
         }
@@ -428,12 +430,22 @@ impl Client {
             .unwrap_or_else(|| self.config.timeout_for(duty))
     }
 
-    async fn submit(&self, line: String, expect: Expect, duty: Duty, bye: bool) -> Result<Answer> {
+    /// Queues `line` and waits for its reply. `line_again` gives the line for a timeout error:
+    /// `line` itself goes to the task, and copying it for an error that rarely happens would
+    /// cost an allocation on every call.
+    async fn submit(
+        &self,
+        line: String,
+        line_again: impl FnOnce() -> String,
+        expect: Expect,
+        duty: Duty,
+        bye: bool,
+    ) -> Result<Answer> {
         let timeout = self.timeout_for(duty);
         let deadline = Instant::now() + timeout;
         let (waiter, answer) = oneshot::channel();
         let request = Request {
-            line: line.clone(),
+            line,
             expect,
             deadline,
             timeout,
@@ -451,7 +463,7 @@ impl Client {
         match self.connection.call(exchange).await {
             Ok(result) => result,
             Err(_) => Err(Error::Timeout {
-                command: line,
+                command: line_again(),
                 timeout,
             }),
         }
@@ -464,8 +476,10 @@ impl Client {
     pub async fn execute(&self, command: &Command) -> Result<Answer> {
         let line = command.encode()?;
         let bye = matches!(command, Command::Bye);
+        // It encoded once, so it encodes again.
+        let line_again = || command.encode().unwrap_or_default();
         let answer = self
-            .submit(line, command.expect(), command.duty(), bye)
+            .submit(line, line_again, command.expect(), command.duty(), bye)
             .await?;
         // What a reconnect restores: the mode the controller reports.
         if let (Command::SetVerbose(_), Answer::Data(data)) = (command, &answer) {
@@ -485,7 +499,8 @@ impl Client {
     /// controller even if the call is dropped (a motion keeps moving).
     pub async fn command(&self, line: &str) -> Result<Answer> {
         check_raw_line(line)?;
-        self.submit(line.to_owned(), Expect::Any, Duty::Query, false)
+        let line_again = || line.to_owned();
+        self.submit(line.to_owned(), line_again, Expect::Any, Duty::Query, false)
             .await
     }
 
@@ -502,14 +517,10 @@ impl Client {
     }
 
     async fn read(&self, command: Command) -> Result<Reading> {
-        let line = command.encode()?;
         match self.execute(&command).await? {
-            Answer::Data(data) => Ok(Reading {
-                command: line,
-                data,
-            }),
+            Answer::Data(data) => Ok(Reading { command, data }),
             Answer::Ack => Err(Error::UnexpectedReply {
-                command: line,
+                command: command.encode().unwrap_or_default(),
                 line: "ACK".into(),
                 expected: "a value".into(),
             }),
