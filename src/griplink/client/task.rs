@@ -6,6 +6,7 @@
 //! [`ClientConfig::reconnect`]: super::ClientConfig::reconnect
 
 use std::future::poll_fn;
+use std::io::ErrorKind::{Interrupted, WouldBlock};
 use std::net::SocketAddr;
 use std::pin::Pin;
 use std::sync::{Arc, Mutex};
@@ -105,8 +106,46 @@ pub(crate) struct Task {
 /// One connection: the reply reader and the command writer.
 struct Conn {
     reader: FramedRead<OwnedReadHalf, LineCodec>,
-    write: OwnedWriteHalf,
+    writer: Writer,
+}
+
+/// The command side of a connection.
+struct Writer {
+    half: OwnedWriteHalf,
     encoder: LineCodec,
+    /// The line being written, kept from one command to the next so that a command does not
+    /// allocate a buffer.
+    out: BytesMut,
+}
+
+impl Writer {
+    /// Writes one command line, giving up on the connection if the controller stops reading
+    /// until `limit`.
+    async fn send(&mut self, line: &str, limit: Instant) -> Result<(), Error> {
+        self.out.clear();
+        self.encoder
+            .encode(line, &mut self.out)
+            .map_err(|e| Error::invalid("command line", e.to_string()))?;
+        // A command line is short, so the socket almost always takes it whole at once: only a
+        // write that has to wait (the controller stopped reading) needs the timer, which costs
+        // more than the write itself.
+        let sent = match self.half.try_write(&self.out) {
+            Ok(n) => n,
+            Err(e) if matches!(e.kind(), WouldBlock | Interrupted) => 0,
+            Err(e) => return Err(io_error(e)),
+        };
+        let rest = self.out.get(sent..).unwrap_or_default();
+        if rest.is_empty() {
+            return Ok(());
+        }
+        match tokio::time::timeout_at(limit, self.half.write_all(rest)).await {
+            Ok(Ok(())) => Ok(()),
+            Ok(Err(e)) => Err(io_error(e)),
+            Err(_) => Err(Error::ConnectionLost(
+                "the controller stopped reading commands".into(),
+            )),
+        }
+    }
 }
 
 impl Conn {
@@ -117,8 +156,11 @@ impl Conn {
         let codec = LineCodec::new(max_line_len).reject_unterminated();
         Conn {
             reader: FramedRead::new(read, codec),
-            write,
-            encoder: LineCodec::new(max_line_len),
+            writer: Writer {
+                half: write,
+                encoder: LineCodec::new(max_line_len),
+                out: BytesMut::new(),
+            },
         }
     }
 
@@ -133,7 +175,7 @@ impl Conn {
     async fn exchange(&mut self, command: Command, timeout: Duration) -> Result<(), Error> {
         let line = command.encode()?;
         let deadline = Instant::now() + timeout;
-        send_line(&mut self.write, &mut self.encoder, &line, deadline).await?;
+        self.writer.send(&line, deadline).await?;
         let reply = match tokio::time::timeout_at(deadline, next_line(&mut self.reader)).await {
             Err(_) => {
                 return Err(Error::Timeout {
@@ -181,26 +223,6 @@ pub(crate) async fn connect_any(
         }
     }
     Err(last)
-}
-
-/// Writes one command line, giving up on the connection if the controller stops reading.
-async fn send_line(
-    write: &mut OwnedWriteHalf,
-    encoder: &mut LineCodec,
-    line: &str,
-    limit: Instant,
-) -> Result<(), Error> {
-    let mut out = BytesMut::new();
-    encoder
-        .encode(line, &mut out)
-        .map_err(|e| Error::invalid("command line", e.to_string()))?;
-    match tokio::time::timeout_at(limit, write.write_all(&out)).await {
-        Ok(Ok(())) => Ok(()),
-        Ok(Err(e)) => Err(io_error(e)),
-        Err(_) => Err(Error::ConnectionLost(
-            "the controller stopped reading commands".into(),
-        )),
-    }
 }
 
 /// The controller ended the connection (EOF after it was open): the connection is lost, not
@@ -294,8 +316,7 @@ async fn serve(
 ) -> Error {
     let Conn {
         mut reader,
-        mut write,
-        mut encoder,
+        mut writer,
     } = conn;
     let mut pipeline =
         Pipeline::new(config.pipeline_depth).with_probe_timeout(config.probe_timeout);
@@ -313,7 +334,7 @@ async fn serve(
                     Delivery::Resync(probe) if !closing => {
                         tracing::warn!(%probe, "griplink: a reply was out of step, resynchronising");
                         let limit = pipeline.give_up_at().unwrap_or_else(Instant::now);
-                        if let Err(e) = send_line(&mut write, &mut encoder, probe, limit).await {
+                        if let Err(e) = writer.send(probe, limit).await {
                             break e;
                         }
                     }
@@ -351,7 +372,7 @@ async fn serve(
                     continue;
                 }
                 let give_up_at = request.deadline + config.give_up_after;
-                match send_line(&mut write, &mut encoder, &request.line, give_up_at).await {
+                match writer.send(&request.line, give_up_at).await {
                     Ok(()) => {}
                     Err(err @ Error::InvalidArgument { .. }) => {
                         let _ = request.waiter.send(Err(err));
@@ -382,7 +403,7 @@ async fn serve(
         let _ = waiter.send(Err(end.clone()));
     }
     pipeline.fail_all(&end);
-    let _ = write.shutdown().await;
+    let _ = writer.half.shutdown().await;
     // After BYE the program is done with the connection, however it ended.
     if closing {
         Error::Closed
