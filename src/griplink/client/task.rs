@@ -324,8 +324,17 @@ async fn serve(
     // A request whose write failed: told why after the queue is closed (below).
     let mut unsent = None;
 
+    // One give-up timer for the connection, moved to the oldest outstanding reply's limit
+    // whenever that changes: a new timer per command would be registered in and removed from
+    // tokio's timer wheel every time, while moving this one to a later limit only updates its
+    // deadline. When no reply is outstanding it is not polled (and may still fire once, unseen).
+    let give_up_timer = tokio::time::sleep_until(Instant::now());
+    tokio::pin!(give_up_timer);
     let end: Error = loop {
         let give_up = pipeline.give_up_at();
+        if let Some(at) = give_up.filter(|at| *at != give_up_timer.deadline()) {
+            give_up_timer.as_mut().reset(at);
+        }
         tokio::select! {
             // Replies first: they free slots and callers.
             biased;
@@ -349,7 +358,7 @@ async fn serve(
                 None if closing => break Error::Closed,
                 None => break controller_closed(),
             },
-            () = tokio::time::sleep_until(give_up.unwrap_or_else(Instant::now)), if give_up.is_some() => {
+            () = &mut give_up_timer, if give_up.is_some() => {
                 let command = pipeline.oldest().unwrap_or_default().to_owned();
                 tracing::error!(%command, "griplink: reply overdue, giving up on the connection");
                 break Error::ConnectionLost(format!(
