@@ -22,7 +22,7 @@ use tokio::time::Instant;
 use tokio_util::codec::{Encoder, FramedRead};
 
 use super::pipeline::{Delivery, Pipeline, Slot, Waiter};
-use crate::griplink::codec::{Line, LineCodec};
+use crate::griplink::codec::{LineCodec, RawLine, RawLineCodec};
 use crate::griplink::command::{Command, Expect};
 use crate::griplink::error::Error;
 use crate::griplink::reply::interpret;
@@ -105,7 +105,7 @@ pub(crate) struct Task {
 
 /// One connection: the reply reader and the command writer.
 struct Conn {
-    reader: FramedRead<OwnedReadHalf, LineCodec>,
+    reader: FramedRead<OwnedReadHalf, RawLineCodec>,
     writer: Writer,
 }
 
@@ -153,7 +153,7 @@ impl Conn {
         let (read, write) = stream.into_split();
         // A line cut off by the end of the connection is not a reply: `VALUE[0][0]=12` may be
         // the first half of `VALUE[0][0]=12345`.
-        let codec = LineCodec::new(max_line_len).reject_unterminated();
+        let codec = RawLineCodec(LineCodec::new(max_line_len).reject_unterminated());
         Conn {
             reader: FramedRead::new(read, codec),
             writer: Writer {
@@ -186,9 +186,9 @@ impl Conn {
             Ok(None) => return Err(controller_closed()),
             Ok(Some(reply)) => reply.map_err(io_error)?,
         };
-        match reply {
-            Line::Text(text) => interpret(&line, command.expect(), &text).map(drop),
-            Line::Discarded(why) => Err(Error::MalformedReply {
+        match reply.text() {
+            Ok(text) => interpret(&line, command.expect(), text).map(drop),
+            Err(why) => Err(Error::MalformedReply {
                 command: line,
                 line: String::new(),
                 reason: why.to_string(),
@@ -245,8 +245,8 @@ fn io_error(e: std::io::Error) -> Error {
 }
 
 async fn next_line(
-    reader: &mut FramedRead<OwnedReadHalf, LineCodec>,
-) -> Option<std::io::Result<Line>> {
+    reader: &mut FramedRead<OwnedReadHalf, RawLineCodec>,
+) -> Option<std::io::Result<RawLine>> {
     poll_fn(|cx| Pin::new(&mut *reader).poll_next(cx)).await
 }
 
@@ -339,7 +339,7 @@ async fn serve(
             // Replies first: they free slots and callers.
             biased;
             line = next_line(&mut reader) => match line {
-                Some(Ok(line)) => match pipeline.on_line(line) {
+                Some(Ok(line)) => match pipeline.on_line(line.text()) {
                     Delivery::Resync(probe) if !closing => {
                         tracing::warn!(%probe, "griplink: a reply was out of step, resynchronising");
                         let limit = pipeline.give_up_at().unwrap_or_else(Instant::now);
