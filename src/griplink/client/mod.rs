@@ -116,7 +116,7 @@ use super::codec::DEFAULT_MAX_LINE_LEN;
 use super::command::Blocking;
 use super::command::{check_raw_line, Command, Duty, Expect, GripConfig, GripConfigF, PortNumber};
 use super::error::{Error, Result};
-use super::reply::{Answer, Data};
+use super::reply::{Answer, Checked, Datum};
 use super::state::DeviceState;
 use super::value::Value;
 use crate::connection::Connection;
@@ -217,7 +217,7 @@ pub struct Client {
 struct Reading {
     /// Encoded again only for an error message, so a read encodes its line once.
     command: Command,
-    data: Data,
+    data: Datum,
 }
 
 impl Reading {
@@ -440,7 +440,7 @@ impl Client {
         expect: Expect,
         duty: Duty,
         bye: bool,
-    ) -> Result<Answer> {
+    ) -> Result<Checked> {
         let timeout = self.timeout_for(duty);
         let deadline = Instant::now() + timeout;
         let (waiter, answer) = oneshot::channel();
@@ -474,6 +474,11 @@ impl Client {
     /// [Cancel-safe](self#cancellation) for the connection; once sent, the command runs on the
     /// controller even if the call is dropped (a motion keeps moving).
     pub async fn execute(&self, command: &Command) -> Result<Answer> {
+        self.execute_checked(command).await.map(Answer::from)
+    }
+
+    /// [`Client::execute`], with the reply's data in the form that costs no allocation.
+    async fn execute_checked(&self, command: &Command) -> Result<Checked> {
         let line = command.encode()?;
         let bye = matches!(command, Command::Bye);
         // It encoded once, so it encodes again.
@@ -482,7 +487,7 @@ impl Client {
             .submit(line, line_again, command.expect(), command.duty(), bye)
             .await?;
         // What a reconnect restores: the mode the controller reports.
-        if let (Command::SetVerbose(_), Answer::Data(data)) = (command, &answer) {
+        if let (Command::SetVerbose(_), Checked::Data(data)) = (command, &answer) {
             if let Some(mode) = data.value.as_int() {
                 self.shared.set_verbose(mode != 0);
             }
@@ -502,13 +507,14 @@ impl Client {
         let line_again = || line.to_owned();
         self.submit(line.to_owned(), line_again, Expect::Any, Duty::Query, false)
             .await
+            .map(Answer::from)
     }
 
     pub(crate) async fn ack(&self, command: Command) -> Result<()> {
-        match self.execute(&command).await? {
-            Answer::Ack => Ok(()),
+        match self.execute_checked(&command).await? {
+            Checked::Ack => Ok(()),
             // `execute` checked the reply against `Expect::Ack` already.
-            Answer::Data(data) => Err(Error::UnexpectedReply {
+            Checked::Data(data) => Err(Error::UnexpectedReply {
                 command: command.encode().unwrap_or_default(),
                 line: data.to_string(),
                 expected: "ACK".into(),
@@ -517,9 +523,9 @@ impl Client {
     }
 
     async fn read(&self, command: Command) -> Result<Reading> {
-        match self.execute(&command).await? {
-            Answer::Data(data) => Ok(Reading { command, data }),
-            Answer::Ack => Err(Error::UnexpectedReply {
+        match self.execute_checked(&command).await? {
+            Checked::Data(data) => Ok(Reading { command, data }),
+            Checked::Ack => Err(Error::UnexpectedReply {
                 command: command.encode().unwrap_or_default(),
                 line: "ACK".into(),
                 expected: "a value".into(),

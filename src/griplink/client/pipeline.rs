@@ -23,10 +23,10 @@ use tokio::time::Instant;
 use crate::griplink::codec::Discarded;
 use crate::griplink::command::Expect;
 use crate::griplink::error::{Error, Result};
-use crate::griplink::reply::{interpret, Answer};
+use crate::griplink::reply::{interpret_datum, Checked};
 
 /// Where a caller waits for its result.
-pub(crate) type Waiter = oneshot::Sender<Result<Answer>>;
+pub(crate) type Waiter = oneshot::Sender<Result<Checked>>;
 
 /// A command on the wire whose reply has not come yet.
 #[derive(Debug)]
@@ -144,7 +144,7 @@ impl Pipeline {
             return Delivery::Unsolicited;
         };
         let result = match line {
-            Ok(text) => interpret(&slot.line, slot.expect, text),
+            Ok(text) => interpret_datum(&slot.line, slot.expect, text),
             Err(why) => Err(Error::MalformedReply {
                 command: slot.line.clone(),
                 line: String::new(),
@@ -205,9 +205,8 @@ impl Pipeline {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::griplink::reply::Answer;
 
-    fn slot(line: &str, expect: Expect) -> (Slot, oneshot::Receiver<Result<Answer>>) {
+    fn slot(line: &str, expect: Expect) -> (Slot, oneshot::Receiver<Result<Checked>>) {
         let (tx, rx) = oneshot::channel();
         (
             Slot {
@@ -241,7 +240,7 @@ mod tests {
         assert_eq!(p.on_line(text("ACK")), Delivery::Discarded);
         assert!(rx_b.try_recv().is_err(), "B must not get A's reply");
         assert_eq!(p.on_line(text("DEVSTATE[0]=3")), Delivery::Delivered);
-        assert!(matches!(rx_b.try_recv(), Ok(Ok(Answer::Data(_)))));
+        assert!(matches!(rx_b.try_recv(), Ok(Ok(Checked::Data(_)))));
         assert_eq!(p.on_line(text("ACK")), Delivery::Unsolicited);
     }
 
@@ -258,7 +257,7 @@ mod tests {
             Ok(Err(Error::MalformedReply { .. }))
         ));
         p.on_line(text("ACK"));
-        assert!(matches!(rx_b.try_recv(), Ok(Ok(Answer::Ack))));
+        assert!(matches!(rx_b.try_recv(), Ok(Ok(Checked::Ack))));
         assert!(p.is_empty());
     }
 
