@@ -459,7 +459,9 @@ impl Client {
                 .map_err(|_| self.shared.failure())?;
             answer.await.map_err(|_| self.shared.failure())?
         };
-        let exchange = tokio::time::timeout_at(deadline, exchange);
+        // Pinned in place: handing the future (a Request, a timer) on by value would copy it
+        // at every layer.
+        let exchange = std::pin::pin!(tokio::time::timeout_at(deadline, exchange));
         match self.connection.call(exchange).await {
             Ok(result) => result,
             Err(_) => Err(Error::Timeout {
