@@ -420,3 +420,54 @@ async fn serve(
         end
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use tokio::io::AsyncReadExt;
+    use tokio::net::TcpListener;
+
+    /// A writer connected to a peer that has not read anything yet.
+    async fn writer_to_a_silent_peer() -> (Writer, TcpStream) {
+        let listener = TcpListener::bind("127.0.0.1:0").await.unwrap();
+        let client = TcpStream::connect(listener.local_addr().unwrap());
+        let (client, accepted) = tokio::join!(client, listener.accept());
+        let conn = Conn::new(client.unwrap(), 1024);
+        (conn.writer, accepted.unwrap().0)
+    }
+
+    #[tokio::test]
+    async fn a_write_the_socket_cannot_take_gives_up_at_its_limit() {
+        let (mut writer, _peer) = writer_to_a_silent_peer().await;
+        let line = "X".repeat(1000);
+        // Lines go out at once until the socket buffers are full; then one waits, and gives up
+        // at its limit instead of hanging.
+        let mut sent = 0usize;
+        let err = loop {
+            let limit = Instant::now() + Duration::from_millis(100);
+            match writer.send(&line, limit).await {
+                Ok(()) => sent += 1,
+                Err(e) => break e,
+            }
+            assert!(sent < 1_000_000, "the socket never filled up");
+        };
+        assert!(sent > 0);
+        assert!(
+            matches!(&err, Error::ConnectionLost(why) if why.contains("stopped reading")),
+            "{err:?}"
+        );
+    }
+
+    #[tokio::test]
+    async fn lines_are_written_whole_and_in_order() {
+        let (mut writer, mut peer) = writer_to_a_silent_peer().await;
+        let far = Instant::now() + Duration::from_secs(5);
+        writer.send("VALUE[0][0]?", far).await.unwrap();
+        writer.send("ID?", far).await.unwrap();
+        assert!(writer.send("ID?\nBYE()", far).await.is_err());
+        drop(writer);
+        let mut got = String::new();
+        peer.read_to_string(&mut got).await.unwrap();
+        assert_eq!(got, "VALUE[0][0]?\nID?\n");
+    }
+}
