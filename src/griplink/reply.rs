@@ -56,7 +56,12 @@ impl fmt::Display for Data {
 }
 
 /// `KEY[p][i]=value`, as received (modulo spaces).
-fn write_data(f: &mut fmt::Formatter<'_>, key: &str, indices: &[i64], value: &Value) -> fmt::Result {
+fn write_data(
+    f: &mut fmt::Formatter<'_>,
+    key: &str,
+    indices: &[i64],
+    value: &Value,
+) -> fmt::Result {
     f.write_str(key)?;
     for i in indices {
         write!(f, "[{i}]")?;
@@ -466,7 +471,11 @@ mod tests {
             port: Some(0),
             index: Some(0),
         };
-        for line in ["VALUEF[0][0]=42.5", "value[0][0]=42.5", "VALUE[0][ 0 ]=42.5"] {
+        for line in [
+            "VALUEF[0][0]=42.5",
+            "value[0][0]=42.5",
+            "VALUE[0][ 0 ]=42.5",
+        ] {
             let Ok(Checked::Data(datum)) = interpret_datum("VALUEF[0][0]?", exp, line) else {
                 panic!("{line} answers VALUEF[0][0]?");
             };
