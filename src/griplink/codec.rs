@@ -41,6 +41,52 @@ impl std::fmt::Display for Discarded {
     }
 }
 
+/// A decoded line whose text stays in the receive buffer's memory: what the client reads. It
+/// parses a reply at once and keeps nothing of the line, so copying it into a `String` (a
+/// [`Line`]) would cost an allocation per reply for nothing.
+#[derive(Debug)]
+pub(crate) enum RawLine {
+    /// A line of ASCII text, without LF or trailing CR.
+    Text(BytesMut),
+    /// A line that was discarded; it still counts as one line.
+    Discarded(Discarded),
+}
+
+impl RawLine {
+    /// The line's text, or why it was discarded.
+    pub(crate) fn text(&self) -> Result<&str, Discarded> {
+        match self {
+            // Only ASCII lines are kept, and ASCII is valid UTF-8.
+            RawLine::Text(bytes) => std::str::from_utf8(bytes).map_err(|_| Discarded::NotAscii),
+            RawLine::Discarded(why) => Err(*why),
+        }
+    }
+
+    fn into_line(self) -> Line {
+        match self {
+            RawLine::Text(bytes) => Line::Text(String::from_utf8_lossy(&bytes).into_owned()),
+            RawLine::Discarded(why) => Line::Discarded(why),
+        }
+    }
+}
+
+/// [`LineCodec`] decoding [`RawLine`]s, for the client's reader.
+#[derive(Debug)]
+pub(crate) struct RawLineCodec(pub(crate) LineCodec);
+
+impl Decoder for RawLineCodec {
+    type Item = RawLine;
+    type Error = std::io::Error;
+
+    fn decode(&mut self, buf: &mut BytesMut) -> Result<Option<RawLine>, std::io::Error> {
+        self.0.decode_raw(buf)
+    }
+
+    fn decode_eof(&mut self, buf: &mut BytesMut) -> Result<Option<RawLine>, std::io::Error> {
+        self.0.decode_eof_raw(buf)
+    }
+}
+
 /// The GRIPLINK line codec: decodes [`Line`]s, encodes `&str` lines (appending the LF).
 #[derive(Debug, Clone)]
 pub struct LineCodec {
@@ -84,28 +130,24 @@ impl LineCodec {
         self.max_len
     }
 
-    fn finish_line(&self, mut line: &[u8]) -> Line {
-        if let [rest @ .., b'\r'] = line {
-            line = rest;
+    /// `line` is the line without its LF.
+    fn finish_line(&self, mut line: BytesMut) -> RawLine {
+        if line.last() == Some(&b'\r') {
+            line.truncate(line.len() - 1);
         }
         if line.len() > self.max_len {
             tracing::warn!(len = line.len(), "griplink: discarding over-long line");
-            return Line::Discarded(Discarded::TooLong);
+            return RawLine::Discarded(Discarded::TooLong);
         }
         if !line.is_ascii() {
             tracing::warn!("griplink: discarding line with non-ASCII bytes");
-            return Line::Discarded(Discarded::NotAscii);
+            return RawLine::Discarded(Discarded::NotAscii);
         }
-        // ASCII is valid UTF-8.
-        Line::Text(String::from_utf8_lossy(line).into_owned())
+        RawLine::Text(line)
     }
-}
 
-impl Decoder for LineCodec {
-    type Item = Line;
-    type Error = std::io::Error;
-
-    fn decode(&mut self, buf: &mut BytesMut) -> Result<Option<Line>, std::io::Error> {
+    /// [`Decoder::decode`], the line left in `buf`'s memory.
+    fn decode_raw(&mut self, buf: &mut BytesMut) -> Result<Option<RawLine>, std::io::Error> {
         let from = self.searched.min(buf.len());
         let newline = buf
             .get(from..)
@@ -113,14 +155,14 @@ impl Decoder for LineCodec {
             .map(|i| from + i);
         match newline {
             Some(at) => {
-                let line = buf.split_to(at + 1);
+                let mut line = buf.split_to(at + 1);
                 self.searched = 0;
                 if std::mem::take(&mut self.discarding) {
                     // The end of an over-long line whose start is already gone.
-                    return Ok(Some(Line::Discarded(Discarded::TooLong)));
+                    return Ok(Some(RawLine::Discarded(Discarded::TooLong)));
                 }
-                let body = line.get(..at).unwrap_or(&[]);
-                Ok(Some(self.finish_line(body)))
+                line.truncate(at);
+                Ok(Some(self.finish_line(line)))
             }
             None => {
                 // +1: the line may still end in a CR that does not count.
@@ -142,8 +184,9 @@ impl Decoder for LineCodec {
         }
     }
 
-    fn decode_eof(&mut self, buf: &mut BytesMut) -> Result<Option<Line>, std::io::Error> {
-        if let Some(line) = self.decode(buf)? {
+    /// [`Decoder::decode_eof`], the line left in `buf`'s memory.
+    fn decode_eof_raw(&mut self, buf: &mut BytesMut) -> Result<Option<RawLine>, std::io::Error> {
+        if let Some(line) = self.decode_raw(buf)? {
             return Ok(Some(line));
         }
         // An unterminated last line: hand it on as a line (the peer closed after it).
@@ -158,16 +201,29 @@ impl Decoder for LineCodec {
         }
         if buf.is_empty() {
             return Ok(if std::mem::take(&mut self.discarding) {
-                Some(Line::Discarded(Discarded::TooLong))
+                Some(RawLine::Discarded(Discarded::TooLong))
             } else {
                 None
             });
         }
         let rest = buf.split();
         if std::mem::take(&mut self.discarding) {
-            return Ok(Some(Line::Discarded(Discarded::TooLong)));
+            return Ok(Some(RawLine::Discarded(Discarded::TooLong)));
         }
-        Ok(Some(self.finish_line(&rest)))
+        Ok(Some(self.finish_line(rest)))
+    }
+}
+
+impl Decoder for LineCodec {
+    type Item = Line;
+    type Error = std::io::Error;
+
+    fn decode(&mut self, buf: &mut BytesMut) -> Result<Option<Line>, std::io::Error> {
+        Ok(self.decode_raw(buf)?.map(RawLine::into_line))
+    }
+
+    fn decode_eof(&mut self, buf: &mut BytesMut) -> Result<Option<Line>, std::io::Error> {
+        Ok(self.decode_eof_raw(buf)?.map(RawLine::into_line))
     }
 }
 

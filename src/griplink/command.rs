@@ -347,6 +347,37 @@ pub(crate) enum Duty {
     Wait(Duration),
 }
 
+/// `KEY[i]…?`, the query of a keyed value (manual 2.1). Written by hand rather than with
+/// `write!`: queries are what a program sends most often (polling a position or a state), and
+/// the formatting machinery cost more than the rest of a call's encoding and decoding together.
+fn push_query(s: &mut String, key: &str, indices: &[u32]) {
+    s.push_str(key);
+    for index in indices {
+        s.push('[');
+        push_decimal(s, *index);
+        s.push(']');
+    }
+    s.push('?');
+}
+
+/// `n` in decimal, as `{n}` formats it.
+fn push_decimal(s: &mut String, n: u32) {
+    // Filled from the right; a u32 has at most 10 digits.
+    let mut digits = [0u8; 10];
+    let mut len = 0;
+    let mut rest = n;
+    for slot in digits.iter_mut().rev() {
+        *slot = b'0' + (rest % 10) as u8;
+        len += 1;
+        rest /= 10;
+        if rest == 0 {
+            break;
+        }
+    }
+    let first = digits.len() - len;
+    s.extend(digits.iter().skip(first).map(|d| char::from(*d)));
+}
+
 fn check_port(port: PortNumber) -> Result<()> {
     if port > MAX_PORT {
         return Err(Error::invalid(
@@ -498,12 +529,8 @@ impl Command {
             SetVerbose(on) => {
                 let _ = write!(s, "VERBOSE={}", u8::from(*on));
             }
-            DevVid(p) => {
-                let _ = write!(s, "DEVVID[{p}]?");
-            }
-            DevPid(p) => {
-                let _ = write!(s, "DEVPID[{p}]?");
-            }
+            DevVid(p) => push_query(&mut s, "DEVVID", &[u32::from(*p)]),
+            DevPid(p) => push_query(&mut s, "DEVPID", &[u32::from(*p)]),
             DevAssert {
                 port,
                 vendor_id,
@@ -511,25 +538,15 @@ impl Command {
             } => {
                 let _ = write!(s, "DEVASSERT({port},{vendor_id},{product_id})");
             }
-            DevName(p) => {
-                let _ = write!(s, "DEVNAME[{p}]?");
-            }
-            DevVendor(p) => {
-                let _ = write!(s, "DEVVENDOR[{p}]?");
-            }
-            DevSn(p) => {
-                let _ = write!(s, "DEVSN[{p}]?");
-            }
-            DevTag(p) => {
-                let _ = write!(s, "DEVTAG[{p}]?");
-            }
+            DevName(p) => push_query(&mut s, "DEVNAME", &[u32::from(*p)]),
+            DevVendor(p) => push_query(&mut s, "DEVVENDOR", &[u32::from(*p)]),
+            DevSn(p) => push_query(&mut s, "DEVSN", &[u32::from(*p)]),
+            DevTag(p) => push_query(&mut s, "DEVTAG", &[u32::from(*p)]),
             SetDevTag(p, tag) => {
                 check_string("device tag", tag)?;
                 let _ = write!(s, "DEVTAG[{p}]=\"{tag}\"");
             }
-            DevVer(p) => {
-                let _ = write!(s, "DEVVER[{p}]?");
-            }
+            DevVer(p) => push_query(&mut s, "DEVVER", &[u32::from(*p)]),
             Bye => s.push_str("BYE()"),
             Enable(p) => {
                 let _ = write!(s, "ENABLE({p})");
@@ -602,9 +619,7 @@ impl Command {
             Clamp { port, enable } => {
                 let _ = write!(s, "CLAMP({port},{})", u8::from(*enable));
             }
-            Wstr(p) => {
-                let _ = write!(s, "WSTR[{p}]?");
-            }
+            Wstr(p) => push_query(&mut s, "WSTR", &[u32::from(*p)]),
             SetVal { port, index, value } => {
                 let _ = write!(s, "SETVAL({port},{index},{value})");
             }
@@ -636,17 +651,15 @@ impl Command {
                     float_arg("window", *window)?
                 );
             }
-            DevState(p) => {
-                let _ = write!(s, "DEVSTATE[{p}]?");
-            }
+            DevState(p) => push_query(&mut s, "DEVSTATE", &[u32::from(*p)]),
             Value { port, index } => {
-                let _ = write!(s, "VALUE[{port}][{index}]?");
+                push_query(&mut s, "VALUE", &[u32::from(*port), *index]);
             }
             ValueF { port, index } => {
-                let _ = write!(s, "VALUEF[{port}][{index}]?");
+                push_query(&mut s, "VALUEF", &[u32::from(*port), *index]);
             }
             GripCfg { port, index } => {
-                let _ = write!(s, "GRIPCFG[{port}][{index}]?");
+                push_query(&mut s, "GRIPCFG", &[u32::from(*port), *index]);
             }
             SetGripCfg {
                 port,
@@ -661,7 +674,7 @@ impl Command {
                 s.push(']');
             }
             GripCfgF { port, index } => {
-                let _ = write!(s, "GRIPCFGF[{port}][{index}]?");
+                push_query(&mut s, "GRIPCFGF", &[u32::from(*port), *index]);
             }
             SetGripCfgF {
                 port,
@@ -784,6 +797,23 @@ mod tests {
 
     fn enc(c: Command) -> String {
         c.encode().unwrap()
+    }
+
+    #[test]
+    fn queries_write_their_indices_as_format_does() {
+        for n in [0, 7, 9, 10, 31, 99, 100, 4096, 1_000_000_000, u32::MAX] {
+            let mut s = String::new();
+            push_query(&mut s, "VALUE", &[n, n / 7]);
+            assert_eq!(s, format!("VALUE[{n}][{}]?", n / 7));
+        }
+        assert_eq!(enc(Command::DevState(31)), "DEVSTATE[31]?");
+        assert_eq!(
+            enc(Command::GripCfgF {
+                port: 2,
+                index: 123
+            }),
+            "GRIPCFGF[2][123]?"
+        );
     }
 
     #[test]

@@ -5,6 +5,7 @@
 //! reply against the command it answers: a key, port or index that does not match is an error,
 //! never a silent success.
 
+use std::borrow::Cow;
 use std::fmt;
 
 use super::command::Expect;
@@ -50,19 +51,124 @@ pub struct Data {
 
 impl fmt::Display for Data {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(&self.key)?;
-        for i in &self.indices {
-            write!(f, "[{i}]")?;
-        }
-        write!(f, "={}", self.value)
+        write_data(f, &self.key, &self.indices, &self.value)
     }
+}
+
+/// `KEY[p][i]=value`, as received (modulo spaces).
+fn write_data(
+    f: &mut fmt::Formatter<'_>,
+    key: &str,
+    indices: &[i64],
+    value: &Value,
+) -> fmt::Result {
+    f.write_str(key)?;
+    for i in indices {
+        write!(f, "[{i}]")?;
+    }
+    write!(f, "={value}")
 }
 
 /// Most bracketed indices a key carries (`VALUE[p][i]`).
 const MAX_INDICES: usize = 2;
 
+/// The indices of a key, held without allocating (there are at most [`MAX_INDICES`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub(crate) struct Indices {
+    len: usize,
+    items: [i64; MAX_INDICES],
+}
+
+impl Indices {
+    pub(crate) fn as_slice(&self) -> &[i64] {
+        self.items.get(..self.len).unwrap_or(&[])
+    }
+
+    /// Appends `index`; the parser checks first that there is room (a third index is dropped).
+    fn push(&mut self, index: i64) {
+        if let Some(slot) = self.items.get_mut(self.len) {
+            *slot = index;
+            self.len += 1;
+        }
+    }
+}
+
+/// A `KEY[p][i]=value` reply as the client hands it on internally: the public [`Data`] without
+/// its two allocations, which a typed read (`VALUE[0][0]?` for an `i32`) never needs. The key
+/// is the expected one, borrowed, when it was received exactly so (the usual case).
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Datum {
+    pub(crate) key: Cow<'static, str>,
+    pub(crate) indices: Indices,
+    pub(crate) value: Value,
+}
+
+impl fmt::Display for Datum {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write_data(f, &self.key, self.indices.as_slice(), &self.value)
+    }
+}
+
+impl From<Datum> for Data {
+    fn from(datum: Datum) -> Data {
+        Data {
+            key: datum.key.into_owned(),
+            indices: datum.indices.as_slice().to_vec(),
+            value: datum.value,
+        }
+    }
+}
+
+/// [`Answer`] with a [`Datum`]: what [`interpret_datum`] gives the client.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) enum Checked {
+    /// `ACK`.
+    Ack,
+    /// `KEY[…]=value`.
+    Data(Datum),
+}
+
+impl From<Checked> for Answer {
+    fn from(checked: Checked) -> Answer {
+        match checked {
+            Checked::Ack => Answer::Ack,
+            Checked::Data(datum) => Answer::Data(datum.into()),
+        }
+    }
+}
+
+/// [`Reply`] borrowing its key from the line.
+enum ReplyRef<'a> {
+    Ack,
+    Err {
+        status: Status,
+        text: Option<String>,
+    },
+    Data {
+        key: &'a str,
+        indices: Indices,
+        value: Value,
+    },
+}
+
 /// Parses one reply line (without its LF).
 pub fn parse_reply(line: &str) -> std::result::Result<Reply, SyntaxError> {
+    Ok(match parse_reply_ref(line)? {
+        ReplyRef::Ack => Reply::Ack,
+        ReplyRef::Err { status, text } => Reply::Err { status, text },
+        ReplyRef::Data {
+            key,
+            indices,
+            value,
+        } => Reply::Data(Data {
+            key: key.to_owned(),
+            indices: indices.as_slice().to_vec(),
+            value,
+        }),
+    })
+}
+
+fn parse_reply_ref(line: &str) -> std::result::Result<ReplyRef<'_>, SyntaxError> {
     let mut c = Cursor::received(line);
     let key = c.name()?;
     if key == "ACK" {
@@ -70,14 +176,14 @@ pub fn parse_reply(line: &str) -> std::result::Result<Reply, SyntaxError> {
         if !c.at_end() {
             return c.fail("end of line after ACK");
         }
-        return Ok(Reply::Ack);
+        return Ok(ReplyRef::Ack);
     }
     if key == "ERR" {
         return parse_err(&mut c);
     }
-    let mut indices = Vec::new();
+    let mut indices = Indices::default();
     while c.peek() == Some(b'[') {
-        if indices.len() == MAX_INDICES {
+        if indices.as_slice().len() == MAX_INDICES {
             return c.fail("'=' (at most two indices)");
         }
         indices.push(c.index()?);
@@ -88,14 +194,14 @@ pub fn parse_reply(line: &str) -> std::result::Result<Reply, SyntaxError> {
     if !c.at_end() {
         return c.fail("end of line");
     }
-    Ok(Reply::Data(Data {
-        key: key.to_owned(),
+    Ok(ReplyRef::Data {
+        key,
         indices,
         value,
-    }))
+    })
 }
 
-fn parse_err(c: &mut Cursor<'_>) -> std::result::Result<Reply, SyntaxError> {
+fn parse_err<'a>(c: &mut Cursor<'_>) -> std::result::Result<ReplyRef<'a>, SyntaxError> {
     if !c.eat(b' ') {
         return c.fail("' ' and an error code after ERR");
     }
@@ -117,14 +223,14 @@ fn parse_err(c: &mut Cursor<'_>) -> std::result::Result<Reply, SyntaxError> {
     }
     let status = Status::from_code(code);
     if c.at_end() {
-        return Ok(Reply::Err { status, text: None });
+        return Ok(ReplyRef::Err { status, text: None });
     }
     if !c.eat(b' ') {
         return c.fail("' ' before the error description");
     }
     // The description is free text to the end of the line (the codec only lets ASCII through).
     let text = String::from_utf8_lossy(c.rest()).trim().to_owned();
-    Ok(Reply::Err {
+    Ok(ReplyRef::Err {
         status,
         text: (!text.is_empty()).then_some(text),
     })
@@ -159,7 +265,12 @@ fn describe(expect: Expect) -> String {
 /// command expects. `ERR` becomes [`Error::Device`]; anything else that does not answer the
 /// command becomes [`Error::MalformedReply`] or [`Error::UnexpectedReply`].
 pub fn interpret(command: &str, expect: Expect, line: &str) -> Result<Answer> {
-    let reply = parse_reply(line).map_err(|e| Error::MalformedReply {
+    interpret_datum(command, expect, line).map(Answer::from)
+}
+
+/// [`interpret`], for the client: a `KEY[…]=value` reply as a [`Datum`].
+pub(crate) fn interpret_datum(command: &str, expect: Expect, line: &str) -> Result<Checked> {
+    let reply = parse_reply_ref(line).map_err(|e| Error::MalformedReply {
         command: command.to_owned(),
         line: line.to_owned(),
         reason: e.to_string(),
@@ -170,26 +281,51 @@ pub fn interpret(command: &str, expect: Expect, line: &str) -> Result<Answer> {
         expected: describe(expect),
     };
     match (reply, expect) {
-        (Reply::Err { status, text }, _) => Err(Error::Device {
+        (ReplyRef::Err { status, text }, _) => Err(Error::Device {
             command: command.to_owned(),
             status,
             text,
         }),
-        (Reply::Ack, Expect::Ack | Expect::Any) => Ok(Answer::Ack),
-        (Reply::Data(data), Expect::Any) => Ok(Answer::Data(data)),
-        (Reply::Data(data), Expect::Data { key, port, index }) => {
-            let want: Vec<i64> = port
-                .map(i64::from)
-                .into_iter()
-                .chain(index.map(i64::from))
-                .collect();
-            if key_matches(key, &data.key) && data.indices == want {
-                Ok(Answer::Data(data))
-            } else {
-                Err(unexpected())
+        (ReplyRef::Ack, Expect::Ack | Expect::Any) => Ok(Checked::Ack),
+        (
+            ReplyRef::Data {
+                key,
+                indices,
+                value,
+            },
+            Expect::Any,
+        ) => Ok(Checked::Data(Datum {
+            key: Cow::Owned(key.to_owned()),
+            indices,
+            value,
+        })),
+        (
+            ReplyRef::Data {
+                key: got,
+                indices,
+                value,
+            },
+            Expect::Data { key, port, index },
+        ) => {
+            // Compared in place: collecting the expected indices would allocate on every reply.
+            let want = port.map(i64::from).into_iter().chain(index.map(i64::from));
+            if !key_matches(key, got) || !indices.as_slice().iter().copied().eq(want) {
+                return Err(unexpected());
             }
+            let key = if got == key {
+                Cow::Borrowed(key)
+            } else {
+                Cow::Owned(got.to_owned())
+            };
+            Ok(Checked::Data(Datum {
+                key,
+                indices,
+                value,
+            }))
         }
-        (Reply::Ack, Expect::Data { .. }) | (Reply::Data(_), Expect::Ack) => Err(unexpected()),
+        (ReplyRef::Ack, Expect::Data { .. }) | (ReplyRef::Data { .. }, Expect::Ack) => {
+            Err(unexpected())
+        }
     }
 }
 
@@ -326,5 +462,36 @@ mod tests {
             interpret("HOME(0)", Expect::Ack, "huh"),
             Err(Error::MalformedReply { .. })
         ));
+    }
+
+    #[test]
+    fn the_clients_datum_is_the_reply_as_received() {
+        let exp = Expect::Data {
+            key: "VALUEF",
+            port: Some(0),
+            index: Some(0),
+        };
+        for line in [
+            "VALUEF[0][0]=42.5",
+            "value[0][0]=42.5",
+            "VALUE[0][ 0 ]=42.5",
+        ] {
+            let Ok(Checked::Data(datum)) = interpret_datum("VALUEF[0][0]?", exp, line) else {
+                panic!("{line} answers VALUEF[0][0]?");
+            };
+            let Ok(Answer::Data(data)) = interpret("VALUEF[0][0]?", exp, line) else {
+                panic!("{line} answers VALUEF[0][0]?");
+            };
+            assert_eq!(datum.to_string(), data.to_string());
+            assert_eq!(Data::from(datum), data);
+        }
+        assert_eq!(
+            parse_reply("value[0][0]=42.5"),
+            Ok(data("value", &[0, 0], Value::Float(42.5)))
+        );
+        assert!(parse_reply("VALUE[0][0][0]=1")
+            .unwrap_err()
+            .to_string()
+            .contains("at most two indices"));
     }
 }

@@ -320,23 +320,30 @@ impl<'a> Cursor<'a> {
         if matches!(self.peek(), Some(b'e' | b'E')) {
             return self.fail("no scientific notation");
         }
-        let text = std::str::from_utf8(self.bytes.get(start..self.pos).unwrap_or(&[]))
-            .or_else(|_| self.fail("a number"))?;
-        if is_float {
-            // Only sign, digits and one dot: Rust's parser accepts all of these ("1.", ".5").
-            text.parse::<f64>()
-                .map(Value::Float)
-                .or_else(|_| self.fail("a number"))
-        } else {
-            // Floats may omit the fraction (manual 2.1.1): digits beyond i64 are a float.
-            match text.parse::<i64>() {
-                Ok(v) => Ok(Value::Int(v)),
-                Err(_) => text
-                    .parse::<f64>()
-                    .map(Value::Float)
-                    .or_else(|_| self.fail("a number")),
+        if !is_float {
+            // Only digits after the sign: summed here, as `str::parse::<i64>` would, without
+            // checking the text again (this runs for every index and value of every reply).
+            let digits = self.bytes.get(digits_start..self.pos).unwrap_or(&[]);
+            let int = digits.iter().try_fold(0i64, |v, digit| {
+                let digit = i64::from(digit - b'0');
+                let v = v.checked_mul(10)?;
+                if negative {
+                    v.checked_sub(digit)
+                } else {
+                    v.checked_add(digit)
+                }
+            });
+            if let Some(v) = int {
+                return Ok(Value::Int(v));
             }
+            // Floats may omit the fraction (manual 2.1.1): digits beyond i64 are a float.
         }
+        // Only sign, digits and at most one dot: Rust's parser accepts all of these ("1.", ".5").
+        std::str::from_utf8(self.bytes.get(start..self.pos).unwrap_or(&[]))
+            .ok()
+            .and_then(|text| text.parse::<f64>().ok())
+            .map(Value::Float)
+            .map_or_else(|| self.fail("a number"), Ok)
     }
 
     /// A quoted string (`"…"` or `'…'`). In a command its content obeys the manual's character
@@ -423,6 +430,13 @@ mod tests {
         assert!(value("-").is_err());
         assert!(value(".").is_err());
         assert_eq!(value("99999999999999999999"), Ok(Value::Float(1e20)));
+        assert_eq!(value("-0"), Ok(Value::Int(0)));
+        assert_eq!(value("9223372036854775807"), Ok(Value::Int(i64::MAX)));
+        assert_eq!(value("-9223372036854775808"), Ok(Value::Int(i64::MIN)));
+        assert_eq!(
+            value("9223372036854775808"),
+            Ok(Value::Float(9223372036854775808.0))
+        );
     }
 
     #[test]

@@ -116,7 +116,7 @@ use super::codec::DEFAULT_MAX_LINE_LEN;
 use super::command::Blocking;
 use super::command::{check_raw_line, Command, Duty, Expect, GripConfig, GripConfigF, PortNumber};
 use super::error::{Error, Result};
-use super::reply::{Answer, Data};
+use super::reply::{Answer, Checked, Datum};
 use super::state::DeviceState;
 use super::value::Value;
 use crate::connection::Connection;
@@ -215,14 +215,16 @@ pub struct Client {
 
 /// A `KEY[…]=value` reply together with the command it answers, for typed extraction.
 struct Reading {
-    command: String,
-    data: Data,
+    /// Encoded again only for an error message, so a read encodes its line once.
+    command: Command,
+    data: Datum,
 }
 
 impl Reading {
     fn wrong(&self, expected: &str) -> Error {
         Error::UnexpectedReply {
-            command: self.command.clone(),
+            // It was encoded before it was sent, so it encodes again.
+            command: self.command.encode().unwrap_or_default(),
             line: self.data.to_string(),
             expected: expected.to_owned(),
         }
@@ -428,12 +430,22 @@ impl Client {
             .unwrap_or_else(|| self.config.timeout_for(duty))
     }
 
-    async fn submit(&self, line: String, expect: Expect, duty: Duty, bye: bool) -> Result<Answer> {
+    /// Queues `line` and waits for its reply. `line_again` gives the line for a timeout error:
+    /// `line` itself goes to the task, and copying it for an error that rarely happens would
+    /// cost an allocation on every call.
+    async fn submit(
+        &self,
+        line: String,
+        line_again: impl FnOnce() -> String,
+        expect: Expect,
+        duty: Duty,
+        bye: bool,
+    ) -> Result<Checked> {
         let timeout = self.timeout_for(duty);
         let deadline = Instant::now() + timeout;
         let (waiter, answer) = oneshot::channel();
         let request = Request {
-            line: line.clone(),
+            line,
             expect,
             deadline,
             timeout,
@@ -447,11 +459,13 @@ impl Client {
                 .map_err(|_| self.shared.failure())?;
             answer.await.map_err(|_| self.shared.failure())?
         };
-        let exchange = tokio::time::timeout_at(deadline, exchange);
+        // Pinned in place: handing the future (a Request, a timer) on by value would copy it
+        // at every layer.
+        let exchange = std::pin::pin!(tokio::time::timeout_at(deadline, exchange));
         match self.connection.call(exchange).await {
             Ok(result) => result,
             Err(_) => Err(Error::Timeout {
-                command: line,
+                command: line_again(),
                 timeout,
             }),
         }
@@ -462,13 +476,20 @@ impl Client {
     /// [Cancel-safe](self#cancellation) for the connection; once sent, the command runs on the
     /// controller even if the call is dropped (a motion keeps moving).
     pub async fn execute(&self, command: &Command) -> Result<Answer> {
+        self.execute_checked(command).await.map(Answer::from)
+    }
+
+    /// [`Client::execute`], with the reply's data in the form that costs no allocation.
+    async fn execute_checked(&self, command: &Command) -> Result<Checked> {
         let line = command.encode()?;
         let bye = matches!(command, Command::Bye);
+        // It encoded once, so it encodes again.
+        let line_again = || command.encode().unwrap_or_default();
         let answer = self
-            .submit(line, command.expect(), command.duty(), bye)
+            .submit(line, line_again, command.expect(), command.duty(), bye)
             .await?;
         // What a reconnect restores: the mode the controller reports.
-        if let (Command::SetVerbose(_), Answer::Data(data)) = (command, &answer) {
+        if let (Command::SetVerbose(_), Checked::Data(data)) = (command, &answer) {
             if let Some(mode) = data.value.as_int() {
                 self.shared.set_verbose(mode != 0);
             }
@@ -485,15 +506,17 @@ impl Client {
     /// controller even if the call is dropped (a motion keeps moving).
     pub async fn command(&self, line: &str) -> Result<Answer> {
         check_raw_line(line)?;
-        self.submit(line.to_owned(), Expect::Any, Duty::Query, false)
+        let line_again = || line.to_owned();
+        self.submit(line.to_owned(), line_again, Expect::Any, Duty::Query, false)
             .await
+            .map(Answer::from)
     }
 
     pub(crate) async fn ack(&self, command: Command) -> Result<()> {
-        match self.execute(&command).await? {
-            Answer::Ack => Ok(()),
+        match self.execute_checked(&command).await? {
+            Checked::Ack => Ok(()),
             // `execute` checked the reply against `Expect::Ack` already.
-            Answer::Data(data) => Err(Error::UnexpectedReply {
+            Checked::Data(data) => Err(Error::UnexpectedReply {
                 command: command.encode().unwrap_or_default(),
                 line: data.to_string(),
                 expected: "ACK".into(),
@@ -502,14 +525,10 @@ impl Client {
     }
 
     async fn read(&self, command: Command) -> Result<Reading> {
-        let line = command.encode()?;
-        match self.execute(&command).await? {
-            Answer::Data(data) => Ok(Reading {
-                command: line,
-                data,
-            }),
-            Answer::Ack => Err(Error::UnexpectedReply {
-                command: line,
+        match self.execute_checked(&command).await? {
+            Checked::Data(data) => Ok(Reading { command, data }),
+            Checked::Ack => Err(Error::UnexpectedReply {
+                command: command.encode().unwrap_or_default(),
                 line: "ACK".into(),
                 expected: "a value".into(),
             }),

@@ -20,13 +20,13 @@ use std::time::Duration;
 use tokio::sync::oneshot;
 use tokio::time::Instant;
 
-use crate::griplink::codec::Line;
+use crate::griplink::codec::Discarded;
 use crate::griplink::command::Expect;
 use crate::griplink::error::{Error, Result};
-use crate::griplink::reply::{interpret, Answer};
+use crate::griplink::reply::{interpret_datum, Checked};
 
 /// Where a caller waits for its result.
-pub(crate) type Waiter = oneshot::Sender<Result<Answer>>;
+pub(crate) type Waiter = oneshot::Sender<Result<Checked>>;
 
 /// A command on the wire whose reply has not come yet.
 #[derive(Debug)]
@@ -133,8 +133,9 @@ impl Pipeline {
         self.slots.front().map(|s| s.line.as_str())
     }
 
-    /// Pairs a received line with the oldest outstanding command.
-    pub(crate) fn on_line(&mut self, line: Line) -> Delivery {
+    /// Pairs a received line (its text, or why the codec discarded it) with the oldest
+    /// outstanding command.
+    pub(crate) fn on_line(&mut self, line: std::result::Result<&str, Discarded>) -> Delivery {
         let Some(slot) = self.slots.pop_front() else {
             tracing::warn!(
                 ?line,
@@ -142,9 +143,9 @@ impl Pipeline {
             );
             return Delivery::Unsolicited;
         };
-        let result = match &line {
-            Line::Text(text) => interpret(&slot.line, slot.expect, text),
-            Line::Discarded(why) => Err(Error::MalformedReply {
+        let result = match line {
+            Ok(text) => interpret_datum(&slot.line, slot.expect, text),
+            Err(why) => Err(Error::MalformedReply {
                 command: slot.line.clone(),
                 line: String::new(),
                 reason: why.to_string(),
@@ -204,9 +205,8 @@ impl Pipeline {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::griplink::reply::Answer;
 
-    fn slot(line: &str, expect: Expect) -> (Slot, oneshot::Receiver<Result<Answer>>) {
+    fn slot(line: &str, expect: Expect) -> (Slot, oneshot::Receiver<Result<Checked>>) {
         let (tx, rx) = oneshot::channel();
         (
             Slot {
@@ -220,8 +220,8 @@ mod tests {
         )
     }
 
-    fn text(s: &str) -> Line {
-        Line::Text(s.into())
+    fn text(s: &str) -> std::result::Result<&str, Discarded> {
+        Ok(s)
     }
 
     #[tokio::test]
@@ -240,7 +240,7 @@ mod tests {
         assert_eq!(p.on_line(text("ACK")), Delivery::Discarded);
         assert!(rx_b.try_recv().is_err(), "B must not get A's reply");
         assert_eq!(p.on_line(text("DEVSTATE[0]=3")), Delivery::Delivered);
-        assert!(matches!(rx_b.try_recv(), Ok(Ok(Answer::Data(_)))));
+        assert!(matches!(rx_b.try_recv(), Ok(Ok(Checked::Data(_)))));
         assert_eq!(p.on_line(text("ACK")), Delivery::Unsolicited);
     }
 
@@ -251,13 +251,13 @@ mod tests {
         let (b, mut rx_b) = slot("HOME(0)", Expect::Ack);
         p.push(a);
         p.push(b);
-        p.on_line(Line::Discarded(crate::griplink::codec::Discarded::TooLong));
+        p.on_line(Err(Discarded::TooLong));
         assert!(matches!(
             rx_a.try_recv(),
             Ok(Err(Error::MalformedReply { .. }))
         ));
         p.on_line(text("ACK"));
-        assert!(matches!(rx_b.try_recv(), Ok(Ok(Answer::Ack))));
+        assert!(matches!(rx_b.try_recv(), Ok(Ok(Checked::Ack))));
         assert!(p.is_empty());
     }
 
@@ -307,7 +307,7 @@ mod tests {
         let (a, _rx) = slot("ID?", Expect::Any);
         p.push(a);
         assert!(matches!(
-            p.on_line(Line::Discarded(crate::griplink::codec::Discarded::NotAscii)),
+            p.on_line(Err(Discarded::NotAscii)),
             Delivery::Resync("SN?")
         ));
     }

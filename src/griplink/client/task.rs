@@ -6,6 +6,7 @@
 //! [`ClientConfig::reconnect`]: super::ClientConfig::reconnect
 
 use std::future::poll_fn;
+use std::io::ErrorKind::{Interrupted, WouldBlock};
 use std::net::SocketAddr;
 use std::pin::Pin;
 use std::sync::{Arc, Mutex};
@@ -21,7 +22,7 @@ use tokio::time::Instant;
 use tokio_util::codec::{Encoder, FramedRead};
 
 use super::pipeline::{Delivery, Pipeline, Slot, Waiter};
-use crate::griplink::codec::{Line, LineCodec};
+use crate::griplink::codec::{LineCodec, RawLine, RawLineCodec};
 use crate::griplink::command::{Command, Expect};
 use crate::griplink::error::Error;
 use crate::griplink::reply::interpret;
@@ -104,9 +105,47 @@ pub(crate) struct Task {
 
 /// One connection: the reply reader and the command writer.
 struct Conn {
-    reader: FramedRead<OwnedReadHalf, LineCodec>,
-    write: OwnedWriteHalf,
+    reader: FramedRead<OwnedReadHalf, RawLineCodec>,
+    writer: Writer,
+}
+
+/// The command side of a connection.
+struct Writer {
+    half: OwnedWriteHalf,
     encoder: LineCodec,
+    /// The line being written, kept from one command to the next so that a command does not
+    /// allocate a buffer.
+    out: BytesMut,
+}
+
+impl Writer {
+    /// Writes one command line, giving up on the connection if the controller stops reading
+    /// until `limit`.
+    async fn send(&mut self, line: &str, limit: Instant) -> Result<(), Error> {
+        self.out.clear();
+        self.encoder
+            .encode(line, &mut self.out)
+            .map_err(|e| Error::invalid("command line", e.to_string()))?;
+        // A command line is short, so the socket almost always takes it whole at once: only a
+        // write that has to wait (the controller stopped reading) needs the timer, which costs
+        // more than the write itself.
+        let sent = match self.half.try_write(&self.out) {
+            Ok(n) => n,
+            Err(e) if matches!(e.kind(), WouldBlock | Interrupted) => 0,
+            Err(e) => return Err(io_error(e)),
+        };
+        let rest = self.out.get(sent..).unwrap_or_default();
+        if rest.is_empty() {
+            return Ok(());
+        }
+        match tokio::time::timeout_at(limit, self.half.write_all(rest)).await {
+            Ok(Ok(())) => Ok(()),
+            Ok(Err(e)) => Err(io_error(e)),
+            Err(_) => Err(Error::ConnectionLost(
+                "the controller stopped reading commands".into(),
+            )),
+        }
+    }
 }
 
 impl Conn {
@@ -114,11 +153,14 @@ impl Conn {
         let (read, write) = stream.into_split();
         // A line cut off by the end of the connection is not a reply: `VALUE[0][0]=12` may be
         // the first half of `VALUE[0][0]=12345`.
-        let codec = LineCodec::new(max_line_len).reject_unterminated();
+        let codec = RawLineCodec(LineCodec::new(max_line_len).reject_unterminated());
         Conn {
             reader: FramedRead::new(read, codec),
-            write,
-            encoder: LineCodec::new(max_line_len),
+            writer: Writer {
+                half: write,
+                encoder: LineCodec::new(max_line_len),
+                out: BytesMut::new(),
+            },
         }
     }
 
@@ -133,7 +175,7 @@ impl Conn {
     async fn exchange(&mut self, command: Command, timeout: Duration) -> Result<(), Error> {
         let line = command.encode()?;
         let deadline = Instant::now() + timeout;
-        send_line(&mut self.write, &mut self.encoder, &line, deadline).await?;
+        self.writer.send(&line, deadline).await?;
         let reply = match tokio::time::timeout_at(deadline, next_line(&mut self.reader)).await {
             Err(_) => {
                 return Err(Error::Timeout {
@@ -144,9 +186,9 @@ impl Conn {
             Ok(None) => return Err(controller_closed()),
             Ok(Some(reply)) => reply.map_err(io_error)?,
         };
-        match reply {
-            Line::Text(text) => interpret(&line, command.expect(), &text).map(drop),
-            Line::Discarded(why) => Err(Error::MalformedReply {
+        match reply.text() {
+            Ok(text) => interpret(&line, command.expect(), text).map(drop),
+            Err(why) => Err(Error::MalformedReply {
                 command: line,
                 line: String::new(),
                 reason: why.to_string(),
@@ -183,26 +225,6 @@ pub(crate) async fn connect_any(
     Err(last)
 }
 
-/// Writes one command line, giving up on the connection if the controller stops reading.
-async fn send_line(
-    write: &mut OwnedWriteHalf,
-    encoder: &mut LineCodec,
-    line: &str,
-    limit: Instant,
-) -> Result<(), Error> {
-    let mut out = BytesMut::new();
-    encoder
-        .encode(line, &mut out)
-        .map_err(|e| Error::invalid("command line", e.to_string()))?;
-    match tokio::time::timeout_at(limit, write.write_all(&out)).await {
-        Ok(Ok(())) => Ok(()),
-        Ok(Err(e)) => Err(io_error(e)),
-        Err(_) => Err(Error::ConnectionLost(
-            "the controller stopped reading commands".into(),
-        )),
-    }
-}
-
 /// The controller ended the connection (EOF after it was open): the connection is lost, not
 /// closed by this client.
 fn controller_closed() -> Error {
@@ -223,8 +245,8 @@ fn io_error(e: std::io::Error) -> Error {
 }
 
 async fn next_line(
-    reader: &mut FramedRead<OwnedReadHalf, LineCodec>,
-) -> Option<std::io::Result<Line>> {
+    reader: &mut FramedRead<OwnedReadHalf, RawLineCodec>,
+) -> Option<std::io::Result<RawLine>> {
     poll_fn(|cx| Pin::new(&mut *reader).poll_next(cx)).await
 }
 
@@ -294,8 +316,7 @@ async fn serve(
 ) -> Error {
     let Conn {
         mut reader,
-        mut write,
-        mut encoder,
+        mut writer,
     } = conn;
     let mut pipeline =
         Pipeline::new(config.pipeline_depth).with_probe_timeout(config.probe_timeout);
@@ -303,17 +324,26 @@ async fn serve(
     // A request whose write failed: told why after the queue is closed (below).
     let mut unsent = None;
 
+    // One give-up timer for the connection, moved to the oldest outstanding reply's limit
+    // whenever that changes: a new timer per command would be registered in and removed from
+    // tokio's timer wheel every time, while moving this one to a later limit only updates its
+    // deadline. When no reply is outstanding it is not polled (and may still fire once, unseen).
+    let give_up_timer = tokio::time::sleep_until(Instant::now());
+    tokio::pin!(give_up_timer);
     let end: Error = loop {
         let give_up = pipeline.give_up_at();
+        if let Some(at) = give_up.filter(|at| *at != give_up_timer.deadline()) {
+            give_up_timer.as_mut().reset(at);
+        }
         tokio::select! {
             // Replies first: they free slots and callers.
             biased;
             line = next_line(&mut reader) => match line {
-                Some(Ok(line)) => match pipeline.on_line(line) {
+                Some(Ok(line)) => match pipeline.on_line(line.text()) {
                     Delivery::Resync(probe) if !closing => {
                         tracing::warn!(%probe, "griplink: a reply was out of step, resynchronising");
                         let limit = pipeline.give_up_at().unwrap_or_else(Instant::now);
-                        if let Err(e) = send_line(&mut write, &mut encoder, probe, limit).await {
+                        if let Err(e) = writer.send(probe, limit).await {
                             break e;
                         }
                     }
@@ -328,7 +358,7 @@ async fn serve(
                 None if closing => break Error::Closed,
                 None => break controller_closed(),
             },
-            () = tokio::time::sleep_until(give_up.unwrap_or_else(Instant::now)), if give_up.is_some() => {
+            () = &mut give_up_timer, if give_up.is_some() => {
                 let command = pipeline.oldest().unwrap_or_default().to_owned();
                 tracing::error!(%command, "griplink: reply overdue, giving up on the connection");
                 break Error::ConnectionLost(format!(
@@ -351,7 +381,7 @@ async fn serve(
                     continue;
                 }
                 let give_up_at = request.deadline + config.give_up_after;
-                match send_line(&mut write, &mut encoder, &request.line, give_up_at).await {
+                match writer.send(&request.line, give_up_at).await {
                     Ok(()) => {}
                     Err(err @ Error::InvalidArgument { .. }) => {
                         let _ = request.waiter.send(Err(err));
@@ -382,11 +412,62 @@ async fn serve(
         let _ = waiter.send(Err(end.clone()));
     }
     pipeline.fail_all(&end);
-    let _ = write.shutdown().await;
+    let _ = writer.half.shutdown().await;
     // After BYE the program is done with the connection, however it ended.
     if closing {
         Error::Closed
     } else {
         end
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use tokio::io::AsyncReadExt;
+    use tokio::net::TcpListener;
+
+    /// A writer connected to a peer that has not read anything yet.
+    async fn writer_to_a_silent_peer() -> (Writer, TcpStream) {
+        let listener = TcpListener::bind("127.0.0.1:0").await.unwrap();
+        let client = TcpStream::connect(listener.local_addr().unwrap());
+        let (client, accepted) = tokio::join!(client, listener.accept());
+        let conn = Conn::new(client.unwrap(), 1024);
+        (conn.writer, accepted.unwrap().0)
+    }
+
+    #[tokio::test]
+    async fn a_write_the_socket_cannot_take_gives_up_at_its_limit() {
+        let (mut writer, _peer) = writer_to_a_silent_peer().await;
+        let line = "X".repeat(1000);
+        // Lines go out at once until the socket buffers are full; then one waits, and gives up
+        // at its limit instead of hanging.
+        let mut sent = 0usize;
+        let err = loop {
+            let limit = Instant::now() + Duration::from_millis(100);
+            match writer.send(&line, limit).await {
+                Ok(()) => sent += 1,
+                Err(e) => break e,
+            }
+            assert!(sent < 1_000_000, "the socket never filled up");
+        };
+        assert!(sent > 0);
+        assert!(
+            matches!(&err, Error::ConnectionLost(why) if why.contains("stopped reading")),
+            "{err:?}"
+        );
+    }
+
+    #[tokio::test]
+    async fn lines_are_written_whole_and_in_order() {
+        let (mut writer, mut peer) = writer_to_a_silent_peer().await;
+        let far = Instant::now() + Duration::from_secs(5);
+        writer.send("VALUE[0][0]?", far).await.unwrap();
+        writer.send("ID?", far).await.unwrap();
+        assert!(writer.send("ID?\nBYE()", far).await.is_err());
+        drop(writer);
+        let mut got = String::new();
+        peer.read_to_string(&mut got).await.unwrap();
+        assert_eq!(got, "VALUE[0][0]?\nID?\n");
     }
 }
