@@ -5,7 +5,7 @@
 use std::collections::VecDeque;
 use std::future::poll_fn;
 use std::net::SocketAddr;
-use std::pin::Pin;
+use std::pin::{pin, Pin};
 use std::sync::atomic::Ordering;
 use std::sync::Arc;
 use std::time::Duration;
@@ -157,13 +157,28 @@ impl Link {
         on_paired: &mut OnPaired<'_>,
         shutdown: &CancellationToken,
     ) -> Option<Error> {
+        // The shutdown wait and the give-up timer live across iterations rather than being made
+        // anew by each `select!`: registering and deregistering a waiter and a timer on every
+        // iteration was a large part of a round trip's CPU cost (issue 14). The timer is moved
+        // only when the oldest request changes.
+        let mut shutdown = pin!(shutdown.cancelled());
+        let mut give_up = pin!(tokio::time::sleep_until(Instant::now()));
+        // The deadline `give_up` is set to; `None` until the first request (it is never polled
+        // before it is set: its branch needs a waiting request).
+        let mut give_up_set: Option<Instant> = None;
         let reason = loop {
             let give_up_at = self.waiting.front().map(|w| w.give_up_at);
+            if let Some(at) = give_up_at {
+                if give_up_set != Some(at) {
+                    give_up.as_mut().reset(at);
+                    give_up_set = Some(at);
+                }
+            }
             tokio::select! {
                 // Closing first: `close()` must not wait behind a busy connection. Then
                 // responses: each frees a slot.
                 biased;
-                () = shutdown.cancelled() => break Error::Closed,
+                () = shutdown.as_mut() => break Error::Closed,
                 item = self.next_response() => match item {
                     None => break server_closed(),
                     Some(Err(e)) => break e,
@@ -173,7 +188,7 @@ impl Link {
                         }
                     }
                 },
-                () = tokio::time::sleep_until(give_up_at.unwrap_or_else(Instant::now)), if give_up_at.is_some() => {
+                () = give_up.as_mut(), if give_up_at.is_some() => {
                     let request = self.waiting.front().map(|w| w.request.header().message_type);
                     tracing::error!(?request, give_up_after = ?self.give_up_after, "smartgrasp: response overdue, giving up on the connection");
                     break Error::ConnectionLost {
