@@ -20,6 +20,7 @@ use tokio_util::codec::FramedRead;
 use tokio_util::sync::CancellationToken;
 
 use super::pairing::{ambiguous, check_response, Counted, Pairing};
+use super::shutdown::Shutdown;
 use super::{ClientConfig, Shared, Timeouts};
 use crate::smartgrasp::codec::ClientCodec;
 use crate::smartgrasp::error::{Error, Malformed, Result};
@@ -161,7 +162,7 @@ impl Link {
         // anew by each `select!`: registering and deregistering a waiter and a timer on every
         // iteration was a large part of a round trip's CPU cost (issue 14). The timer is moved
         // only when the oldest request changes.
-        let mut shutdown = pin!(shutdown.cancelled());
+        let mut shutdown = Shutdown::new(shutdown);
         let mut give_up = pin!(tokio::time::sleep_until(Instant::now()));
         // The deadline `give_up` is set to; `None` until the first request (it is never polled
         // before it is set: its branch needs a waiting request).
@@ -178,7 +179,7 @@ impl Link {
                 // Closing first: `close()` must not wait behind a busy connection. Then
                 // responses: each frees a slot.
                 biased;
-                () = shutdown.as_mut() => break Error::Closed,
+                () = &mut shutdown => break Error::Closed,
                 item = self.next_response() => match item {
                     None => break server_closed(),
                     Some(Err(e)) => break e,

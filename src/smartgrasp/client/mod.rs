@@ -5,6 +5,7 @@
 mod link;
 mod pairing;
 mod session;
+mod shutdown;
 mod task;
 
 use std::net::SocketAddr;
