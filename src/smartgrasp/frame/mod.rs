@@ -494,10 +494,14 @@ fn get_u32(b: &[u8; FRAME_LEN], at: usize) -> u32 {
 }
 
 fn get_i32s<const N: usize>(b: &[u8; FRAME_LEN], at: usize) -> [i32; N] {
-    std::array::from_fn(|i| {
+    // A plain loop: `std::array::from_fn` was not inlined here, a call per value on every
+    // response decoded (issue 14).
+    let mut values = [0; N];
+    for (i, value) in values.iter_mut().enumerate() {
         let s = at + 4 * i;
-        i32::from_be_bytes([b[s], b[s + 1], b[s + 2], b[s + 3]])
-    })
+        *value = i32::from_be_bytes([b[s], b[s + 1], b[s + 2], b[s + 3]]);
+    }
+    values
 }
 
 #[cfg(test)]
