@@ -134,10 +134,11 @@ impl Link {
             self.last_response = Some(frame);
             Ok(normalised(&request, &frame))
         };
-        config
+        let frame = config
             .timeouts()
             .run(request.header().message_type, answer)
-            .await
+            .await?;
+        Ok(Response::from_any_frame(&frame)?)
     }
 
     async fn next_response(&mut self) -> Option<Result<ResponseFrame>> {
