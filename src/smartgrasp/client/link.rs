@@ -4,6 +4,7 @@
 
 use std::collections::VecDeque;
 use std::future::poll_fn;
+use std::io::ErrorKind;
 use std::net::SocketAddr;
 use std::pin::{pin, Pin};
 use std::sync::atomic::Ordering;
@@ -385,7 +386,8 @@ fn normalised(request: &RequestFrame, frame: &ResponseFrame) -> ResponseFrame {
 async fn write_within(write: &mut OwnedWriteHalf, limit: Duration, bytes: &[u8]) -> Result<()> {
     let written = match write.try_write(bytes) {
         Ok(n) => n,
-        Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => 0,
+        // As `write_all` would: wait for the socket, or try again.
+        Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::Interrupted) => 0,
         Err(e) => return Err(e.into()),
     };
     let Some(rest) = bytes.get(written..).filter(|rest| !rest.is_empty()) else {
