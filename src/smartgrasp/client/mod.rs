@@ -14,6 +14,7 @@ use std::sync::{Arc, Mutex, OnceLock};
 use std::time::Duration;
 
 use tokio::net::ToSocketAddrs;
+use tokio::sync::mpsc::error::TrySendError;
 use tokio::sync::{mpsc, oneshot};
 use tokio::time::Timeout;
 use tokio_util::sync::CancellationToken;
@@ -610,7 +611,16 @@ impl Client {
         let (reply, answer) = oneshot::channel();
         let exchange = async {
             let call = Call { frame, reply };
-            self.calls.send(call).await.map_err(|_| self.closed())?;
+            // The queue nearly always has room: `try_send` skips building and polling a permit
+            // future (issue 14). Fair all the same: a released permit goes to a waiting sender
+            // before `try_send` can take it.
+            match self.calls.try_send(call) {
+                Ok(()) => {}
+                Err(TrySendError::Full(call)) => {
+                    self.calls.send(call).await.map_err(|_| self.closed())?
+                }
+                Err(TrySendError::Closed(_)) => return Err(self.closed()),
+            }
             answer.await.map_err(|_| self.closed())?
         };
         // Bounded here rather than through `Timeouts::run`: that `async fn` around the timeout
