@@ -406,6 +406,30 @@ async fn concurrent_callers_each_get_their_own_answer() {
 }
 
 #[tokio::test]
+async fn more_callers_than_the_queue_holds_each_get_their_own_answer() {
+    let server = sim(v3_sim()).await;
+    let client = open(&server).await;
+    // Far more than the 16 requests in flight and the 32 queued calls: the rest wait for room
+    // in the queue.
+    let mut tasks = tokio::task::JoinSet::new();
+    for task in 0..120u16 {
+        let client = client.clone();
+        tasks.spawn(async move {
+            let class = 1 + task % 2;
+            let count = client.get_object_count(class).await.unwrap();
+            assert_eq!(count.object_class, class);
+            assert_eq!(count.candidate_count, 3 - class);
+        });
+    }
+    let mut done = 0;
+    while let Some(task) = tasks.join_next().await {
+        task.unwrap();
+        done += 1;
+    }
+    assert_eq!(done, 120);
+}
+
+#[tokio::test]
 async fn a_corrupt_length_breaks_the_connection() {
     let server = sim(v3_sim()).await;
     let client = open(&server).await;

@@ -4,8 +4,9 @@
 
 use std::collections::VecDeque;
 use std::future::poll_fn;
+use std::io::ErrorKind;
 use std::net::SocketAddr;
-use std::pin::Pin;
+use std::pin::{pin, Pin};
 use std::sync::atomic::Ordering;
 use std::sync::Arc;
 use std::time::Duration;
@@ -20,6 +21,7 @@ use tokio_util::codec::FramedRead;
 use tokio_util::sync::CancellationToken;
 
 use super::pairing::{ambiguous, check_response, Counted, Pairing};
+use super::shutdown::Shutdown;
 use super::{ClientConfig, Shared, Timeouts};
 use crate::smartgrasp::codec::ClientCodec;
 use crate::smartgrasp::error::{Error, Malformed, Result};
@@ -133,10 +135,11 @@ impl Link {
             self.last_response = Some(frame);
             Ok(normalised(&request, &frame))
         };
-        config
+        let frame = config
             .timeouts()
             .run(request.header().message_type, answer)
-            .await
+            .await?;
+        Ok(Response::from_any_frame(&frame)?)
     }
 
     async fn next_response(&mut self) -> Option<Result<ResponseFrame>> {
@@ -157,13 +160,28 @@ impl Link {
         on_paired: &mut OnPaired<'_>,
         shutdown: &CancellationToken,
     ) -> Option<Error> {
+        // The shutdown wait and the give-up timer live across iterations rather than being made
+        // anew by each `select!`: registering and deregistering a waiter and a timer on every
+        // iteration was a large part of a round trip's CPU cost (issue 14). The timer is moved
+        // only when the oldest request changes.
+        let mut shutdown = Shutdown::new(shutdown);
+        let mut give_up = pin!(tokio::time::sleep_until(Instant::now()));
+        // The deadline `give_up` is set to; `None` until the first request (it is never polled
+        // before it is set: its branch needs a waiting request).
+        let mut give_up_set: Option<Instant> = None;
         let reason = loop {
             let give_up_at = self.waiting.front().map(|w| w.give_up_at);
+            if let Some(at) = give_up_at {
+                if give_up_set != Some(at) {
+                    give_up.as_mut().reset(at);
+                    give_up_set = Some(at);
+                }
+            }
             tokio::select! {
                 // Closing first: `close()` must not wait behind a busy connection. Then
                 // responses: each frees a slot.
                 biased;
-                () = shutdown.cancelled() => break Error::Closed,
+                () = &mut shutdown => break Error::Closed,
                 item = self.next_response() => match item {
                     None => break server_closed(),
                     Some(Err(e)) => break e,
@@ -173,7 +191,7 @@ impl Link {
                         }
                     }
                 },
-                () = tokio::time::sleep_until(give_up_at.unwrap_or_else(Instant::now)), if give_up_at.is_some() => {
+                () = give_up.as_mut(), if give_up_at.is_some() => {
                     let request = self.waiting.front().map(|w| w.request.header().message_type);
                     tracing::error!(?request, give_up_after = ?self.give_up_after, "smartgrasp: response overdue, giving up on the connection");
                     break Error::ConnectionLost {
@@ -227,27 +245,17 @@ impl Link {
         reply: oneshot::Sender<Result<ResponseFrame>>,
     ) -> Result<()> {
         let limit = self.timeouts.for_type(request.header().message_type);
-        let error = match tokio::time::timeout(limit, self.write.write_all(&request.encode())).await
-        {
-            Ok(Ok(())) => {
-                let give_up_at = Instant::now() + limit.saturating_add(self.give_up_after);
-                self.waiting.push_back(Waiting {
-                    request,
-                    reply,
-                    give_up_at,
-                });
-                return Ok(());
-            }
-            Ok(Err(e)) => Error::from(e),
-            Err(_) => Error::ConnectionLost {
-                reason: format!(
-                    "the server stopped reading requests (a write took over {limit:?})"
-                )
-                .into(),
-            },
-        };
-        let _ = reply.send(Err(error.clone()));
-        Err(error)
+        if let Err(error) = write_within(&mut self.write, limit, &request.encode()).await {
+            let _ = reply.send(Err(error.clone()));
+            return Err(error);
+        }
+        let give_up_at = Instant::now() + limit.saturating_add(self.give_up_after);
+        self.waiting.push_back(Waiting {
+            request,
+            reply,
+            give_up_at,
+        });
+        Ok(())
     }
 
     /// Responses carry no request id. Right behind a request whose caller gave up, the response
@@ -369,6 +377,31 @@ fn normalised(request: &RequestFrame, frame: &ResponseFrame) -> ResponseFrame {
     frame
 }
 
+/// Writes `bytes` within `limit`; on expiry the connection is lost (see [`Link::send`]).
+///
+/// The socket nearly always takes a whole 80-byte frame at once, so that is tried first without
+/// a timer: arming and dropping one for a write that never waits was a measurable part of a
+/// round trip's cost (issue 14). Only a write that would block, or was cut short, waits, and
+/// only that wait is timed (the attempt before it returns at once).
+async fn write_within(write: &mut OwnedWriteHalf, limit: Duration, bytes: &[u8]) -> Result<()> {
+    let written = match write.try_write(bytes) {
+        Ok(n) => n,
+        // As `write_all` would: wait for the socket, or try again.
+        Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::Interrupted) => 0,
+        Err(e) => return Err(e.into()),
+    };
+    let Some(rest) = bytes.get(written..).filter(|rest| !rest.is_empty()) else {
+        return Ok(());
+    };
+    match tokio::time::timeout(limit, write.write_all(rest)).await {
+        Ok(written) => Ok(written?),
+        Err(_) => Err(Error::ConnectionLost {
+            reason: format!("the server stopped reading requests (a write took over {limit:?})")
+                .into(),
+        }),
+    }
+}
+
 /// Runs a step of connecting (resolving the address, the TCP connect) within `timeout`.
 pub(crate) async fn within_connect_timeout<T>(
     timeout: Duration,
@@ -418,5 +451,51 @@ pub(crate) fn closed_error(reason: Option<&Error>) -> Error {
         None => Error::ConnectionLost {
             reason: "the connection task has ended".into(),
         },
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use tokio::io::AsyncReadExt;
+    use tokio::net::TcpListener;
+
+    async fn pair() -> (TcpStream, OwnedWriteHalf) {
+        let listener = TcpListener::bind("127.0.0.1:0").await.unwrap();
+        let client = TcpStream::connect(listener.local_addr().unwrap());
+        let (client, accepted) = tokio::join!(client, listener.accept());
+        let (_read, write) = client.unwrap().into_split();
+        // The read half may go: the write half keeps the socket open.
+        (accepted.unwrap().0, write)
+    }
+
+    #[tokio::test]
+    async fn a_write_that_fits_goes_out_whole() {
+        let (mut server, mut write) = pair().await;
+        let frame = [7u8; crate::smartgrasp::frame::FRAME_LEN];
+        write_within(&mut write, Duration::from_secs(5), &frame)
+            .await
+            .unwrap();
+        let mut got = [0u8; crate::smartgrasp::frame::FRAME_LEN];
+        server.read_exact(&mut got).await.unwrap();
+        assert_eq!(got, frame);
+    }
+
+    #[tokio::test]
+    async fn a_write_the_server_does_not_read_is_given_up_after_its_limit() {
+        let (_server, mut write) = pair().await;
+        // Far more than the socket buffers hold: the first attempt writes part of it, and the
+        // rest waits for a server that never reads.
+        let bytes = vec![0u8; 64 << 20];
+        let write = write_within(&mut write, Duration::from_millis(50), &bytes);
+        // A failure here must not hang the test run.
+        let err = tokio::time::timeout(Duration::from_secs(10), write)
+            .await
+            .expect("the write's own limit ends it")
+            .unwrap_err();
+        assert!(
+            matches!(&err, Error::ConnectionLost { reason } if reason.contains("stopped reading")),
+            "{err}"
+        );
     }
 }

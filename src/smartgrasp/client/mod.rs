@@ -5,6 +5,7 @@
 mod link;
 mod pairing;
 mod session;
+mod shutdown;
 mod task;
 
 use std::net::SocketAddr;
@@ -13,7 +14,9 @@ use std::sync::{Arc, Mutex, OnceLock};
 use std::time::Duration;
 
 use tokio::net::ToSocketAddrs;
+use tokio::sync::mpsc::error::TrySendError;
 use tokio::sync::{mpsc, oneshot};
+use tokio::time::Timeout;
 use tokio_util::sync::CancellationToken;
 
 use super::error::{Error, Result};
@@ -165,7 +168,7 @@ impl ClientConfig {
     }
 }
 
-/// The two call timeouts, and the one place a call is bounded by its timeout.
+/// The two call timeouts, and where a call is bounded by its timeout.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Timeouts {
     query: Duration,
@@ -184,21 +187,28 @@ impl Timeouts {
         }
     }
 
-    /// Runs `exchange` (send `message_type`'s request, get its checked response frame) within
-    /// its timeout, and reads the typed response.
+    /// `exchange` (send `message_type`'s request, get its checked response frame) bounded by
+    /// its timeout; on expiry the call fails with [`expired`](Self::expired).
+    fn bound<F: std::future::Future>(self, message_type: MessageType, exchange: F) -> Timeout<F> {
+        tokio::time::timeout(self.for_type(message_type), exchange)
+    }
+
+    /// The error of a `message_type` call that ran out of time.
+    fn expired(self, message_type: MessageType) -> Error {
+        Error::Timeout {
+            message_type,
+            timeout: self.for_type(message_type),
+        }
+    }
+
+    /// Runs `exchange` within its timeout (see [`bound`](Self::bound)).
     async fn run(
         self,
         message_type: MessageType,
         exchange: impl std::future::Future<Output = Result<AnyResponseFrame>>,
-    ) -> Result<Response> {
-        let timeout = self.for_type(message_type);
-        let frame = tokio::time::timeout(timeout, exchange)
-            .await
-            .map_err(|_| Error::Timeout {
-                message_type,
-                timeout,
-            })??;
-        Ok(Response::from_any_frame(&frame)?)
+    ) -> Result<AnyResponseFrame> {
+        let answered = self.bound(message_type, exchange).await;
+        answered.map_err(|_| self.expired(message_type))?
     }
 }
 
@@ -596,17 +606,31 @@ impl Client {
     /// checked; the response code is left to the caller.
     /// Cancel-safe (see [`Client`]): a cancelled request may have been acted on.
     pub async fn call(&self, request: Request) -> Result<Response> {
+        let message_type = request.message_type();
+        let frame = request.to_any_frame(self.protocol_version())?;
         let (reply, answer) = oneshot::channel();
         let exchange = async {
-            let call = Call {
-                frame: request.to_any_frame(self.protocol_version())?,
-                reply,
-            };
-            self.calls.send(call).await.map_err(|_| self.closed())?;
+            let call = Call { frame, reply };
+            // The queue nearly always has room: `try_send` skips building and polling a permit
+            // future (issue 14). Fair all the same: a released permit goes to a waiting sender
+            // before `try_send` can take it.
+            match self.calls.try_send(call) {
+                Ok(()) => {}
+                Err(TrySendError::Full(call)) => {
+                    self.calls.send(call).await.map_err(|_| self.closed())?
+                }
+                Err(TrySendError::Closed(_)) => return Err(self.closed()),
+            }
             answer.await.map_err(|_| self.closed())?
         };
-        let exchange = self.timeouts.run(request.message_type(), exchange);
-        self.connection.call(exchange).await
+        // Bounded here rather than through `Timeouts::run`: that `async fn` around the timeout
+        // is one more layer of future moved and polled on every call (issue 14).
+        let answered = self
+            .connection
+            .call(self.timeouts.bound(message_type, exchange))
+            .await;
+        let frame = answered.map_err(|_| self.timeouts.expired(message_type))??;
+        Ok(Response::from_any_frame(&frame)?)
     }
 
     async fn expect_success(&self, request: Request) -> Result<ResponseBody> {

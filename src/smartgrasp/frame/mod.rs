@@ -493,11 +493,16 @@ fn get_u32(b: &[u8; FRAME_LEN], at: usize) -> u32 {
     u32::from_be_bytes([b[at], b[at + 1], b[at + 2], b[at + 3]])
 }
 
+// `inline` and a plain loop: several calls per response decoded, and the compiler inlined
+// neither this function nor `std::array::from_fn`'s closure on its own (issue 14, measured).
+#[inline]
 fn get_i32s<const N: usize>(b: &[u8; FRAME_LEN], at: usize) -> [i32; N] {
-    std::array::from_fn(|i| {
+    let mut values = [0; N];
+    for (i, value) in values.iter_mut().enumerate() {
         let s = at + 4 * i;
-        i32::from_be_bytes([b[s], b[s + 1], b[s + 2], b[s + 3]])
-    })
+        *value = i32::from_be_bytes([b[s], b[s + 1], b[s + 2], b[s + 3]]);
+    }
+    values
 }
 
 #[cfg(test)]
