@@ -257,17 +257,29 @@ impl Shared {
         id: u64,
     ) -> Poll<F::Output> {
         let _inline = Inline::enter(&self.signal);
-        // First without a waker: an answer this poll or the connection task below delivers is
-        // seen by the second poll, instead of waking this caller, whose future then returns
-        // anyway. (On a `current_thread` runtime such a stale wake-up costs an extra trip
-        // through the I/O driver before the next call can wait.)
-        if let Poll::Ready(out) = call.as_mut().poll(&mut Context::from_waker(Waker::noop())) {
-            return Poll::Ready(out);
-        }
-        if self.signal.notified.load(SeqCst) {
+        let polled = if self.signal.notified.load(SeqCst) {
+            // The task has something to do, most often this caller's reply to read (as the
+            // leader). The call is polled first without a waker: an answer the task delivers
+            // below is seen by the second poll, instead of waking this caller, whose future
+            // then returns anyway. (On a `current_thread` runtime such a stale wake-up costs an
+            // extra trip through the I/O driver before the next call can wait.)
+            if let Poll::Ready(out) = call.as_mut().poll(&mut Context::from_waker(Waker::noop())) {
+                return Poll::Ready(out);
+            }
             self.poll_task();
-        }
-        let polled = call.poll(cx);
+            call.poll(cx)
+        } else {
+            // Nothing for the task yet: most often a new call, whose poll queues its request.
+            // Polled once, with its waker (a second poll swaps the waker of its timer and
+            // answer channel back and forth: measured, issue 14), then the task writes the
+            // request. The task seldom answers in that same poll; when it does, the waker
+            // brings the caller back.
+            let polled = call.poll(cx);
+            if polled.is_pending() && self.signal.notified.load(SeqCst) {
+                self.poll_task();
+            }
+            polled
+        };
         if polled.is_pending() && self.signal.leads {
             self.signal.lead(id, cx.waker());
         }
