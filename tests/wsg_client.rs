@@ -196,6 +196,26 @@ async fn unknown_commands_and_raw_requests() {
 #[tokio::test]
 async fn many_concurrent_callers_with_mixed_ids_get_their_own_replies() {
     let (_sim, client) = tcp(with_part()).await;
+    concurrent_callers(client).await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn callers_that_find_the_request_queue_full_wait_and_get_their_own_replies() {
+    let sim = SimServer::bind("127.0.0.1:0", with_part()).await.unwrap();
+    // A queue of one, and callers on two threads: while one thread polls the connection, the
+    // other's callers find the queue full and wait for room.
+    let client = Client::builder()
+        .request_queue(1)
+        .connect_tcp(sim.local_addr().unwrap())
+        .await
+        .unwrap();
+    for _ in 0..10 {
+        concurrent_callers(client.clone()).await;
+    }
+}
+
+/// Sixty callers on one client at once, with mixed command ids, each checking its own reply.
+async fn concurrent_callers(client: Client) {
     client.home(HomingDirection::Default).await.unwrap();
     let mut tasks = Vec::new();
     for i in 0..60u32 {

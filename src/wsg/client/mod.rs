@@ -11,6 +11,7 @@ use std::time::Duration;
 
 use bytes::Bytes;
 use tokio::net::{ToSocketAddrs, UdpSocket};
+use tokio::sync::mpsc::error::TrySendError;
 use tokio::sync::{mpsc, oneshot};
 use tokio::time::{timeout_at, Instant};
 use tokio_util::codec::Framed;
@@ -504,11 +505,19 @@ impl Client {
         timeout: Duration,
     ) -> Result<Reply> {
         let work = async {
-            self.shared
-                .tx
-                .send(msg)
-                .await
-                .map_err(|_| self.shared.gone())?;
+            // The queue nearly always has room: `try_send` skips building and polling a permit
+            // future (issue 14). Fair all the same: a released permit goes to a waiting sender
+            // before `try_send` can take it.
+            match self.shared.tx.try_send(msg) {
+                Ok(()) => {}
+                Err(TrySendError::Full(msg)) => self
+                    .shared
+                    .tx
+                    .send(msg)
+                    .await
+                    .map_err(|_| self.shared.gone())?,
+                Err(TrySendError::Closed(_)) => return Err(self.shared.gone()),
+            }
             rx.await.map_err(|_| self.shared.gone())?
         };
         self.shared
