@@ -368,12 +368,13 @@ impl Keeper {
                     // Woken again while polled. Most often a caller queued its next request and
                     // found the task busy (with this poll, which delivered that caller's last
                     // reply): poll again at once, so the request goes out now rather than after
-                    // a trip through the scheduler (measured: issue 14). A task that keeps
-                    // waking itself (tokio's resources do once its budget has run out) lets
-                    // other tasks run.
+                    // a trip through the scheduler (issue 14). Not once the keeper's budget has
+                    // run out: tokio's resources then wake their task at once and stay pending,
+                    // so polling again would only spin; and not forever for a task that keeps
+                    // waking itself otherwise: both let other tasks run first.
                     Step::Polled if signal.notified.load(SeqCst) => {
                         repolls += 1;
-                        if repolls > MAX_REPOLLS {
+                        if repolls > MAX_REPOLLS || !tokio::task::coop::has_budget_remaining() {
                             repolls = 0;
                             tokio::task::yield_now().await;
                         }
