@@ -71,6 +71,7 @@
 #![forbid(unsafe_code)]
 
 mod connection;
+mod deadline;
 /// Fault-injecting TCP proxy for tests (feature `sim`).
 #[cfg(feature = "sim")]
 pub mod fault;

@@ -6,7 +6,6 @@
 //! [`ClientConfig::reconnect`]: super::ClientConfig::reconnect
 
 use std::future::poll_fn;
-use std::io::ErrorKind::{Interrupted, WouldBlock};
 use std::net::SocketAddr;
 use std::pin::Pin;
 use std::sync::{Arc, Mutex};
@@ -22,6 +21,7 @@ use tokio::time::Instant;
 use tokio_util::codec::{Encoder, FramedRead};
 
 use super::pipeline::{Delivery, Pipeline, Slot, Waiter};
+use crate::deadline::{move_timer, write_all_by};
 use crate::griplink::codec::{LineCodec, RawLine, RawLineCodec};
 use crate::griplink::command::{Command, Expect};
 use crate::griplink::error::Error;
@@ -126,19 +126,7 @@ impl Writer {
         self.encoder
             .encode(line, &mut self.out)
             .map_err(|e| Error::invalid("command line", e.to_string()))?;
-        // A command line is short, so the socket almost always takes it whole at once: only a
-        // write that has to wait (the controller stopped reading) needs the timer, which costs
-        // more than the write itself.
-        let sent = match self.half.try_write(&self.out) {
-            Ok(n) => n,
-            Err(e) if matches!(e.kind(), WouldBlock | Interrupted) => 0,
-            Err(e) => return Err(io_error(e)),
-        };
-        let rest = self.out.get(sent..).unwrap_or_default();
-        if rest.is_empty() {
-            return Ok(());
-        }
-        match tokio::time::timeout_at(limit, self.half.write_all(rest)).await {
+        match write_all_by(&mut self.half, &self.out, || limit).await {
             Ok(Ok(())) => Ok(()),
             Ok(Err(e)) => Err(io_error(e)),
             Err(_) => Err(Error::ConnectionLost(
@@ -325,15 +313,14 @@ async fn serve(
     let mut unsent = None;
 
     // One give-up timer for the connection, moved to the oldest outstanding reply's limit
-    // whenever that changes: a new timer per command would be registered in and removed from
-    // tokio's timer wheel every time, while moving this one to a later limit only updates its
-    // deadline. When no reply is outstanding it is not polled (and may still fire once, unseen).
+    // whenever that changes. When no reply is outstanding it is not polled (and may still fire
+    // once, unseen).
     let give_up_timer = tokio::time::sleep_until(Instant::now());
     tokio::pin!(give_up_timer);
     let end: Error = loop {
         let give_up = pipeline.give_up_at();
-        if let Some(at) = give_up.filter(|at| *at != give_up_timer.deadline()) {
-            give_up_timer.as_mut().reset(at);
+        if let Some(at) = give_up {
+            move_timer(give_up_timer.as_mut(), at);
         }
         tokio::select! {
             // Replies first: they free slots and callers.

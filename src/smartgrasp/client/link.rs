@@ -4,7 +4,6 @@
 
 use std::collections::VecDeque;
 use std::future::poll_fn;
-use std::io::ErrorKind;
 use std::net::SocketAddr;
 use std::pin::{pin, Pin};
 use std::sync::atomic::Ordering;
@@ -23,6 +22,7 @@ use tokio_util::sync::CancellationToken;
 use super::pairing::{ambiguous, check_response, Counted, Pairing};
 use super::shutdown::Shutdown;
 use super::{ClientConfig, Shared, Timeouts};
+use crate::deadline::{move_timer, write_all_by};
 use crate::smartgrasp::codec::ClientCodec;
 use crate::smartgrasp::error::{Error, Malformed, Result};
 use crate::smartgrasp::frame::{
@@ -163,19 +163,14 @@ impl Link {
         // The shutdown wait and the give-up timer live across iterations rather than being made
         // anew by each `select!`: registering and deregistering a waiter and a timer on every
         // iteration was a large part of a round trip's CPU cost (issue 14). The timer is moved
-        // only when the oldest request changes.
+        // only when the oldest request changes (it is never polled before: its branch needs a
+        // waiting request).
         let mut shutdown = Shutdown::new(shutdown);
         let mut give_up = pin!(tokio::time::sleep_until(Instant::now()));
-        // The deadline `give_up` is set to; `None` until the first request (it is never polled
-        // before it is set: its branch needs a waiting request).
-        let mut give_up_set: Option<Instant> = None;
         let reason = loop {
             let give_up_at = self.waiting.front().map(|w| w.give_up_at);
             if let Some(at) = give_up_at {
-                if give_up_set != Some(at) {
-                    give_up.as_mut().reset(at);
-                    give_up_set = Some(at);
-                }
+                move_timer(give_up.as_mut(), at);
             }
             tokio::select! {
                 // Closing first: `close()` must not wait behind a busy connection. Then
@@ -378,22 +373,8 @@ fn normalised(request: &RequestFrame, frame: &ResponseFrame) -> ResponseFrame {
 }
 
 /// Writes `bytes` within `limit`; on expiry the connection is lost (see [`Link::send`]).
-///
-/// The socket nearly always takes a whole 80-byte frame at once, so that is tried first without
-/// a timer: arming and dropping one for a write that never waits was a measurable part of a
-/// round trip's cost (issue 14). Only a write that would block, or was cut short, waits, and
-/// only that wait is timed (the attempt before it returns at once).
 async fn write_within(write: &mut OwnedWriteHalf, limit: Duration, bytes: &[u8]) -> Result<()> {
-    let written = match write.try_write(bytes) {
-        Ok(n) => n,
-        // As `write_all` would: wait for the socket, or try again.
-        Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::Interrupted) => 0,
-        Err(e) => return Err(e.into()),
-    };
-    let Some(rest) = bytes.get(written..).filter(|rest| !rest.is_empty()) else {
-        return Ok(());
-    };
-    match tokio::time::timeout(limit, write.write_all(rest)).await {
+    match write_all_by(write, bytes, || Instant::now() + limit).await {
         Ok(written) => Ok(written?),
         Err(_) => Err(Error::ConnectionLost {
             reason: format!("the server stopped reading requests (a write took over {limit:?})")

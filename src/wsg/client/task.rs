@@ -14,6 +14,7 @@ use tokio::time::{sleep_until, timeout, Instant};
 
 use super::pairing::{Due, Event, Observation, Pairing, Request, Submit, Token, Verdict};
 use super::Reconnect;
+use crate::deadline::move_timer;
 use crate::int_map::IntMap;
 use crate::reconnect::{self, ConnectionEvent, EventSender};
 use crate::wsg::command::{id, Command, UpdateMode};
@@ -271,9 +272,7 @@ impl Task {
             let stale = self.partial_frame_deadline();
             if let Some(at) = stale {
                 // Exact: the handler below takes the deadline as reached.
-                if at != stale_timer.deadline() {
-                    stale_timer.as_mut().reset(at);
-                }
+                move_timer(stale_timer.as_mut(), at);
             }
             tokio::select! {
                 // Input first: a frame already received cannot answer a request sent after it,

@@ -1,0 +1,42 @@
+//! Deadlines on a connection task's hot path without a timer per operation (issue 14: making
+//! and dropping a tokio timer for every request and reply was a measurable part of a round
+//! trip's cost).
+
+use std::io::ErrorKind;
+use std::pin::Pin;
+
+use tokio::io::AsyncWriteExt;
+use tokio::net::tcp::OwnedWriteHalf;
+use tokio::time::error::Elapsed;
+use tokio::time::{Instant, Sleep};
+
+/// Writes all of `bytes` by `deadline()`, as `timeout_at(deadline(), write.write_all(bytes))`
+/// does. A request is short and the socket nearly always takes it whole at once, so that is
+/// tried first, without a timer; only what the socket did not take waits, timed. (`deadline` is
+/// asked only then: reading the clock for every write would cost more than the write.)
+pub(crate) async fn write_all_by(
+    write: &mut OwnedWriteHalf,
+    bytes: &[u8],
+    deadline: impl FnOnce() -> Instant,
+) -> Result<std::io::Result<()>, Elapsed> {
+    let written = match write.try_write(bytes) {
+        Ok(n) => n,
+        // As `write_all` would: wait for the socket, or try again.
+        Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::Interrupted) => 0,
+        Err(e) => return Ok(Err(e)),
+    };
+    match bytes.get(written..) {
+        Some(rest) if !rest.is_empty() => {
+            tokio::time::timeout_at(deadline(), write.write_all(rest)).await
+        }
+        _ => Ok(Ok(())),
+    }
+}
+
+/// Points a connection loop's timer, kept across its `select!` passes, at `at`: resetting it
+/// costs a timer-wheel operation, so only when the deadline changes.
+pub(crate) fn move_timer(timer: Pin<&mut Sleep>, at: Instant) {
+    if timer.deadline() != at {
+        timer.reset(at);
+    }
+}
