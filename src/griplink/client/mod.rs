@@ -220,11 +220,17 @@ struct Reading {
     data: Datum,
 }
 
+/// `command`'s line, for an error message. A call encodes its line once, for the wire, and an
+/// error (rare) encodes it again rather than every call keeping a copy; it encoded before, so
+/// it encodes again.
+fn line_for_error(command: &Command) -> String {
+    command.encode().unwrap_or_default()
+}
+
 impl Reading {
     fn wrong(&self, expected: &str) -> Error {
         Error::UnexpectedReply {
-            // It was encoded before it was sent, so it encodes again.
-            command: self.command.encode().unwrap_or_default(),
+            command: line_for_error(&self.command),
             line: self.data.to_string(),
             expected: expected.to_owned(),
         }
@@ -483,8 +489,7 @@ impl Client {
     async fn execute_checked(&self, command: &Command) -> Result<Checked> {
         let line = command.encode()?;
         let bye = matches!(command, Command::Bye);
-        // It encoded once, so it encodes again.
-        let line_again = || command.encode().unwrap_or_default();
+        let line_again = || line_for_error(command);
         let answer = self
             .submit(line, line_again, command.expect(), command.duty(), bye)
             .await?;
@@ -517,7 +522,7 @@ impl Client {
             Checked::Ack => Ok(()),
             // `execute` checked the reply against `Expect::Ack` already.
             Checked::Data(data) => Err(Error::UnexpectedReply {
-                command: command.encode().unwrap_or_default(),
+                command: line_for_error(&command),
                 line: data.to_string(),
                 expected: "ACK".into(),
             }),
@@ -528,7 +533,7 @@ impl Client {
         match self.execute_checked(&command).await? {
             Checked::Data(data) => Ok(Reading { command, data }),
             Checked::Ack => Err(Error::UnexpectedReply {
-                command: command.encode().unwrap_or_default(),
+                command: line_for_error(&command),
                 line: "ACK".into(),
                 expected: "a value".into(),
             }),
