@@ -2,7 +2,7 @@
 //! connections' events in order, and queues each reply for the session it belongs to, applying
 //! the injected faults on the way out.
 
-use std::collections::HashMap;
+use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
@@ -11,6 +11,7 @@ use bytes::{Bytes, BytesMut};
 use tokio::sync::{mpsc, oneshot, watch};
 use tokio::time::{sleep_until, Instant};
 
+use super::record::{SimEvent, SimRecord};
 use super::{lock, take, Shared, SimSnapshot};
 use crate::wsg::frame::{self, Decoded};
 use crate::wsg::sim::device::{Device, Out, SessionId, SessionKind};
@@ -105,6 +106,7 @@ pub(super) enum Event {
 pub(super) enum Control {
     LosePart,
     Unplug,
+    Restart,
     TimeScale(f64),
 }
 
@@ -140,7 +142,9 @@ pub(super) struct Actor {
     pub(super) device: Device,
     pub(super) clock: SimClock,
     pub(super) started: Instant,
-    pub(super) sessions: HashMap<SessionId, Outbox>,
+    /// Ordered (not hashed): it is iterated (unplug, restart), and a seeded run must drop the
+    /// connections in the same order every time to replay exactly.
+    pub(super) sessions: BTreeMap<SessionId, Outbox>,
     pub(super) shared: Arc<Mutex<Shared>>,
     pub(super) events: mpsc::Receiver<Event>,
     pub(super) control: mpsc::UnboundedReceiver<Control>,
@@ -165,10 +169,12 @@ impl Actor {
                 (a, b) => a.or(b),
             };
             tokio::select! {
-                ev = self.events.recv() => match ev {
-                    Some(ev) => self.on_event(ev),
-                    None => return,
-                },
+                // A fixed order, not tokio's random one, so that a seeded run replays exactly.
+                // It is fair: shutdown and control are rare; a steady flow of events cannot
+                // starve the timer, because `settle` above delivers what became due on every
+                // turn of the loop whichever branch woke it.
+                biased;
+                _ = self.shutdown.changed() => return,
                 Some(c) = self.control.recv() => match c {
                     Control::LosePart => self.device.lose_part(),
                     Control::TimeScale(scale) => {
@@ -183,9 +189,13 @@ impl Actor {
                         let device = &self.device;
                         self.sessions.retain(|s, _| device.session_kind(*s) == Some(SessionKind::Udp));
                     }
+                    Control::Restart => self.restart(),
+                },
+                ev = self.events.recv() => match ev {
+                    Some(ev) => self.on_event(ev),
+                    None => return,
                 },
                 _ = sleep_until(wake.unwrap_or_else(Instant::now)), if wake.is_some() => {}
-                _ = self.shutdown.changed() => return,
             }
         }
     }
@@ -216,6 +226,33 @@ impl Actor {
         lock(&self.shared).snapshot = snapshot;
     }
 
+    /// Adds to the record, if recording was started.
+    fn record(&self, session: SessionId, event: SimEvent) {
+        let mut shared = lock(&self.shared);
+        if let Some(r) = shared.recorder.as_mut() {
+            r.push(SimRecord {
+                session,
+                at: self.started.elapsed(),
+                event,
+            });
+        }
+    }
+
+    /// A power cycle: stream connections are dropped (their tasks see the outbox close), the
+    /// device starts from its configuration, UDP sessions carry on with it.
+    fn restart(&mut self) {
+        let cfg = self.device.config().clone();
+        let old = std::mem::replace(&mut self.device, Device::new(cfg));
+        self.sessions
+            .retain(|s, _| old.session_kind(*s) == Some(SessionKind::Udp));
+        for &s in self.sessions.keys() {
+            self.device.connect(s, SessionKind::Udp);
+        }
+        self.clock.base_sim = 0.0;
+        self.clock.base_wall = Instant::now();
+        self.record(0, SimEvent::Restarted);
+    }
+
     fn on_event(&mut self, ev: Event) {
         match ev {
             Event::Connected {
@@ -225,6 +262,7 @@ impl Actor {
             } => {
                 self.sessions.insert(session, outbox);
                 self.device.connect(session, kind);
+                self.record(session, SimEvent::Connected { kind });
             }
             Event::Disconnected { session } => self.forget(session),
             Event::Idle { session, forgotten } => {
@@ -246,6 +284,21 @@ impl Actor {
                         shared.received.pop_front();
                     }
                     shared.received.push_back(id);
+                    if let Some(r) = shared.recorder.as_mut() {
+                        let (payload, corrupt) = match &decoded {
+                            Decoded::Frame(f) => (f.payload.clone(), false),
+                            Decoded::Corrupt { .. } => (Bytes::new(), true),
+                        };
+                        r.push(SimRecord {
+                            session,
+                            at: self.started.elapsed(),
+                            event: SimEvent::Request {
+                                id,
+                                payload,
+                                corrupt,
+                            },
+                        });
+                    }
                     match &decoded {
                         Decoded::Frame(f) => take(&mut shared.faults.forced, |(i, _)| *i == f.id),
                         Decoded::Corrupt { .. } => None,
@@ -272,7 +325,9 @@ impl Actor {
     fn forget(&mut self, session: SessionId) {
         let outs = self.device.disconnect(session, self.clock.now());
         self.dispatch(outs);
-        self.sessions.remove(&session);
+        if self.sessions.remove(&session).is_some() {
+            self.record(session, SimEvent::Disconnected);
+        }
     }
 
     fn dispatch(&mut self, outs: Vec<Out>) {
@@ -310,6 +365,16 @@ impl Actor {
                 }
             }
             let bytes = b.freeze();
+            let moving = self.device.motion.is_some();
+            self.record(
+                out.session,
+                SimEvent::Reply {
+                    id,
+                    status: out.reply.status,
+                    data: out.reply.data.clone(),
+                    moving,
+                },
+            );
             match delay {
                 Some(d) => {
                     let outbox = outbox.clone();
