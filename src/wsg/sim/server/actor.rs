@@ -110,6 +110,12 @@ pub(super) enum Control {
     TimeScale(f64),
 }
 
+/// Added to every wake-up time computed from seconds in `f64`: the conversion to `Duration`
+/// truncates to whole nanoseconds, so without it the timer could fire a hair before the due
+/// time, find nothing due, and be set to the same instant again. Under tokio's paused clock
+/// (which only moves when every task waits) that loop never ends: the explorer found it.
+const WAKE_MARGIN: Duration = Duration::from_micros(1);
+
 /// Simulated seconds from the wall clock and a time scale.
 pub(super) struct SimClock {
     pub(super) scale: f64,
@@ -133,7 +139,7 @@ impl SimClock {
         }
         let secs = ((sim - self.base_sim) * self.scale).clamp(0.0, 1e9);
         self.base_wall
-            .checked_add(Duration::from_secs_f64(secs))
+            .checked_add(Duration::from_secs_f64(secs) + WAKE_MARGIN)
             .map_or(far, |t| t.min(far))
     }
 }
@@ -163,7 +169,7 @@ impl Actor {
             let update = self
                 .device
                 .next_update_due()
-                .map(|w| self.started + Duration::from_secs_f64(w.clamp(0.0, 1e9)));
+                .map(|w| self.started + Duration::from_secs_f64(w.clamp(0.0, 1e9)) + WAKE_MARGIN);
             let wake = match (motion, update) {
                 (Some(a), Some(b)) => Some(a.min(b)),
                 (a, b) => a.or(b),
