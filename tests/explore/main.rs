@@ -14,7 +14,9 @@
 //! - `--determinism N` — seeds per variant run twice and compared (default 1);
 //! - `--until-fail N` — fresh seeds until one fails, at most `N` runs per variant; exits 0 and
 //!   says after how many runs if one did (for the planted-bug table), 1 if none did;
-//! - `--no-regressions` — skip the regression seeds.
+//! - `--no-regressions` — skip the regression seeds;
+//! - `--no-shrink` — do not shrink failures (long runs); failures are summarised by kind, with
+//!   the first three keys of each kind.
 
 mod core;
 mod wsg;
@@ -38,6 +40,7 @@ struct Opts {
     determinism: u64,
     until_fail: Option<u64>,
     regressions: bool,
+    shrink: bool,
 }
 
 fn parse() -> Result<Opts, String> {
@@ -50,6 +53,7 @@ fn parse() -> Result<Opts, String> {
         determinism: 1,
         until_fail: None,
         regressions: true,
+        shrink: true,
     };
     let mut args = std::env::args().skip(1);
     let num = |s: Option<String>| -> Result<u64, String> {
@@ -70,6 +74,7 @@ fn parse() -> Result<Opts, String> {
             "--determinism" => o.determinism = num(args.next())?,
             "--until-fail" => o.until_fail = Some(num(args.next())?),
             "--no-regressions" => o.regressions = false,
+            "--no-shrink" => o.shrink = false,
             // What `cargo test` passes on to every test binary.
             "--nocapture" | "--quiet" | "-q" | "--color" | "--test-threads" | "--show-output" => {}
             other if other.starts_with("--") => return Err(format!("unknown option {other}")),
@@ -159,6 +164,26 @@ fn shrink(s: &dyn Scenario, variant: &'static str, seed: u64, first: &str) -> Op
         }
     }
     best
+}
+
+/// A violation with its numbers blanked out: failures of one kind read the same.
+fn kind(violation: &str) -> String {
+    let mut out = String::new();
+    let mut prev_hash = false;
+    for ch in violation.chars() {
+        let blank =
+            ch.is_ascii_digit() && !out.is_empty() && !out.ends_with('(') || ch == '.' && prev_hash;
+        if blank {
+            if !prev_hash {
+                out.push('#');
+            }
+            prev_hash = true;
+        } else {
+            out.push(ch);
+            prev_hash = false;
+        }
+    }
+    out.chars().take(160).collect()
 }
 
 fn report_failure(k: &str, o: &Outcome) {
@@ -305,6 +330,7 @@ fn main() -> ExitCode {
 
     let wall = Instant::now();
     let (mut runs, mut simulated, mut failures) = (0u64, 0f64, 0u64);
+    let mut kinds: std::collections::BTreeMap<String, (u64, Vec<String>)> = Default::default();
     println!("fresh seeds from {base:#018x}");
     let mut i = 0u64;
     loop {
@@ -325,9 +351,31 @@ fn main() -> ExitCode {
             failures += 1;
             failed = true;
             let k = key(v, seed, Caps::FULL);
-            report_failure(&k, &out);
-            if let Some(small) = shrink(s, v, seed, &out.violations[0]) {
-                eprintln!("  shrunk: {}", replay_command(&small));
+            let mut first_of_kind = false;
+            for violation in &out.violations {
+                let e = kinds.entry(kind(violation)).or_insert((0, Vec::new()));
+                e.0 += 1;
+                if e.1.len() < 3 && !e.1.contains(&k) {
+                    e.1.push(k.clone());
+                    first_of_kind = true;
+                }
+            }
+            if o.shrink || first_of_kind {
+                report_failure(&k, &out);
+            }
+            if o.shrink {
+                if let Some(small) = shrink(s, v, seed, &out.violations[0]) {
+                    eprintln!("  shrunk: {}", replay_command(&small));
+                }
+            }
+        }
+    }
+    if !kinds.is_empty() {
+        println!("failures by kind:");
+        for (k, (n, keys)) in &kinds {
+            println!("  {n:>8} × {k}");
+            for key in keys {
+                println!("             e.g. {}", replay_command(key));
             }
         }
     }
