@@ -15,6 +15,7 @@
 //! - `--until-fail N` — fresh seeds until one fails, at most `N` runs per variant; exits 0 and
 //!   says after how many runs if one did (for the planted-bug table), 1 if none did;
 //! - `--no-regressions` — skip the regression seeds;
+//! - `--strict` — known open findings (`tests/explore/known.txt`) fail a run too;
 //! - `--no-shrink` — do not shrink failures (long runs); failures are summarised by kind, with
 //!   the first three keys of each kind.
 
@@ -41,6 +42,7 @@ struct Opts {
     until_fail: Option<u64>,
     regressions: bool,
     shrink: bool,
+    strict: bool,
 }
 
 fn parse() -> Result<Opts, String> {
@@ -54,6 +56,7 @@ fn parse() -> Result<Opts, String> {
         until_fail: None,
         regressions: true,
         shrink: true,
+        strict: false,
     };
     let mut args = std::env::args().skip(1);
     let num = |s: Option<String>| -> Result<u64, String> {
@@ -75,6 +78,7 @@ fn parse() -> Result<Opts, String> {
             "--until-fail" => o.until_fail = Some(num(args.next())?),
             "--no-regressions" => o.regressions = false,
             "--no-shrink" => o.shrink = false,
+            "--strict" => o.strict = true,
             // What `cargo test` passes on to every test binary.
             "--nocapture" | "--quiet" | "-q" | "--color" | "--test-threads" | "--show-output" => {}
             other if other.starts_with("--") => return Err(format!("unknown option {other}")),
@@ -187,11 +191,29 @@ fn kind(violation: &str) -> String {
 }
 
 fn report_failure(k: &str, o: &Outcome) {
-    eprintln!("FAILED {k} (simulated {:.1} s):", o.simulated.as_secs_f64());
+    report(k, o, "FAILED");
+}
+
+fn report(k: &str, o: &Outcome, label: &str) {
+    eprintln!(
+        "{label} {k} (simulated {:.1} s):",
+        o.simulated.as_secs_f64()
+    );
     for v in &o.violations {
         eprintln!("  - {v}");
     }
     eprintln!("  replay: {}", replay_command(k));
+}
+
+/// The texts of known open findings (`tests/explore/known.txt`).
+fn known_findings() -> Vec<String> {
+    let file = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/explore/known.txt");
+    std::fs::read_to_string(file)
+        .unwrap_or_default()
+        .lines()
+        .map(|l| l.split(" # ").next().unwrap_or_default().trim().to_owned())
+        .filter(|l| !l.is_empty() && !l.starts_with('#'))
+        .collect()
 }
 
 fn fresh_base(o: &Opts) -> u64 {
@@ -244,6 +266,18 @@ fn main() -> ExitCode {
         .collect();
     let mut failed = false;
     let base = fresh_base(&o);
+    let known = if o.strict {
+        Vec::new()
+    } else {
+        known_findings()
+    };
+    let is_known = |out: &Outcome| {
+        !out.violations.is_empty()
+            && out
+                .violations
+                .iter()
+                .all(|v| known.iter().any(|k| v.contains(k.as_str())))
+    };
 
     if let Some(max) = o.until_fail {
         let mut any = false;
@@ -252,7 +286,7 @@ fn main() -> ExitCode {
             let found = (0..max).find_map(|i| {
                 let seed = core::Prng::new(base ^ i).next_u64();
                 let out = run_one(*s, v, seed, Caps::FULL);
-                (!out.violations.is_empty()).then(|| (i + 1, seed, out))
+                (!out.violations.is_empty() && !is_known(&out)).then(|| (i + 1, seed, out))
             });
             match found {
                 Some((runs, seed, out)) => {
@@ -329,7 +363,7 @@ fn main() -> ExitCode {
     }
 
     let wall = Instant::now();
-    let (mut runs, mut simulated, mut failures) = (0u64, 0f64, 0u64);
+    let (mut runs, mut simulated, mut failures, mut known_runs) = (0u64, 0f64, 0u64, 0u64);
     let mut kinds: std::collections::BTreeMap<String, (u64, Vec<String>)> = Default::default();
     println!("fresh seeds from {base:#018x}");
     let mut i = 0u64;
@@ -348,8 +382,12 @@ fn main() -> ExitCode {
         runs += 1;
         simulated += out.simulated.as_secs_f64();
         if !out.violations.is_empty() {
-            failures += 1;
-            failed = true;
+            if is_known(&out) {
+                known_runs += 1;
+            } else {
+                failures += 1;
+                failed = true;
+            }
             let k = key(v, seed, Caps::FULL);
             let mut first_of_kind = false;
             for violation in &out.violations {
@@ -360,10 +398,14 @@ fn main() -> ExitCode {
                     first_of_kind = true;
                 }
             }
-            if o.shrink || first_of_kind {
+            if is_known(&out) {
+                if first_of_kind {
+                    report(&k, &out, "KNOWN (open finding)");
+                }
+            } else if o.shrink || first_of_kind {
                 report_failure(&k, &out);
             }
-            if o.shrink {
+            if o.shrink && !is_known(&out) {
                 if let Some(small) = shrink(s, v, seed, &out.violations[0]) {
                     eprintln!("  shrunk: {}", replay_command(&small));
                 }
@@ -381,7 +423,7 @@ fn main() -> ExitCode {
     }
     let secs = wall.elapsed().as_secs_f64();
     println!(
-        "explore: {runs} runs in {secs:.1} s ({:.1} seeds/s), {:.3} simulated hours, {failures} failed",
+        "explore: {runs} runs in {secs:.1} s ({:.1} seeds/s), {:.3} simulated hours, {failures} failed, {known_runs} failed only on known open findings",
         runs as f64 / secs.max(1e-9),
         simulated / 3600.0
     );
