@@ -1,0 +1,27 @@
+#!/usr/bin/env bash
+# Shows that the explorer can fail (issue 20): applies each planted bug (tests/explore/planted/*.py)
+# in a throwaway worktree of HEAD, never in this tree, builds the explorer there and runs fresh
+# seeds until one fails (`--until-fail RUNS --strict`), per variant: the runs needed to catch it.
+# Usage: tests/explore/plant.sh [RUNS] [--only VARIANT]
+set -euo pipefail
+root=$(git rev-parse --show-toplevel)
+runs=${1:-3000}
+shift || true
+tree=$(mktemp -d /tmp/gripper-plant.XXXXXX)
+git -C "$root" worktree add --quiet --detach "$tree" HEAD
+trap 'git -C "$root" worktree remove --force "$tree"' EXIT
+# The dependencies are shared with this tree's build; the planted crate builds on its own.
+export CARGO_TARGET_DIR="$root/target/planted"
+for bug in "$root"/tests/explore/planted/[0-9]*.py; do
+  name=$(basename "$bug" .py)
+  git -C "$tree" checkout --quiet -- .
+  if ! (cd "$root/tests/explore/planted" && python3 "$bug" "$tree"); then
+    echo "== $name: not applied"
+    continue
+  fi
+  echo "== $name"
+  (cd "$tree" && cargo build --quiet --test explore)
+  bin=$(cd "$tree" && cargo test --quiet --test explore --no-run --message-format=json 2>/dev/null \
+    | sed -n 's/.*"executable":"\([^"]*explore[^"]*\)".*/\1/p' | tail -n 1)
+  "$bin" --until-fail "$runs" --strict --start 0x91a7 "$@" || true
+done

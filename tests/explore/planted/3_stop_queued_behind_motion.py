@@ -1,0 +1,21 @@
+"""Planted bug: queue a stop behind a motion. While a motion command is on the wire, a stop
+waits in that motion's queue instead of going out at once (manual 3.2.3: "unmittelbar")."""
+from _plant import plant
+
+plant(
+    "src/wsg/client/pairing.rs",
+    """        if is_stop(id) {
+            self.stops.entry(id).or_default().push(req.token);""",
+    """        let busy = self
+            .ids
+            .iter()
+            .find(|(i, st)| is_motion(**i) && st.in_flight.is_some())
+            .map(|(i, _)| *i);
+        if let (true, Some(motion)) = (is_stop(id), busy) {
+            self.stops.entry(id).or_default().push(req.token);
+            self.ids.entry(motion).or_default().queue.push_back(req);
+            return Submit::Queued;
+        }
+        if is_stop(id) {
+            self.stops.entry(id).or_default().push(req.token);""",
+)
