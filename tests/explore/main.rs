@@ -14,6 +14,7 @@
 //! - `--determinism N` — seeds per variant run twice and compared (default 1);
 //! - `--until-fail N` — fresh seeds until one fails, at most `N` runs per variant; exits 0 and
 //!   says after how many runs if one did (for the planted-bug table), 1 if none did;
+//! - `--kind TEXT` — with `--until-fail`: only a violation containing `TEXT` counts;
 //! - `--no-regressions` — skip the regression seeds;
 //! - `--strict` — known open findings (`tests/explore/known.txt`) fail a run too;
 //! - `--no-shrink` — do not shrink failures (long runs); failures are summarised by kind, with
@@ -43,6 +44,7 @@ struct Opts {
     regressions: bool,
     shrink: bool,
     strict: bool,
+    kind: Option<String>,
 }
 
 fn parse() -> Result<Opts, String> {
@@ -57,6 +59,7 @@ fn parse() -> Result<Opts, String> {
         regressions: true,
         shrink: true,
         strict: false,
+        kind: None,
     };
     let mut args = std::env::args().skip(1);
     let num = |s: Option<String>| -> Result<u64, String> {
@@ -79,6 +82,7 @@ fn parse() -> Result<Opts, String> {
             "--no-regressions" => o.regressions = false,
             "--no-shrink" => o.shrink = false,
             "--strict" => o.strict = true,
+            "--kind" => o.kind = args.next(),
             // What `cargo test` passes on to every test binary.
             "--nocapture" | "--quiet" | "-q" | "--color" | "--test-threads" | "--show-output" => {}
             other if other.starts_with("--") => return Err(format!("unknown option {other}")),
@@ -286,7 +290,11 @@ fn main() -> ExitCode {
             let found = (0..max).find_map(|i| {
                 let seed = core::Prng::new(base ^ i).next_u64();
                 let out = run_one(*s, v, seed, Caps::FULL);
-                (!out.violations.is_empty() && !is_known(&out)).then(|| (i + 1, seed, out))
+                let hit = match &o.kind {
+                    Some(k) => out.violations.iter().any(|v| v.contains(k.as_str())),
+                    None => !out.violations.is_empty() && !is_known(&out),
+                };
+                hit.then(|| (i + 1, seed, out))
             });
             match found {
                 Some((runs, seed, out)) => {
@@ -296,7 +304,11 @@ fn main() -> ExitCode {
                         "{v}: caught after {runs} runs ({:.1} s wall): {k}",
                         wall.elapsed().as_secs_f64()
                     );
-                    println!("  first violation: {}", out.violations[0]);
+                    let first = match &o.kind {
+                        Some(k) => out.violations.iter().find(|v| v.contains(k.as_str())),
+                        None => out.violations.first(),
+                    };
+                    println!("  violation: {}", first.map_or("", String::as_str));
                 }
                 None => println!(
                     "{v}: nothing found in {max} runs ({:.1} s wall)",

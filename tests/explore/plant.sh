@@ -12,16 +12,25 @@ git -C "$root" worktree add --quiet --detach "$tree" HEAD
 trap 'git -C "$root" worktree remove --force "$tree"' EXIT
 # The dependencies are shared with this tree's build; the planted crate builds on its own.
 export CARGO_TARGET_DIR="$root/target/planted"
+explorer() {
+  (cd "$tree" && cargo build --quiet --test explore)
+  (cd "$tree" && cargo test --quiet --test explore --no-run --message-format=json 2>/dev/null) \
+    | sed -n 's/.*"executable":"\([^"]*explore[^"]*\)".*/\1/p' | tail -n 1
+}
+# Each bug names the violation that catches it (KIND = "..." in its file); the unplanted tree
+# runs the same seeds first, so the table can say how often that violation occurs without it.
+baseline=$(explorer)
 for bug in "$root"/tests/explore/planted/[0-9]*.py; do
   name=$(basename "$bug" .py)
+  kind=$(sed -n 's/^KIND = "\(.*\)"$/\1/p' "$bug")
+  echo "== $name (violation: $kind)"
+  echo "-- without the bug:"
+  "$baseline" --until-fail "$runs" --kind "$kind" --start 0x91a7 "$@" || true
   git -C "$tree" checkout --quiet -- .
   if ! (cd "$root/tests/explore/planted" && python3 "$bug" "$tree"); then
-    echo "== $name: not applied"
+    echo "-- not applied"
     continue
   fi
-  echo "== $name"
-  (cd "$tree" && cargo build --quiet --test explore)
-  bin=$(cd "$tree" && cargo test --quiet --test explore --no-run --message-format=json 2>/dev/null \
-    | sed -n 's/.*"executable":"\([^"]*explore[^"]*\)".*/\1/p' | tail -n 1)
-  "$bin" --until-fail "$runs" --strict --start 0x91a7 "$@" || true
+  echo "-- with the bug:"
+  "$(explorer)" --until-fail "$runs" --kind "$kind" --start 0x91a7 "$@" || true
 done

@@ -2,4 +2,6 @@
 the caller's deadline, with no grace, so its late reply goes to the next caller of that id."""
 from _plant import plant
 
+KIND = "2 (each answer is the device"
+
 plant("src/wsg/client/pairing.rs", "release_at: req.deadline + grace,", "release_at: req.deadline,")

@@ -2,4 +2,6 @@
 apart: SF_MOVING is not synchronised with the end of the move, Anhang B)."""
 from _plant import plant
 
+KIND = "2 (each answer is the device"
+
 plant("src/wsg/client/pairing.rs", "Observation::Idle if f.idle_seen => {", "Observation::Idle => {")

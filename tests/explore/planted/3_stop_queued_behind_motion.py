@@ -2,6 +2,8 @@
 waits in that motion's queue instead of going out at once (manual 3.2.3: "unmittelbar")."""
 from _plant import plant
 
+KIND = "3 (a stop goes out at once)"
+
 plant(
     "src/wsg/client/pairing.rs",
     """        if is_stop(id) {
