@@ -333,7 +333,7 @@ async fn one_call(
     };
     note(trace, format!("call {who} {op} end {res:?}"));
     // A subscription's call includes the wait for its updates: only its result is checked.
-    let limit = (pick < 19 || pick > 20)
+    let limit = (!(19..=20).contains(&pick))
         .then_some(limit)
         .filter(|l| *l != Duration::MAX);
     log.calls.lock().unwrap().push(CallRec {
