@@ -27,6 +27,7 @@ use super::{
     SoftLimits, Status, SystemInfo, SystemLimits, SystemState, WsgCodec,
 };
 use crate::connection::Connection;
+use crate::deadline::after;
 use crate::reconnect::{ConnectionEvents, EventSubscriber, ReconnectPolicy};
 
 /// Default timeout of queries and settings.
@@ -51,6 +52,10 @@ pub const EVENT_BUFFER: usize = 32;
 pub const DEFAULT_SUBSCRIPTION_BUFFER: usize = 64;
 
 /// Configures and opens a [`Client`].
+///
+/// Every duration it (or a call, such as [`Client::with_timeouts`]) takes may be
+/// `Duration::MAX`, the usual way to say "no timeout": deadlines saturate to "never" instead of
+/// overflowing the clock.
 #[derive(Clone, Debug)]
 pub struct ClientBuilder {
     query_timeout: Duration,
@@ -190,7 +195,7 @@ impl ClientBuilder {
     /// Cancel-safe: a dropped call leaves nothing behind.
     pub async fn connect_tcp(self, addr: impl ToSocketAddrs) -> Result<Client> {
         let timeout = self.connect_timeout;
-        let deadline = Instant::now() + timeout;
+        let deadline = after(Instant::now(), timeout);
         // Resolved once: a reconnect goes to the same addresses.
         let addrs: Vec<SocketAddr> = timeout_at(deadline, tokio::net::lookup_host(addr))
             .await
@@ -483,7 +488,7 @@ impl Client {
     /// Sends `frame` and returns its final reply, whatever its status.
     async fn exchange(&self, frame: Frame, timeout: Duration) -> Result<Reply> {
         let command = frame.id;
-        let deadline = Instant::now() + timeout;
+        let deadline = after(Instant::now(), timeout);
         let (reply, rx) = oneshot::channel();
         let msg = Msg::Call {
             frame,
@@ -536,7 +541,9 @@ impl Client {
         command.validate().map_err(Error::InvalidArgument)?;
         let timeout = match command {
             // Not a move: its final reply comes after a known time (3.6.3).
-            Command::FingerPower(_, true) => self.query_timeout + FINGER_POWER_ON_DURATION,
+            Command::FingerPower(_, true) => {
+                self.query_timeout.saturating_add(FINGER_POWER_ON_DURATION)
+            }
             _ if command.is_async() => self.motion_timeout,
             _ => self.query_timeout,
         };
@@ -933,7 +940,7 @@ impl Client {
             decode,
         };
         let timeout = self.query_timeout;
-        let deadline = Instant::now() + timeout;
+        let deadline = after(Instant::now(), timeout);
         let (reply, rx) = oneshot::channel();
         let subscriber = Subscriber { key, tx, missed };
         let msg = Msg::Subscribe {

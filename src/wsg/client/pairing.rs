@@ -47,6 +47,7 @@ use std::time::Duration;
 use bytes::Bytes;
 use tokio::time::Instant;
 
+use crate::deadline::after;
 use crate::int_map::IntMap;
 use crate::wsg::command::id;
 use crate::wsg::{Frame, Reply, Status};
@@ -97,7 +98,7 @@ impl InFlight {
             token: req.token,
             acknowledged: false,
             deadline: req.deadline,
-            release_at: req.deadline + grace,
+            release_at: after(req.deadline, grace),
             probe_at: None,
             idle_seen: false,
             payload: req.frame.payload.clone(),
@@ -383,7 +384,7 @@ impl Pairing {
             Observation::Idle => f.idle_seen = true,
             Observation::Moving | Observation::Unknown => f.idle_seen = false,
         }
-        f.probe_at = Some(now + grace);
+        f.probe_at = Some(after(now, grace));
         if seen == Observation::Moving {
             Verdict::Running
         } else {

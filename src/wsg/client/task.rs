@@ -14,7 +14,7 @@ use tokio::time::{sleep_until, timeout, Instant};
 
 use super::pairing::{Due, Event, Observation, Pairing, Request, Submit, Token, Verdict};
 use super::Reconnect;
-use crate::deadline::move_timer;
+use crate::deadline::{after, move_timer};
 use crate::int_map::IntMap;
 use crate::reconnect::{self, ConnectionEvent, EventSender};
 use crate::wsg::command::{id, Command, UpdateMode};
@@ -235,7 +235,7 @@ impl Task {
         self.link = link;
         self.partial = (0, Instant::now());
         // Their replies (the current values) go to the subscribers like any update.
-        let deadline = Instant::now() + self.query_timeout;
+        let deadline = after(Instant::now(), self.query_timeout);
         for frame in restore {
             let token = self.waiter(Waiter::Internal);
             // The ids are all free on a fresh connection: this only records what was sent.
@@ -348,7 +348,7 @@ impl Task {
         if len != self.partial.0 {
             self.partial = (len, Instant::now());
         }
-        (len > 0).then(|| self.partial.1 + self.partial_frame_timeout)
+        (len > 0).then(|| after(self.partial.1, self.partial_frame_timeout))
     }
 
     fn waiter(&mut self, w: Waiter) -> Token {
@@ -411,7 +411,7 @@ impl Task {
         let req = Request {
             token: probe,
             frame: Command::SystemState(UpdateMode::ONCE).to_frame(),
-            deadline: Instant::now() + self.query_timeout,
+            deadline: after(Instant::now(), self.query_timeout),
         };
         self.submit(req).await
     }
@@ -575,7 +575,7 @@ impl Task {
         self.streams.remove(&id);
         tracing::debug!(id, "last subscriber gone: turning auto-updates off");
         let token = self.waiter(Waiter::Internal);
-        let deadline = Instant::now() + self.query_timeout;
+        let deadline = after(Instant::now(), self.query_timeout);
         self.submit(Request {
             token,
             frame: stream_command(id, UpdateMode::ONCE),
@@ -591,7 +591,7 @@ impl Task {
         if self.announce_on_close {
             let (tx, mut rx) = oneshot::channel();
             let token = self.waiter(Waiter::Caller(tx));
-            let deadline = Instant::now() + self.query_timeout;
+            let deadline = after(Instant::now(), self.query_timeout);
             let frame = Command::AnnounceDisconnect.to_frame();
             if let Err(e) = self
                 .submit(Request {
