@@ -99,7 +99,8 @@ pub struct SimConfig {
     /// Wall seconds per simulated second of motion: 0.0 makes motion instant (the default of
     /// [`SimConfig::new`], for tests), 1.0 is real time (the default of the standalone
     /// simulators, [`SimConfig::standalone`]), 1000.0 makes a move last long enough to be
-    /// stopped. Auto-update periods are always wall-clock periods.
+    /// stopped. Auto-update periods and the 500 ms of a finger power-on (3.6.3) are always
+    /// wall-clock time.
     pub time_scale: f64,
     /// Distance a grasp travels past its nominal width before reporting "no part", mm.
     pub clamping_travel_mm: f32,
