@@ -357,13 +357,19 @@ impl Shared {
 ///   on the wire, even while an earlier stop's reply is outstanding or lost. Their replies carry
 ///   no data and cannot be told apart, so every stop call waiting when a stop reply arrives (all
 ///   were sent before it) completes on it. A pending move then fails with E_CMD_ABORTED.
-/// - **A motion command (homing, pre-position, grasp, release) is never run later**: while one
-///   of the same id runs, a second call is refused with [`Error::Device`] /
-///   [`Status::AlreadyRunning`] without being sent, exactly as the device refuses a motion
-///   command while another runs (3.2.2: E_ALREADY_RUNNING). So a second `pre_position` and a
-///   `grasp` during a `pre_position` fail the same way; a call made while the first one is not
-///   yet acknowledged waits to see whether the device accepts it. Stop the running move first
-///   (or wait for it) to start another.
+/// - **A second motion command (homing, pre-position, grasp, release) of an id on the wire is
+///   answered by the device's state, never by a belief**: the protocol cannot pair two
+///   requests of one id, so the call waits, and the client asks the device's system state
+///   (0x40) at once. If a query sent after the call says the fingers move (SF_MOVING), the call
+///   is refused with [`Error::Device`] / [`Status::AlreadyRunning`] without being sent, as the
+///   device refuses a motion command while another runs (3.2.2); a `grasp` during a
+///   `pre_position` (another id) is sent and refused by the device itself. If the first move's
+///   final reply comes, the call is sent and the device answers it; if the device says twice,
+///   a [`ClientBuilder::late_reply_grace`] apart, that it does not move while no final reply
+///   came, that reply is lost: the first call fails with [`Error::ReplyLost`] and the second is
+///   sent. So after `stop()` the next move works whatever order the move's E_CMD_ABORTED and
+///   the stop's reply arrive in (the manual fixes none; UDP reorders), and one lost final reply
+///   costs the next move about one grace period, not the first call's whole timeout.
 ///
 /// Motion commands resolve on their final reply (after E_CMD_PENDING).
 ///
@@ -619,8 +625,9 @@ impl Client {
 
     /// Homing (0x20): references the fingers; needed before any other motion.
     ///
-    /// Refused with E_ALREADY_RUNNING, unsent, while a move of the same command runs (manual
-    /// 3.2.2; see [`Client`]).
+    /// While a move of the same command is on the wire, the call waits for the device: it is
+    /// sent when that move ends, or refused with E_ALREADY_RUNNING, unsent, when a system-state
+    /// query sent after the call finds the fingers moving (manual 3.2.2; see [`Client`]).
     ///
     /// Cancel-safe for the connection, but dropping the call does **not** stop the fingers: once
     /// sent, the move runs to its end; send [`Client::stop`] (see [Cancellation](Client#cancellation)).
@@ -630,8 +637,9 @@ impl Client {
 
     /// Pre-position (0x21) to an absolute width, stopping if blocked.
     ///
-    /// Refused with E_ALREADY_RUNNING, unsent, while a move of the same command runs (manual
-    /// 3.2.2; see [`Client`]).
+    /// While a move of the same command is on the wire, the call waits for the device: it is
+    /// sent when that move ends, or refused with E_ALREADY_RUNNING, unsent, when a system-state
+    /// query sent after the call finds the fingers moving (manual 3.2.2; see [`Client`]).
     ///
     /// Cancel-safe for the connection, but dropping the call does **not** stop the fingers: once
     /// sent, the move runs to its end; send [`Client::stop`] (see [Cancellation](Client#cancellation)).
@@ -647,8 +655,9 @@ impl Client {
 
     /// Pre-position (0x21) by a distance relative to the current width, stopping if blocked.
     ///
-    /// Refused with E_ALREADY_RUNNING, unsent, while a move of the same command runs (manual
-    /// 3.2.2; see [`Client`]).
+    /// While a move of the same command is on the wire, the call waits for the device: it is
+    /// sent when that move ends, or refused with E_ALREADY_RUNNING, unsent, when a system-state
+    /// query sent after the call finds the fingers moving (manual 3.2.2; see [`Client`]).
     ///
     /// Cancel-safe for the connection, but dropping the call does **not** stop the fingers: once
     /// sent, the move runs to its end; send [`Client::stop`] (see [Cancellation](Client#cancellation)).
@@ -697,8 +706,9 @@ impl Client {
     /// Grasp a part (0x25) of nominal width `width_mm`. No part found is
     /// `Error::Device { status: Status::CmdFailed, .. }`.
     ///
-    /// Refused with E_ALREADY_RUNNING, unsent, while a move of the same command runs (manual
-    /// 3.2.2; see [`Client`]).
+    /// While a move of the same command is on the wire, the call waits for the device: it is
+    /// sent when that move ends, or refused with E_ALREADY_RUNNING, unsent, when a system-state
+    /// query sent after the call finds the fingers moving (manual 3.2.2; see [`Client`]).
     ///
     /// Cancel-safe for the connection, but dropping the call does **not** stop the fingers: once
     /// sent, the move runs to its end; send [`Client::stop`] (see [Cancellation](Client#cancellation)).
@@ -712,8 +722,9 @@ impl Client {
 
     /// Release the part (0x26), opening to `width_mm`.
     ///
-    /// Refused with E_ALREADY_RUNNING, unsent, while a move of the same command runs (manual
-    /// 3.2.2; see [`Client`]).
+    /// While a move of the same command is on the wire, the call waits for the device: it is
+    /// sent when that move ends, or refused with E_ALREADY_RUNNING, unsent, when a system-state
+    /// query sent after the call finds the fingers moving (manual 3.2.2; see [`Client`]).
     ///
     /// Cancel-safe for the connection, but dropping the call does **not** stop the fingers: once
     /// sent, the move runs to its end; send [`Client::stop`] (see [Cancellation](Client#cancellation)).

@@ -366,17 +366,14 @@ impl Task {
         match self.pairing.submit(req, Instant::now()) {
             Submit::Send(req) => self.transmit(req).await,
             Submit::Queued => Ok(()),
-            Submit::Refused(req) => {
-                self.refuse(id, req.token);
-                Ok(())
-            }
         }
     }
 
     /// Fails call `token` of motion command `id` with E_ALREADY_RUNNING without sending it: a
-    /// motion command of that id runs, and the device would refuse it the same way (3.2.2).
+    /// motion command of that id is on the wire, and a system-state query sent after the call
+    /// found the fingers moving, so the device would refuse it the same way (3.2.2).
     fn refuse(&mut self, id: u8, token: Token) {
-        tracing::debug!(id, "motion command refused: one of this id is running");
+        tracing::debug!(id, "motion command refused: the device moves (SF_MOVING)");
         if let Some(Waiter::Caller(tx)) = self.waiters.remove(&token) {
             let _ = tx.send(Err(Error::Device {
                 command: id,
@@ -394,8 +391,13 @@ impl Task {
                     "no (final) reply within timeout + grace: command id released; \
                     a reply arriving later would be taken for the next request of this id"
                 );
-                if let Some(Waiter::Probe { id: motion, token }) = self.waiters.remove(&token) {
-                    self.on_probe(motion, token, Observation::Unknown).await?;
+                if let Some(Waiter::Probe {
+                    id: motion,
+                    token: t,
+                }) = self.waiters.remove(&token)
+                {
+                    self.on_probe(motion, t, Observation::Unknown, token)
+                        .await?;
                 }
                 self.send_next(id).await
             }
@@ -416,20 +418,31 @@ impl Task {
         self.submit(req).await
     }
 
-    /// Hands what a probe saw to the pairing and acts on its verdict.
-    async fn on_probe(&mut self, id: u8, token: Token, seen: Observation) -> io::Result<()> {
-        match self.pairing.on_probe(id, token, seen, Instant::now()) {
+    /// Hands what probe `probe` saw to the pairing and acts on its verdict.
+    async fn on_probe(
+        &mut self,
+        id: u8,
+        token: Token,
+        seen: Observation,
+        probe: Token,
+    ) -> io::Result<()> {
+        match self
+            .pairing
+            .on_probe(id, token, seen, Instant::now(), probe)
+        {
             Verdict::Abandoned => {
                 tracing::warn!(
                     id,
                     "the final reply of a motion command was lost (the device said twice, a \
                      grace period apart, that it does not move): id released"
                 );
-                self.waiters.remove(&token);
+                if let Some(Waiter::Caller(tx)) = self.waiters.remove(&token) {
+                    let _ = tx.send(Err(Error::ReplyLost { command: id }));
+                }
                 self.send_next(id).await
             }
-            Verdict::Running => {
-                for t in self.pairing.refuse_queued(id) {
+            Verdict::Running(refused) => {
+                for t in refused {
                     self.refuse(id, t);
                 }
                 Ok(())
@@ -479,8 +492,12 @@ impl Task {
                                 reason: reason.clone(),
                             }));
                         }
-                        Some(Waiter::Probe { id: motion, token }) => {
-                            self.on_probe(motion, token, Observation::Unknown).await?;
+                        Some(Waiter::Probe {
+                            id: motion,
+                            token: t,
+                        }) => {
+                            self.on_probe(motion, t, Observation::Unknown, *token)
+                                .await?;
                         }
                         Some(Waiter::Internal) | None => {}
                     }
@@ -494,10 +511,8 @@ impl Task {
         match self.pairing.on_reply(reply) {
             Event::Accepted(_) => {
                 tracing::debug!(id, "WSG command accepted (E_CMD_PENDING)");
-                // The device runs it: motion calls of the id queued behind it are refused.
-                for t in self.pairing.refuse_queued(id) {
-                    self.refuse(id, t);
-                }
+                // Motion calls of the id queued behind it: ask the device whether it moves.
+                self.pairing.verify_queued(id, Instant::now());
             }
             Event::Stopped(tokens, reply) => {
                 for token in tokens {
@@ -519,7 +534,10 @@ impl Task {
                             );
                         }
                     }
-                    Some(Waiter::Probe { id: motion, token }) => {
+                    Some(Waiter::Probe {
+                        id: motion,
+                        token: t,
+                    }) => {
                         let seen = match SystemState::decode(&reply.data) {
                             Ok(s) if reply.status == Status::Success => {
                                 if s.contains(SystemState::MOVING) {
@@ -530,7 +548,7 @@ impl Task {
                             }
                             _ => Observation::Unknown,
                         };
-                        self.on_probe(motion, token, seen).await?;
+                        self.on_probe(motion, t, seen, token).await?;
                     }
                     Some(Waiter::Internal) | None => {}
                 }
