@@ -2,7 +2,11 @@
 //! before its fix: over loopback sockets against the in-process simulator.
 #![cfg(feature = "sim")]
 
+use std::net::SocketAddr;
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
+
+use tokio::net::UdpSocket;
 
 use gripper::wsg::command::id;
 use gripper::wsg::sim::{Model, SimConfig, SimServer};
@@ -176,4 +180,84 @@ async fn stop_then_move_works_when_the_abort_arrives_after_the_stop_reply() {
     assert_eq!(bounded("width", client.width_mm()).await.unwrap(), 60.0);
     let first = bounded("first move", first).await.unwrap().unwrap_err();
     assert_eq!(first.status(), Some(Status::CmdAborted), "{first}");
+}
+
+/// A UDP relay between a client and the simulator that loses the next request datagrams of the
+/// command ids put into `lose` (one datagram per entry).
+struct Relay {
+    addr: SocketAddr,
+    lose: Arc<Mutex<Vec<u8>>>,
+}
+
+impl Relay {
+    async fn start(upstream: SocketAddr) -> Relay {
+        let socket = UdpSocket::bind("127.0.0.1:0").await.unwrap();
+        let lose: Arc<Mutex<Vec<u8>>> = Arc::default();
+        let relay = Relay {
+            addr: socket.local_addr().unwrap(),
+            lose: lose.clone(),
+        };
+        tokio::spawn(async move {
+            let mut client = None;
+            let mut buf = vec![0u8; 65536];
+            while let Ok((n, from)) = socket.recv_from(&mut buf).await {
+                let to = if from == upstream {
+                    let Some(to) = client else { continue };
+                    to
+                } else {
+                    client = Some(from);
+                    // Byte 3 of a frame is its command id (manual 1.2.1).
+                    let mut lose = lose.lock().unwrap();
+                    if let Some(i) = lose.iter().position(|id| n > 3 && buf[3] == *id) {
+                        lose.remove(i);
+                        continue;
+                    }
+                    upstream
+                };
+                let _ = socket.send_to(&buf[..n], to).await;
+            }
+        });
+        relay
+    }
+}
+
+/// Issue 20.2 #3: every waiting stop completed on the first stop reply, which may answer an
+/// earlier stop, processed before a move that started afterwards. With the later stop's
+/// datagram lost, `stop()` returned `Ok` while the fingers kept moving. Manual 1.2.2: a reply
+/// acknowledges "the received command": `stop()` may succeed only on a reply to a stop sent at
+/// or after the call.
+#[tokio::test]
+async fn stop_is_ok_only_for_a_stop_the_device_received_after_the_call() {
+    let sim = SimServer::bind_udp("127.0.0.1:0", config()).await.unwrap();
+    let relay = Relay::start(sim.local_addr().unwrap()).await;
+    let client = Client::builder().connect_udp(relay.addr).await.unwrap();
+    bounded("home", client.home(HomingDirection::Default))
+        .await
+        .unwrap();
+    sim.set_time_scale(1000.0);
+    // An earlier stop, processed while nothing moves, whose reply is slow.
+    sim.delay_next_reply(id::STOP, Duration::from_millis(500));
+    let early = {
+        let c = client.clone();
+        tokio::spawn(async move { c.stop().await })
+    };
+    bounded("early stop sent", async {
+        while count(&sim, id::STOP) == 0 {
+            tokio::task::yield_now().await;
+        }
+    })
+    .await;
+    // Then a move starts, and a stop whose datagram is lost.
+    let mover = start_move(&client).await;
+    relay.lose.lock().unwrap().push(id::STOP);
+    bounded("stop", client.stop()).await.unwrap();
+    // Asked after the stop's reply: the device processes it after the stop it answered.
+    let state = bounded("state", client.system_state()).await.unwrap();
+    assert!(
+        !state.contains(SystemState::MOVING),
+        "stop() returned Ok while the fingers move: {state:?}"
+    );
+    bounded("early stop", early).await.unwrap().unwrap();
+    let moved = bounded("move", mover).await.unwrap().unwrap_err();
+    assert_eq!(moved.status(), Some(Status::CmdAborted), "{moved}");
 }

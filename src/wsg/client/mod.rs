@@ -2,6 +2,7 @@
 
 mod connector;
 mod pairing;
+mod stops;
 mod task;
 
 use std::net::SocketAddr;
@@ -40,6 +41,10 @@ pub const DEFAULT_LATE_REPLY_GRACE: Duration = Duration::from_secs(2);
 /// How long switching a finger's power on takes: its final reply comes "nach etwa 500 ms"
 /// (manual 3.6.3). [`Client::set_finger_power`] waits this long plus the query timeout.
 pub const FINGER_POWER_ON_DURATION: Duration = Duration::from_millis(500);
+/// How long a stop (or FAST STOP) call waits for a reply to a stop sent at or after it before
+/// the stop is sent again (see [`Client`]): far above a stop's round trip, far below a call's
+/// timeout.
+pub const RESEND_STOP_AFTER: Duration = stops::RESEND_AFTER;
 /// Default timeout of a TCP connect (see [`ClientBuilder::connect_timeout`]).
 pub const DEFAULT_CONNECT_TIMEOUT: Duration = Duration::from_secs(5);
 /// Default silence after which a partial frame is dropped as noise (see
@@ -354,9 +359,16 @@ impl Shared {
 /// exceptions:
 /// - **Stop and FAST STOP are never queued** (manual 3.2.3: "stoppt unmittelbar jede laufende
 ///   Fingerbewegung"): each [`Client::stop`] / [`Client::fast_stop`] is sent at once, whatever is
-///   on the wire, even while an earlier stop's reply is outstanding or lost. Their replies carry
-///   no data and cannot be told apart, so every stop call waiting when a stop reply arrives (all
-///   were sent before it) completes on it. A pending move then fails with E_CMD_ABORTED.
+///   on the wire, even while an earlier stop's reply is outstanding or lost. A stop call
+///   succeeds only on a reply to a stop sent at or after the call (a reply acknowledges "the
+///   received command", 1.2.2; an earlier stop may have been processed before a move that
+///   started afterwards). Their replies carry no data, so each reply is taken for the oldest
+///   stop still unanswered, and a call still waiting [`RESEND_STOP_AFTER`] later gets the stop
+///   sent again (a lost UDP datagram) until its reply comes or its timeout ends. Sound on TCP
+///   and serial (ordered); on UDP a stop reply later than the late-reply grace, or a
+///   duplicated one, could be taken for a later stop, and a stop sent again may arrive after
+///   `stop()` returned and stop a move started right after (it then fails with
+///   E_CMD_ABORTED). A pending move fails with E_CMD_ABORTED.
 /// - **A second motion command (homing, pre-position, grasp, release) of an id on the wire is
 ///   answered by the device's state, never by a belief**: the protocol cannot pair two
 ///   requests of one id, so the call waits, and the client asks the device's system state
@@ -674,8 +686,8 @@ impl Client {
     /// Stop (0x22): stops any motion (a pending motion fails with E_CMD_ABORTED).
     ///
     /// Sent at once, never queued behind anything, even an earlier stop whose reply is
-    /// outstanding or lost; completes on the first stop reply that arrives after it was sent
-    /// (see [`Client`]).
+    /// outstanding or lost; `Ok` only on a reply to a stop sent at or after the call, sent again
+    /// if none comes within [`RESEND_STOP_AFTER`] (see [`Client`]).
     ///
     /// Cancel-safe for the connection; once sent, the command takes effect even if the call is
     /// dropped (see [Cancellation](Client#cancellation)).
@@ -686,8 +698,8 @@ impl Client {
     /// Fast stop (0x23): stops and refuses motion until [`Client::acknowledge_fast_stop`].
     ///
     /// Sent at once, never queued behind anything, even an earlier FAST STOP whose reply is
-    /// outstanding or lost; completes on the first FAST STOP reply that arrives after it was
-    /// sent (see [`Client`]).
+    /// outstanding or lost; `Ok` only on a reply to a FAST STOP sent at or after the call, sent
+    /// again if none comes within [`RESEND_STOP_AFTER`] (see [`Client`]).
     ///
     /// Cancel-safe for the connection; once sent, the command takes effect even if the call is
     /// dropped (see [Cancellation](Client#cancellation)).

@@ -58,6 +58,7 @@ use std::time::Duration;
 use bytes::Bytes;
 use tokio::time::Instant;
 
+use super::stops::Stops;
 use crate::deadline::after;
 use crate::int_map::IntMap;
 use crate::wsg::command::id;
@@ -178,8 +179,8 @@ impl IdState {
 pub(crate) enum Event {
     /// The final reply of the request `Token`.
     Resolved(Token, Reply),
-    /// The final reply of every stop (or FAST STOP) request listed: all were sent before it
-    /// arrived, and their replies cannot be told apart.
+    /// The final reply of every stop (or FAST STOP) request listed: it answers a stop sent at
+    /// or after each of their calls (see [`super::stops`]).
     Stopped(Vec<Token>, Reply),
     /// The asynchronous request `Token` was accepted (E_CMD_PENDING); its result follows.
     Accepted(Token),
@@ -206,6 +207,9 @@ pub(crate) enum Due {
     /// The acknowledged motion `Token` of this id is past its deadline: ask the device whether
     /// it still moves, and report the answer with [`Pairing::on_probe`].
     Probe(u8, Token),
+    /// A stop call of this id (stop or FAST STOP) still waits for a reply to a stop sent at or
+    /// after it: send the stop again (it is recorded as sent).
+    ResendStop(u8),
 }
 
 /// What a recovery probe found out about a motion command (see [`Pairing::on_probe`]).
@@ -238,7 +242,7 @@ pub(crate) enum Verdict {
 pub(crate) struct Pairing {
     ids: IntMap<u8, IdState>,
     /// The stop and FAST STOP requests sent and not answered yet, by id.
-    stops: IntMap<u8, Vec<Token>>,
+    stops: IntMap<u8, Stops>,
     grace: Duration,
 }
 
@@ -257,7 +261,11 @@ impl Pairing {
     pub(crate) fn submit(&mut self, req: Request, now: Instant) -> Submit {
         let id = req.frame.id;
         if is_stop(id) {
-            self.stops.entry(id).or_default().push(req.token);
+            let grace = self.grace;
+            self.stops
+                .entry(id)
+                .or_default()
+                .submit(req.token, req.deadline, now, grace);
             return Submit::Send(req);
         }
         let st = self.ids.entry(id).or_default();
@@ -277,13 +285,7 @@ impl Pairing {
     pub(crate) fn prune(&mut self, id: u8, alive: impl Fn(Token) -> bool) -> Vec<Token> {
         let mut gone = Vec::new();
         if let Some(stops) = self.stops.get_mut(&id) {
-            stops.retain(|t| {
-                let keep = alive(*t);
-                if !keep {
-                    gone.push(*t);
-                }
-                keep
-            });
+            gone.extend(stops.prune(&alive));
         }
         if let Some(st) = self.ids.get_mut(&id) {
             st.queue.retain(|r| {
@@ -308,15 +310,11 @@ impl Pairing {
     /// Pairs a received reply.
     pub(crate) fn on_reply(&mut self, reply: Reply) -> Event {
         if is_stop(reply.id) {
-            let waiting = self
-                .stops
-                .get_mut(&reply.id)
-                .map(std::mem::take)
-                .unwrap_or_default();
-            return if waiting.is_empty() {
+            let done = self.stop_replied(reply.id);
+            return if done.is_empty() {
                 Event::Unsolicited(reply)
             } else {
-                Event::Stopped(waiting, reply)
+                Event::Stopped(done, reply)
             };
         }
         let Some(st) = self.ids.get_mut(&reply.id) else {
@@ -345,11 +343,23 @@ impl Pairing {
         Event::Resolved(token, reply)
     }
 
+    /// A reply (usable or not) of stop id `id` arrived: the stop calls it completes.
+    fn stop_replied(&mut self, id: u8) -> Vec<Token> {
+        let Some(stops) = self.stops.get_mut(&id) else {
+            return Vec::new();
+        };
+        let done = stops.on_reply();
+        if stops.is_idle() {
+            self.stops.remove(&id);
+        }
+        done
+    }
+
     /// A reply of `id` too short to carry a status code: it still ends the request(s) on the
     /// wire (it is their answer, just unusable). Returns their tokens.
     pub(crate) fn on_malformed(&mut self, id: u8) -> Vec<Token> {
         if is_stop(id) {
-            return self.stops.remove(&id).unwrap_or_default();
+            return self.stop_replied(id);
         }
         self.ids
             .get_mut(&id)
@@ -447,9 +457,11 @@ impl Pairing {
 
     /// When the next request needs the task ([`Pairing::due`]).
     pub(crate) fn next_due(&self) -> Option<Instant> {
+        let stops = self.stops.values().filter_map(Stops::next_due);
         self.ids
             .iter()
             .filter_map(|(id, st)| st.in_flight.as_ref()?.due(*id))
+            .chain(stops)
             .min()
     }
 
@@ -457,6 +469,13 @@ impl Pairing {
     /// afterwards) and recovery probes to send.
     pub(crate) fn due(&mut self, now: Instant) -> Vec<Due> {
         let mut out = Vec::new();
+        let grace = self.grace;
+        for (id, stops) in &mut self.stops {
+            if stops.due(now, grace) {
+                out.push(Due::ResendStop(*id));
+            }
+        }
+        self.stops.retain(|_, s| !s.is_idle());
         for (id, st) in &mut self.ids {
             let Some(f) = &mut st.in_flight else {
                 continue;
@@ -483,7 +502,7 @@ impl Pairing {
             out.extend(st.queue.into_iter().map(|r| r.token));
         }
         for (_, stops) in self.stops.drain() {
-            out.extend(stops);
+            out.extend(stops.drain());
         }
         out
     }
@@ -566,23 +585,28 @@ mod tests {
     }
 
     #[test]
-    fn stops_are_never_queued_and_every_waiting_stop_completes_on_the_next_reply() {
+    fn stops_are_never_queued_and_a_reply_completes_only_the_calls_it_can_answer() {
         let now = Instant::now();
         let t = now + Duration::from_secs(1);
         let mut p = Pairing::new(Duration::from_secs(1));
         for id in [id::STOP, id::FAST_STOP] {
-            // The first stop's reply is lost: the second still goes out at once.
+            // The first stop's reply is outstanding: the second still goes out at once.
             assert_eq!(sent(p.submit(req(1, id, t), now)), Some(1));
             assert_eq!(sent(p.submit(req(2, id, t), now)), Some(2));
-            assert_eq!(p.next_due(), None, "a stop never holds its id");
+            // Only a resend is ever due for a stop (it holds no id).
+            assert_eq!(p.next_due(), Some(now + super::super::stops::RESEND_AFTER));
+            // The first reply may answer the first stop, sent before the second call: it
+            // completes the first call only (issue 20.2 #3).
             assert_eq!(
                 p.on_reply(reply(id, Status::Success)),
-                Event::Stopped(vec![1, 2], reply(id, Status::Success))
+                Event::Stopped(vec![1], reply(id, Status::Success))
             );
-            // A third stop, sent after that reply, waits for a reply of its own; the second
-            // stop's reply (arriving late) is that one.
-            assert_eq!(sent(p.submit(req(3, id, t), now)), Some(3));
+            assert_eq!(
+                p.on_reply(reply(id, Status::Success)),
+                Event::Stopped(vec![2], reply(id, Status::Success))
+            );
             // A caller that went away is forgotten before the next stop goes out.
+            assert_eq!(sent(p.submit(req(3, id, t), now)), Some(3));
             assert_eq!(p.prune(id, |t| t != 3), vec![3]);
             assert!(matches!(
                 p.on_reply(reply(id, Status::Success)),

@@ -402,6 +402,18 @@ impl Task {
                 self.send_next(id).await
             }
             Due::Probe(id, token) => self.send_probe(id, token).await,
+            Due::ResendStop(id) => {
+                tracing::debug!(
+                    id,
+                    "no reply to a stop sent at or after a waiting stop call: sent again"
+                );
+                send_within(
+                    &mut self.link,
+                    &Frame::new(id, Bytes::new()),
+                    self.write_timeout,
+                )
+                .await
+            }
         }
     }
 
