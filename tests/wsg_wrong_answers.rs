@@ -6,7 +6,13 @@ use std::net::SocketAddr;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use tokio::net::UdpSocket;
+use bytes::BytesMut;
+use futures_util::StreamExt;
+use gripper::wsg::frame::{self, Frame};
+use gripper::wsg::WsgCodec;
+use tokio::io::AsyncWriteExt;
+use tokio::net::{TcpListener, UdpSocket};
+use tokio_util::codec::FramedRead;
 
 use gripper::wsg::command::id;
 use gripper::wsg::sim::{Model, SimConfig, SimServer};
@@ -260,4 +266,105 @@ async fn stop_is_ok_only_for_a_stop_the_device_received_after_the_call() {
     bounded("early stop", early).await.unwrap().unwrap();
     let moved = bounded("move", mover).await.unwrap().unwrap_err();
     assert_eq!(moved.status(), Some(Status::CmdAborted), "{moved}");
+}
+
+fn encode(f: &Frame) -> Vec<u8> {
+    let mut b = BytesMut::new();
+    frame::encode(f, &mut b).unwrap();
+    b.to_vec()
+}
+
+fn reply(command: u8, data: &[u8]) -> Vec<u8> {
+    let mut payload = vec![0, 0];
+    payload.extend_from_slice(data);
+    encode(&Frame::new(command, payload))
+}
+
+/// A bogus header: an id whose replies have no fixed length (a raw command), and a length
+/// that makes the decoder wait for 4000 bytes (a corrupted length field): about 6 s of the
+/// traffic behind it.
+const BOGUS: [u8; 6] = [0xAA, 0xAA, 0xAA, 0x90, 0xA0, 0x0F];
+
+/// A TCP "gripper" that writes `BOGUS` once a first request came, then an unrelated 14-byte
+/// frame every 20 ms (as a 0x43 stream would), and answers each request after it with `answer`.
+async fn corrupted_length_device(answer: fn(&Frame, usize) -> Vec<u8>) -> SocketAddr {
+    let listener = TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let addr = listener.local_addr().unwrap();
+    tokio::spawn(async move {
+        let (socket, _) = listener.accept().await.unwrap();
+        let (read, write) = socket.into_split();
+        let write = Arc::new(tokio::sync::Mutex::new(write));
+        let mut requests = FramedRead::new(read, WsgCodec::new());
+        let mut n = 0;
+        while let Some(Ok(request)) = requests.next().await {
+            if n == 0 {
+                write.lock().await.write_all(&BOGUS).await.unwrap();
+                let w = write.clone();
+                tokio::spawn(async move {
+                    let noise = reply(0x44, &1.0f32.to_le_bytes());
+                    for _ in 0..500 {
+                        tokio::time::sleep(Duration::from_millis(20)).await;
+                        if w.lock().await.write_all(&noise).await.is_err() {
+                            return;
+                        }
+                    }
+                });
+            }
+            let bytes = answer(&request, n);
+            n += 1;
+            write.lock().await.write_all(&bytes).await.unwrap();
+        }
+    });
+    addr
+}
+
+/// Issue 20.2 #2: the partial-frame timeout restarted on every byte, so a corrupted length
+/// field (below the maximum) with a stream of frames behind it held every reply for as long
+/// as it took to fill the bogus length. A frame must complete within the timeout from its
+/// first byte.
+#[tokio::test]
+async fn a_corrupted_length_with_traffic_behind_it_is_dropped_from_its_first_byte() {
+    let addr = corrupted_length_device(|request, _| match request.id {
+        id::LOOP => reply(id::LOOP, &request.payload),
+        other => reply(other, &[]),
+    })
+    .await;
+    let client = Client::builder()
+        .partial_frame_timeout(Duration::from_millis(200))
+        .query_timeout(Duration::from_secs(1))
+        .connect_tcp(addr)
+        .await
+        .unwrap();
+    // The first request triggers the bogus header; its reply is held behind it.
+    let echo = bounded("loop", client.loop_back(&b"held"[..])).await;
+    assert_eq!(&echo.expect("the held reply is delivered")[..], b"held");
+}
+
+/// Issue 20.2 #2: a reply held behind a partial frame must never go to a newer request: the
+/// id of a request whose reply may be held is not released while the decoder holds bytes.
+#[tokio::test]
+async fn a_held_reply_never_goes_to_a_newer_request() {
+    // Width requests are answered 1.0 mm, 2.0 mm, ...: each answer names its request.
+    let addr = corrupted_length_device(|request, n| match request.id {
+        id::WIDTH => reply(id::WIDTH, &(n as f32 + 1.0).to_le_bytes()),
+        other => reply(other, &[]),
+    })
+    .await;
+    let client = Client::builder()
+        .partial_frame_timeout(Duration::from_millis(600))
+        .late_reply_grace(Duration::from_millis(50))
+        .connect_tcp(addr)
+        .await
+        .unwrap();
+    // The first width's answer (1.0) is held; its call times out, its grace passes ...
+    let impatient = client.with_timeouts(Duration::from_millis(100), Duration::from_secs(1));
+    let first = bounded("first width", impatient.width_mm()).await;
+    assert!(matches!(first, Err(Error::Timeout { .. })), "{first:?}");
+    // ... and the next width call must get its own answer, not the held 1.0.
+    let patient = client.with_timeouts(Duration::from_secs(5), Duration::from_secs(5));
+    let second = bounded("second width", patient.width_mm()).await.unwrap();
+    assert_eq!(
+        second, 2.0,
+        "the held reply of the first request went to the second"
+    );
 }

@@ -118,6 +118,11 @@ pub enum Decoded {
 /// Returns `None` when more bytes are needed; bytes before a possible preamble are dropped, so
 /// `src` never grows beyond one frame of at most `max_payload_len` plus a few bytes of garbage.
 pub fn decode(src: &mut BytesMut, max_payload_len: usize) -> Option<Decoded> {
+    decode_limited(src, |_| max_payload_len)
+}
+
+/// [`decode`] with a limit per command id: a header whose length exceeds `limit(id)` is noise.
+pub(crate) fn decode_limited(src: &mut BytesMut, limit: impl Fn(u8) -> usize) -> Option<Decoded> {
     loop {
         let start = find_preamble(src)?;
         src.advance(start);
@@ -127,6 +132,7 @@ pub fn decode(src: &mut BytesMut, max_payload_len: usize) -> Option<Decoded> {
         }
         let id = src[3];
         let len = u16::from_le_bytes([src[4], src[5]]);
+        let max_payload_len = limit(id);
         if usize::from(len) > max_payload_len {
             tracing::warn!(
                 id,
@@ -164,8 +170,16 @@ pub fn decode(src: &mut BytesMut, max_payload_len: usize) -> Option<Decoded> {
 /// Like [`decode`], at end of stream: a header that cannot complete any more is dropped as noise
 /// and the search continues after its first byte.
 pub fn decode_eof(src: &mut BytesMut, max_payload_len: usize) -> Option<Decoded> {
+    decode_eof_limited(src, |_| max_payload_len)
+}
+
+/// [`decode_eof`] with a limit per command id (see [`decode_limited`]).
+pub(crate) fn decode_eof_limited(
+    src: &mut BytesMut,
+    limit: impl Fn(u8) -> usize,
+) -> Option<Decoded> {
     loop {
-        if let Some(d) = decode(src, max_payload_len) {
+        if let Some(d) = decode_limited(src, &limit) {
             return Some(d);
         }
         if src.is_empty() {

@@ -99,6 +99,27 @@ impl Link {
         }
     }
 
+    /// Like [`Link::recv`], but when `watching` is false also returns (with `None`) as soon as
+    /// the decoder holds the start of a frame, so the caller can start that frame's timer
+    /// (issue 20.2 #2: a frame must complete within a bound from its first byte). Cancel-safe.
+    pub(crate) async fn recv_or_partial(
+        &mut self,
+        watching: bool,
+    ) -> Option<Option<io::Result<Frame>>> {
+        match self {
+            Link::Stream(framed) if !watching => {
+                std::future::poll_fn(|cx| match std::pin::Pin::new(&mut *framed).poll_next(cx) {
+                    std::task::Poll::Pending if !framed.read_buffer().is_empty() => {
+                        std::task::Poll::Ready(None)
+                    }
+                    other => other.map(Some),
+                })
+                .await
+            }
+            _ => Some(self.recv().await),
+        }
+    }
+
     /// Sends one frame (and flushes it).
     pub(crate) async fn send(&mut self, f: &Frame) -> io::Result<()> {
         match self {

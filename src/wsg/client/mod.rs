@@ -138,11 +138,14 @@ impl ClientBuilder {
         self
     }
 
-    /// How long the start of a frame may wait for its next byte before the decoder drops it as
-    /// noise and looks for a frame after it (default 500 ms). A corrupted length field (below
-    /// [`max_payload_len`](Self::max_payload_len)) would otherwise hold back every later reply
-    /// until that many bytes had arrived. Keep it above the longest pause a sound link can have
-    /// inside one frame (a TCP retransmission takes 200 ms or more).
+    /// How long a frame may take from its first byte before the decoder drops it as noise and
+    /// looks for a frame after it (default 500 ms). A corrupted length field (below
+    /// [`max_payload_len`](Self::max_payload_len) and the longest reply of its command id)
+    /// would otherwise hold back every later reply until that many bytes had arrived, however
+    /// much traffic (a stream of updates) keeps coming. While a frame is held, no request's
+    /// id is released and no probe is sent, so a reply held behind it never reaches a newer
+    /// request. Keep it above the longest time a sound link takes for one frame (a TCP
+    /// retransmission takes 200 ms or more; at 9600 baud a 4 KiB frame takes over 4 s).
     pub fn partial_frame_timeout(mut self, t: Duration) -> Self {
         self.partial_frame_timeout = t;
         self
@@ -319,10 +322,7 @@ impl ClientBuilder {
 }
 
 fn stream_link(io: Box<dyn AsyncReadWrite>, max_payload_len: usize) -> Link {
-    Link::Stream(Framed::new(
-        io,
-        WsgCodec::with_max_payload_len(max_payload_len),
-    ))
+    Link::Stream(Framed::new(io, WsgCodec::for_replies(max_payload_len)))
 }
 
 #[derive(Debug)]
@@ -421,8 +421,11 @@ impl Shared {
 /// `tests/wsg_faults.rs`):
 /// - a frame with a bad checksum is dropped; its call ends in a timeout (or, when the device
 ///   rejected a corrupted request, [`Error::Device`] with E_CHECKSUM_ERROR);
-/// - a header whose bytes stop coming (a corrupted length) is dropped after
-///   [`ClientBuilder::partial_frame_timeout`], and the frames behind it are decoded;
+/// - a header longer than any reply of its command id (a corrupted length) is skipped at once;
+///   one that is plausible but never completes is dropped
+///   [`ClientBuilder::partial_frame_timeout`] after its first byte, however many bytes follow,
+///   and the frames behind it are decoded; meanwhile no id is released, so a reply held behind
+///   it still reaches its own request (or is discarded as late), never a newer one;
 /// - a lost reply ends its call in a timeout; a lost E_CMD_PENDING changes nothing (the final
 ///   reply ends the call); a lost final reply times its call out, and its id comes back as
 ///   [Lost final replies](Client#lost-final-replies) says; a lost stop reply holds up no later

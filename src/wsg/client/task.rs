@@ -73,10 +73,13 @@ pub(crate) struct Task {
     /// reading cannot hold the task.
     write_timeout: Duration,
     pub(crate) announce_on_close: bool,
-    /// How long a partial frame may wait for its next byte before it is dropped as noise.
+    /// How long a frame may take from its first byte before it is dropped as noise.
     pub(crate) partial_frame_timeout: Duration,
-    /// Bytes of the partial frame held by the decoder, and since when that count is unchanged.
-    partial: (usize, Instant),
+    /// When the partial frame held by the decoder was first seen (`None`: none held). Measured
+    /// from the frame's first byte, not its last: bytes that keep coming (a stream of updates
+    /// behind a corrupted length field) must not keep a bogus frame, and every reply behind
+    /// it, waiting (issue 20.2 #2).
+    partial_since: Option<Instant>,
     /// Set to the reason when the connection breaks for good, so later calls can say why.
     lost: Arc<OnceLock<String>>,
     /// Where connection losses (and reconnects) are reported.
@@ -118,7 +121,7 @@ impl Task {
     ) -> Self {
         Self {
             partial_frame_timeout: super::DEFAULT_PARTIAL_FRAME_TIMEOUT,
-            partial: (0, Instant::now()),
+            partial_since: None,
             events: EventSender::new("wsg", super::EVENT_BUFFER),
             reconnect: None,
             closing: Arc::new(AtomicBool::new(false)),
@@ -233,7 +236,7 @@ impl Task {
             return false;
         };
         self.link = link;
-        self.partial = (0, Instant::now());
+        self.partial_since = None;
         // Their replies (the current values) go to the subscribers like any update.
         let deadline = after(Instant::now(), self.query_timeout);
         for frame in restore {
@@ -260,7 +263,14 @@ impl Task {
         let mut due_timer = pin!(sleep_until(Instant::now() + IDLE_TIMER));
         let mut stale_timer = pin!(sleep_until(Instant::now() + IDLE_TIMER));
         loop {
-            let due = self.pairing.next_due();
+            let stale = self.partial_frame_deadline();
+            // While the decoder holds a partial frame, nothing is released or probed: the
+            // frames behind it may be the very replies awaited, and a released id's next
+            // request would take them (issue 20.2 #2). The hold ends by `stale` at the latest.
+            let due = self
+                .pairing
+                .next_due()
+                .map(|at| stale.map_or(at, |s| at.max(s)));
             if let Some(at) = due {
                 // Early is harmless (the pairing says what is due when the timer fires, and the
                 // timer is then set again): one set for an earlier request's deadline serves
@@ -269,7 +279,6 @@ impl Task {
                     due_timer.as_mut().reset(at);
                 }
             }
-            let stale = self.partial_frame_deadline();
             if let Some(at) = stale {
                 // Exact: the handler below takes the deadline as reached.
                 move_timer(stale_timer.as_mut(), at);
@@ -279,16 +288,21 @@ impl Task {
                 // so it is paired before the next request of its id goes out (a duplicated
                 // reply sitting in the buffer is then dropped as unsolicited).
                 biased;
-                received = self.link.recv() => match received {
-                    Some(Ok(frame)) => self.on_frame(frame).await.map_err(io_reason)?,
-                    Some(Err(e)) => return Err(e.to_string()),
-                    None => return Err("the gripper closed the connection".into()),
+                received = self.link.recv_or_partial(stale.is_some()) => match received {
+                    // A frame has started: the next pass times it.
+                    None => {}
+                    Some(Some(Ok(frame))) => {
+                        // Whatever the decoder holds now is the start of the next frame.
+                        self.partial_since = None;
+                        self.on_frame(frame).await.map_err(io_reason)?;
+                    }
+                    Some(Some(Err(e))) => return Err(e.to_string()),
+                    Some(None) => return Err("the gripper closed the connection".into()),
                 },
                 () = &mut stale_timer, if stale.is_some() => {
-                    if self.link.partial_len() == self.partial.0 {
-                        for frame in self.link.resync() {
-                            self.on_frame(frame).await.map_err(io_reason)?;
-                        }
+                    self.partial_since = None;
+                    for frame in self.link.resync() {
+                        self.on_frame(frame).await.map_err(io_reason)?;
                     }
                 }
                 msg = self.rx.recv() => match msg {
@@ -332,23 +346,28 @@ impl Task {
                     self.unsubscribe(id, key).await.map_err(io_reason)?;
                 }
                 () = &mut due_timer, if due.is_some() => {
-                    for due in self.pairing.due(Instant::now()) {
-                        self.on_due(due).await.map_err(io_reason)?;
+                    // The timer may have been set before a partial frame came: hold on until
+                    // that frame ends (the timer is then set to `stale`).
+                    let now = Instant::now();
+                    if stale.is_none_or(|s| s <= now) {
+                        for due in self.pairing.due(now) {
+                            self.on_due(due).await.map_err(io_reason)?;
+                        }
                     }
                 }
             }
         }
     }
 
-    /// When the partial frame held by the decoder (if any) counts as stalled: no new byte for
-    /// `partial_frame_timeout`. The count is compared when the timer fires, so bytes that arrive
-    /// while the task waits restart the wait instead of ending the frame.
+    /// When the partial frame held by the decoder (if any) is dropped as noise:
+    /// `partial_frame_timeout` after it was first seen, however many bytes came since.
     fn partial_frame_deadline(&mut self) -> Option<Instant> {
-        let len = self.link.partial_len();
-        if len != self.partial.0 {
-            self.partial = (len, Instant::now());
+        if self.link.partial_len() == 0 {
+            self.partial_since = None;
+            return None;
         }
-        (len > 0).then(|| after(self.partial.1, self.partial_frame_timeout))
+        let since = *self.partial_since.get_or_insert_with(Instant::now);
+        Some(after(since, self.partial_frame_timeout))
     }
 
     fn waiter(&mut self, w: Waiter) -> Token {
