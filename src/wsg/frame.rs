@@ -104,7 +104,12 @@ pub enum Decoded {
     /// A frame with a correct checksum.
     Frame(Frame),
     /// A complete frame whose checksum did not match; the search resumes one byte after its
-    /// start. A device answers such a frame with E_CHECKSUM_ERROR under the received id.
+    /// start. The manual leaves what to do with it to the receiver: a client evaluates the
+    /// checksum of replies itself (1.2.2, "Die Auswertung obliegt dem Client") and drops such a
+    /// frame; what the device does with a request that has one is not documented (it names
+    /// E_CHECKSUM_ERROR in Anhang A under no command; 1.2.1 only says a frame *missing* its
+    /// checksum is discarded). The simulator discards it by default
+    /// (`sim::SimConfig::answer_bad_checksum`).
     Corrupt {
         /// The id byte of the rejected frame.
         id: u8,

@@ -33,8 +33,9 @@ use crate::reconnect::{ConnectionEvents, EventSubscriber, ReconnectPolicy};
 
 /// Default timeout of queries and settings.
 pub const DEFAULT_QUERY_TIMEOUT: Duration = Duration::from_secs(1);
-/// Default timeout of motion commands (homing, pre-position, grasp, release, finger power on),
-/// from sending to the final reply.
+/// Default timeout of motion commands (homing, pre-position, grasp, release), from sending to
+/// the final reply. (Finger power on has its own: [`FINGER_POWER_ON_DURATION`] plus the query
+/// timeout.)
 pub const DEFAULT_MOTION_TIMEOUT: Duration = Duration::from_secs(30);
 /// Default time an unanswered request keeps its command id after its caller's deadline.
 pub const DEFAULT_LATE_REPLY_GRACE: Duration = Duration::from_secs(2);
@@ -401,16 +402,19 @@ impl Shared {
 ///   call waits [`FINGER_POWER_ON_DURATION`] plus the query timeout, then fails with
 ///   [`Error::Timeout`]; its id is released a grace period later;
 /// - **raw requests** ([`Client::request`], [`Client::request_with_timeout`]): the call's timeout
-///   is the bound; the id is released a grace period after it;
+///   is the bound; the id is released a grace period after it, except for a motion command's
+///   id (0x20, 0x21, 0x25, 0x26), which is recovered like a motion command (below);
 /// - **motion commands**: a move may outlast its caller's timeout, so the id is not released on
-///   time alone. From the caller's deadline on, the client asks the device's system state
-///   (0x40) every grace period, and releases the id only when two answers in a row, from
-///   queries sent after the deadline and a grace period apart, say the fingers do not move
-///   (SF_MOVING clear) and no final reply came in between. One answer is not enough: Anhang B
-///   says the flags are not synchronised with the end of a move, UDP may reorder the final
-///   reply behind the answer, and while 0x40 is streamed the answer may be a stream frame sent
-///   just before the query arrived. A call of that id made meanwhile waits for the verdict: it
-///   is sent once the id is released, or refused with E_ALREADY_RUNNING while the device moves.
+///   time alone. From the caller's deadline on (or, before it, as soon as another call of
+///   the id waits), the client asks the device's system state (0x40) every grace period, and
+///   releases the id only when two answers in a row, from queries sent after that point and a
+///   grace period apart, say the fingers do not move (SF_MOVING clear) and no final reply came
+///   in between; a caller still waiting then gets [`Error::ReplyLost`]. One answer is not
+///   enough: Anhang B says the flags are not synchronised with the end of a move, UDP may
+///   reorder the final reply behind the answer, and while 0x40 is streamed the answer may be a
+///   stream frame sent just before the query arrived. A call of that id made meanwhile waits
+///   for the verdict: it is sent once the id is released, or refused with E_ALREADY_RUNNING
+///   when a query sent after it finds the device moving.
 ///
 /// In each case the residual risk is the same as for unanswered requests: a final reply later
 /// than the grace period (for a move: later than a grace period after the device said twice
@@ -419,8 +423,10 @@ impl Shared {
 /// # A misbehaving wire
 /// What the client does about each fault (each one is tested through the fault proxy in
 /// `tests/wsg_faults.rs`):
-/// - a frame with a bad checksum is dropped; its call ends in a timeout (or, when the device
-///   rejected a corrupted request, [`Error::Device`] with E_CHECKSUM_ERROR);
+/// - a reply with a bad checksum is dropped (checking it is the client's job, manual 1.2.2:
+///   "Die Auswertung obliegt dem Client"); its call ends in a timeout (or, should the device
+///   answer a corrupted request with E_CHECKSUM_ERROR, which the manual does not specify,
+///   [`Error::Device`] with that code);
 /// - a header longer than any reply of its command id (a corrupted length) is skipped at once;
 ///   one that is plausible but never completes is dropped
 ///   [`ClientBuilder::partial_frame_timeout`] after its first byte, however many bytes follow,
@@ -577,7 +583,10 @@ impl Client {
     /// the query timeout. If the final reply does not come by then, the call fails with
     /// [`Error::Timeout`] and the id is released [`ClientBuilder::late_reply_grace`] later (see
     /// [Lost final replies](Client#lost-final-replies)); use
-    /// [`Client::request_with_timeout`] for a command that takes longer.
+    /// [`Client::request_with_timeout`] for a command that takes longer. A raw request with a
+    /// motion command's id (0x20, 0x21, 0x25, 0x26) is paired like that motion command: once
+    /// acknowledged, its id is not released on time but by probing whether the device still
+    /// moves, and a second call of the id waits for the device's state (see [`Client`]).
     ///
     /// Cancel-safe for the connection; a command that was sent takes effect (a motion keeps moving)
     /// even if the call is dropped (see [Cancellation](Client#cancellation)).
@@ -1033,7 +1042,10 @@ impl Client {
     }
 
     /// Closes the connection: on TCP, announces the disconnect (0x07) and waits for its reply
-    /// first, so the gripper does not go into FAST STOP. Calls still waiting fail with
+    /// first, so the gripper does not go into FAST STOP. The announcement also **stops every
+    /// finger motion at once** (manual 3.1.2: "werden alle laufenden Fingerbewegungen des
+    /// Greifmoduls unmittelbar gestoppt"), whichever client started it: a move in flight, of
+    /// this or any other handle, ends with E_CMD_ABORTED. Calls still waiting fail with
     /// [`Error::Closed`], streams end, and every other handle's calls fail with
     /// [`Error::Closed`] (or [`Error::ConnectionLost`] if the connection had broken). While the
     /// client reconnects ([`ClientBuilder::reconnect`]), it gives up before its next attempt

@@ -265,9 +265,10 @@ impl Device {
         let mut out = self.advance(now);
         let frame = match received {
             Decoded::Corrupt { id, len } => {
-                // The manual lists E_CHECKSUM_ERROR (Anhang A) under no command and says what
-                // the device cannot read is discarded (1.2.1, "als ungültig verworfen"). Any byte
-                // of such a frame may be the broken one, its id included: an answer under that id
+                // The manual does not say how the device treats a wrong checksum: it lists
+                // E_CHECKSUM_ERROR (Anhang A) under no command, and 1.2.1 only says a frame
+                // *missing* its checksum is discarded ("als ungültig verworfen"). Any byte of
+                // such a frame may be the broken one, its id included: an answer under that id
                 // could fail a caller that sent another command with it. So by default the frame
                 // is discarded unanswered (its sender times out, as for a lost frame); see
                 // `SimConfig::answer_bad_checksum`.
@@ -485,7 +486,8 @@ mod tests {
             o[0].reply,
             Reply::new(0x90, Status::CmdUnknown, Bytes::new())
         );
-        // A frame with a bad checksum is discarded (1.2.1), unless configured otherwise.
+        // A frame with a bad checksum is discarded (the manual does not say; see `handle_at`),
+        // unless configured otherwise.
         let corrupt = Decoded::Corrupt { id: 0x43, len: 3 };
         assert_eq!(d.handle(0.0, 1, &corrupt), []);
         d.cfg.answer_bad_checksum = true;

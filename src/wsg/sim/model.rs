@@ -124,9 +124,10 @@ pub struct SimConfig {
     pub fingers: [SimFinger; 2],
     /// Answer a frame with a bad checksum with E_CHECKSUM_ERROR under the id it carries, instead
     /// of discarding it (the default). The manual names the code (Anhang A) but lists it under
-    /// no command, and says frames the device cannot read are discarded (1.2.1); since the id
-    /// of a corrupted frame may be the corrupted byte, such an answer can fail a caller that
-    /// sent another command with that id. Turn it on to test a client's handling of the code.
+    /// no command and does not say how a wrong checksum is treated (1.2.1 only discards frames
+    /// *missing* their checksum); since the id of a corrupted frame may be the corrupted byte,
+    /// such an answer can fail a caller that sent another command with that id. Turn it on to
+    /// test a client's handling of the code.
     pub answer_bad_checksum: bool,
     /// The device's "UDP remote port" setting (web interface, "Settings -> Command
     /// Interface"): UDP replies go to the sender's IP address at this port, whatever port the
