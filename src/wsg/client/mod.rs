@@ -1,4 +1,23 @@
 //! The async client: a cheap, cloneable handle to a background task that owns the connection.
+//!
+//! # Pairing rules
+//! The WSG protocol has no sequence numbers: a reply carries only its command id (manual
+//! 1.2.2). These rules decide which request a reply answers, and when the client answers on
+//! its own. TCP and serial deliver replies in the order sent and lose none (a reply with a bad
+//! checksum aside, which is dropped like a lost one); UDP loses, duplicates and reorders.
+//!
+//! | Rule | Manual | Sound on | Residual risk |
+//! |------|--------|----------|---------------|
+//! | One request per id on the wire; the next call of the id queues behind it; other ids run concurrently. | 1.2.2 | all | none by itself |
+//! | A timed-out or dropped call keeps its id until its reply, or its deadline plus [`ClientBuilder::late_reply_grace`]; the late reply is discarded. | 1.2.2 | all | a reply later than the grace is taken for the next call of the id |
+//! | E_CMD_PENDING acknowledges; the final reply follows and ends the call. | 1.3 | all | — |
+//! | An E_CMD_PENDING after a final reply that had none may be that request's, reordered: it acknowledges the next request only doubtfully, and E_ALREADY_RUNNING still ends it. | 1.3 | all (needed on UDP) | UDP: a duplicated request's refusal, in that situation, ends the call as refused |
+//! | E_ALREADY_RUNNING for an acknowledged request refuses a duplicate of it: dropped. A loop reply that does not echo the payload on the wire is not its reply. | 1.3, 3.1.1 | all | — |
+//! | A second motion call of an id on the wire waits; the device's state is asked at once: SF_MOVING from a query sent after the call refuses it (E_ALREADY_RUNNING, unsent); the first's final reply, or two "not moving" a grace apart, sends it. Never refused on belief. | 3.2.2, Anhang B | all | SF_MOVING is not synchronised with the end of a move (Anhang B): a refusal right at a move's end; a final reply later than a grace after the second "not moving" goes to the next call |
+//! | An acknowledged motion past its caller's deadline keeps its id until its final reply or two "not moving" a grace apart ([`Error::ReplyLost`] for a caller still waiting). | 1.3, Anhang B | all | as above |
+//! | Stop and FAST STOP are never queued; a stop call is `Ok` only on a reply to a stop sent at or after it (each reply is taken for the oldest unanswered stop); a call still waiting [`RESEND_STOP_AFTER`] later gets the stop sent again. | 1.2.2, 3.2.3, 3.2.4 | TCP, serial | UDP: a stop reply later than the grace, or duplicated, is taken for a later stop; a stop sent again may arrive after `stop()` returned and abort a move started right after |
+//! | A frame must complete within [`ClientBuilder::partial_frame_timeout`] from its first byte; a header longer than any reply of its id is noise at once; while a frame is held, no id is released. | 1.2.1, chapter 3 | TCP, serial (UDP: one frame per datagram) | a plausible corrupted length holds replies for up to the timeout |
+//! | Frames already received are paired before the next request goes out. | — | all | UDP: a duplicated reply arriving after the next request of its id went out is taken for it (same value unless the device changed) |
 
 mod connector;
 mod pairing;
