@@ -40,14 +40,19 @@ pub(crate) const MAX_IN_FLIGHT: usize = 16;
 pub(crate) struct Call {
     pub frame: RequestFrame,
     pub reply: oneshot::Sender<Result<ResponseFrame>>,
+    /// When the caller stops waiting: its own timeout ([`Client::with_timeout`] or the
+    /// configured one) from the call's start. The give-up limit is counted from here.
+    ///
+    /// [`Client::with_timeout`]: super::Client::with_timeout
+    pub deadline: Instant,
 }
 
 /// A request on the wire, waiting for its response.
 struct Waiting {
     request: RequestFrame,
     reply: oneshot::Sender<Result<ResponseFrame>>,
-    /// Its timeout plus [`ClientConfig::give_up_after`] after it was sent: a server that has not
-    /// answered by then is not answering, and the connection is given up.
+    /// Its call's deadline plus [`ClientConfig::give_up_after`]: a server that has not answered
+    /// by then is not answering, and the connection is given up.
     give_up_at: Instant,
 }
 
@@ -65,7 +70,8 @@ pub(crate) struct Link {
     pairing: Pairing,
     /// The last response paired, to recognise an exact repeat of it (see `on_response`).
     last_response: Option<ResponseFrame>,
-    /// The configured timeouts, which also bound each write (see `send`).
+    /// The configured timeouts, for the marker queries this link sends on its own (see
+    /// `marker_before`); a caller's request is bounded by its call's own deadline (see `send`).
     timeouts: Timeouts,
     /// See [`ClientConfig::give_up_after`].
     give_up_after: Duration,
@@ -208,14 +214,17 @@ impl Link {
                             continue;
                         }
                         if let Some(marker) = self.marker_before(&call.frame) {
-                            // Its reply goes to nobody: the receiver is dropped at once.
+                            // Its reply goes to nobody: the receiver is dropped at once. A query,
+                            // within the configured timeout of its type.
                             let (reply, _) = oneshot::channel();
-                            if let Err(e) = self.send(marker, reply).await {
+                            let limit = self.timeouts.for_type(marker.header().message_type);
+                            let deadline = Instant::now() + limit;
+                            if let Err(e) = self.send(marker, reply, deadline).await {
                                 let _ = call.reply.send(Err(e.clone()));
                                 break e;
                             }
                         }
-                        if let Err(e) = self.send(call.frame, call.reply).await {
+                        if let Err(e) = self.send(call.frame, call.reply, call.deadline).await {
                             break e;
                         }
                     }
@@ -230,21 +239,24 @@ impl Link {
 
     /// Writes a request and queues its reply slot. On a write error the call gets it too.
     ///
-    /// The write is bounded by the timeout of the request's type: a server that stops reading
-    /// (its receive window full) must not wedge the task, which also reads the responses and
-    /// serves `close()`. A write cut short leaves part of a frame on the wire, so on expiry the
-    /// connection is given up as lost.
+    /// The response is awaited until the call's `deadline` plus [`ClientConfig::give_up_after`]
+    /// (the call's own timeout, not the configured one of its type: a handle made with
+    /// [`Client::with_timeout`](super::Client::with_timeout) for a slow detection must not lose
+    /// a healthy connection at the configured timeout; issue 21). The write is bounded by the
+    /// same limit: a server that stops reading (its receive window full) must not wedge the
+    /// task, which also reads the responses and serves `close()`. A write cut short leaves part
+    /// of a frame on the wire, so on expiry the connection is given up as lost.
     async fn send(
         &mut self,
         request: RequestFrame,
         reply: oneshot::Sender<Result<ResponseFrame>>,
+        deadline: Instant,
     ) -> Result<()> {
-        let limit = self.timeouts.for_type(request.header().message_type);
-        if let Err(error) = write_within(&mut self.write, limit, &request.encode()).await {
+        let give_up_at = deadline + self.give_up_after;
+        if let Err(error) = write_within(&mut self.write, give_up_at, &request.encode()).await {
             let _ = reply.send(Err(error.clone()));
             return Err(error);
         }
-        let give_up_at = Instant::now() + limit.saturating_add(self.give_up_after);
         self.waiting.push_back(Waiting {
             request,
             reply,
@@ -372,13 +384,17 @@ fn normalised(request: &RequestFrame, frame: &ResponseFrame) -> ResponseFrame {
     frame
 }
 
-/// Writes `bytes` within `limit`; on expiry the connection is lost (see [`Link::send`]).
-async fn write_within(write: &mut OwnedWriteHalf, limit: Duration, bytes: &[u8]) -> Result<()> {
-    match write_all_by(write, bytes, || Instant::now() + limit).await {
+/// Writes `bytes` by `limit`; on expiry the connection is lost (see [`Link::send`]).
+async fn write_within(write: &mut OwnedWriteHalf, limit: Instant, bytes: &[u8]) -> Result<()> {
+    let started = Instant::now();
+    match write_all_by(write, bytes, || limit).await {
         Ok(written) => Ok(written?),
         Err(_) => Err(Error::ConnectionLost {
-            reason: format!("the server stopped reading requests (a write took over {limit:?})")
-                .into(),
+            reason: format!(
+                "the server stopped reading requests (a write took over {:?})",
+                limit.saturating_duration_since(started)
+            )
+            .into(),
         }),
     }
 }
@@ -454,7 +470,7 @@ mod tests {
     async fn a_write_that_fits_goes_out_whole() {
         let (mut server, mut write) = pair().await;
         let frame = [7u8; crate::smartgrasp::frame::FRAME_LEN];
-        write_within(&mut write, Duration::from_secs(5), &frame)
+        write_within(&mut write, Instant::now() + Duration::from_secs(5), &frame)
             .await
             .unwrap();
         let mut got = [0u8; crate::smartgrasp::frame::FRAME_LEN];
@@ -468,7 +484,11 @@ mod tests {
         // Far more than the socket buffers hold: the first attempt writes part of it, and the
         // rest waits for a server that never reads.
         let bytes = vec![0u8; 64 << 20];
-        let write = write_within(&mut write, Duration::from_millis(50), &bytes);
+        let write = write_within(
+            &mut write,
+            Instant::now() + Duration::from_millis(50),
+            &bytes,
+        );
         // A failure here must not hang the test run.
         let err = tokio::time::timeout(Duration::from_secs(10), write)
             .await

@@ -90,7 +90,8 @@ pub struct ClientConfig {
     /// When the policy gives up, the client is closed like one without a policy. After
     /// [`Client::close`], nothing reconnects.
     pub reconnect: Option<ReconnectPolicy>,
-    /// How long past a call's timeout a missing response is tolerated before the connection is
+    /// How long past a call's own timeout (the configured one of its type, or
+    /// [`Client::with_timeout`]'s) a missing response is tolerated before the connection is
     /// given up as lost ([`Error::ConnectionLost`]; then reconnected if [`reconnect`] is set).
     /// A server that stays connected but stops answering would otherwise keep every slot busy,
     /// and every later call would time out for ever. Default 30 s, like GRIPLINK's.
@@ -352,7 +353,10 @@ impl Client {
         }
     }
 
-    /// A handle to the same connection whose calls all use `timeout`.
+    /// A handle to the same connection whose calls all use `timeout`. The connection is given
+    /// up only when a response stays away [`ClientConfig::give_up_after`] beyond the call's own
+    /// timeout, so a longer `timeout` for a slow SET_PROJECT or detection keeps a healthy
+    /// connection (and, with [`ClientConfig::reconnect`], does not re-open the session).
     pub fn with_timeout(&self, timeout: Duration) -> Client {
         Client {
             timeouts: Timeouts {
@@ -609,8 +613,13 @@ impl Client {
         let message_type = request.message_type();
         let frame = request.to_any_frame(self.protocol_version())?;
         let (reply, answer) = oneshot::channel();
+        let deadline = tokio::time::Instant::now() + self.timeouts.for_type(message_type);
         let exchange = async {
-            let call = Call { frame, reply };
+            let call = Call {
+                frame,
+                reply,
+                deadline,
+            };
             // The queue nearly always has room: `try_send` skips building and polling a permit
             // future (issue 14). Fair all the same: a released permit goes to a waiting sender
             // before `try_send` can take it.
