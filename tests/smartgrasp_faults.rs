@@ -609,15 +609,42 @@ async fn a_reply_delayed_past_its_timeout_then_the_identical_request_gets_its_ow
 // ---- duplicate -------------------------------------------------------------------------------
 
 #[tokio::test]
-async fn duplicated_reply_is_skipped() {
+async fn duplicated_reply_is_skipped_with_a_strict_counter() {
     // Found by this matrix: the copy arrived with nobody waiting (unsolicited) or paired with
-    // the next call (a counter gap of 255), and broke the connection. A byte-identical repeat of
-    // the last response (same counter, which a server never repeats) is now skipped.
-    let (_rig, client, dup) = with_fault(REPLIES, Fault::Duplicate.once()).await;
+    // the next call (a counter gap of 255), and broke the connection. With a server known to
+    // count per connection (strict mode), a byte-identical repeat of the last response (same
+    // counter, which such a server never repeats) is a copy, and skipped.
+    let rig = rig().await;
+    let strict = ClientConfig {
+        strict_response_counter: true,
+        ..config()
+    };
+    let client = within("connect", Client::connect(rig.proxy.local_addr(), strict))
+        .await
+        .unwrap();
+    let dup = REPLIES(&rig.proxy).add(Fault::Duplicate.once());
     assert_eq!(count(&client, 1).await.unwrap(), CLASS_1);
     assert_eq!(dup.fired(), 1);
     assert_healthy(&client).await;
     assert!(!client.is_closed());
+}
+
+#[tokio::test]
+async fn duplicated_reply_breaks_the_connection_by_default() {
+    // By default identical responses are answers (a server whose counter never moves, or counts
+    // across its clients, sends them; issue 21), so a copy with nobody waiting is unsolicited:
+    // the call got its answer, the connection is given up, never a wrong answer.
+    let (rig, client, dup) = with_fault(REPLIES, Fault::Duplicate.once()).await;
+    let mut events = client.connection_events();
+    assert_eq!(count(&client, 1).await.unwrap(), CLASS_1);
+    assert_eq!(dup.fired(), 1);
+    match within("loss reported", events.next()).await {
+        Some(ConnectionEvent::Lost { reason }) => {
+            assert!(reason.contains("unsolicited"), "{reason}")
+        }
+        other => panic!("{other:?}"),
+    }
+    assert_broken_then_fresh_works(&rig, &client).await;
 }
 
 #[tokio::test]

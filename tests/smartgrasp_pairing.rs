@@ -10,9 +10,18 @@
 use std::future::Future;
 use std::time::Duration;
 
+use std::net::SocketAddr;
+use std::sync::Arc;
+
 use gripper::reconnect::ReconnectPolicy;
+use gripper::smartgrasp::frame::{AnyRequestFrame, FRAME_LEN};
+use gripper::smartgrasp::message::{Request, Response, ResponseBody};
 use gripper::smartgrasp::sim::{Fault, SimConfig, SimServer};
-use gripper::smartgrasp::{Client, ClientConfig, RobotSystem, ServerState};
+use gripper::smartgrasp::{
+    Client, ClientConfig, MessageType, ResponseCode, RobotSystem, ServerState,
+};
+use tokio::io::{AsyncReadExt, AsyncWriteExt};
+use tokio::net::TcpListener;
 
 /// Only reached when something hangs (a bug).
 const LIMIT: Duration = Duration::from_secs(10);
@@ -21,6 +30,57 @@ async fn within<F: Future>(what: &str, future: F) -> F::Output {
     tokio::time::timeout(LIMIT, future)
         .await
         .unwrap_or_else(|_| panic!("hung: {what}"))
+}
+
+/// A V3 server that answers every request with `answer(request, n)` (`n` counts the responses
+/// of the connection from 0), in order, for as long as the connection lasts.
+async fn scripted_v3(
+    answer: impl Fn(&Request, u8) -> Response + Send + Sync + 'static,
+) -> SocketAddr {
+    let listener = TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let addr = listener.local_addr().unwrap();
+    let answer = Arc::new(answer);
+    tokio::spawn(async move {
+        while let Ok((mut stream, _)) = listener.accept().await {
+            let answer = Arc::clone(&answer);
+            tokio::spawn(async move {
+                let mut n = 0u8;
+                let mut bytes = [0u8; FRAME_LEN];
+                while stream.read_exact(&mut bytes).await.is_ok() {
+                    let request = Request::from_any_frame(&AnyRequestFrame::decode(&bytes))
+                        .expect("a request the client can send");
+                    let response = answer(&request, n).to_frame(3);
+                    n = n.wrapping_add(1);
+                    if stream.write_all(&response.encode()).await.is_err() {
+                        return;
+                    }
+                }
+            });
+        }
+    });
+    addr
+}
+
+/// The response a V3 server gives to GET_STATE and GET_PROTOCOL_VERSION (SUCCESS), with
+/// `counter`.
+fn plain_answer(request: &Request, counter: u8) -> Response {
+    let (message_type, body) = match request {
+        Request::GetState => (
+            MessageType::GetState,
+            ResponseBody::State(ServerState::Operational),
+        ),
+        Request::GetProtocolVersion => (
+            MessageType::GetProtocolVersion,
+            ResponseBody::ProtocolVersion(3),
+        ),
+        other => panic!("not scripted: {other:?}"),
+    };
+    Response {
+        message_type,
+        code: ResponseCode::Success,
+        counter,
+        body,
+    }
 }
 
 // ---- 2.1: a call's own timeout bounds its give-up --------------------------------------------
@@ -60,4 +120,27 @@ async fn a_longer_call_timeout_is_not_cut_short_by_the_configured_one() {
             ServerState::Operational
         );
     }
+}
+
+// ---- 2.2: no legitimate answer dropped as a "repeat" -----------------------------------------
+
+/// A server whose response counter never moves (SCHUNK's KRL never reads it, and manual 3.2.2.3
+/// does not say what it counts) answers two GET_STATEs with byte-identical responses; so does a
+/// server counting across its clients when 255 other responses went out in between. Both are
+/// answers, not copies: each call gets its own, and the counter is only recorded as a gap.
+#[tokio::test]
+async fn identical_responses_of_a_server_with_a_constant_counter_are_answers() {
+    let addr = scripted_v3(|request, _| plain_answer(request, 7)).await;
+    let config = ClientConfig {
+        query_timeout: Duration::from_secs(2),
+        ..ClientConfig::default()
+    };
+    let client = within("connect", Client::connect(addr, config))
+        .await
+        .unwrap();
+    for call in 0..4 {
+        let state = within("get_state", client.get_state()).await;
+        assert_eq!(state.unwrap(), ServerState::Operational, "call {call}");
+    }
+    assert!(client.counter_gaps() > 0);
 }

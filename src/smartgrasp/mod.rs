@@ -47,12 +47,19 @@
 //! - the response counter's scope is not specified (3.2.2.3; the examples 6.4 and 6.5 both show
 //!   3): a gap is counted ([`Client::counter_gaps`]) and warned about, the call gets its response;
 //!   [`ClientConfig::strict_response_counter`] trusts the counter instead;
+//! - a response byte-identical to the previous one is an answer like any other: a server whose
+//!   counter never moves (SCHUNK's KRL never reads it) or counts across its clients (the same
+//!   value 256 responses later) sends them. Only in strict mode, where the counter is known to
+//!   count this connection's responses, is an exact repeat a copy, and skipped (TCP itself never
+//!   duplicates; a copy made by faulty equipment otherwise arrives unsolicited and breaks the
+//!   connection, or, right before a call of the same type, is taken as its answer);
 //! - a GET_OBJECT_COUNT answered as message type 17 (the manual's table, an erratum for 32) is
 //!   read as a count;
 //! - REGISTER_CLIENT is informational (3.3.2.3): its code is reported
 //!   ([`Client::registration`]), not fatal to the connect;
 //! - a server that stays connected but stops answering is given up
-//!   [`ClientConfig::give_up_after`] past a call's timeout, then reconnected to if configured.
+//!   [`ClientConfig::give_up_after`] past the call's own timeout (the configured one of its type,
+//!   or [`Client::with_timeout`]'s), then reconnected to if configured.
 //!
 //! What V3 cannot detect, and so neither can this client: frames carry no checksum and
 //! responses no request id. A corrupted byte that still reads as a valid value (a count, a pose

@@ -68,7 +68,8 @@ pub(crate) struct Link {
     /// At most [`MAX_IN_FLIGHT`].
     waiting: VecDeque<Waiting>,
     pairing: Pairing,
-    /// The last response paired, to recognise an exact repeat of it (see `on_response`).
+    /// The last response paired, to recognise an exact repeat of it in strict counter mode
+    /// (see `on_response`).
     last_response: Option<ResponseFrame>,
     /// The configured timeouts, for the marker queries this link sends on its own (see
     /// `marker_before`); a caller's request is bounded by its call's own deadline (see `send`).
@@ -306,9 +307,12 @@ impl Link {
     /// Pairs one response; `Err` breaks the connection (the paired call, if any, gets the error
     /// too).
     fn on_response(&mut self, on_paired: &mut OnPaired<'_>, frame: &ResponseFrame) -> Result<()> {
-        if self.last_response.as_ref() == Some(frame) {
-            // The same bytes again, counter included: the server counts every response, so this
-            // is a copy (a network device repeating a segment), not a new answer. Noise, skipped.
+        if self.pairing.is_strict() && self.last_response.as_ref() == Some(frame) {
+            // The same bytes again, counter included, from a server known to count its responses
+            // per connection (strict mode): a copy, not a new answer. Skipped. Only in strict
+            // mode: a server whose counter never moves (SCHUNK's KRL never reads it) or counts
+            // across its clients (the same value after 256 responses) sends identical responses
+            // that are real answers (issue 21), and TCP itself never duplicates a segment.
             tracing::warn!(
                 counter = frame.header().response_counter,
                 "repeated response skipped"

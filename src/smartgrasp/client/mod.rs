@@ -103,7 +103,8 @@ pub struct ClientConfig {
     /// of a server's clients. By default a gap is recorded ([`Client::counter_gaps`] and a
     /// `tracing` warning) and the call gets its response. With `true`, a gap of `k` fails the
     /// `k` oldest waiting calls with [`Error::ResponseLost`], and a gap no waiting call explains
-    /// breaks the connection: only for a server known to count per connection.
+    /// breaks the connection, and a response byte-identical to the previous one is skipped as a
+    /// copy: only for a server known to count per connection.
     pub strict_response_counter: bool,
 }
 

@@ -54,6 +54,11 @@ impl Pairing {
         }
     }
 
+    /// Whether the counter is trusted (see [`Pairing::strict`]).
+    pub(crate) fn is_strict(&self) -> bool {
+        self.strict
+    }
+
     /// Checks the counter of a response that arrived while `waiting` requests (the abandoned ones
     /// included) were outstanding. `Ok`: in strict mode fail `lost` oldest requests with
     /// [`Error::ResponseLost`], then pair the response with the next; `gap` is what to record.
