@@ -30,7 +30,7 @@ fn v3_sim() -> SimConfig {
 }
 use gripper::smartgrasp::{
     Client, ClientConfig, Error, GetGraspOutcome, GraspMode, GraspRequest, Malformed, MessageType,
-    ObjectCount, PoseFormat, ResponseCode, RobotSystem, ServerState, Tool,
+    ObjectCount, Pose, PoseFormat, ResponseCode, RobotSystem, ServerState, Tool,
 };
 
 /// The timeout of a call meant to time out: short, so that those faults cost little.
@@ -462,23 +462,24 @@ async fn corrupt_request_object_class_is_caught_by_the_echo() {
 }
 
 #[tokio::test]
-async fn corrupt_grasp_pose_format_is_caught() {
-    // ABC (17) ^ 1 = WPR (16): a valid format, but not the one asked for.
-    let (rig, client, _) = with_fault(REPLIES, corrupt(at::POSE_FORMAT, 0x01)).await;
-    let err = within("get_grasp", client.get_grasp(any_grasp(0)))
-        .await
-        .unwrap_err();
-    assert!(
-        matches!(
-            err,
-            Error::MalformedReply(Malformed::Echo {
-                field: "pose format",
-                ..
-            })
-        ),
-        "{err}"
-    );
-    assert_broken_then_fresh_works(&rig, &client).await;
+async fn undetectable_corrupt_grasp_pose_format_is_read_as_declared() {
+    // ABC (17) ^ 1 = WPR (16): a valid format. The response's pose format is the format used for
+    // the pose (manual 3.3.3.1), not an echo of the request, so the client reads the pose as WPR
+    // and converts it to the ABC asked for: a wrong pose no V3 client can tell from a right one.
+    let rig = rig().await;
+    let client = rig.client().await;
+    let grasp = |outcome| match outcome {
+        Ok(GetGraspOutcome::Grasp(grasp)) => grasp,
+        other => panic!("{other:?}"),
+    };
+    let sent = grasp(within("get_grasp", client.get_grasp(any_grasp(0))).await);
+    let fault = REPLIES(&rig.proxy).add(corrupt(at::POSE_FORMAT, 0x01));
+    let read = grasp(within("get_grasp", client.get_grasp(any_grasp(0))).await);
+    assert_eq!(fault.fired(), 1);
+    let as_wpr = Pose::from_wire(PoseFormat::Wpr, sent.pose.to_wire()).unwrap();
+    assert_eq!(read.pose, as_wpr.to_format(PoseFormat::Abc).unwrap());
+    assert_ne!(read.pose, sent.pose);
+    assert_healthy(&client).await;
 }
 
 #[tokio::test]

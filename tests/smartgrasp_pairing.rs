@@ -15,10 +15,11 @@ use std::sync::Arc;
 
 use gripper::reconnect::ReconnectPolicy;
 use gripper::smartgrasp::frame::{AnyRequestFrame, FRAME_LEN};
-use gripper::smartgrasp::message::{Request, Response, ResponseBody};
+use gripper::smartgrasp::message::{Grasp, GraspRequest, Request, Response, ResponseBody};
 use gripper::smartgrasp::sim::{Fault, SimConfig, SimServer};
 use gripper::smartgrasp::{
-    Client, ClientConfig, MessageType, ResponseCode, RobotSystem, ServerState,
+    Client, ClientConfig, GetGraspOutcome, GraspMode, MessageType, Pose, PoseFormat, ResponseCode,
+    RobotSystem, SelectionCriterion, ServerState, Tool,
 };
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::TcpListener;
@@ -143,4 +144,70 @@ async fn identical_responses_of_a_server_with_a_constant_counter_are_answers() {
         assert_eq!(state.unwrap(), ServerState::Operational, "call {call}");
     }
     assert!(client.counter_gaps() > 0);
+}
+
+// ---- 2.3: a V3 GET_GRASP response in another pose format --------------------------------------
+
+/// The grasp pose a scripted server sends, in quaternion format: 450 mm, -120 mm, 50 mm, tool
+/// pointing down (180° about x).
+fn quaternion_pose() -> Pose {
+    Pose::from_wire(
+        PoseFormat::Quaternion,
+        [450_000, -120_000, 50_000, 1_000_000, 0, 0, 0],
+    )
+    .unwrap()
+}
+
+/// Manual 3.3.3.1: the response's pose format is the format "used for the pose field", and the
+/// pose's type "depends on the value in the field": not an echo of the request. A server that
+/// answers a request for ABC with a quaternion pose gives a grasp, read as declared and converted
+/// to the format the caller asked for; the connection stays up.
+#[tokio::test]
+async fn a_v3_grasp_in_another_pose_format_is_read_as_declared() {
+    let addr = scripted_v3(|request, n| match request {
+        Request::GetGrasp(asked) => Response {
+            message_type: MessageType::GetGrasp,
+            code: ResponseCode::Success,
+            counter: n,
+            body: ResponseBody::Grasp(Grasp {
+                grasp_mode: GraspMode::AutoGrasp,
+                object_class: 1,
+                object_instance: 0,
+                stroke_um: 86_000,
+                center_offset_um: [0, 0],
+                pose: quaternion_pose(),
+                object_count: 1,
+                candidate_count: 1,
+                center_offset_z_um: Some(0),
+                angle_offset_udeg: Some(0),
+                tool: Some(asked.tool),
+                reference_frame: None,
+                object_offset: None,
+            }),
+        },
+        other => plain_answer(other, n),
+    })
+    .await;
+    let client = within("connect", Client::connect(addr, ClientConfig::default()))
+        .await
+        .unwrap();
+    for format in [PoseFormat::Abc, PoseFormat::Wpr, PoseFormat::Quaternion] {
+        let request = GraspRequest {
+            grasp_mode: GraspMode::AutoGrasp,
+            object_class: 0,
+            tool: Tool::Exterior,
+            selection_criterion: SelectionCriterion::default(),
+            pose_format: format,
+        };
+        let outcome = within("get_grasp", client.get_grasp(request)).await;
+        let Ok(GetGraspOutcome::Grasp(grasp)) = outcome else {
+            panic!("{format:?}: {outcome:?}");
+        };
+        assert_eq!(grasp.pose, quaternion_pose().to_format(format).unwrap());
+    }
+    assert_eq!(
+        within("get_state", client.get_state()).await.unwrap(),
+        ServerState::Operational
+    );
+    assert!(!client.is_closed());
 }

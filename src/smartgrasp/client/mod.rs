@@ -528,7 +528,9 @@ impl Client {
 
     /// GET_GRASP: a grasp for the current scene (manual 3.3.3.1). The pose comes back in
     /// `request.pose_format` (with V4, a quaternion is asked for in ABC and converted: V4 poses
-    /// have six values).
+    /// have six values). The response's pose format is the format the server used for the pose,
+    /// not an echo (3.3.3.1): a pose in another format is read as the response declares and
+    /// converted.
     /// Cancel-safe (see [`Client`]); a cancelled call may still have made the server pick a grasp,
     /// which the next GRASP_FEEDBACK then refers to.
     pub async fn get_grasp(&self, request: GraspRequest) -> Result<GetGraspOutcome> {
