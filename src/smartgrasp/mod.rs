@@ -10,8 +10,10 @@
 //! workspace by the ids configured on the device, GET_GRASP carries a selection criterion instead
 //! of a tool, and its response a reference frame, an object offset and a two-axis centre offset.
 //! What the example does not pin is kept raw ([`SelectionCriterion`], [`ReferenceFrame`], response
-//! bytes 10–13, 68–71, 76–79) and documented as such, never given a meaning. In V4
-//! GRASP_FEEDBACK has no effect, by the example's own comment.
+//! bytes 10–13, 68–71, 76–79) and documented as such, never given a meaning. GRASP_FEEDBACK has
+//! no effect, by SCHUNK's own comments ("no effect in V4"; its V3 file: "Has no effect on
+//! Version 3"); the simulator follows them unless told to take the object out on OK
+//! (`sim::SimConfig::feedback_removes_objects`).
 //!
 //! [`Client::connect`] negotiates: GET_PROTOCOL_VERSION asked as V3 (every server since V3
 //! answers it, manual 1.3 and 3.3.2.1), then the highest version both speak;

@@ -245,12 +245,11 @@ pub enum GetGraspOutcome {
 /// server depends on how far it got, which its caller cannot know:
 /// - dropped while queued (before the task sent it): nothing was sent, and nothing will be;
 /// - dropped after its request went out: the server receives it and **acts on it** (REGISTER_CLIENT
-///   registers, SET_PROJECT switches the project, GRASP_FEEDBACK OK removes the object from the
-///   scene, GET_GRASP makes its grasp the one the next feedback refers to); its reply is
-///   discarded.
+///   registers, SET_PROJECT switches the project, GET_GRASP makes its grasp the one the next
+///   feedback refers to, GRASP_FEEDBACK is recorded for whatever the server does with it); its
+///   reply is discarded.
 ///
 /// A timed-out call ([`Error::Timeout`]) means the same: it may or may not have been acted on.
-/// Query the server (GET_OBJECT_COUNT) rather than repeat a GRASP_FEEDBACK blindly.
 #[derive(Debug, Clone)]
 pub struct Client {
     /// The background task; calls poll it inline to send their requests (see
@@ -564,12 +563,14 @@ impl Client {
         }
     }
 
-    /// GRASP_FEEDBACK: reports the result of the last grasp (manual 3.3.3.2). In V4 SCHUNK's
-    /// example says the message has no effect ("not yet supported with V4"); it is sent all the
-    /// same, so that cell code works with either version.
-    /// Cancel-safe (see [`Client`]), but a cancelled or timed-out OK may still have removed the
-    /// object from the scene: check with [`get_object_count`](Self::get_object_count) before
-    /// sending it again.
+    /// GRASP_FEEDBACK: reports the result of the last grasp (manual 3.3.3.2). SCHUNK's own KUKA
+    /// examples say the message has no effect: "Has no effect on Version 3", and in V4 "no
+    /// effect" / "not yet supported with V4" (PROTOCOLS.md 2b). It is sent all the same, so that
+    /// cell code works with either version and with a server that starts to use it. The scene
+    /// empties because the robot takes the parts out, which the next detection sees; nothing
+    /// here removes an object (the simulator can stand in for the robot, see
+    /// `sim::SimConfig::feedback_removes_objects`).
+    /// Cancel-safe (see [`Client`]); a cancelled call may still have reached the server.
     pub async fn grasp_feedback(&self, feedback: GraspFeedback) -> Result<()> {
         self.expect_success(Request::GraspFeedback(feedback))
             .await?;
