@@ -13,7 +13,8 @@ use std::time::Duration;
 use std::net::SocketAddr;
 use std::sync::Arc;
 
-use gripper::reconnect::ReconnectPolicy;
+use futures_util::StreamExt;
+use gripper::reconnect::{ConnectionEvent, ReconnectPolicy};
 use gripper::smartgrasp::frame::{AnyRequestFrame, FRAME_LEN};
 use gripper::smartgrasp::message::{Grasp, GraspRequest, Request, Response, ResponseBody};
 use gripper::smartgrasp::sim::{Fault, SimConfig, SimServer};
@@ -210,4 +211,47 @@ async fn a_v3_grasp_in_another_pose_format_is_read_as_declared() {
         ServerState::Operational
     );
     assert!(!client.is_closed());
+}
+
+// ---- 2.5: calls queued across a reconnect speak the version it negotiated ---------------------
+
+/// A firmware rollback: the client spoke V4; the connection is lost and the reconnect negotiates
+/// V3. A call made while the client waits to reconnect goes out after it, in V3, and gets its
+/// answer (not the server's "too old" empty message read as a broken frame).
+#[tokio::test]
+async fn a_call_queued_across_a_reconnect_speaks_the_version_it_negotiated() {
+    let server = SimServer::bind("127.0.0.1:0", SimConfig::default())
+        .await
+        .unwrap();
+    let config = ClientConfig {
+        reconnect: Some(ReconnectPolicy {
+            // Long enough to queue a call before the reconnect; never reached otherwise.
+            initial_delay: Duration::from_millis(300),
+            ..ReconnectPolicy::default()
+        }),
+        ..ClientConfig::default()
+    };
+    let client = within("connect", Client::connect(server.local_addr(), config))
+        .await
+        .unwrap();
+    assert_eq!(client.protocol_version(), 4);
+    let mut events = client.connection_events();
+    server.with_state(|s| s.set_max_version(3));
+    server.inject(Fault::Close);
+    assert!(within("cut", client.get_state()).await.is_err());
+    loop {
+        match within("loss", events.next()).await {
+            Some(ConnectionEvent::Lost { .. }) => break,
+            Some(_) => {}
+            None => panic!("the client closed"),
+        }
+    }
+    // Made while the client still speaks V4, sent after the reconnect negotiated V3.
+    let count = within("queued call", client.get_object_count(0)).await;
+    assert_eq!(count.unwrap().object_count, 3);
+    assert_eq!(client.protocol_version(), 3);
+    assert_eq!(
+        within("next", client.get_state()).await.unwrap(),
+        ServerState::Operational
+    );
 }

@@ -38,6 +38,10 @@ pub(crate) const MAX_IN_FLIGHT: usize = 16;
 
 /// One call from a handle to the task.
 pub(crate) struct Call {
+    /// The request, to encode it again if the link speaks another version by the time it is
+    /// sent (see `in_link_version`).
+    pub request: Request,
+    /// The request encoded in the version the client spoke when the call was made.
     pub frame: RequestFrame,
     pub reply: oneshot::Sender<Result<ResponseFrame>>,
     /// When the caller stops waiting: its own timeout ([`Client::with_timeout`] or the
@@ -208,10 +212,15 @@ impl Link {
                 call = calls.recv(), if self.waiting.len() < MAX_IN_FLIGHT => match call {
                     // Every handle is gone, so no call can be waiting: nothing left to do.
                     None => return None,
-                    Some(call) => {
+                    Some(mut call) => {
                         if call.reply.is_closed() {
                             // Its caller gave up before it was sent: sending it would only
                             // create a reply to discard.
+                            continue;
+                        }
+                        if let Err(e) = self.in_link_version(&mut call) {
+                            // Nothing was sent: the call alone fails.
+                            let _ = call.reply.send(Err(e));
                             continue;
                         }
                         if let Some(marker) = self.marker_before(&call.frame) {
@@ -263,6 +272,25 @@ impl Link {
             reply,
             give_up_at,
         });
+        Ok(())
+    }
+
+    /// Makes `call`'s frame speak the link's version. A call is encoded when it is made, in the
+    /// version the client spoke then; one that waited in the queue across a reconnect goes out
+    /// on a link whose opening sequence may have negotiated another version (a firmware update or
+    /// rollback), so it is encoded again from its request (issue 21). `Err`: the request does not
+    /// exist in that version (SET_TOOL on V3), and nothing is sent.
+    fn in_link_version(&self, call: &mut Call) -> Result<()> {
+        let version = self.version();
+        if call.frame.version() != version {
+            tracing::debug!(
+                from = call.frame.version(),
+                to = version,
+                request = %call.request.message_type(),
+                "smartgrasp: a queued request is sent in the version the reconnect negotiated"
+            );
+            call.frame = call.request.to_any_frame(version)?;
+        }
         Ok(())
     }
 

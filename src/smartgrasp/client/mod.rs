@@ -83,8 +83,11 @@ pub struct ClientConfig {
     ///   GET_PROTOCOL_VERSION, GET_STATE, and the last REGISTER_CLIENT and SET_PROJECT the server
     ///   accepted (from this configuration or from the program's own calls);
     /// - calls that were still queued (not yet sent) and calls made meanwhile **wait** in the
-    ///   queue, within their own timeouts, and go out once the session is restored; a call that
-    ///   times out while waiting was never sent;
+    ///   queue, within their own timeouts, and go out once the session is restored, in the
+    ///   protocol version that reconnect negotiated (a call is encoded again if the server's
+    ///   version changed, e.g. a firmware rollback to V3; one whose request does not exist in
+    ///   the new version fails with [`Error::Request`], unsent); a call that times out while
+    ///   waiting was never sent;
     /// - each step is reported through [`Client::connection_events`] and `tracing`.
     ///
     /// When the policy gives up, the client is closed like one without a policy. After
@@ -620,6 +623,7 @@ impl Client {
         let deadline = tokio::time::Instant::now() + self.timeouts.for_type(message_type);
         let exchange = async {
             let call = Call {
+                request,
                 frame,
                 reply,
                 deadline,

@@ -333,6 +333,12 @@ impl SimState {
         self.config.server_state = state;
     }
 
+    /// Sets the highest protocol version the server speaks from the next request on (a firmware
+    /// update or rollback, see [`SimConfig::max_version`]).
+    pub fn set_max_version(&mut self, version: u16) {
+        self.config.max_version = version;
+    }
+
     /// The "too old" empty message for the bytes of a message this server cannot read (a length
     /// other than 74), if its prefix carries a version newer than the server's: manual 1.3 says
     /// a server older than the client always answers with it, whatever the rest of the message.
