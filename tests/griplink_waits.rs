@@ -12,7 +12,7 @@ use gripper::griplink::client::{
 };
 use gripper::griplink::command::{FlexGrip, FlexRelease};
 use gripper::griplink::sim::{SimConfig, SimDevice, SimServer};
-use gripper::griplink::{Client, DeviceState, Error, Status};
+use gripper::griplink::{Client, DeviceState, Error, Port, Status};
 use tokio::io::{AsyncBufReadExt, AsyncWriteExt, BufReader};
 use tokio::net::TcpStream;
 use tokio::time::Instant;
@@ -33,6 +33,14 @@ async fn homed(config: SimConfig) -> (SimServer, Client) {
 
 fn slow_down(server: &SimServer, scale: f64) {
     server.with_controller(|c, _| c.set_time_scale(scale));
+}
+
+/// Releases to the release limit (20 mm) in no time, then faults the device: DS_FAULT there.
+async fn faulted_at_the_release_limit(server: &SimServer, g: &Port) {
+    slow_down(server, 0.0);
+    g.release_and_wait(0, POLL).await.unwrap();
+    server.inject_device_fault(0);
+    assert_eq!(g.state().await.unwrap(), DeviceState::Fault);
 }
 
 fn at_target(position_um: i32, target_um: i32) -> bool {
@@ -154,10 +162,7 @@ async fn grip_from_fault_succeeds() {
     let (server, client) = homed(SimConfig::et4()).await;
     let g = client.port(0);
     for by in [POLL, WaitBy::Transition] {
-        slow_down(&server, 0.0);
-        g.release_and_wait(0, POLL).await.unwrap();
-        server.inject_device_fault(0);
-        assert_eq!(g.state().await.unwrap(), DeviceState::Fault);
+        faulted_at_the_release_limit(&server, &g).await;
         // 8 mm at 50 mm/s: 160 ms simulated, 32 ms of wall time.
         slow_down(&server, 0.2);
         assert_eq!(
@@ -178,10 +183,7 @@ async fn release_from_fault_at_the_limit_waits_for_the_re_enable() {
     let (server, client) = homed(SimConfig::et4()).await;
     let g = client.port(0);
     for by in [POLL, WaitBy::Transition] {
-        slow_down(&server, 0.0);
-        g.release_and_wait(0, POLL).await.unwrap();
-        server.inject_device_fault(0);
-        assert_eq!(g.state().await.unwrap(), DeviceState::Fault);
+        faulted_at_the_release_limit(&server, &g).await;
         // The re-enable: 100 ms simulated, 20 ms of wall time.
         slow_down(&server, 0.2);
         assert_eq!(

@@ -104,6 +104,17 @@ impl Rig {
         .await
         .expect("opening sequence through the proxy")
     }
+
+    /// A client through the proxy that trusts the response counter.
+    async fn strict_client(&self) -> Client {
+        let strict = ClientConfig {
+            strict_response_counter: true,
+            ..config()
+        };
+        within("connect", Client::connect(self.proxy.local_addr(), strict))
+            .await
+            .expect("opening sequence through the proxy")
+    }
 }
 
 /// GET_OBJECT_COUNT of class 1 in the demo scene: 3 objects, 2 of class 1.
@@ -369,13 +380,7 @@ async fn corrupt_response_counter_is_recorded_and_the_call_gets_its_answer() {
 async fn in_strict_mode_corrupt_response_counter_is_a_lost_response() {
     // The same gap with a client that trusts the counter: the one waiting call cannot explain it.
     let rig = rig().await;
-    let strict = ClientConfig {
-        strict_response_counter: true,
-        ..config()
-    };
-    let client = within("connect", Client::connect(rig.proxy.local_addr(), strict))
-        .await
-        .unwrap();
+    let client = rig.strict_client().await;
     let handle = REPLIES(&rig.proxy).add(corrupt(at::RESPONSE_COUNTER, 0x01));
     let err = count(&client, 1).await.unwrap_err();
     assert_eq!(handle.fired(), 1);
@@ -616,13 +621,7 @@ async fn duplicated_reply_is_skipped_with_a_strict_counter() {
     // count per connection (strict mode), a byte-identical repeat of the last response (same
     // counter, which such a server never repeats) is a copy, and skipped.
     let rig = rig().await;
-    let strict = ClientConfig {
-        strict_response_counter: true,
-        ..config()
-    };
-    let client = within("connect", Client::connect(rig.proxy.local_addr(), strict))
-        .await
-        .unwrap();
+    let client = rig.strict_client().await;
     let dup = REPLIES(&rig.proxy).add(Fault::Duplicate.once());
     assert_eq!(count(&client, 1).await.unwrap(), CLASS_1);
     assert_eq!(dup.fired(), 1);

@@ -7,23 +7,21 @@
 //! sockets); every wait is bounded by [`LIMIT`], which only a failing test reaches.
 #![cfg(feature = "sim")]
 
+mod common;
+
 use std::future::Future;
 use std::time::Duration;
 
 use std::net::SocketAddr;
-use std::sync::Arc;
 
 use futures_util::StreamExt;
 use gripper::reconnect::{ConnectionEvent, ReconnectPolicy};
-use gripper::smartgrasp::frame::{AnyRequestFrame, FRAME_LEN};
 use gripper::smartgrasp::message::{Grasp, GraspRequest, Request, Response, ResponseBody};
 use gripper::smartgrasp::sim::{Fault, SimConfig, SimServer};
 use gripper::smartgrasp::{
     Client, ClientConfig, GetGraspOutcome, GraspMode, MessageType, Pose, PoseFormat, ResponseCode,
     RobotSystem, SelectionCriterion, ServerState, Tool,
 };
-use tokio::io::{AsyncReadExt, AsyncWriteExt};
-use tokio::net::TcpListener;
 
 /// Only reached when something hangs (a bug).
 const LIMIT: Duration = Duration::from_secs(10);
@@ -35,32 +33,15 @@ async fn within<F: Future>(what: &str, future: F) -> F::Output {
 }
 
 /// A V3 server that answers every request with `answer(request, n)` (`n` counts the responses
-/// of the connection from 0), in order, for as long as the connection lasts.
+/// of the connection from 0, wrapping), in order, for as long as the connection lasts.
 async fn scripted_v3(
     answer: impl Fn(&Request, u8) -> Response + Send + Sync + 'static,
 ) -> SocketAddr {
-    let listener = TcpListener::bind("127.0.0.1:0").await.unwrap();
-    let addr = listener.local_addr().unwrap();
-    let answer = Arc::new(answer);
-    tokio::spawn(async move {
-        while let Ok((mut stream, _)) = listener.accept().await {
-            let answer = Arc::clone(&answer);
-            tokio::spawn(async move {
-                let mut n = 0u8;
-                let mut bytes = [0u8; FRAME_LEN];
-                while stream.read_exact(&mut bytes).await.is_ok() {
-                    let request = Request::from_any_frame(&AnyRequestFrame::decode(&bytes))
-                        .expect("a request the client can send");
-                    let response = answer(&request, n).to_frame(3);
-                    n = n.wrapping_add(1);
-                    if stream.write_all(&response.encode()).await.is_err() {
-                        return;
-                    }
-                }
-            });
-        }
-    });
-    addr
+    common::smartgrasp_peer(move |_, i, frame| {
+        let request = Request::from_frame(&frame).expect("a request the client can send");
+        Some(answer(&request, i as u8).to_frame(3).encode().to_vec())
+    })
+    .await
 }
 
 /// The response a V3 server gives to GET_STATE and GET_PROTOCOL_VERSION (SUCCESS), with
