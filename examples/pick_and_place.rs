@@ -151,6 +151,9 @@ fn simulated_bins() -> smartgrasp::sim::SimConfig {
             bin(3, f64::from(WSG_PART_MM), 450.0),
             bin(2, GRIPLINK_PART_MM, 300.0),
         ],
+        // The bins empty as parts are picked: GRASP_FEEDBACK OK stands in for the robot taking
+        // the part out (a simulator option; SCHUNK's server ignores feedback).
+        feedback_removes_objects: true,
         ..SimConfig::default()
     }
 }

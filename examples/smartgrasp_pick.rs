@@ -60,7 +60,13 @@ async fn run(args: Args) -> Result<(), String> {
     let (_simulator, addr) = match args.addr {
         Some(addr) => (None, addr),
         None => {
-            let sim = SimServer::bind("127.0.0.1:0", SimConfig::default())
+            // GRASP_FEEDBACK OK stands in for the robot taking the part out, so that the bin
+            // empties (a simulator option; SCHUNK's server ignores feedback).
+            let config = SimConfig {
+                feedback_removes_objects: true,
+                ..SimConfig::default()
+            };
+            let sim = SimServer::bind("127.0.0.1:0", config)
                 .await
                 .map_err(|e| format!("cannot start the simulator: {e}"))?;
             let addr = sim.local_addr().to_string();

@@ -9,6 +9,10 @@
 //!
 //! The first line of standard output is `listening on <bound address>` (port 0 picks a free
 //! port). Set `RUST_LOG=debug` to see every request.
+//!
+//! GRASP_FEEDBACK OK takes the grasped part out of the bin, standing in for the robot, so that a
+//! picking loop (`smartgrasp_pick`) ends; SCHUNK's server ignores feedback, and so does the
+//! simulator by default (`SimConfig::feedback_removes_objects`).
 
 use std::io::Write;
 use std::process::ExitCode;
@@ -31,6 +35,7 @@ async fn main() -> ExitCode {
     };
     let config = SimConfig {
         max_version,
+        feedback_removes_objects: true,
         ..SimConfig::default()
     };
     let server = match SimServer::bind(listen.as_str(), config).await {

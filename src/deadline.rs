@@ -5,6 +5,8 @@
 use std::io::ErrorKind;
 use std::pin::Pin;
 
+use std::time::Duration;
+
 use tokio::io::AsyncWriteExt;
 use tokio::net::tcp::OwnedWriteHalf;
 use tokio::time::error::Elapsed;
@@ -38,5 +40,33 @@ pub(crate) async fn write_all_by(
 pub(crate) fn move_timer(timer: Pin<&mut Sleep>, at: Instant) {
     if timer.deadline() != at {
         timer.reset(at);
+    }
+}
+
+/// How far ahead "never" is: what `at + d` saturates to when it would overflow (about 30
+/// years, as tokio's own timers use; `Instant` has no maximum to saturate to).
+const FAR_FUTURE: Duration = Duration::from_secs(86_400 * 365 * 30);
+
+/// `at + d`, saturated: a duration too long for the clock (`Duration::MAX` is the common way
+/// to say "no timeout") means "never", never a panic.
+pub(crate) fn after(at: Instant, d: Duration) -> Instant {
+    at.checked_add(d)
+        .or_else(|| at.checked_add(FAR_FUTURE))
+        .unwrap_or(at)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn after_saturates_instead_of_overflowing() {
+        let now = Instant::now();
+        assert_eq!(
+            after(now, Duration::from_secs(1)),
+            now + Duration::from_secs(1)
+        );
+        assert!(after(now, Duration::MAX) >= now + FAR_FUTURE);
+        assert!(after(after(now, Duration::MAX), Duration::MAX) > now);
     }
 }

@@ -7,10 +7,12 @@ mod common;
 
 use std::time::Duration;
 
-use gripper::griplink::client::{GripOutcome, ReleaseOutcome, WaitBy, TARGET_TOLERANCE_UM};
+use gripper::griplink::client::{
+    GripOutcome, ReleaseOutcome, WaitBy, RE_ENABLE_WINDOW, STILL_FOR, TARGET_TOLERANCE_UM,
+};
 use gripper::griplink::command::{FlexGrip, FlexRelease};
 use gripper::griplink::sim::{SimConfig, SimDevice, SimServer};
-use gripper::griplink::{Client, DeviceState, Error, Status};
+use gripper::griplink::{Client, DeviceState, Error, Port, Status};
 use tokio::io::{AsyncBufReadExt, AsyncWriteExt, BufReader};
 use tokio::net::TcpStream;
 use tokio::time::Instant;
@@ -31,6 +33,14 @@ async fn homed(config: SimConfig) -> (SimServer, Client) {
 
 fn slow_down(server: &SimServer, scale: f64) {
     server.with_controller(|c, _| c.set_time_scale(scale));
+}
+
+/// Releases to the release limit (20 mm) in no time, then faults the device: DS_FAULT there.
+async fn faulted_at_the_release_limit(server: &SimServer, g: &Port) {
+    slow_down(server, 0.0);
+    g.release_and_wait(0, POLL).await.unwrap();
+    server.inject_device_fault(0);
+    assert_eq!(g.state().await.unwrap(), DeviceState::Fault);
 }
 
 fn at_target(position_um: i32, target_um: i32) -> bool {
@@ -152,10 +162,7 @@ async fn grip_from_fault_succeeds() {
     let (server, client) = homed(SimConfig::et4()).await;
     let g = client.port(0);
     for by in [POLL, WaitBy::Transition] {
-        slow_down(&server, 0.0);
-        g.release_and_wait(0, POLL).await.unwrap();
-        server.inject_device_fault(0);
-        assert_eq!(g.state().await.unwrap(), DeviceState::Fault);
+        faulted_at_the_release_limit(&server, &g).await;
         // 8 mm at 50 mm/s: 160 ms simulated, 32 ms of wall time.
         slow_down(&server, 0.2);
         assert_eq!(
@@ -165,6 +172,69 @@ async fn grip_from_fault_succeeds() {
         );
         assert_eq!(g.position_um().await.unwrap(), 12_000);
     }
+}
+
+/// A RELEASE from DS_FAULT with the fingers at the release limit already: WAITVAL and the
+/// position say "there" at once, but the gripper is still re-enabling (3.4.1) and reads
+/// DS_FAULT for a moment before it ends in DS_RELEASED. The helpers must not report the fault
+/// the device is leaving (issue 21).
+#[tokio::test]
+async fn release_from_fault_at_the_limit_waits_for_the_re_enable() {
+    let (server, client) = homed(SimConfig::et4()).await;
+    let g = client.port(0);
+    for by in [POLL, WaitBy::Transition] {
+        faulted_at_the_release_limit(&server, &g).await;
+        // The re-enable: 100 ms simulated, 20 ms of wall time.
+        slow_down(&server, 0.2);
+        assert_eq!(
+            g.release_and_wait(0, by).await.unwrap(),
+            ReleaseOutcome::Released,
+            "{by:?}"
+        );
+        assert_eq!(g.state().await.unwrap(), DeviceState::Released);
+    }
+}
+
+/// A GRIP from DS_FAULT whose re-enable takes longer than [`STILL_FOR`]: the fingers stand
+/// still meanwhile, and that is no evidence that the grip ended in DS_FAULT (issue 21).
+#[tokio::test]
+async fn grip_from_fault_with_a_slow_re_enable_is_not_a_fault() {
+    // 1 s simulated at time scale 0.5: 500 ms of wall time, well over STILL_FOR.
+    let config = SimConfig::et4().enable_time(Duration::from_secs(1));
+    let (server, client) = homed(config).await;
+    let g = client.port(0);
+    for by in [POLL, WaitBy::Transition] {
+        slow_down(&server, 0.0);
+        g.release_and_wait(0, POLL).await.unwrap();
+        // Just outside the part: the grip itself is short.
+        g.set_value(0, 12_500).await.unwrap();
+        server.inject_device_fault(0);
+        slow_down(&server, 0.5);
+        assert!(Duration::from_millis(500) > STILL_FOR * 2);
+        assert_eq!(
+            g.grip_and_wait(0, by).await.unwrap(),
+            GripOutcome::Holding,
+            "{by:?}"
+        );
+    }
+}
+
+/// A GRIP from DS_FAULT on a gripper that never re-enables (neither leaves DS_FAULT nor moves):
+/// the wait ends with the fault once [`RE_ENABLE_WINDOW`] has passed and the fingers stood still,
+/// not at the motion timeout.
+#[tokio::test]
+async fn grip_from_fault_that_never_re_enables_reports_the_fault_after_the_window() {
+    let config = SimConfig::et4().enable_time(Duration::from_secs(3600));
+    let (server, client) = homed(config).await;
+    let g = client.port(0);
+    server.inject_device_fault(0);
+    slow_down(&server, 1.0);
+    let started = Instant::now();
+    assert_eq!(g.grip_and_wait(0, POLL).await.unwrap(), GripOutcome::Fault);
+    let took = started.elapsed();
+    assert!(took >= RE_ENABLE_WINDOW, "{took:?}");
+    assert!(took < RE_ENABLE_WINDOW + Duration::from_secs(5), "{took:?}");
+    assert_eq!(g.position_um().await.unwrap(), 20_000);
 }
 
 /// A grip from DS_FAULT that faults again ends with no transition at all: the helpers report

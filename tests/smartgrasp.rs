@@ -9,7 +9,7 @@ use gripper::smartgrasp::frame::{Prefix, RequestFrame, ResponseFrame, FRAME_LEN}
 use gripper::smartgrasp::sim::{Fault, SimConfig, SimServer};
 use gripper::smartgrasp::{
     AbcPose, AxisAnglePose, Client, ClientConfig, Error, GetGraspOutcome, GraspFeedback, GraspMode,
-    GraspRequest, Malformed, MessageType, ObjectCount, Pose, PoseFormat, QuaternionPose,
+    GraspRequest, Malformed, MessageType, ObjectCount, Pose, PoseFormat, QuaternionPose, Request,
     ResponseCode, RobotSystem, ServerState, Tool, WprPose,
 };
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
@@ -21,6 +21,15 @@ fn v3_sim() -> SimConfig {
     SimConfig {
         max_version: 3,
         ..SimConfig::default()
+    }
+}
+
+/// [`v3_sim`] whose GRASP_FEEDBACK OK takes the object out of the scene (the simulator option;
+/// SCHUNK's server ignores feedback).
+fn v3_picking_sim() -> SimConfig {
+    SimConfig {
+        feedback_removes_objects: true,
+        ..v3_sim()
     }
 }
 
@@ -75,7 +84,7 @@ async fn opening_sequence_registers_and_sets_the_project() {
 
 #[tokio::test]
 async fn every_message_type() {
-    let server = sim(v3_sim()).await;
+    let server = sim(v3_picking_sim()).await;
     let client = open(&server).await;
 
     client.register_client(RobotSystem::Ur).await.unwrap();
@@ -153,7 +162,8 @@ async fn every_message_type() {
         assert!(si.orientation.angle_to_rad(&reference_si.orientation) < 5e-6);
     }
 
-    // GRASP_FEEDBACK OK takes the object out of the scene; BAD leaves it.
+    // With the simulator option, GRASP_FEEDBACK OK takes the object out of the scene; BAD
+    // leaves it.
     client.grasp_feedback(GraspFeedback::Bad).await.unwrap();
     assert_eq!(client.get_object_count(0).await.unwrap().object_count, 3);
     let _ = client
@@ -166,10 +176,10 @@ async fn every_message_type() {
 
 #[tokio::test]
 async fn every_response_code() {
-    let server = sim(v3_sim()).await;
+    let server = sim(v3_picking_sim()).await;
     let client = open(&server).await;
 
-    // ERROR: no such project; feedback with no grasp to refer to.
+    // ERROR: no such project; feedback with no grasp to refer to (the simulator option).
     assert!(matches!(
         client.set_project(99).await,
         Err(Error::Device {
@@ -633,4 +643,45 @@ async fn split_and_merged_segments() {
     assert_eq!(a.unwrap(), 3);
     assert_eq!(b.unwrap(), ServerState::Operational);
     assert_eq!(c.unwrap(), 3);
+}
+
+/// SCHUNK's own clients say GRASP_FEEDBACK has no effect ("Has no effect on Version 3"; V4:
+/// "no effect", and it sends feedback 0): by default the simulator answers every feedback,
+/// 0 included and with no grasp before it, with SUCCESS and changes nothing (issue 21).
+#[tokio::test]
+async fn grasp_feedback_has_no_effect_by_default_as_schunks_examples_say() {
+    for max_version in [3, 4] {
+        let server = sim(SimConfig {
+            max_version,
+            ..SimConfig::default()
+        })
+        .await;
+        let client = open(&server).await;
+        assert_eq!(client.protocol_version(), max_version);
+        // No grasp to refer to yet.
+        client.grasp_feedback(GraspFeedback::Bad).await.unwrap();
+        for feedback in [
+            GraspFeedback::Ok,
+            GraspFeedback::Bad,
+            GraspFeedback::Unknown(0),
+        ] {
+            expect_grasp(
+                client
+                    .get_grasp(grasp_request(0, GraspMode::AnyGrasp, PoseFormat::Abc))
+                    .await
+                    .unwrap(),
+            );
+            let response = client.call(Request::GraspFeedback(feedback)).await.unwrap();
+            assert_eq!(
+                response.code,
+                ResponseCode::Success,
+                "v{max_version} {feedback:?}"
+            );
+            assert_eq!(
+                client.get_object_count(0).await.unwrap().object_count,
+                3,
+                "v{max_version} {feedback:?}: the scene changed"
+            );
+        }
+    }
 }

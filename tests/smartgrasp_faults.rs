@@ -30,7 +30,7 @@ fn v3_sim() -> SimConfig {
 }
 use gripper::smartgrasp::{
     Client, ClientConfig, Error, GetGraspOutcome, GraspMode, GraspRequest, Malformed, MessageType,
-    ObjectCount, PoseFormat, ResponseCode, RobotSystem, ServerState, Tool,
+    ObjectCount, Pose, PoseFormat, ResponseCode, RobotSystem, ServerState, Tool,
 };
 
 /// The timeout of a call meant to time out: short, so that those faults cost little.
@@ -103,6 +103,17 @@ impl Rig {
         )
         .await
         .expect("opening sequence through the proxy")
+    }
+
+    /// A client through the proxy that trusts the response counter.
+    async fn strict_client(&self) -> Client {
+        let strict = ClientConfig {
+            strict_response_counter: true,
+            ..config()
+        };
+        within("connect", Client::connect(self.proxy.local_addr(), strict))
+            .await
+            .expect("opening sequence through the proxy")
     }
 }
 
@@ -369,13 +380,7 @@ async fn corrupt_response_counter_is_recorded_and_the_call_gets_its_answer() {
 async fn in_strict_mode_corrupt_response_counter_is_a_lost_response() {
     // The same gap with a client that trusts the counter: the one waiting call cannot explain it.
     let rig = rig().await;
-    let strict = ClientConfig {
-        strict_response_counter: true,
-        ..config()
-    };
-    let client = within("connect", Client::connect(rig.proxy.local_addr(), strict))
-        .await
-        .unwrap();
+    let client = rig.strict_client().await;
     let handle = REPLIES(&rig.proxy).add(corrupt(at::RESPONSE_COUNTER, 0x01));
     let err = count(&client, 1).await.unwrap_err();
     assert_eq!(handle.fired(), 1);
@@ -462,23 +467,24 @@ async fn corrupt_request_object_class_is_caught_by_the_echo() {
 }
 
 #[tokio::test]
-async fn corrupt_grasp_pose_format_is_caught() {
-    // ABC (17) ^ 1 = WPR (16): a valid format, but not the one asked for.
-    let (rig, client, _) = with_fault(REPLIES, corrupt(at::POSE_FORMAT, 0x01)).await;
-    let err = within("get_grasp", client.get_grasp(any_grasp(0)))
-        .await
-        .unwrap_err();
-    assert!(
-        matches!(
-            err,
-            Error::MalformedReply(Malformed::Echo {
-                field: "pose format",
-                ..
-            })
-        ),
-        "{err}"
-    );
-    assert_broken_then_fresh_works(&rig, &client).await;
+async fn undetectable_corrupt_grasp_pose_format_is_read_as_declared() {
+    // ABC (17) ^ 1 = WPR (16): a valid format. The response's pose format is the format used for
+    // the pose (manual 3.3.3.1), not an echo of the request, so the client reads the pose as WPR
+    // and converts it to the ABC asked for: a wrong pose no V3 client can tell from a right one.
+    let rig = rig().await;
+    let client = rig.client().await;
+    let grasp = |outcome| match outcome {
+        Ok(GetGraspOutcome::Grasp(grasp)) => grasp,
+        other => panic!("{other:?}"),
+    };
+    let sent = grasp(within("get_grasp", client.get_grasp(any_grasp(0))).await);
+    let fault = REPLIES(&rig.proxy).add(corrupt(at::POSE_FORMAT, 0x01));
+    let read = grasp(within("get_grasp", client.get_grasp(any_grasp(0))).await);
+    assert_eq!(fault.fired(), 1);
+    let as_wpr = Pose::from_wire(PoseFormat::Wpr, sent.pose.to_wire()).unwrap();
+    assert_eq!(read.pose, as_wpr.to_format(PoseFormat::Abc).unwrap());
+    assert_ne!(read.pose, sent.pose);
+    assert_healthy(&client).await;
 }
 
 #[tokio::test]
@@ -609,15 +615,36 @@ async fn a_reply_delayed_past_its_timeout_then_the_identical_request_gets_its_ow
 // ---- duplicate -------------------------------------------------------------------------------
 
 #[tokio::test]
-async fn duplicated_reply_is_skipped() {
+async fn duplicated_reply_is_skipped_with_a_strict_counter() {
     // Found by this matrix: the copy arrived with nobody waiting (unsolicited) or paired with
-    // the next call (a counter gap of 255), and broke the connection. A byte-identical repeat of
-    // the last response (same counter, which a server never repeats) is now skipped.
-    let (_rig, client, dup) = with_fault(REPLIES, Fault::Duplicate.once()).await;
+    // the next call (a counter gap of 255), and broke the connection. With a server known to
+    // count per connection (strict mode), a byte-identical repeat of the last response (same
+    // counter, which such a server never repeats) is a copy, and skipped.
+    let rig = rig().await;
+    let client = rig.strict_client().await;
+    let dup = REPLIES(&rig.proxy).add(Fault::Duplicate.once());
     assert_eq!(count(&client, 1).await.unwrap(), CLASS_1);
     assert_eq!(dup.fired(), 1);
     assert_healthy(&client).await;
     assert!(!client.is_closed());
+}
+
+#[tokio::test]
+async fn duplicated_reply_breaks_the_connection_by_default() {
+    // By default identical responses are answers (a server whose counter never moves, or counts
+    // across its clients, sends them; issue 21), so a copy with nobody waiting is unsolicited:
+    // the call got its answer, the connection is given up, never a wrong answer.
+    let (rig, client, dup) = with_fault(REPLIES, Fault::Duplicate.once()).await;
+    let mut events = client.connection_events();
+    assert_eq!(count(&client, 1).await.unwrap(), CLASS_1);
+    assert_eq!(dup.fired(), 1);
+    match within("loss reported", events.next()).await {
+        Some(ConnectionEvent::Lost { reason }) => {
+            assert!(reason.contains("unsolicited"), "{reason}")
+        }
+        other => panic!("{other:?}"),
+    }
+    assert_broken_then_fresh_works(&rig, &client).await;
 }
 
 #[tokio::test]

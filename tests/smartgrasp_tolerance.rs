@@ -11,20 +11,21 @@
 
 #![cfg(feature = "sim")]
 
+mod common;
+
 use std::future::Future;
 use std::net::SocketAddr;
-use std::sync::Arc;
 use std::time::Duration;
 
 use futures_util::StreamExt;
 use gripper::reconnect::{ConnectionEvent, ReconnectPolicy};
-use gripper::smartgrasp::frame::{Prefix, RequestFrame, ResponseFrame, FRAME_LEN, PREFIX_LEN};
+use gripper::smartgrasp::frame::{Prefix, RequestFrame, ResponseFrame, PREFIX_LEN};
 use gripper::smartgrasp::sim::{SimConfig, SimServer};
 use gripper::smartgrasp::{
     Client, ClientConfig, Error, MessageType, ResponseCode, RobotSystem, ServerState,
 };
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
-use tokio::net::{TcpListener, TcpStream};
+use tokio::net::TcpStream;
 
 const LIMIT: Duration = Duration::from_secs(10);
 
@@ -32,38 +33,6 @@ async fn within<F: Future>(what: &str, future: F) -> F::Output {
     tokio::time::timeout(LIMIT, future)
         .await
         .unwrap_or_else(|_| panic!("hung: {what}"))
-}
-
-/// A raw peer serving any number of connections: `respond(connection, i, request)` gives the
-/// bytes to write for the i-th request of a connection (`None`: stay silent).
-async fn peer(
-    respond: impl Fn(usize, usize, RequestFrame) -> Option<Vec<u8>> + Send + Sync + 'static,
-) -> SocketAddr {
-    let listener = TcpListener::bind("127.0.0.1:0").await.unwrap();
-    let addr = listener.local_addr().unwrap();
-    let respond = Arc::new(respond);
-    tokio::spawn(async move {
-        let mut connection = 0;
-        while let Ok((mut stream, _)) = listener.accept().await {
-            let respond = Arc::clone(&respond);
-            let n = connection;
-            connection += 1;
-            tokio::spawn(async move {
-                let mut buf = [0u8; FRAME_LEN];
-                let mut i = 0;
-                while stream.read_exact(&mut buf).await.is_ok() {
-                    let out = respond(n, i, RequestFrame::decode(&buf));
-                    i += 1;
-                    if let Some(out) = out {
-                        if stream.write_all(&out).await.is_err() {
-                            break;
-                        }
-                    }
-                }
-            });
-        }
-    });
-    addr
 }
 
 /// A well-formed SUCCESS answer to `request` with `counter`, as a v3 operational server.
@@ -84,7 +53,7 @@ fn bytes(frame: ResponseFrame) -> Option<Vec<u8>> {
 #[tokio::test]
 async fn a_server_counting_across_clients_is_served_and_its_gaps_counted() {
     // Every response skips one counter value, as if another client's responses were in between.
-    let addr = peer(|_, i, req| bytes(answer(&req, (2 * i) as u8))).await;
+    let addr = common::smartgrasp_peer(|_, i, req| bytes(answer(&req, (2 * i) as u8))).await;
     let client = within("connect", Client::connect(addr, ClientConfig::default()))
         .await
         .unwrap();
@@ -113,7 +82,7 @@ async fn a_server_counting_across_clients_is_served_and_its_gaps_counted() {
 
 #[tokio::test]
 async fn an_object_count_answered_as_type_17_is_read_as_a_count() {
-    let addr = peer(|_, i, req| {
+    let addr = common::smartgrasp_peer(|_, i, req| {
         let mut f = answer(&req, i as u8);
         if req.header.message_type == MessageType::GetObjectCount {
             f.header.message_type = MessageType::GraspFeedback;
@@ -128,7 +97,7 @@ async fn an_object_count_answered_as_type_17_is_read_as_a_count() {
     assert_eq!(count.object_count, 4);
     assert_eq!(count.candidate_count, 2);
     // 17 still answers nothing but a count: a GET_STATE answered 17 breaks the connection.
-    let addr = peer(|_, i, req| {
+    let addr = common::smartgrasp_peer(|_, i, req| {
         let mut f = answer(&req, i as u8);
         f.header.message_type = MessageType::GraspFeedback;
         bytes(f)
@@ -143,7 +112,7 @@ async fn an_object_count_answered_as_type_17_is_read_as_a_count() {
 
 #[tokio::test]
 async fn a_refused_registration_is_reported_not_fatal() {
-    let addr = peer(|_, i, req| {
+    let addr = common::smartgrasp_peer(|_, i, req| {
         let mut f = answer(&req, i as u8);
         if req.header.message_type == MessageType::RegisterClient {
             f.header.response_code = ResponseCode::Error;
@@ -182,7 +151,7 @@ async fn a_refused_registration_is_reported_not_fatal() {
 /// Answers the opening sequence (two requests) on every connection, then only on connections
 /// after the first: the first connection's server goes mute.
 async fn mute_after_opening() -> SocketAddr {
-    peer(|connection, i, req| {
+    common::smartgrasp_peer(|connection, i, req| {
         (connection > 0 || i < 2).then(|| answer(&req, i as u8).encode().to_vec())
     })
     .await

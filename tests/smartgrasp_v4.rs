@@ -28,6 +28,9 @@ async fn sim(max_version: u16) -> SimServer {
     let config = SimConfig {
         max_version,
         reference_frame: ReferenceFrame(7),
+        // GRASP_FEEDBACK OK takes the part out of the scene, so that picking loops end (a
+        // simulator option: SCHUNK's server ignores feedback).
+        feedback_removes_objects: true,
         ..SimConfig::default()
     };
     SimServer::bind("127.0.0.1:0", config).await.unwrap()
@@ -91,7 +94,8 @@ async fn every_v4_message_round_trips() {
         (None, None, None)
     );
     assert_eq!((g.object_count, g.candidate_count), (3, 1));
-    // GRASP_FEEDBACK has no effect in V4 per SCHUNK's example; the simulator still removes the part.
+    // GRASP_FEEDBACK has no effect in V4 per SCHUNK's example; the simulator's option removes the
+    // part.
     client.grasp_feedback(GraspFeedback::Ok).await.unwrap();
     assert_eq!(client.get_object_count(0).await.unwrap().object_count, 2);
 

@@ -171,7 +171,9 @@ async fn a_stop_is_sent_at_once_even_while_an_earlier_stops_reply_is_lost() {
         guard("the second stop", stop(client.clone()))
             .await
             .unwrap();
-        assert_eq!(fake.count(command), 2);
+        // ... on a reply that cannot be the first stop's (issue 20.2 #3): the first reply is
+        // taken for the oldest unanswered stop, so the stop is sent again for the second call.
+        assert!(fake.count(command) >= 3, "{}", fake.count(command));
         // ... and so does the first: it was sent before the reply that came.
         guard("the first stop", first).await.unwrap().unwrap();
     }

@@ -178,9 +178,13 @@ async fn image(http: &str, path: &Path, json: bool) -> Run {
 #[tokio::test]
 async fn the_smartgrasp_scene_shows_every_remaining_part() {
     use gripper::smartgrasp::sim::{SimConfig, SimServer};
-    let server = SimServer::bind("127.0.0.1:0", SimConfig::default())
-        .await
-        .expect("bind");
+    // GRASP_FEEDBACK OK takes the part out of the bin (a simulator option; SCHUNK's server
+    // ignores feedback).
+    let config = SimConfig {
+        feedback_removes_objects: true,
+        ..SimConfig::default()
+    };
+    let server = SimServer::bind("127.0.0.1:0", config).await.expect("bind");
     let monitor = server.serve_monitor("127.0.0.1:0").await.expect("bind");
     let http = monitor.local_addr().to_string();
     let addr = server.local_addr().to_string();

@@ -129,7 +129,13 @@ async fn grasp_prints_metres_and_the_robots_format() {
 
 #[tokio::test]
 async fn picking_until_the_scene_is_empty() {
-    let (server, addr) = server(SimConfig::default()).await;
+    // GRASP_FEEDBACK OK stands in for the robot taking the part (a simulator option: SCHUNK's
+    // server ignores feedback).
+    let (server, addr) = server(SimConfig {
+        feedback_removes_objects: true,
+        ..SimConfig::default()
+    })
+    .await;
     for left in (1..=3).rev() {
         let count = sg(&addr, &["count", "--json"]).await.json();
         assert_eq!(count["object_count"], left);
@@ -224,7 +230,13 @@ async fn register_project_and_robot_pose_reach_the_server() {
 
 #[tokio::test]
 async fn a_refusal_names_the_servers_response_code() {
-    let (_server, addr) = server(SimConfig::default()).await;
+    // The feedback refusal below needs the simulator option (by default feedback has no effect
+    // and is always SUCCESS, as SCHUNK's examples say).
+    let (_server, addr) = server(SimConfig {
+        feedback_removes_objects: true,
+        ..SimConfig::default()
+    })
+    .await;
 
     let run = sg(&addr, &["grasp", "--class", "7"]).await;
     let line = run.failed();

@@ -10,8 +10,10 @@
 //! workspace by the ids configured on the device, GET_GRASP carries a selection criterion instead
 //! of a tool, and its response a reference frame, an object offset and a two-axis centre offset.
 //! What the example does not pin is kept raw ([`SelectionCriterion`], [`ReferenceFrame`], response
-//! bytes 10–13, 68–71, 76–79) and documented as such, never given a meaning. In V4
-//! GRASP_FEEDBACK has no effect, by the example's own comment.
+//! bytes 10–13, 68–71, 76–79) and documented as such, never given a meaning. GRASP_FEEDBACK has
+//! no effect, by SCHUNK's own comments ("no effect in V4"; its V3 file: "Has no effect on
+//! Version 3"); the simulator follows them unless told to take the object out on OK
+//! (`sim::SimConfig::feedback_removes_objects`).
 //!
 //! [`Client::connect`] negotiates: GET_PROTOCOL_VERSION asked as V3 (every server since V3
 //! answers it, manual 1.3 and 3.3.2.1), then the highest version both speak;
@@ -47,12 +49,19 @@
 //! - the response counter's scope is not specified (3.2.2.3; the examples 6.4 and 6.5 both show
 //!   3): a gap is counted ([`Client::counter_gaps`]) and warned about, the call gets its response;
 //!   [`ClientConfig::strict_response_counter`] trusts the counter instead;
+//! - a response byte-identical to the previous one is an answer like any other: a server whose
+//!   counter never moves (SCHUNK's KRL never reads it) or counts across its clients (the same
+//!   value 256 responses later) sends them. Only in strict mode, where the counter is known to
+//!   count this connection's responses, is an exact repeat a copy, and skipped (TCP itself never
+//!   duplicates; a copy made by faulty equipment otherwise arrives unsolicited and breaks the
+//!   connection, or, right before a call of the same type, is taken as its answer);
 //! - a GET_OBJECT_COUNT answered as message type 17 (the manual's table, an erratum for 32) is
 //!   read as a count;
 //! - REGISTER_CLIENT is informational (3.3.2.3): its code is reported
 //!   ([`Client::registration`]), not fatal to the connect;
 //! - a server that stays connected but stops answering is given up
-//!   [`ClientConfig::give_up_after`] past a call's timeout, then reconnected to if configured.
+//!   [`ClientConfig::give_up_after`] past the call's own timeout (the configured one of its type,
+//!   or [`Client::with_timeout`]'s), then reconnected to if configured.
 //!
 //! What V3 cannot detect, and so neither can this client: frames carry no checksum and
 //! responses no request id. A corrupted byte that still reads as a valid value (a count, a pose

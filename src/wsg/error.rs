@@ -40,6 +40,15 @@ pub enum Error {
         /// The timeout that elapsed.
         timeout: Duration,
     },
+    /// The device acknowledged the motion command (E_CMD_PENDING, manual 1.3), then said twice,
+    /// a late-reply grace apart, that the fingers do not move, and its final reply never came:
+    /// it was lost on the wire. What the command achieved is unknown; query the state (e.g.
+    /// the width or the grip state).
+    #[error("the final reply to command {command:#04x} was lost (the device no longer moves)")]
+    ReplyLost {
+        /// The command id.
+        command: u8,
+    },
     /// A reply arrived but its data does not have the documented layout.
     #[error("malformed reply to command {command:#04x}: {reason}")]
     MalformedReply {

@@ -104,7 +104,12 @@ pub enum Decoded {
     /// A frame with a correct checksum.
     Frame(Frame),
     /// A complete frame whose checksum did not match; the search resumes one byte after its
-    /// start. A device answers such a frame with E_CHECKSUM_ERROR under the received id.
+    /// start. The manual leaves what to do with it to the receiver: a client evaluates the
+    /// checksum of replies itself (1.2.2, "Die Auswertung obliegt dem Client") and drops such a
+    /// frame; what the device does with a request that has one is not documented (it names
+    /// E_CHECKSUM_ERROR in Anhang A under no command; 1.2.1 only says a frame *missing* its
+    /// checksum is discarded). The simulator discards it by default
+    /// (`sim::SimConfig::answer_bad_checksum`).
     Corrupt {
         /// The id byte of the rejected frame.
         id: u8,
@@ -118,6 +123,11 @@ pub enum Decoded {
 /// Returns `None` when more bytes are needed; bytes before a possible preamble are dropped, so
 /// `src` never grows beyond one frame of at most `max_payload_len` plus a few bytes of garbage.
 pub fn decode(src: &mut BytesMut, max_payload_len: usize) -> Option<Decoded> {
+    decode_limited(src, |_| max_payload_len)
+}
+
+/// [`decode`] with a limit per command id: a header whose length exceeds `limit(id)` is noise.
+pub(crate) fn decode_limited(src: &mut BytesMut, limit: impl Fn(u8) -> usize) -> Option<Decoded> {
     loop {
         let start = find_preamble(src)?;
         src.advance(start);
@@ -127,6 +137,7 @@ pub fn decode(src: &mut BytesMut, max_payload_len: usize) -> Option<Decoded> {
         }
         let id = src[3];
         let len = u16::from_le_bytes([src[4], src[5]]);
+        let max_payload_len = limit(id);
         if usize::from(len) > max_payload_len {
             tracing::warn!(
                 id,
@@ -164,8 +175,16 @@ pub fn decode(src: &mut BytesMut, max_payload_len: usize) -> Option<Decoded> {
 /// Like [`decode`], at end of stream: a header that cannot complete any more is dropped as noise
 /// and the search continues after its first byte.
 pub fn decode_eof(src: &mut BytesMut, max_payload_len: usize) -> Option<Decoded> {
+    decode_eof_limited(src, |_| max_payload_len)
+}
+
+/// [`decode_eof`] with a limit per command id (see [`decode_limited`]).
+pub(crate) fn decode_eof_limited(
+    src: &mut BytesMut,
+    limit: impl Fn(u8) -> usize,
+) -> Option<Decoded> {
     loop {
-        if let Some(d) = decode(src, max_payload_len) {
+        if let Some(d) = decode_limited(src, &limit) {
             return Some(d);
         }
         if src.is_empty() {

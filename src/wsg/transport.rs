@@ -84,6 +84,14 @@ impl Link {
                 loop {
                     let (n, from) = match socket.recv_from(&mut buf[..]).await {
                         Ok(x) => x,
+                        // An ICMP error (port or host unreachable: the gripper rebooting, say)
+                        // for a datagram sent earlier, reported by this receive: UDP has no
+                        // connection to lose, so it is logged and the link goes on. Each such
+                        // error answers a datagram this side sent, so this cannot spin.
+                        Err(e) if is_icmp_error(&e) => {
+                            tracing::warn!(error = %e, "WSG UDP: the gripper did not receive an earlier datagram");
+                            continue;
+                        }
                         Err(e) => return Some(Err(e)),
                     };
                     // Everything after the await is synchronous: a cancelled recv loses nothing.
@@ -108,6 +116,27 @@ impl Link {
                     return Some(Ok(f));
                 }
             },
+        }
+    }
+
+    /// Like [`Link::recv`], but when `watching` is false also returns (with `None`) as soon as
+    /// the decoder holds the start of a frame, so the caller can start that frame's timer
+    /// (issue 20.2 #2: a frame must complete within a bound from its first byte). Cancel-safe.
+    pub(crate) async fn recv_or_partial(
+        &mut self,
+        watching: bool,
+    ) -> Option<Option<io::Result<Frame>>> {
+        match self {
+            Link::Stream(framed) if !watching => {
+                std::future::poll_fn(|cx| match std::pin::Pin::new(&mut *framed).poll_next(cx) {
+                    std::task::Poll::Pending if !framed.read_buffer().is_empty() => {
+                        std::task::Poll::Ready(None)
+                    }
+                    other => other.map(Some),
+                })
+                .await
+            }
+            _ => Some(self.recv().await),
         }
     }
 
@@ -190,6 +219,17 @@ impl Link {
     }
 }
 
+/// Whether a UDP receive error reports an ICMP error for an earlier datagram (Linux:
+/// ECONNREFUSED and EHOSTUNREACH/ENETUNREACH on a connected socket; Windows: WSAECONNRESET
+/// even unconnected) rather than a failure of the socket itself.
+fn is_icmp_error(e: &io::Error) -> bool {
+    use io::ErrorKind::*;
+    matches!(
+        e.kind(),
+        ConnectionRefused | ConnectionReset | HostUnreachable | NetworkUnreachable
+    )
+}
+
 /// Decodes the single frame a datagram carries (each UDP datagram is one frame); anything else
 /// in it is noise, traced and dropped.
 pub(crate) fn decode_datagram(datagram: &[u8], max_payload_len: usize) -> Option<Frame> {
@@ -207,4 +247,36 @@ pub(crate) fn decode_datagram(datagram: &[u8], max_payload_len: usize) -> Option
         }
     }
     found
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An ICMP "port unreachable" for an earlier datagram surfaces as an error of the next
+    /// receive (ECONNREFUSED on Linux for a connected socket, WSAECONNRESET on Windows even
+    /// unconnected). UDP has no connection to lose: the link goes on receiving.
+    #[tokio::test]
+    async fn an_icmp_error_does_not_end_a_udp_link() {
+        // A port nobody listens on (taken from the OS, then freed).
+        let gone = UdpSocket::bind("127.0.0.1:0").await.unwrap();
+        let peer = gone.local_addr().unwrap();
+        drop(gone);
+        let socket = UdpSocket::bind("127.0.0.1:0").await.unwrap();
+        let me = socket.local_addr().unwrap();
+        // Connected, so that Linux reports the ICMP error to it.
+        socket.connect(peer).await.unwrap();
+        let mut link = Link::udp(socket, peer, 64);
+        link.send(&Frame::new(0x06, &b"lost"[..])).await.unwrap();
+        // The peer comes back on the same port and answers.
+        let back = UdpSocket::bind(peer).await.unwrap();
+        let mut b = BytesMut::new();
+        frame::encode(&Frame::new(0x06, &b"back"[..]), &mut b).unwrap();
+        back.send_to(&b, me).await.unwrap();
+        let got = tokio::time::timeout(std::time::Duration::from_secs(10), link.recv())
+            .await
+            .expect("the link answers")
+            .expect("the link goes on");
+        assert_eq!(got.unwrap(), Frame::new(0x06, &b"back"[..]));
+    }
 }

@@ -60,3 +60,42 @@ pub async fn griplink_until(
     .await
     .expect(what);
 }
+
+/// A raw SmartGrasp peer over loopback serving any number of connections: `respond(connection,
+/// i, request)` gives the bytes to write for the i-th request of a connection (`None`: stay
+/// silent).
+#[cfg(feature = "sim")]
+#[allow(dead_code)] // only the SmartGrasp tests use it
+pub async fn smartgrasp_peer(
+    respond: impl Fn(usize, usize, gripper::smartgrasp::frame::RequestFrame) -> Option<Vec<u8>>
+        + Send
+        + Sync
+        + 'static,
+) -> std::net::SocketAddr {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let addr = listener.local_addr().unwrap();
+    let respond = std::sync::Arc::new(respond);
+    tokio::spawn(async move {
+        let mut connection = 0;
+        while let Ok((mut stream, _)) = listener.accept().await {
+            let respond = std::sync::Arc::clone(&respond);
+            let n = connection;
+            connection += 1;
+            tokio::spawn(async move {
+                let mut buf = [0u8; gripper::smartgrasp::frame::FRAME_LEN];
+                let mut i = 0;
+                while stream.read_exact(&mut buf).await.is_ok() {
+                    let out = respond(n, i, gripper::smartgrasp::frame::RequestFrame::decode(&buf));
+                    i += 1;
+                    if let Some(out) = out {
+                        if stream.write_all(&out).await.is_err() {
+                            break;
+                        }
+                    }
+                }
+            });
+        }
+    });
+    addr
+}

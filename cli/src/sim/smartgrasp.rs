@@ -82,6 +82,9 @@ fn smartgrasp_config(args: &SmartgraspSim) -> SimConfig {
             StateArg::Stopped => ServerState::Stopped,
             StateArg::Error => ServerState::Error,
         },
+        // A bin that empties as parts are reported picked: GRASP_FEEDBACK OK stands in for the
+        // robot taking the part out (SCHUNK's server ignores feedback; a simulator option).
+        feedback_removes_objects: true,
         ..SimConfig::default()
     };
     let demo = SimConfig::demo_project();

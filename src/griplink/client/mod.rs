@@ -70,6 +70,19 @@
 //!    for a grip from any other outcome state a device might accept; Weiss grippers refuse GRIP
 //!    in `DS_HOLDING` and `DS_NO_PART`, 3.4.4.)
 //!
+//! **From `DS_FAULT`, evidence only after the re-enable.** Until the gripper has re-enabled
+//! (3.4.1; the manual gives no time for it) it still reads `DS_FAULT` with its fingers still, the
+//! very picture of a motion that ended in a fault; a release whose fingers are at the release
+//! limit already even passes `WAITVAL` at once. So for a motion started in `DS_FAULT` the
+//! position (rules 2 and 3) counts only once the device shows that it re-enabled: a state other
+//! than `DS_FAULT` read after the command (then any outcome state read later, `DS_FAULT`
+//! included, is a transition and ends the wait), or the fingers more than
+//! [`TARGET_TOLERANCE_UM`] away from where they were before the command. Without either sign it
+//! counts only after [`RE_ENABLE_WINDOW`] from the command's `ACK` (a device that has neither
+//! moved nor left `DS_FAULT` by then is taken not to have re-enabled). And from `DS_FAULT` the
+//! fingers at the target are not enough for a `DS_FAULT` outcome: they must also stand still for
+//! [`STILL_FOR`], as the state may follow the fingers a moment later.
+//!
 //! Evidence from the position is followed by a fresh state read, which gives the outcome (the
 //! motion may have ended between the two reads).
 //!
@@ -107,7 +120,9 @@ use tokio::sync::{mpsc, oneshot};
 use tokio::time::Instant;
 
 pub use port::Port;
-pub use wait::{GripOutcome, ReleaseOutcome, WaitBy, STILL_FOR, TARGET_TOLERANCE_UM};
+pub use wait::{
+    GripOutcome, ReleaseOutcome, WaitBy, RE_ENABLE_WINDOW, STILL_FOR, TARGET_TOLERANCE_UM,
+};
 pub use watch::Watch;
 
 use self::task::{Request, Shared, Task, TaskConfig};

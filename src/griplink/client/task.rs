@@ -244,7 +244,14 @@ pub(crate) async fn run(stream: TcpStream, mut task: Task) {
     let mut conn = Conn::new(stream, task.config.max_line_len);
     let end = loop {
         let reconnects = task.reconnect.is_some();
-        let end = serve(conn, &mut task.requests, &task.config, reconnects).await;
+        let end = serve(
+            conn,
+            &mut task.requests,
+            &task.config,
+            &task.shared,
+            reconnects,
+        )
+        .await;
         // `Closed`: BYE, or nobody left to call; nothing to report or restore.
         if matches!(end, Error::Closed) {
             break end;
@@ -295,11 +302,14 @@ pub(crate) async fn run(stream: TcpStream, mut task: Task) {
 /// the calls in flight with the reason, which it returns. When the connection is over for good
 /// (closed, or lost with no reconnect to follow), the request queue is closed before any caller
 /// hears why, so a caller that got the error finds [`Client::is_closed`](super::Client::is_closed)
-/// already true.
+/// already true; and the reason is recorded in `shared` before the queue is closed, so a call
+/// refused by the closed queue reads the same reason (`ConnectionLost`, never a `Closed` that
+/// nobody asked for; issue 21).
 async fn serve(
     conn: Conn,
     requests: &mut mpsc::Receiver<Request>,
     config: &TaskConfig,
+    shared: &Shared,
     reconnects: bool,
 ) -> Error {
     let Conn {
@@ -393,6 +403,8 @@ async fn serve(
     };
 
     if closing || matches!(end, Error::Closed) || !reconnects {
+        // After BYE the program is done with the connection, however it ended (see below).
+        shared.record(if closing { &Error::Closed } else { &end });
         requests.close();
     }
     if let Some(waiter) = unsent {

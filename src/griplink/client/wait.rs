@@ -59,6 +59,17 @@ pub const TARGET_TOLERANCE_UM: i32 = 100;
 /// crate's choice, many IO-Link cycles long.
 pub const STILL_FOR: Duration = Duration::from_millis(200);
 
+/// How long a motion started in `DS_FAULT` may show no sign of the re-enable (the state still
+/// `DS_FAULT`, the fingers where they were) before the position may say that it ended: 2 s.
+///
+/// GRIP and RELEASE re-enable a Weiss gripper (3.4.1), but the manual gives no time for it, and
+/// meanwhile the device still reads `DS_FAULT` with its fingers still, which looks exactly like
+/// a motion that ended in a fault. So until the device left `DS_FAULT` or moved its fingers, only
+/// this window running out makes the position evidence count (see the
+/// [client docs](super#waiting-for-a-motion)). 2 s is this crate's choice: many times what an
+/// actuator needs to power up and build its force, and short against the motion timeout.
+pub const RE_ENABLE_WINDOW: Duration = Duration::from_secs(2);
+
 /// The longest single `WAITVAL` a helper sends: between two, it checks the state for a fault.
 const WAITVAL_CHUNK: Duration = Duration::from_secs(1);
 
@@ -94,6 +105,11 @@ struct Awaited<T> {
     start: DeviceState,
     /// Where the fingers stop if nothing is in the way (releases), µm.
     target_um: Option<i32>,
+    /// The finger position read just before the command, µm: only for a start in `DS_FAULT`,
+    /// where the fingers moving away from it is the sign of the re-enable.
+    start_um: Option<i32>,
+    /// When the command was acknowledged.
+    sent_at: Instant,
     deadline: Instant,
     limit: Duration,
 }
@@ -121,6 +137,11 @@ fn wait_timeout(what: &str, port: PortNumber, limit: Duration) -> Error {
         command: format!("{what} on port {port}"),
         timeout: limit,
     }
+}
+
+/// Whether two finger positions are within [`TARGET_TOLERANCE_UM`] of each other.
+fn within_tolerance(a_um: i32, b_um: i32) -> bool {
+    (i64::from(a_um) - i64::from(b_um)).abs() <= i64::from(TARGET_TOLERANCE_UM)
 }
 
 fn mm_to_um(mm: f64) -> Option<i32> {
@@ -290,6 +311,10 @@ impl Port {
             Target::Known(um) => Some(um),
             Target::Recipe(_) | Target::None => None,
         };
+        let start_um = match start {
+            DeviceState::Fault => Some(self.within(deadline, query, &err)?.position_um().await?),
+            _ => None,
+        };
         // Read first: a state read after the command that merely repeats it is no outcome.
         self.within(deadline, query, &err)?
             .client
@@ -300,6 +325,8 @@ impl Port {
             outcome,
             start,
             target_um,
+            start_um,
+            sent_at: Instant::now(),
             deadline,
             limit,
         };
@@ -309,6 +336,8 @@ impl Port {
     async fn wait_for_end<T>(&self, m: &Awaited<T>, mut by: WaitBy) -> Result<T> {
         let err = || wait_timeout(m.what, self.port, m.limit);
         let query = Some(self.client.config.query_timeout);
+        // From DS_FAULT: whether the fingers have moved since the command (see `ended_in_place`).
+        let mut moved = false;
         loop {
             // What the controller says, if it says anything: `None` after its own timeout.
             let heard = match (by, m.target_um) {
@@ -362,7 +391,7 @@ impl Port {
                 if state != m.start {
                     return Ok(done);
                 }
-                if self.ended_in_place(m, state).await? {
+                if self.ended_in_place(m, &mut moved).await? {
                     // The position was read after the state, and the motion may have ended in
                     // between (DS_FAULT, then DS_RELEASED at the target): the state now is
                     // the outcome.
@@ -385,18 +414,28 @@ impl Port {
         }
     }
 
-    /// Evidence that a motion ended without a transition, in `state` (its start state): the
-    /// fingers at the target, or, in `DS_FAULT` or with no target, still for [`STILL_FOR`].
-    async fn ended_in_place<T>(&self, m: &Awaited<T>, state: DeviceState) -> Result<bool> {
+    /// Evidence that a motion ended without a transition, the device still in its start state:
+    /// the fingers at the target, or, in `DS_FAULT` or with no target, still for [`STILL_FOR`].
+    ///
+    /// From `DS_FAULT` there is no such evidence before the device re-enabled (3.4.1): it reads
+    /// `DS_FAULT`, fingers still, until then. So the position counts only once the fingers moved
+    /// away from where they were before the command (`moved`, kept across calls), or once
+    /// [`RE_ENABLE_WINDOW`] has passed since the command; and at the target in `DS_FAULT` they
+    /// must also stay still (the state may follow the fingers a moment later).
+    async fn ended_in_place<T>(&self, m: &Awaited<T>, moved: &mut bool) -> Result<bool> {
         let err = || wait_timeout(m.what, self.port, m.limit);
         let query = Some(self.client.config.query_timeout);
         let before = self.within(m.deadline, query, &err)?.position_um().await?;
-        if let Some(target) = m.target_um {
-            if (i64::from(before) - i64::from(target)).abs() <= i64::from(TARGET_TOLERANCE_UM) {
-                return Ok(true);
-            }
-            if state != DeviceState::Fault {
+        let fault = m.start == DeviceState::Fault;
+        if fault {
+            *moved |= m.start_um.is_some_and(|s| !within_tolerance(before, s));
+            if !*moved && Instant::now() < m.sent_at + RE_ENABLE_WINDOW {
                 return Ok(false);
+            }
+        }
+        if let Some(target) = m.target_um {
+            if !fault {
+                return Ok(within_tolerance(before, target));
             }
         }
         if tokio::time::timeout_at(m.deadline, tokio::time::sleep(STILL_FOR))

@@ -24,6 +24,21 @@ pub enum Role {
 /// motion's end, and short enough that a client's re-asking is exercised.
 pub const DEFAULT_WSTR_TIMEOUT: Duration = Duration::from_secs(10);
 
+/// How long a simulated gripper takes to re-enable before its fingers move, when GRIP, RELEASE
+/// or HOME finds it in `DS_FAULT` or disabled by DISABLE, before scaling: 100 ms.
+///
+/// Manual 3.4.1 says only that GRIP, RELEASE and HOME re-enable a Weiss gripper, not how long
+/// that takes; a real one needs some cycles to power its actuator and clear the fault. Meanwhile
+/// the state still reads `DS_FAULT` (or 2), so a motion that has nothing to do (the fingers at
+/// the release limit already, a part already clamped) does not end at the instant of its `ACK`.
+/// 100 ms is this simulator's choice.
+pub const DEFAULT_ENABLE_TIME: Duration = Duration::from_millis(100);
+
+/// The shortest motion of a simulated gripper, before scaling: 5 ms. A device does not end a
+/// motion at the instant of its command's `ACK` even when the fingers are at the target already:
+/// it needs at least a control cycle to see that. The value is this simulator's choice.
+pub const MIN_MOTION_TIME: Duration = Duration::from_millis(5);
+
 /// How the simulated controller looks and behaves.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SimConfig {
@@ -48,6 +63,9 @@ pub struct SimConfig {
     /// How long WSTR waits for a transition before answering `ERR 05`, before scaling
     /// (default [`DEFAULT_WSTR_TIMEOUT`]).
     pub wstr_timeout: Duration,
+    /// How long a gripper in `DS_FAULT` or disabled takes to re-enable when GRIP, RELEASE or
+    /// HOME starts, before scaling (default [`DEFAULT_ENABLE_TIME`]).
+    pub enable_time: Duration,
 }
 
 impl SimConfig {
@@ -69,6 +87,7 @@ impl SimConfig {
             ],
             time_scale: 1.0,
             wstr_timeout: DEFAULT_WSTR_TIMEOUT,
+            enable_time: DEFAULT_ENABLE_TIME,
         }
     }
 
@@ -91,6 +110,12 @@ impl SimConfig {
     /// The same configuration with another WSTR timeout (before scaling).
     pub fn wstr_timeout(mut self, timeout: Duration) -> Self {
         self.wstr_timeout = timeout;
+        self
+    }
+
+    /// The same configuration with another re-enable time (before scaling).
+    pub fn enable_time(mut self, time: Duration) -> Self {
+        self.enable_time = time;
         self
     }
 

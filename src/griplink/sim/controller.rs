@@ -26,7 +26,9 @@ use crate::griplink::command::PortNumber;
 use crate::griplink::state::DeviceState;
 use crate::griplink::status::Status;
 
-pub use super::config::{Role, SimConfig, DEFAULT_WSTR_TIMEOUT};
+pub use super::config::{
+    Role, SimConfig, DEFAULT_ENABLE_TIME, DEFAULT_WSTR_TIMEOUT, MIN_MOTION_TIME,
+};
 pub use super::device::{SimDevice, DEFAULT_FORCE_PERCENT, RECIPES, WEISS_VENDOR_ID};
 pub use super::wait::{Approach, Wait, VALUE_POLL};
 

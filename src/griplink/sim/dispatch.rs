@@ -115,7 +115,7 @@ impl Controller {
             } => {
                 let (_, r) = self.recipe(*port, *index)?;
                 let (limit, speed) = (i64::from(r.params[0]), f64::from(r.params[3]));
-                self.grip(*port, limit, speed, *blocking, now)
+                self.grip(*port, limit, speed, *blocking, true, now)
             }
             Release {
                 port,
@@ -124,35 +124,35 @@ impl Controller {
             } => {
                 let (_, r) = self.recipe(*port, *index)?;
                 let (limit, speed) = (i64::from(r.params[1]), f64::from(r.params[5]));
-                self.release(*port, limit, speed, *blocking, now)
+                self.release(*port, limit, speed, *blocking, true, now)
             }
             FlexGrip(p, a, b) => {
                 if a.force_mn < 0 || a.speed_um_per_s < 0 || a.acceleration_um_per_s2 < 0 {
                     return Err(Status::RangeError);
                 }
                 let speed = f64::from(a.speed_um_per_s);
-                self.grip(*p, i64::from(a.position_um), speed, *b, now)
+                self.grip(*p, i64::from(a.position_um), speed, *b, false, now)
             }
             FlexGripF(p, a, b) => {
                 if a.force_n < 0.0 || a.speed_mm_per_s < 0.0 || a.acceleration_mm_per_s2 < 0.0 {
                     return Err(Status::RangeError);
                 }
                 let speed = a.speed_mm_per_s * 1000.0;
-                self.grip(*p, um(a.position_mm), speed, *b, now)
+                self.grip(*p, um(a.position_mm), speed, *b, false, now)
             }
             FlexRelease(p, a, b) => {
                 if a.speed_um_per_s < 0 || a.acceleration_um_per_s2 < 0 {
                     return Err(Status::RangeError);
                 }
                 let speed = f64::from(a.speed_um_per_s);
-                self.release(*p, i64::from(a.position_um), speed, *b, now)
+                self.release(*p, i64::from(a.position_um), speed, *b, false, now)
             }
             FlexReleaseF(p, a, b) => {
                 if a.speed_mm_per_s < 0.0 || a.acceleration_mm_per_s2 < 0.0 {
                     return Err(Status::RangeError);
                 }
                 let speed = a.speed_mm_per_s * 1000.0;
-                self.release(*p, um(a.position_mm), speed, *b, now)
+                self.release(*p, um(a.position_mm), speed, *b, false, now)
             }
             Led { port, index } => {
                 let (i, _) = self.device(*port)?;

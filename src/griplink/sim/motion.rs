@@ -8,9 +8,15 @@
 //!   configured part, else `DS_NO_PART`; refused with `E_STATE_CONFLICT` in `DS_HOLDING` or
 //!   `DS_NO_PART` (3.4.4).
 //! - `RELEASE`/`FLEXRELEASE` move to the release limit and end `DS_RELEASED` (3.4.5, 3.4.7).
-//! - GRIP, RELEASE and HOME (and their FLEX forms) re-enable a gripper in `DS_FAULT` or
-//!   disabled by DISABLE ("Grippers by WEISS ROBOTICS: The device will be (re-)enabled
-//!   automatically when executing a GRIP(), RELEASE() or HOME() command", 3.4.1).
+//! - GRIP, RELEASE and HOME re-enable a gripper in `DS_FAULT` or disabled by DISABLE
+//!   ("Grippers by WEISS ROBOTICS: The device will be (re-)enabled automatically when executing
+//!   a GRIP(), RELEASE() or HOME() command", 3.4.1); the fingers start moving after
+//!   [`SimConfig::enable_time`](super::SimConfig::enable_time), the state unchanged meanwhile.
+//!   Only those three: FLEXGRIP, FLEXRELEASE and SETVAL on such a gripper are refused with
+//!   `E_STATE_CONFLICT` (the manual does not say which error a device gives; this one says
+//!   "invalid state", which it is), and ENABLE first makes them work.
+//! - No motion ends at the instant of its `ACK`: it lasts at least
+//!   [`MIN_MOTION_TIME`](super::controller::MIN_MOTION_TIME), even with the fingers at the target.
 //! - While the fingers move, the state keeps its start value (the polling examples of 3.4.4 and
 //!   3.4.5 show the start state until the end), so a RELEASE from `DS_RELEASED` or a motion from
 //!   `DS_FAULT` may end with no transition at all (3.4.7: "a state transition may not occur").
@@ -77,8 +83,12 @@ impl Controller {
         } else {
             0.0
         };
-        let duration = self.scaled(Duration::try_from_secs_f64(seconds).unwrap_or(Duration::ZERO));
+        let travel = Duration::try_from_secs_f64(seconds).unwrap_or(Duration::ZERO);
+        let duration = self.scaled(travel.max(super::config::MIN_MOTION_TIME));
+        let enable = self.scaled(self.config().enable_time);
         let p = self.port_sim(i)?;
+        // Re-enabling first (3.4.1): the fingers stay where they are meanwhile.
+        let start = if p.needs_enable() { now + enable } else { now };
         p.abort_motion();
         p.actuator_on = true;
         let end_state = if std::mem::take(&mut p.fault_next_motion) {
@@ -90,22 +100,23 @@ impl Controller {
             id,
             from_um,
             to_um,
-            start: now,
-            end: now + duration,
+            start,
+            end: start + duration,
             end_state,
         });
         p.advance(now);
         Ok(id)
     }
 
-    /// What GRIP and RELEASE check before they move to `to_um` (3.4.1, 3.4.4), then the start
-    /// of a manipulating command. Returns the port index, the device's default speed and the
-    /// part width, µm.
+    /// What GRIP and RELEASE (`reenables`) and their FLEX forms check before they move to
+    /// `to_um` (3.4.1, 3.4.4), then the start of a manipulating command. Returns the port index,
+    /// the device's default speed and the part width, µm.
     fn begin_motion(
         &mut self,
         port: PortNumber,
         to_um: i64,
         grip: bool,
+        reenables: bool,
     ) -> Result<(usize, f64, Option<i64>), Status> {
         let (i, device) = self.device(port)?;
         let stroke = device.stroke_um();
@@ -117,6 +128,8 @@ impl Controller {
             DeviceState::Holding | DeviceState::NoPart if grip => {
                 return Err(Status::StateConflict)
             }
+            // Only GRIP, RELEASE and HOME re-enable (3.4.1).
+            _ if p.needs_enable() && !reenables => return Err(Status::StateConflict),
             // DS_FAULT and DS_DISABLED: re-enabled automatically (3.4.1).
             _ => {}
         }
@@ -137,16 +150,18 @@ impl Controller {
         Ok(motion_reply(i, id, Blocking::UntilDone))
     }
 
-    /// A grip towards `limit_um`: holds the part if the fingers meet it on the way.
+    /// A grip towards `limit_um`: holds the part if the fingers meet it on the way. `reenables`:
+    /// GRIP, not FLEXGRIP (3.4.1).
     pub(super) fn grip(
         &mut self,
         port: PortNumber,
         limit_um: i64,
         speed_um_per_s: f64,
         blocking: Blocking,
+        reenables: bool,
         now: Duration,
     ) -> Step {
-        let (i, default_speed, part) = self.begin_motion(port, limit_um, true)?;
+        let (i, default_speed, part) = self.begin_motion(port, limit_um, true, reenables)?;
         let from = self.port_sim(i)?.position_um;
         let (stop, end) = match part {
             Some(w) if (limit_um < w && w < from) || (from < w && w < limit_um) => {
@@ -159,16 +174,18 @@ impl Controller {
         Ok(motion_reply(i, id, blocking))
     }
 
-    /// A release (or pre-position) to `target_um`, ending `DS_RELEASED`.
+    /// A release (or pre-position) to `target_um`, ending `DS_RELEASED`. `reenables`: RELEASE,
+    /// not FLEXRELEASE (3.4.1).
     pub(super) fn release(
         &mut self,
         port: PortNumber,
         target_um: i64,
         speed_um_per_s: f64,
         blocking: Blocking,
+        reenables: bool,
         now: Duration,
     ) -> Step {
-        let (i, default_speed, _) = self.begin_motion(port, target_um, false)?;
+        let (i, default_speed, _) = self.begin_motion(port, target_um, false, reenables)?;
         let speed = or_default(speed_um_per_s, default_speed);
         let id = self.start_motion(i, target_um, speed, DeviceState::Released, now)?;
         Ok(motion_reply(i, id, blocking))
@@ -191,8 +208,8 @@ impl Controller {
         let state = p.state();
         match state {
             DeviceState::NotInitialized => return Err(Status::NotInitialized),
-            // Only GRIP, RELEASE and HOME re-enable (3.4.1).
-            DeviceState::Fault => return Err(Status::StateConflict),
+            // Only GRIP, RELEASE and HOME re-enable (3.4.1): not in DS_FAULT, nor disabled.
+            _ if p.needs_enable() => return Err(Status::StateConflict),
             _ => {}
         }
         if !(0..=stroke).contains(&target_um) {

@@ -117,6 +117,13 @@ impl PortSim {
         self.state
     }
 
+    /// Whether the gripper must be (re-)enabled before it moves: in `DS_FAULT`, or disabled by
+    /// DISABLE (3.4.1, 3.4.2). Not before the first HOME: the reference drive is the start.
+    pub(super) fn needs_enable(&self) -> bool {
+        self.state == DeviceState::Fault
+            || (!self.actuator_on && self.state != DeviceState::NotInitialized)
+    }
+
     /// Sets the device state; a change is a transition (WSTR, 3.4.10).
     pub(super) fn set_state(&mut self, state: DeviceState) {
         if state != self.state {

@@ -170,8 +170,10 @@ fn release_from_released_is_no_transition() {
     let mut c = Controller::new(SimConfig::et4().wstr_timeout(Duration::from_secs(2)));
     let mut s = Session::default();
     let t = home(&mut c, &mut s);
-    // Default recipe 0 releases to the open end, where HOME left the fingers.
+    // Default recipe 0 releases to the open end, where HOME left the fingers: the shortest
+    // motion.
     assert_eq!(text(run(&mut c, &mut s, "RELEASE(0,0)", t)), "ACK");
+    let t = t + MIN_MOTION_TIME;
     assert_eq!(
         text(run(&mut c, &mut s, "DEVSTATE[0]?", t)),
         "DEVSTATE[0]=3"
@@ -239,6 +241,8 @@ fn fault_is_left_by_grip_release_home_and_enable() {
     c.inject_fault(0, t);
     assert_eq!(text(run(&mut c, &mut s, "SETVAL(0,0,1000)", t)), "ERR 19");
     assert_eq!(text(run(&mut c, &mut s, "GRIP(0,0)", t)), "ACK");
+    // Re-enabling first (3.4.1), then 8 mm at 50 mm/s.
+    let t = t + DEFAULT_ENABLE_TIME;
     assert_eq!(
         text(run(&mut c, &mut s, "DEVSTATE[0]?", t + ms(10))),
         "DEVSTATE[0]=7"
@@ -250,6 +254,7 @@ fn fault_is_left_by_grip_release_home_and_enable() {
     let t = t + ms(160);
     c.inject_fault(0, t);
     assert_eq!(text(run(&mut c, &mut s, "RELEASE(0,0)", t)), "ACK");
+    let t = t + DEFAULT_ENABLE_TIME;
     assert_eq!(
         text(run(&mut c, &mut s, "DEVSTATE[0]?", t + ms(200))),
         "DEVSTATE[0]=3"
@@ -314,5 +319,97 @@ fn ports_and_devices() {
     assert_eq!(
         text(run(&mut master, &mut s, "DEVVID[31]?", z)),
         "DEVVID[31]=-1"
+    );
+}
+
+/// Only GRIP, RELEASE and HOME re-enable a Weiss gripper (3.4.1): FLEXGRIP, FLEXRELEASE and
+/// SETVAL on a gripper in DS_FAULT or disabled by DISABLE are refused and leave it as it is;
+/// after ENABLE they work.
+#[test]
+fn only_grip_release_and_home_re_enable() {
+    for disable in ["DISABLE(0)", "fault"] {
+        let mut c = Controller::new(SimConfig::et4());
+        let mut s = Session::default();
+        let t = home(&mut c, &mut s);
+        if disable == "fault" {
+            c.inject_fault(0, t);
+        } else {
+            assert_eq!(text(run(&mut c, &mut s, disable, t)), "ACK");
+        }
+        let state = text(run(&mut c, &mut s, "DEVSTATE[0]?", t));
+        for line in [
+            "FLEXGRIP(0,0,10000,0,0)",
+            "FLEXGRIPF(0,0,10,0,0)",
+            "FLEXRELEASE(0,10000,0,0)",
+            "FLEXRELEASEF(0,10,0,0)",
+            "SETVAL(0,0,5000)",
+            "SETVALF(0,0,5)",
+        ] {
+            assert_eq!(
+                text(run(&mut c, &mut s, line, t)),
+                "ERR 19",
+                "{disable}: {line}"
+            );
+            let later = t + Duration::from_secs(1);
+            assert_eq!(text(run(&mut c, &mut s, "DEVSTATE[0]?", later)), state);
+            assert_eq!(
+                text(run(&mut c, &mut s, "VALUE[0][0]?", later)),
+                "VALUE[0][0]=20000",
+                "{disable}: {line} moved the fingers"
+            );
+            // CLAMP is only allowed while the actuator is off (3.4.9).
+            if disable == "DISABLE(0)" {
+                assert_eq!(text(run(&mut c, &mut s, "CLAMP(0,1)", later)), "ACK");
+            }
+        }
+        let t = t + Duration::from_secs(1);
+        assert_eq!(text(run(&mut c, &mut s, "ENABLE(0)", t)), "ACK");
+        assert_eq!(text(run(&mut c, &mut s, "SETVAL(0,0,5000)", t)), "ACK");
+        let t = t + Duration::from_secs(1);
+        assert_eq!(
+            text(run(&mut c, &mut s, "VALUE[0][0]?", t)),
+            "VALUE[0][0]=5000"
+        );
+    }
+}
+
+/// A RELEASE from DS_FAULT with the fingers at the release limit already: the gripper re-enables
+/// first (3.4.1), so the state does not change at the instant of the ACK; it reads DS_FAULT
+/// until the re-enable time has passed, then DS_RELEASED.
+#[test]
+fn a_release_from_fault_at_the_limit_ends_after_the_re_enable() {
+    let mut c = Controller::new(SimConfig::et4());
+    let mut s = Session::default();
+    let t = home(&mut c, &mut s); // at the release limit, 20 mm
+    c.inject_fault(0, t);
+    assert_eq!(text(run(&mut c, &mut s, "RELEASE(0,0)", t)), "ACK");
+    let enabled = t + DEFAULT_ENABLE_TIME + MIN_MOTION_TIME;
+    for at in [t, enabled - Duration::from_millis(1)] {
+        assert_eq!(
+            text(run(&mut c, &mut s, "DEVSTATE[0]?", at)),
+            "DEVSTATE[0]=7"
+        );
+    }
+    assert_eq!(
+        text(run(&mut c, &mut s, "DEVSTATE[0]?", enabled)),
+        "DEVSTATE[0]=3"
+    );
+}
+
+/// A motion with nothing to do does not end at the instant of its ACK either (a device needs a
+/// control cycle to see that it is there): at least [`MIN_MOTION_TIME`].
+#[test]
+fn a_zero_length_motion_takes_the_minimum_time() {
+    let mut c = Controller::new(SimConfig::et4());
+    let mut s = Session::default();
+    let t = home(&mut c, &mut s);
+    assert_eq!(text(run(&mut c, &mut s, "RELEASE(0,0)", t)), "ACK");
+    assert_eq!(
+        text(run(&mut c, &mut s, "DEVSTATE[0]?", t)),
+        "DEVSTATE[0]=2"
+    );
+    assert_eq!(
+        text(run(&mut c, &mut s, "DEVSTATE[0]?", t + MIN_MOTION_TIME)),
+        "DEVSTATE[0]=3"
     );
 }

@@ -38,16 +38,25 @@ pub(crate) const MAX_IN_FLIGHT: usize = 16;
 
 /// One call from a handle to the task.
 pub(crate) struct Call {
+    /// The request, to encode it again if the link speaks another version by the time it is
+    /// sent (see `in_link_version`).
+    pub request: Request,
+    /// The request encoded in the version the client spoke when the call was made.
     pub frame: RequestFrame,
     pub reply: oneshot::Sender<Result<ResponseFrame>>,
+    /// When the caller stops waiting: its own timeout ([`Client::with_timeout`] or the
+    /// configured one) from the call's start. The give-up limit is counted from here.
+    ///
+    /// [`Client::with_timeout`]: super::Client::with_timeout
+    pub deadline: Instant,
 }
 
 /// A request on the wire, waiting for its response.
 struct Waiting {
     request: RequestFrame,
     reply: oneshot::Sender<Result<ResponseFrame>>,
-    /// Its timeout plus [`ClientConfig::give_up_after`] after it was sent: a server that has not
-    /// answered by then is not answering, and the connection is given up.
+    /// Its call's deadline plus [`ClientConfig::give_up_after`]: a server that has not answered
+    /// by then is not answering, and the connection is given up.
     give_up_at: Instant,
 }
 
@@ -63,9 +72,11 @@ pub(crate) struct Link {
     /// At most [`MAX_IN_FLIGHT`].
     waiting: VecDeque<Waiting>,
     pairing: Pairing,
-    /// The last response paired, to recognise an exact repeat of it (see `on_response`).
+    /// The last response paired, to recognise an exact repeat of it in strict counter mode
+    /// (see `on_response`).
     last_response: Option<ResponseFrame>,
-    /// The configured timeouts, which also bound each write (see `send`).
+    /// The configured timeouts, for the marker queries this link sends on its own (see
+    /// `marker_before`); a caller's request is bounded by its call's own deadline (see `send`).
     timeouts: Timeouts,
     /// See [`ClientConfig::give_up_after`].
     give_up_after: Duration,
@@ -201,21 +212,29 @@ impl Link {
                 call = calls.recv(), if self.waiting.len() < MAX_IN_FLIGHT => match call {
                     // Every handle is gone, so no call can be waiting: nothing left to do.
                     None => return None,
-                    Some(call) => {
+                    Some(mut call) => {
                         if call.reply.is_closed() {
                             // Its caller gave up before it was sent: sending it would only
                             // create a reply to discard.
                             continue;
                         }
+                        if let Err(e) = self.in_link_version(&mut call) {
+                            // Nothing was sent: the call alone fails.
+                            let _ = call.reply.send(Err(e));
+                            continue;
+                        }
                         if let Some(marker) = self.marker_before(&call.frame) {
-                            // Its reply goes to nobody: the receiver is dropped at once.
+                            // Its reply goes to nobody: the receiver is dropped at once. A query,
+                            // within the configured timeout of its type.
                             let (reply, _) = oneshot::channel();
-                            if let Err(e) = self.send(marker, reply).await {
+                            let limit = self.timeouts.for_type(marker.header().message_type);
+                            let deadline = Instant::now() + limit;
+                            if let Err(e) = self.send(marker, reply, deadline).await {
                                 let _ = call.reply.send(Err(e.clone()));
                                 break e;
                             }
                         }
-                        if let Err(e) = self.send(call.frame, call.reply).await {
+                        if let Err(e) = self.send(call.frame, call.reply, call.deadline).await {
                             break e;
                         }
                     }
@@ -230,26 +249,48 @@ impl Link {
 
     /// Writes a request and queues its reply slot. On a write error the call gets it too.
     ///
-    /// The write is bounded by the timeout of the request's type: a server that stops reading
-    /// (its receive window full) must not wedge the task, which also reads the responses and
-    /// serves `close()`. A write cut short leaves part of a frame on the wire, so on expiry the
-    /// connection is given up as lost.
+    /// The response is awaited until the call's `deadline` plus [`ClientConfig::give_up_after`]
+    /// (the call's own timeout, not the configured one of its type: a handle made with
+    /// [`Client::with_timeout`](super::Client::with_timeout) for a slow detection must not lose
+    /// a healthy connection at the configured timeout; issue 21). The write is bounded by the
+    /// same limit: a server that stops reading (its receive window full) must not wedge the
+    /// task, which also reads the responses and serves `close()`. A write cut short leaves part
+    /// of a frame on the wire, so on expiry the connection is given up as lost.
     async fn send(
         &mut self,
         request: RequestFrame,
         reply: oneshot::Sender<Result<ResponseFrame>>,
+        deadline: Instant,
     ) -> Result<()> {
-        let limit = self.timeouts.for_type(request.header().message_type);
-        if let Err(error) = write_within(&mut self.write, limit, &request.encode()).await {
+        let give_up_at = deadline + self.give_up_after;
+        if let Err(error) = write_within(&mut self.write, give_up_at, &request.encode()).await {
             let _ = reply.send(Err(error.clone()));
             return Err(error);
         }
-        let give_up_at = Instant::now() + limit.saturating_add(self.give_up_after);
         self.waiting.push_back(Waiting {
             request,
             reply,
             give_up_at,
         });
+        Ok(())
+    }
+
+    /// Makes `call`'s frame speak the link's version. A call is encoded when it is made, in the
+    /// version the client spoke then; one that waited in the queue across a reconnect goes out
+    /// on a link whose opening sequence may have negotiated another version (a firmware update or
+    /// rollback), so it is encoded again from its request (issue 21). `Err`: the request does not
+    /// exist in that version (SET_TOOL on V3), and nothing is sent.
+    fn in_link_version(&self, call: &mut Call) -> Result<()> {
+        let version = self.version();
+        if call.frame.version() != version {
+            tracing::debug!(
+                from = call.frame.version(),
+                to = version,
+                request = %call.request.message_type(),
+                "smartgrasp: a queued request is sent in the version the reconnect negotiated"
+            );
+            call.frame = call.request.to_any_frame(version)?;
+        }
         Ok(())
     }
 
@@ -294,9 +335,12 @@ impl Link {
     /// Pairs one response; `Err` breaks the connection (the paired call, if any, gets the error
     /// too).
     fn on_response(&mut self, on_paired: &mut OnPaired<'_>, frame: &ResponseFrame) -> Result<()> {
-        if self.last_response.as_ref() == Some(frame) {
-            // The same bytes again, counter included: the server counts every response, so this
-            // is a copy (a network device repeating a segment), not a new answer. Noise, skipped.
+        if self.pairing.is_strict() && self.last_response.as_ref() == Some(frame) {
+            // The same bytes again, counter included, from a server known to count its responses
+            // per connection (strict mode): a copy, not a new answer. Skipped. Only in strict
+            // mode: a server whose counter never moves (SCHUNK's KRL never reads it) or counts
+            // across its clients (the same value after 256 responses) sends identical responses
+            // that are real answers (issue 21), and TCP itself never duplicates a segment.
             tracing::warn!(
                 counter = frame.header().response_counter,
                 "repeated response skipped"
@@ -372,13 +416,17 @@ fn normalised(request: &RequestFrame, frame: &ResponseFrame) -> ResponseFrame {
     frame
 }
 
-/// Writes `bytes` within `limit`; on expiry the connection is lost (see [`Link::send`]).
-async fn write_within(write: &mut OwnedWriteHalf, limit: Duration, bytes: &[u8]) -> Result<()> {
-    match write_all_by(write, bytes, || Instant::now() + limit).await {
+/// Writes `bytes` by `limit`; on expiry the connection is lost (see [`Link::send`]).
+async fn write_within(write: &mut OwnedWriteHalf, limit: Instant, bytes: &[u8]) -> Result<()> {
+    let started = Instant::now();
+    match write_all_by(write, bytes, || limit).await {
         Ok(written) => Ok(written?),
         Err(_) => Err(Error::ConnectionLost {
-            reason: format!("the server stopped reading requests (a write took over {limit:?})")
-                .into(),
+            reason: format!(
+                "the server stopped reading requests (a write took over {:?})",
+                limit.saturating_duration_since(started)
+            )
+            .into(),
         }),
     }
 }
@@ -454,7 +502,7 @@ mod tests {
     async fn a_write_that_fits_goes_out_whole() {
         let (mut server, mut write) = pair().await;
         let frame = [7u8; crate::smartgrasp::frame::FRAME_LEN];
-        write_within(&mut write, Duration::from_secs(5), &frame)
+        write_within(&mut write, Instant::now() + Duration::from_secs(5), &frame)
             .await
             .unwrap();
         let mut got = [0u8; crate::smartgrasp::frame::FRAME_LEN];
@@ -468,7 +516,11 @@ mod tests {
         // Far more than the socket buffers hold: the first attempt writes part of it, and the
         // rest waits for a server that never reads.
         let bytes = vec![0u8; 64 << 20];
-        let write = write_within(&mut write, Duration::from_millis(50), &bytes);
+        let write = write_within(
+            &mut write,
+            Instant::now() + Duration::from_millis(50),
+            &bytes,
+        );
         // A failure here must not hang the test run.
         let err = tokio::time::timeout(Duration::from_secs(10), write)
             .await

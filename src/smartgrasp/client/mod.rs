@@ -83,14 +83,18 @@ pub struct ClientConfig {
     ///   GET_PROTOCOL_VERSION, GET_STATE, and the last REGISTER_CLIENT and SET_PROJECT the server
     ///   accepted (from this configuration or from the program's own calls);
     /// - calls that were still queued (not yet sent) and calls made meanwhile **wait** in the
-    ///   queue, within their own timeouts, and go out once the session is restored; a call that
-    ///   times out while waiting was never sent;
+    ///   queue, within their own timeouts, and go out once the session is restored, in the
+    ///   protocol version that reconnect negotiated (a call is encoded again if the server's
+    ///   version changed, e.g. a firmware rollback to V3; one whose request does not exist in
+    ///   the new version fails with [`Error::Request`], unsent); a call that times out while
+    ///   waiting was never sent;
     /// - each step is reported through [`Client::connection_events`] and `tracing`.
     ///
     /// When the policy gives up, the client is closed like one without a policy. After
     /// [`Client::close`], nothing reconnects.
     pub reconnect: Option<ReconnectPolicy>,
-    /// How long past a call's timeout a missing response is tolerated before the connection is
+    /// How long past a call's own timeout (the configured one of its type, or
+    /// [`Client::with_timeout`]'s) a missing response is tolerated before the connection is
     /// given up as lost ([`Error::ConnectionLost`]; then reconnected if [`reconnect`] is set).
     /// A server that stays connected but stops answering would otherwise keep every slot busy,
     /// and every later call would time out for ever. Default 30 s, like GRIPLINK's.
@@ -102,7 +106,8 @@ pub struct ClientConfig {
     /// of a server's clients. By default a gap is recorded ([`Client::counter_gaps`] and a
     /// `tracing` warning) and the call gets its response. With `true`, a gap of `k` fails the
     /// `k` oldest waiting calls with [`Error::ResponseLost`], and a gap no waiting call explains
-    /// breaks the connection: only for a server known to count per connection.
+    /// breaks the connection, and a response byte-identical to the previous one is skipped as a
+    /// copy: only for a server known to count per connection.
     pub strict_response_counter: bool,
 }
 
@@ -243,12 +248,11 @@ pub enum GetGraspOutcome {
 /// server depends on how far it got, which its caller cannot know:
 /// - dropped while queued (before the task sent it): nothing was sent, and nothing will be;
 /// - dropped after its request went out: the server receives it and **acts on it** (REGISTER_CLIENT
-///   registers, SET_PROJECT switches the project, GRASP_FEEDBACK OK removes the object from the
-///   scene, GET_GRASP makes its grasp the one the next feedback refers to); its reply is
-///   discarded.
+///   registers, SET_PROJECT switches the project, GET_GRASP makes its grasp the one the next
+///   feedback refers to, GRASP_FEEDBACK is recorded for whatever the server does with it); its
+///   reply is discarded.
 ///
 /// A timed-out call ([`Error::Timeout`]) means the same: it may or may not have been acted on.
-/// Query the server (GET_OBJECT_COUNT) rather than repeat a GRASP_FEEDBACK blindly.
 #[derive(Debug, Clone)]
 pub struct Client {
     /// The background task; calls poll it inline to send their requests (see
@@ -352,7 +356,10 @@ impl Client {
         }
     }
 
-    /// A handle to the same connection whose calls all use `timeout`.
+    /// A handle to the same connection whose calls all use `timeout`. The connection is given
+    /// up only when a response stays away [`ClientConfig::give_up_after`] beyond the call's own
+    /// timeout, so a longer `timeout` for a slow SET_PROJECT or detection keeps a healthy
+    /// connection (and, with [`ClientConfig::reconnect`], does not re-open the session).
     pub fn with_timeout(&self, timeout: Duration) -> Client {
         Client {
             timeouts: Timeouts {
@@ -523,7 +530,9 @@ impl Client {
 
     /// GET_GRASP: a grasp for the current scene (manual 3.3.3.1). The pose comes back in
     /// `request.pose_format` (with V4, a quaternion is asked for in ABC and converted: V4 poses
-    /// have six values).
+    /// have six values). The response's pose format is the format the server used for the pose,
+    /// not an echo (3.3.3.1): a pose in another format is read as the response declares and
+    /// converted.
     /// Cancel-safe (see [`Client`]); a cancelled call may still have made the server pick a grasp,
     /// which the next GRASP_FEEDBACK then refers to.
     pub async fn get_grasp(&self, request: GraspRequest) -> Result<GetGraspOutcome> {
@@ -557,12 +566,14 @@ impl Client {
         }
     }
 
-    /// GRASP_FEEDBACK: reports the result of the last grasp (manual 3.3.3.2). In V4 SCHUNK's
-    /// example says the message has no effect ("not yet supported with V4"); it is sent all the
-    /// same, so that cell code works with either version.
-    /// Cancel-safe (see [`Client`]), but a cancelled or timed-out OK may still have removed the
-    /// object from the scene: check with [`get_object_count`](Self::get_object_count) before
-    /// sending it again.
+    /// GRASP_FEEDBACK: reports the result of the last grasp (manual 3.3.3.2). SCHUNK's own KUKA
+    /// examples say the message has no effect: "Has no effect on Version 3", and in V4 "no
+    /// effect" / "not yet supported with V4" (PROTOCOLS.md 2b). It is sent all the same, so that
+    /// cell code works with either version and with a server that starts to use it. The scene
+    /// empties because the robot takes the parts out, which the next detection sees; nothing
+    /// here removes an object (the simulator can stand in for the robot, see
+    /// `sim::SimConfig::feedback_removes_objects`).
+    /// Cancel-safe (see [`Client`]); a cancelled call may still have reached the server.
     pub async fn grasp_feedback(&self, feedback: GraspFeedback) -> Result<()> {
         self.expect_success(Request::GraspFeedback(feedback))
             .await?;
@@ -609,8 +620,14 @@ impl Client {
         let message_type = request.message_type();
         let frame = request.to_any_frame(self.protocol_version())?;
         let (reply, answer) = oneshot::channel();
+        let deadline = tokio::time::Instant::now() + self.timeouts.for_type(message_type);
         let exchange = async {
-            let call = Call { frame, reply };
+            let call = Call {
+                request,
+                frame,
+                reply,
+                deadline,
+            };
             // The queue nearly always has room: `try_send` skips building and polling a permit
             // future (issue 14). Fair all the same: a released permit goes to a waiting sender
             // before `try_send` can take it.

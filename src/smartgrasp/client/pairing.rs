@@ -54,6 +54,11 @@ impl Pairing {
         }
     }
 
+    /// Whether the counter is trusted (see [`Pairing::strict`]).
+    pub(crate) fn is_strict(&self) -> bool {
+        self.strict
+    }
+
     /// Checks the counter of a response that arrived while `waiting` requests (the abandoned ones
     /// included) were outstanding. `Ok`: in strict mode fail `lost` oldest requests with
     /// [`Error::ResponseLost`], then pair the response with the next; `gap` is what to record.
@@ -129,9 +134,11 @@ pub(crate) fn ambiguous(a: MessageType, b: MessageType) -> bool {
 
 /// Checks a response against the request it is paired with: [`check_header`], then the fields a
 /// SUCCESS V3 response repeats from its request. The manual: GET_GRASP's tool is "the tool of the
-/// request (same value)", its pose is in the pose format the request asked for, and its object is
-/// of the requested class unless that was 0 = any (3.3.3.1); GET_OBJECT_COUNT repeats the
-/// requested class (3.3.4.1). These catch a response paired with another request of the same
+/// request (same value)", and its object is of the requested class unless that was 0 = any
+/// (3.3.3.1); GET_OBJECT_COUNT repeats the requested class (3.3.4.1). GET_GRASP's pose format is
+/// not an echo: it is the format "used for the pose field", whose type "depends on the value" of
+/// it (3.3.3.1), so the pose is read in the format the response declares (and the client converts
+/// it to the one its caller asked for; issue 21). These catch a response paired with another request of the same
 /// type (a request lost on the wire, a corrupted counter) where the header cannot. V4 pins no
 /// echo (PROTOCOLS.md 2b: the example reads no echoed field, and whether the class is echoed is
 /// an open question), so a V4 response is checked by its header only.
@@ -158,9 +165,6 @@ pub(crate) fn check_response(
         MessageType::GetGrasp => {
             if frame.tool != request.tool {
                 return differs("tool");
-            }
-            if frame.pose_format != request.pose_format {
-                return differs("pose format");
             }
             if request.object_class != 0 && frame.object_class != request.object_class {
                 return differs("object class");
@@ -360,8 +364,9 @@ mod tests {
         let mut suction = grasp;
         suction.tool = Tool::Contact;
         assert!(v3_response(&any, &suction).is_err());
+        // The pose format says how to read the pose (3.3.3.1), it does not echo the request.
         let mut wpr = grasp;
         wpr.pose_format = PoseFormat::Wpr;
-        assert!(v3_response(&any, &wpr).is_err());
+        assert_eq!(v3_response(&any, &wpr), Ok(()));
     }
 }

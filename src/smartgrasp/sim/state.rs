@@ -111,6 +111,20 @@ pub struct SimConfig {
     pub reference_frame: ReferenceFrame,
     /// The response counter of each connection's first response (to cross 255 quickly in tests).
     pub first_response_counter: u8,
+    /// Whether GRASP_FEEDBACK stands in for the robot taking the part out of the bin (default
+    /// `false`).
+    ///
+    /// SCHUNK's own clients say the message has no effect: its V3 KRL file says "Has no effect on
+    /// Version 3", its V4 one "no effect in V4" and sends feedback 0 (PROTOCOLS.md 2b). So by
+    /// default every GRASP_FEEDBACK, whatever its value and with or without a grasp before it, is
+    /// answered SUCCESS and changes nothing; a real bin empties because the robot takes the parts,
+    /// which the camera then no longer sees.
+    ///
+    /// With `true` (the simulator's behaviour before issue 21, for picking loops and demos against
+    /// the simulator alone): OK removes the last GET_GRASP's object from the scene, BAD keeps it,
+    /// and a feedback with no grasp to refer to, or a value the manual does not list (3.3.3.2: 1
+    /// OK, 2 BAD), is answered ERROR.
+    pub feedback_removes_objects: bool,
 }
 
 impl Default for SimConfig {
@@ -125,6 +139,7 @@ impl Default for SimConfig {
             workspaces: vec![0, 1],
             reference_frame: ReferenceFrame(0),
             first_response_counter: 0,
+            feedback_removes_objects: false,
         }
     }
 }
@@ -318,6 +333,12 @@ impl SimState {
         self.config.server_state = state;
     }
 
+    /// Sets the highest protocol version the server speaks from the next request on (a firmware
+    /// update or rollback, see [`SimConfig::max_version`]).
+    pub fn set_max_version(&mut self, version: u16) {
+        self.config.max_version = version;
+    }
+
     /// The "too old" empty message for the bytes of a message this server cannot read (a length
     /// other than 74), if its prefix carries a version newer than the server's: manual 1.3 says
     /// a server older than the client always answers with it, whatever the rest of the message.
@@ -469,6 +490,8 @@ impl SimState {
                     }),
                 )
             }
+            // No effect, as SCHUNK's examples say (see `SimConfig::feedback_removes_objects`).
+            Request::GraspFeedback(_) if !self.config.feedback_removes_objects => (OK, EMPTY),
             Request::GraspFeedback(feedback) => {
                 let Some(last) = self.last_grasp.take() else {
                     // Feedback without a grasp to refer to.
@@ -628,7 +651,10 @@ mod tests {
 
     #[test]
     fn picking_empties_the_scene_then_no_object() {
-        let mut s = SimState::new(SimConfig::default());
+        let mut s = SimState::new(SimConfig {
+            feedback_removes_objects: true,
+            ..SimConfig::default()
+        });
         let mut c = s.connect();
         let mut picked = Vec::new();
         loop {
@@ -694,7 +720,10 @@ mod tests {
 
     #[test]
     fn bad_feedback_keeps_the_object_and_feedback_needs_a_grasp() {
-        let mut s = SimState::new(SimConfig::default());
+        let mut s = SimState::new(SimConfig {
+            feedback_removes_objects: true,
+            ..SimConfig::default()
+        });
         let mut c = s.connect();
         let r = respond(&mut s, &mut c, Request::GraspFeedback(GraspFeedback::Ok));
         assert_eq!(r.code, ResponseCode::Error);

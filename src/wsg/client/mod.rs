@@ -1,7 +1,27 @@
 //! The async client: a cheap, cloneable handle to a background task that owns the connection.
+//!
+//! # Pairing rules
+//! The WSG protocol has no sequence numbers: a reply carries only its command id (manual
+//! 1.2.2). These rules decide which request a reply answers, and when the client answers on
+//! its own. TCP and serial deliver replies in the order sent and lose none (a reply with a bad
+//! checksum aside, which is dropped like a lost one); UDP loses, duplicates and reorders.
+//!
+//! | Rule | Manual | Sound on | Residual risk |
+//! |------|--------|----------|---------------|
+//! | One request per id on the wire; the next call of the id queues behind it; other ids run concurrently. | 1.2.2 | all | none by itself |
+//! | A timed-out or dropped call keeps its id until its reply, or its deadline plus [`ClientBuilder::late_reply_grace`]; the late reply is discarded. | 1.2.2 | all | a reply later than the grace is taken for the next call of the id |
+//! | E_CMD_PENDING acknowledges; the final reply follows and ends the call. | 1.3 | all | — |
+//! | An E_CMD_PENDING after a final reply that had none may be that request's, reordered: it acknowledges the next request only doubtfully, and E_ALREADY_RUNNING still ends it. | 1.3 | all (needed on UDP) | UDP: a duplicated request's refusal, in that situation, ends the call as refused |
+//! | E_ALREADY_RUNNING for an acknowledged request refuses a duplicate of it: dropped. A loop reply that does not echo the payload on the wire is not its reply. | 1.3, 3.1.1 | all | — |
+//! | A second motion call of an id on the wire waits; the device's state is asked at once: SF_MOVING from a query sent after the call refuses it (E_ALREADY_RUNNING, unsent); the first's final reply, or two "not moving" a grace apart, sends it. Never refused on belief. | 3.2.2, Anhang B | all | SF_MOVING is not synchronised with the end of a move (Anhang B): a refusal right at a move's end; a final reply later than a grace after the second "not moving" goes to the next call |
+//! | An acknowledged motion past its caller's deadline keeps its id until its final reply or two "not moving" a grace apart ([`Error::ReplyLost`] for a caller still waiting). | 1.3, Anhang B | all | as above |
+//! | Stop and FAST STOP are never queued; a stop call is `Ok` only on a reply to a stop sent at or after it (each reply is taken for the oldest unanswered stop); a call still waiting [`RESEND_STOP_AFTER`] later gets the stop sent again. | 1.2.2, 3.2.3, 3.2.4 | TCP, serial | UDP: a stop reply later than the grace, or duplicated, is taken for a later stop; a stop sent again may arrive after `stop()` returned and abort a move started right after |
+//! | A frame must complete within [`ClientBuilder::partial_frame_timeout`] from its first byte; a header longer than any reply of its id is noise at once; while a frame is held, no id is released. | 1.2.1, chapter 3 | TCP, serial (UDP: one frame per datagram) | a plausible corrupted length holds replies for up to the timeout |
+//! | Frames already received are paired before the next request goes out. | — | all | UDP: a duplicated reply arriving after the next request of its id went out is taken for it (same value unless the device changed) |
 
 mod connector;
 mod pairing;
+mod stops;
 mod task;
 
 use std::net::SocketAddr;
@@ -27,18 +47,24 @@ use super::{
     SoftLimits, Status, SystemInfo, SystemLimits, SystemState, WsgCodec,
 };
 use crate::connection::Connection;
+use crate::deadline::after;
 use crate::reconnect::{ConnectionEvents, EventSubscriber, ReconnectPolicy};
 
 /// Default timeout of queries and settings.
 pub const DEFAULT_QUERY_TIMEOUT: Duration = Duration::from_secs(1);
-/// Default timeout of motion commands (homing, pre-position, grasp, release, finger power on),
-/// from sending to the final reply.
+/// Default timeout of motion commands (homing, pre-position, grasp, release), from sending to
+/// the final reply. (Finger power on has its own: [`FINGER_POWER_ON_DURATION`] plus the query
+/// timeout.)
 pub const DEFAULT_MOTION_TIMEOUT: Duration = Duration::from_secs(30);
 /// Default time an unanswered request keeps its command id after its caller's deadline.
 pub const DEFAULT_LATE_REPLY_GRACE: Duration = Duration::from_secs(2);
 /// How long switching a finger's power on takes: its final reply comes "nach etwa 500 ms"
 /// (manual 3.6.3). [`Client::set_finger_power`] waits this long plus the query timeout.
 pub const FINGER_POWER_ON_DURATION: Duration = Duration::from_millis(500);
+/// How long a stop (or FAST STOP) call waits for a reply to a stop sent at or after it before
+/// the stop is sent again (see [`Client`]): far above a stop's round trip, far below a call's
+/// timeout.
+pub const RESEND_STOP_AFTER: Duration = stops::RESEND_AFTER;
 /// Default timeout of a TCP connect (see [`ClientBuilder::connect_timeout`]).
 pub const DEFAULT_CONNECT_TIMEOUT: Duration = Duration::from_secs(5);
 /// Default silence after which a partial frame is dropped as noise (see
@@ -51,6 +77,10 @@ pub const EVENT_BUFFER: usize = 32;
 pub const DEFAULT_SUBSCRIPTION_BUFFER: usize = 64;
 
 /// Configures and opens a [`Client`].
+///
+/// Every duration it (or a call, such as [`Client::with_timeouts`]) takes may be
+/// `Duration::MAX`, the usual way to say "no timeout": deadlines saturate to "never" instead of
+/// overflowing the clock.
 #[derive(Clone, Debug)]
 pub struct ClientBuilder {
     query_timeout: Duration,
@@ -128,11 +158,14 @@ impl ClientBuilder {
         self
     }
 
-    /// How long the start of a frame may wait for its next byte before the decoder drops it as
-    /// noise and looks for a frame after it (default 500 ms). A corrupted length field (below
-    /// [`max_payload_len`](Self::max_payload_len)) would otherwise hold back every later reply
-    /// until that many bytes had arrived. Keep it above the longest pause a sound link can have
-    /// inside one frame (a TCP retransmission takes 200 ms or more).
+    /// How long a frame may take from its first byte before the decoder drops it as noise and
+    /// looks for a frame after it (default 500 ms). A corrupted length field (below
+    /// [`max_payload_len`](Self::max_payload_len) and the longest reply of its command id)
+    /// would otherwise hold back every later reply until that many bytes had arrived, however
+    /// much traffic (a stream of updates) keeps coming. While a frame is held, no request's
+    /// id is released and no probe is sent, so a reply held behind it never reaches a newer
+    /// request. Keep it above the longest time a sound link takes for one frame (a TCP
+    /// retransmission takes 200 ms or more; at 9600 baud a 4 KiB frame takes over 4 s).
     pub fn partial_frame_timeout(mut self, t: Duration) -> Self {
         self.partial_frame_timeout = t;
         self
@@ -190,7 +223,7 @@ impl ClientBuilder {
     /// Cancel-safe: a dropped call leaves nothing behind.
     pub async fn connect_tcp(self, addr: impl ToSocketAddrs) -> Result<Client> {
         let timeout = self.connect_timeout;
-        let deadline = Instant::now() + timeout;
+        let deadline = after(Instant::now(), timeout);
         // Resolved once: a reconnect goes to the same addresses.
         let addrs: Vec<SocketAddr> = timeout_at(deadline, tokio::net::lookup_host(addr))
             .await
@@ -347,10 +380,7 @@ impl ClientBuilder {
 }
 
 fn stream_link(io: Box<dyn AsyncReadWrite>, max_payload_len: usize) -> Link {
-    Link::Stream(Framed::new(
-        io,
-        WsgCodec::with_max_payload_len(max_payload_len),
-    ))
+    Link::Stream(Framed::new(io, WsgCodec::for_replies(max_payload_len)))
 }
 
 #[derive(Debug)]
@@ -387,16 +417,29 @@ impl Shared {
 /// exceptions:
 /// - **Stop and FAST STOP are never queued** (manual 3.2.3: "stoppt unmittelbar jede laufende
 ///   Fingerbewegung"): each [`Client::stop`] / [`Client::fast_stop`] is sent at once, whatever is
-///   on the wire, even while an earlier stop's reply is outstanding or lost. Their replies carry
-///   no data and cannot be told apart, so every stop call waiting when a stop reply arrives (all
-///   were sent before it) completes on it. A pending move then fails with E_CMD_ABORTED.
-/// - **A motion command (homing, pre-position, grasp, release) is never run later**: while one
-///   of the same id runs, a second call is refused with [`Error::Device`] /
-///   [`Status::AlreadyRunning`] without being sent, exactly as the device refuses a motion
-///   command while another runs (3.2.2: E_ALREADY_RUNNING). So a second `pre_position` and a
-///   `grasp` during a `pre_position` fail the same way; a call made while the first one is not
-///   yet acknowledged waits to see whether the device accepts it. Stop the running move first
-///   (or wait for it) to start another.
+///   on the wire, even while an earlier stop's reply is outstanding or lost. A stop call
+///   succeeds only on a reply to a stop sent at or after the call (a reply acknowledges "the
+///   received command", 1.2.2; an earlier stop may have been processed before a move that
+///   started afterwards). Their replies carry no data, so each reply is taken for the oldest
+///   stop still unanswered, and a call still waiting [`RESEND_STOP_AFTER`] later gets the stop
+///   sent again (a lost UDP datagram) until its reply comes or its timeout ends. Sound on TCP
+///   and serial (ordered); on UDP a stop reply later than the late-reply grace, or a
+///   duplicated one, could be taken for a later stop, and a stop sent again may arrive after
+///   `stop()` returned and stop a move started right after (it then fails with
+///   E_CMD_ABORTED). A pending move fails with E_CMD_ABORTED.
+/// - **A second motion command (homing, pre-position, grasp, release) of an id on the wire is
+///   answered by the device's state, never by a belief**: the protocol cannot pair two
+///   requests of one id, so the call waits, and the client asks the device's system state
+///   (0x40) at once. If a query sent after the call says the fingers move (SF_MOVING), the call
+///   is refused with [`Error::Device`] / [`Status::AlreadyRunning`] without being sent, as the
+///   device refuses a motion command while another runs (3.2.2); a `grasp` during a
+///   `pre_position` (another id) is sent and refused by the device itself. If the first move's
+///   final reply comes, the call is sent and the device answers it; if the device says twice,
+///   a [`ClientBuilder::late_reply_grace`] apart, that it does not move while no final reply
+///   came, that reply is lost: the first call fails with [`Error::ReplyLost`] and the second is
+///   sent. So after `stop()` the next move works whatever order the move's E_CMD_ABORTED and
+///   the stop's reply arrive in (the manual fixes none; UDP reorders), and one lost final reply
+///   costs the next move about one grace period, not the first call's whole timeout.
 ///
 /// Motion commands resolve on their final reply (after E_CMD_PENDING).
 ///
@@ -416,16 +459,19 @@ impl Shared {
 ///   call waits [`FINGER_POWER_ON_DURATION`] plus the query timeout, then fails with
 ///   [`Error::Timeout`]; its id is released a grace period later;
 /// - **raw requests** ([`Client::request`], [`Client::request_with_timeout`]): the call's timeout
-///   is the bound; the id is released a grace period after it;
+///   is the bound; the id is released a grace period after it, except for a motion command's
+///   id (0x20, 0x21, 0x25, 0x26), which is recovered like a motion command (below);
 /// - **motion commands**: a move may outlast its caller's timeout, so the id is not released on
-///   time alone. From the caller's deadline on, the client asks the device's system state
-///   (0x40) every grace period, and releases the id only when two answers in a row, from
-///   queries sent after the deadline and a grace period apart, say the fingers do not move
-///   (SF_MOVING clear) and no final reply came in between. One answer is not enough: Anhang B
-///   says the flags are not synchronised with the end of a move, UDP may reorder the final
-///   reply behind the answer, and while 0x40 is streamed the answer may be a stream frame sent
-///   just before the query arrived. A call of that id made meanwhile waits for the verdict: it
-///   is sent once the id is released, or refused with E_ALREADY_RUNNING while the device moves.
+///   time alone. From the caller's deadline on (or, before it, as soon as another call of
+///   the id waits), the client asks the device's system state (0x40) every grace period, and
+///   releases the id only when two answers in a row, from queries sent after that point and a
+///   grace period apart, say the fingers do not move (SF_MOVING clear) and no final reply came
+///   in between; a caller still waiting then gets [`Error::ReplyLost`]. One answer is not
+///   enough: Anhang B says the flags are not synchronised with the end of a move, UDP may
+///   reorder the final reply behind the answer, and while 0x40 is streamed the answer may be a
+///   stream frame sent just before the query arrived. A call of that id made meanwhile waits
+///   for the verdict: it is sent once the id is released, or refused with E_ALREADY_RUNNING
+///   when a query sent after it finds the device moving.
 ///
 /// In each case the residual risk is the same as for unanswered requests: a final reply later
 /// than the grace period (for a move: later than a grace period after the device said twice
@@ -434,10 +480,15 @@ impl Shared {
 /// # A misbehaving wire
 /// What the client does about each fault (each one is tested through the fault proxy in
 /// `tests/wsg_faults.rs`):
-/// - a frame with a bad checksum is dropped; its call ends in a timeout (or, when the device
-///   rejected a corrupted request, [`Error::Device`] with E_CHECKSUM_ERROR);
-/// - a header whose bytes stop coming (a corrupted length) is dropped after
-///   [`ClientBuilder::partial_frame_timeout`], and the frames behind it are decoded;
+/// - a reply with a bad checksum is dropped (checking it is the client's job, manual 1.2.2:
+///   "Die Auswertung obliegt dem Client"); its call ends in a timeout (or, should the device
+///   answer a corrupted request with E_CHECKSUM_ERROR, which the manual does not specify,
+///   [`Error::Device`] with that code);
+/// - a header longer than any reply of its command id (a corrupted length) is skipped at once;
+///   one that is plausible but never completes is dropped
+///   [`ClientBuilder::partial_frame_timeout`] after its first byte, however many bytes follow,
+///   and the frames behind it are decoded; meanwhile no id is released, so a reply held behind
+///   it still reaches its own request (or is discarded as late), never a newer one;
 /// - a lost reply ends its call in a timeout; a lost E_CMD_PENDING changes nothing (the final
 ///   reply ends the call); a lost final reply times its call out, and its id comes back as
 ///   [Lost final replies](Client#lost-final-replies) says; a lost stop reply holds up no later
@@ -521,7 +572,7 @@ impl Client {
     /// Sends `frame` and returns its final reply, whatever its status.
     async fn exchange(&self, frame: Frame, timeout: Duration) -> Result<Reply> {
         let command = frame.id;
-        let deadline = Instant::now() + timeout;
+        let deadline = after(Instant::now(), timeout);
         let (reply, rx) = oneshot::channel();
         let msg = Msg::Call {
             frame,
@@ -574,7 +625,9 @@ impl Client {
         command.validate().map_err(Error::InvalidArgument)?;
         let timeout = match command {
             // Not a move: its final reply comes after a known time (3.6.3).
-            Command::FingerPower(_, true) => self.query_timeout + FINGER_POWER_ON_DURATION,
+            Command::FingerPower(_, true) => {
+                self.query_timeout.saturating_add(FINGER_POWER_ON_DURATION)
+            }
             _ if command.is_async() => self.motion_timeout,
             _ => self.query_timeout,
         };
@@ -587,7 +640,10 @@ impl Client {
     /// the query timeout. If the final reply does not come by then, the call fails with
     /// [`Error::Timeout`] and the id is released [`ClientBuilder::late_reply_grace`] later (see
     /// [Lost final replies](Client#lost-final-replies)); use
-    /// [`Client::request_with_timeout`] for a command that takes longer.
+    /// [`Client::request_with_timeout`] for a command that takes longer. A raw request with a
+    /// motion command's id (0x20, 0x21, 0x25, 0x26) is paired like that motion command: once
+    /// acknowledged, its id is not released on time but by probing whether the device still
+    /// moves, and a second call of the id waits for the device's state (see [`Client`]).
     ///
     /// Cancel-safe for the connection; a command that was sent takes effect (a motion keeps moving)
     /// even if the call is dropped (see [Cancellation](Client#cancellation)).
@@ -650,8 +706,9 @@ impl Client {
 
     /// Homing (0x20): references the fingers; needed before any other motion.
     ///
-    /// Refused with E_ALREADY_RUNNING, unsent, while a move of the same command runs (manual
-    /// 3.2.2; see [`Client`]).
+    /// While a move of the same command is on the wire, the call waits for the device: it is
+    /// sent when that move ends, or refused with E_ALREADY_RUNNING, unsent, when a system-state
+    /// query sent after the call finds the fingers moving (manual 3.2.2; see [`Client`]).
     ///
     /// Cancel-safe for the connection, but dropping the call does **not** stop the fingers: once
     /// sent, the move runs to its end; send [`Client::stop`] (see [Cancellation](Client#cancellation)).
@@ -661,8 +718,9 @@ impl Client {
 
     /// Pre-position (0x21) to an absolute width, stopping if blocked.
     ///
-    /// Refused with E_ALREADY_RUNNING, unsent, while a move of the same command runs (manual
-    /// 3.2.2; see [`Client`]).
+    /// While a move of the same command is on the wire, the call waits for the device: it is
+    /// sent when that move ends, or refused with E_ALREADY_RUNNING, unsent, when a system-state
+    /// query sent after the call finds the fingers moving (manual 3.2.2; see [`Client`]).
     ///
     /// Cancel-safe for the connection, but dropping the call does **not** stop the fingers: once
     /// sent, the move runs to its end; send [`Client::stop`] (see [Cancellation](Client#cancellation)).
@@ -678,8 +736,9 @@ impl Client {
 
     /// Pre-position (0x21) by a distance relative to the current width, stopping if blocked.
     ///
-    /// Refused with E_ALREADY_RUNNING, unsent, while a move of the same command runs (manual
-    /// 3.2.2; see [`Client`]).
+    /// While a move of the same command is on the wire, the call waits for the device: it is
+    /// sent when that move ends, or refused with E_ALREADY_RUNNING, unsent, when a system-state
+    /// query sent after the call finds the fingers moving (manual 3.2.2; see [`Client`]).
     ///
     /// Cancel-safe for the connection, but dropping the call does **not** stop the fingers: once
     /// sent, the move runs to its end; send [`Client::stop`] (see [Cancellation](Client#cancellation)).
@@ -696,8 +755,8 @@ impl Client {
     /// Stop (0x22): stops any motion (a pending motion fails with E_CMD_ABORTED).
     ///
     /// Sent at once, never queued behind anything, even an earlier stop whose reply is
-    /// outstanding or lost; completes on the first stop reply that arrives after it was sent
-    /// (see [`Client`]).
+    /// outstanding or lost; `Ok` only on a reply to a stop sent at or after the call, sent again
+    /// if none comes within [`RESEND_STOP_AFTER`] (see [`Client`]).
     ///
     /// Cancel-safe for the connection; once sent, the command takes effect even if the call is
     /// dropped (see [Cancellation](Client#cancellation)).
@@ -708,8 +767,8 @@ impl Client {
     /// Fast stop (0x23): stops and refuses motion until [`Client::acknowledge_fast_stop`].
     ///
     /// Sent at once, never queued behind anything, even an earlier FAST STOP whose reply is
-    /// outstanding or lost; completes on the first FAST STOP reply that arrives after it was
-    /// sent (see [`Client`]).
+    /// outstanding or lost; `Ok` only on a reply to a FAST STOP sent at or after the call, sent
+    /// again if none comes within [`RESEND_STOP_AFTER`] (see [`Client`]).
     ///
     /// Cancel-safe for the connection; once sent, the command takes effect even if the call is
     /// dropped (see [Cancellation](Client#cancellation)).
@@ -728,8 +787,9 @@ impl Client {
     /// Grasp a part (0x25) of nominal width `width_mm`. No part found is
     /// `Error::Device { status: Status::CmdFailed, .. }`.
     ///
-    /// Refused with E_ALREADY_RUNNING, unsent, while a move of the same command runs (manual
-    /// 3.2.2; see [`Client`]).
+    /// While a move of the same command is on the wire, the call waits for the device: it is
+    /// sent when that move ends, or refused with E_ALREADY_RUNNING, unsent, when a system-state
+    /// query sent after the call finds the fingers moving (manual 3.2.2; see [`Client`]).
     ///
     /// Cancel-safe for the connection, but dropping the call does **not** stop the fingers: once
     /// sent, the move runs to its end; send [`Client::stop`] (see [Cancellation](Client#cancellation)).
@@ -743,8 +803,9 @@ impl Client {
 
     /// Release the part (0x26), opening to `width_mm`.
     ///
-    /// Refused with E_ALREADY_RUNNING, unsent, while a move of the same command runs (manual
-    /// 3.2.2; see [`Client`]).
+    /// While a move of the same command is on the wire, the call waits for the device: it is
+    /// sent when that move ends, or refused with E_ALREADY_RUNNING, unsent, when a system-state
+    /// query sent after the call finds the fingers moving (manual 3.2.2; see [`Client`]).
     ///
     /// Cancel-safe for the connection, but dropping the call does **not** stop the fingers: once
     /// sent, the move runs to its end; send [`Client::stop`] (see [Cancellation](Client#cancellation)).
@@ -971,7 +1032,7 @@ impl Client {
             decode,
         };
         let timeout = self.query_timeout;
-        let deadline = Instant::now() + timeout;
+        let deadline = after(Instant::now(), timeout);
         let (reply, rx) = oneshot::channel();
         let subscriber = Subscriber { key, tx, missed };
         let msg = Msg::Subscribe {
@@ -1038,7 +1099,10 @@ impl Client {
     }
 
     /// Closes the connection: on TCP, announces the disconnect (0x07) and waits for its reply
-    /// first, so the gripper does not go into FAST STOP. Calls still waiting fail with
+    /// first, so the gripper does not go into FAST STOP. The announcement also **stops every
+    /// finger motion at once** (manual 3.1.2: "werden alle laufenden Fingerbewegungen des
+    /// Greifmoduls unmittelbar gestoppt"), whichever client started it: a move in flight, of
+    /// this or any other handle, ends with E_CMD_ABORTED. Calls still waiting fail with
     /// [`Error::Closed`], streams end, and every other handle's calls fail with
     /// [`Error::Closed`] (or [`Error::ConnectionLost`] if the connection had broken). While the
     /// client reconnects ([`ClientBuilder::reconnect`]), it gives up before its next attempt

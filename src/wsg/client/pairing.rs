@@ -15,9 +15,14 @@
 //!   idempotent, so their replies cannot be told apart: every caller of that id waiting when a
 //!   reply arrives was sent before it, and completes on it (see [`Event::Stopped`]).
 //! - **Motion commands** (0x20, 0x21, 0x25, 0x26): the device refuses a motion command while
-//!   another one runs (3.2.1/3.2.2/3.2.6/3.2.7: E_ALREADY_RUNNING). A second call of the id on
-//!   the wire is refused the same way instead of being run later ([`Submit::Refused`]): at once
-//!   when the first is acknowledged, or as soon as it is ([`Pairing::refuse_queued`]).
+//!   another one runs (3.2.1/3.2.2/3.2.6/3.2.7: E_ALREADY_RUNNING). A second call of the id
+//!   queues behind the first, and once the first is acknowledged the device's state is asked
+//!   at once ([`Due::Probe`]): "moving" refuses the calls made before that probe went out
+//!   ([`Verdict::Running`]); the first's final reply, or two "not moving" a grace apart
+//!   ([`Verdict::Abandoned`]), sends the next. The client never refuses on the belief that
+//!   the first still runs (its final reply may be lost, or come after a stop's reply): the
+//!   residual risk is SF_MOVING itself (Anhang B: not synchronised with the end of a move, so
+//!   a refusal right at the end of a move may be one the device would no longer give).
 //! - Everything else queues behind the request of its id on the wire.
 //!
 //! How long an id stays "poisoned" by a request that got no (final) reply: until its caller's
@@ -39,7 +44,13 @@
 //!
 //! Two kinds of reply provably answer another request of the same id and are treated as
 //! unsolicited: a loop reply that does not echo the payload on the wire, and E_ALREADY_RUNNING
-//! for an acknowledged request (the device's refusal of a duplicate of it).
+//! for an acknowledged request (the device's refusal of a duplicate of it). The second needs
+//! the acknowledgement to be the request's own: when the previous request of the id got its
+//! final reply without an E_CMD_PENDING first, that E_CMD_PENDING may still come (UDP
+//! reorders), so the next one acknowledges "doubtfully" and E_ALREADY_RUNNING still ends the
+//! request ([`IdState::pending_owed`]). On TCP and serial replies keep their order and this
+//! never happens; on UDP the residual risk is a duplicated request refused while its original
+//! runs, in that same situation.
 
 use std::collections::VecDeque;
 use std::time::Duration;
@@ -47,6 +58,8 @@ use std::time::Duration;
 use bytes::Bytes;
 use tokio::time::Instant;
 
+use super::stops::Stops;
+use crate::deadline::after;
 use crate::int_map::IntMap;
 use crate::wsg::command::id;
 use crate::wsg::{Frame, Reply, Status};
@@ -87,6 +100,10 @@ struct InFlight {
     probe_at: Option<Instant>,
     /// The last probe said "not moving" (the first of the two observations needed).
     idle_seen: bool,
+    /// Acknowledged by an E_CMD_PENDING that may have been the late one of the previous
+    /// request of this id (see [`IdState::pending_owed`]): an E_ALREADY_RUNNING may then be
+    /// this request's own refusal, and is not dropped.
+    ack_doubtful: bool,
     /// The payload sent: a loop reply (0x06) must echo it.
     payload: Bytes,
 }
@@ -97,9 +114,10 @@ impl InFlight {
             token: req.token,
             acknowledged: false,
             deadline: req.deadline,
-            release_at: req.deadline + grace,
+            release_at: after(req.deadline, grace),
             probe_at: None,
             idle_seen: false,
+            ack_doubtful: false,
             payload: req.frame.payload.clone(),
         }
     }
@@ -113,7 +131,9 @@ impl InFlight {
             reply.id == id::LOOP && reply.status == Status::Success && reply.data != self.payload;
         // Once the device has acknowledged this command, E_ALREADY_RUNNING cannot be its final
         // reply (1.3: that code is only ever an immediate refusal): it refuses a duplicate of it.
-        let refused_duplicate = self.acknowledged && reply.status == Status::AlreadyRunning;
+        // Unless the acknowledgement itself may have been another request's (UDP reorders).
+        let refused_duplicate =
+            self.acknowledged && !self.ack_doubtful && reply.status == Status::AlreadyRunning;
         foreign_echo || refused_duplicate
     }
 
@@ -131,6 +151,27 @@ impl InFlight {
 struct IdState {
     in_flight: Option<InFlight>,
     queue: VecDeque<Request>,
+    /// The last request of this id got its final reply without an E_CMD_PENDING first: if it
+    /// was asynchronous, its E_CMD_PENDING may still come (UDP reorders, manual 1.3 fixes the
+    /// order only as sent), and must not be taken for the next request's acknowledgement.
+    pending_owed: bool,
+}
+
+impl IdState {
+    /// Calls wait behind the acknowledged motion command of this id (`id`): ask the device
+    /// at once whether it moves (a probe), unless a probe is out already. The calls are sent
+    /// when the motion's final reply comes (or it is found lost), or refused when the device
+    /// says it moves: never refused on the belief that it still runs.
+    fn verify_soon(&mut self, id: u8, now: Instant) {
+        if self.queue.is_empty() || !is_motion(id) {
+            return;
+        }
+        if let Some(f) = self.in_flight.as_mut().filter(|f| f.acknowledged) {
+            if let Some(at) = f.probe_at {
+                f.probe_at = Some(at.min(now));
+            }
+        }
+    }
 }
 
 /// What a received reply means.
@@ -138,8 +179,8 @@ struct IdState {
 pub(crate) enum Event {
     /// The final reply of the request `Token`.
     Resolved(Token, Reply),
-    /// The final reply of every stop (or FAST STOP) request listed: all were sent before it
-    /// arrived, and their replies cannot be told apart.
+    /// The final reply of every stop (or FAST STOP) request listed: it answers a stop sent at
+    /// or after each of their calls (see [`super::stops`]).
     Stopped(Vec<Token>, Reply),
     /// The asynchronous request `Token` was accepted (E_CMD_PENDING); its result follows.
     Accepted(Token),
@@ -155,9 +196,6 @@ pub(crate) enum Submit {
     Send(Request),
     /// It waits behind the request of its id on the wire.
     Queued,
-    /// A motion command whose id is running (acknowledged, its caller's deadline not passed):
-    /// refused without sending, as the device would (E_ALREADY_RUNNING).
-    Refused(Request),
 }
 
 /// What the task has to do for a request whose time has come ([`Pairing::due`]).
@@ -169,6 +207,9 @@ pub(crate) enum Due {
     /// The acknowledged motion `Token` of this id is past its deadline: ask the device whether
     /// it still moves, and report the answer with [`Pairing::on_probe`].
     Probe(u8, Token),
+    /// A stop call of this id (stop or FAST STOP) still waits for a reply to a stop sent at or
+    /// after it: send the stop again (it is recorded as sent).
+    ResendStop(u8),
 }
 
 /// What a recovery probe found out about a motion command (see [`Pairing::on_probe`]).
@@ -188,8 +229,10 @@ pub(crate) enum Verdict {
     /// The final reply is lost: the request is abandoned and its id free. Call
     /// [`Pairing::next`].
     Abandoned,
-    /// The move runs: the calls queued behind it are to be refused ([`Pairing::refuse_queued`]).
-    Running,
+    /// The device moves: these calls, queued behind the move before the probe was sent, are to
+    /// be refused with E_ALREADY_RUNNING (3.2.2: the device refuses a motion command while one
+    /// runs). Calls queued after it wait for the next probe.
+    Running(Vec<Token>),
     /// No conclusion yet (or the request is gone): another probe follows.
     Undecided,
 }
@@ -199,7 +242,7 @@ pub(crate) enum Verdict {
 pub(crate) struct Pairing {
     ids: IntMap<u8, IdState>,
     /// The stop and FAST STOP requests sent and not answered yet, by id.
-    stops: IntMap<u8, Vec<Token>>,
+    stops: IntMap<u8, Stops>,
     grace: Duration,
 }
 
@@ -218,23 +261,21 @@ impl Pairing {
     pub(crate) fn submit(&mut self, req: Request, now: Instant) -> Submit {
         let id = req.frame.id;
         if is_stop(id) {
-            self.stops.entry(id).or_default().push(req.token);
+            let grace = self.grace;
+            self.stops
+                .entry(id)
+                .or_default()
+                .submit(req.token, req.deadline, now, grace);
             return Submit::Send(req);
         }
         let st = self.ids.entry(id).or_default();
-        match &st.in_flight {
-            None if st.queue.is_empty() => {
-                st.in_flight = Some(InFlight::new(&req, self.grace));
-                Submit::Send(req)
-            }
-            // Under recovery (past its deadline) the move may be over with its final reply
-            // lost: the new call waits for the verdict.
-            Some(f) if is_motion(id) && f.acknowledged && now < f.deadline => Submit::Refused(req),
-            _ => {
-                st.queue.push_back(req);
-                Submit::Queued
-            }
+        if st.in_flight.is_none() && st.queue.is_empty() {
+            st.in_flight = Some(InFlight::new(&req, self.grace));
+            return Submit::Send(req);
         }
+        st.queue.push_back(req);
+        st.verify_soon(id, now);
+        Submit::Queued
     }
 
     /// Drops the queued (never sent) requests of `id` whose caller is gone, and the waiting stop
@@ -244,13 +285,7 @@ impl Pairing {
     pub(crate) fn prune(&mut self, id: u8, alive: impl Fn(Token) -> bool) -> Vec<Token> {
         let mut gone = Vec::new();
         if let Some(stops) = self.stops.get_mut(&id) {
-            stops.retain(|t| {
-                let keep = alive(*t);
-                if !keep {
-                    gone.push(*t);
-                }
-                keep
-            });
+            gone.extend(stops.prune(&alive));
         }
         if let Some(st) = self.ids.get_mut(&id) {
             st.queue.retain(|r| {
@@ -264,25 +299,28 @@ impl Pairing {
         gone
     }
 
+    /// Asks for a probe at `now` if calls of motion command `id` wait behind its acknowledged
+    /// request (called when it is acknowledged).
+    pub(crate) fn verify_queued(&mut self, id: u8, now: Instant) {
+        if let Some(st) = self.ids.get_mut(&id) {
+            st.verify_soon(id, now);
+        }
+    }
+
     /// Pairs a received reply.
     pub(crate) fn on_reply(&mut self, reply: Reply) -> Event {
         if is_stop(reply.id) {
-            let waiting = self
-                .stops
-                .get_mut(&reply.id)
-                .map(std::mem::take)
-                .unwrap_or_default();
-            return if waiting.is_empty() {
+            let done = self.stop_replied(reply.id);
+            return if done.is_empty() {
                 Event::Unsolicited(reply)
             } else {
-                Event::Stopped(waiting, reply)
+                Event::Stopped(done, reply)
             };
         }
-        let Some(f) = self
-            .ids
-            .get_mut(&reply.id)
-            .and_then(|st| st.in_flight.as_mut())
-        else {
+        let Some(st) = self.ids.get_mut(&reply.id) else {
+            return Event::Unsolicited(reply);
+        };
+        let Some(f) = st.in_flight.as_mut() else {
             return Event::Unsolicited(reply);
         };
         if f.rejects(&reply) {
@@ -293,22 +331,35 @@ impl Pairing {
         if reply.status == Status::CmdPending {
             if !f.acknowledged {
                 f.acknowledged = true;
+                f.ack_doubtful = std::mem::take(&mut st.pending_owed);
                 f.probe_at = Some(f.deadline);
             }
             return Event::Accepted(f.token);
         }
         let token = f.token;
-        if let Some(st) = self.ids.get_mut(&reply.id) {
-            st.in_flight = None;
-        }
+        // E_ALREADY_RUNNING is only ever an immediate refusal (no E_CMD_PENDING before it).
+        st.pending_owed = !f.acknowledged && reply.status != Status::AlreadyRunning;
+        st.in_flight = None;
         Event::Resolved(token, reply)
+    }
+
+    /// A reply (usable or not) of stop id `id` arrived: the stop calls it completes.
+    fn stop_replied(&mut self, id: u8) -> Vec<Token> {
+        let Some(stops) = self.stops.get_mut(&id) else {
+            return Vec::new();
+        };
+        let done = stops.on_reply();
+        if stops.is_idle() {
+            self.stops.remove(&id);
+        }
+        done
     }
 
     /// A reply of `id` too short to carry a status code: it still ends the request(s) on the
     /// wire (it is their answer, just unusable). Returns their tokens.
     pub(crate) fn on_malformed(&mut self, id: u8) -> Vec<Token> {
         if is_stop(id) {
-            return self.stops.remove(&id).unwrap_or_default();
+            return self.stop_replied(id);
         }
         self.ids
             .get_mut(&id)
@@ -340,33 +391,28 @@ impl Pairing {
             }
             skipped.push(req.token);
         }
-        self.ids.remove(&id);
+        if !st.pending_owed {
+            self.ids.remove(&id);
+        }
         (None, skipped)
     }
 
-    /// Takes every request queued behind the motion command of `id` on the wire, to be refused
-    /// with E_ALREADY_RUNNING: the device runs that command, and would refuse them (3.2.2).
-    pub(crate) fn refuse_queued(&mut self, id: u8) -> Vec<Token> {
-        match self.ids.get_mut(&id) {
-            Some(st) if is_motion(id) && st.in_flight.is_some() => {
-                st.queue.drain(..).map(|r| r.token).collect()
-            }
-            _ => Vec::new(),
-        }
-    }
-
-    /// Records what a recovery probe of the acknowledged motion `token` of `id` observed, at
-    /// `now` (when its answer arrived, or when the probe was given up).
+    /// Records what a probe of the acknowledged motion `token` of `id` observed, at `now`
+    /// (when its answer arrived, or when the probe was given up); `probe` is the probe's own
+    /// token (tokens grow: calls with a smaller one were made before the probe was sent).
     ///
     /// The request is abandoned on the second "not moving" in a row; the probe after the first
     /// is due a grace period later, so a final reply sent after the device stopped moving has
     /// that long to arrive (Anhang B: the flags are not synchronised with the end of a move).
+    /// "Moving" refuses the calls made before the probe went out: what they are refused on was
+    /// true after they were made.
     pub(crate) fn on_probe(
         &mut self,
         id: u8,
         token: Token,
         seen: Observation,
         now: Instant,
+        probe: Token,
     ) -> Verdict {
         let grace = self.grace;
         let Some(st) = self.ids.get_mut(&id) else {
@@ -383,9 +429,27 @@ impl Pairing {
             Observation::Idle => f.idle_seen = true,
             Observation::Moving | Observation::Unknown => f.idle_seen = false,
         }
-        f.probe_at = Some(now + grace);
+        let mut refused = Vec::new();
         if seen == Observation::Moving {
-            Verdict::Running
+            st.queue.retain(|r| {
+                let before = r.token < probe;
+                if before {
+                    refused.push(r.token);
+                }
+                !before
+            });
+        }
+        f.probe_at = Some(if seen == Observation::Moving && !st.queue.is_empty() {
+            // Calls made after that probe went out: ask again for them.
+            now
+        } else if !st.queue.is_empty() || now >= f.deadline {
+            after(now, grace)
+        } else {
+            // Nobody waits and the caller still does: no more probes before its deadline.
+            f.deadline.max(after(now, grace))
+        });
+        if seen == Observation::Moving {
+            Verdict::Running(refused)
         } else {
             Verdict::Undecided
         }
@@ -393,9 +457,11 @@ impl Pairing {
 
     /// When the next request needs the task ([`Pairing::due`]).
     pub(crate) fn next_due(&self) -> Option<Instant> {
+        let stops = self.stops.values().filter_map(Stops::next_due);
         self.ids
             .iter()
             .filter_map(|(id, st)| st.in_flight.as_ref()?.due(*id))
+            .chain(stops)
             .min()
     }
 
@@ -403,6 +469,13 @@ impl Pairing {
     /// afterwards) and recovery probes to send.
     pub(crate) fn due(&mut self, now: Instant) -> Vec<Due> {
         let mut out = Vec::new();
+        let grace = self.grace;
+        for (id, stops) in &mut self.stops {
+            if stops.due(now, grace) {
+                out.push(Due::ResendStop(*id));
+            }
+        }
+        self.stops.retain(|_, s| !s.is_idle());
         for (id, st) in &mut self.ids {
             let Some(f) = &mut st.in_flight else {
                 continue;
@@ -429,7 +502,7 @@ impl Pairing {
             out.extend(st.queue.into_iter().map(|r| r.token));
         }
         for (_, stops) in self.stops.drain() {
-            out.extend(stops);
+            out.extend(stops.drain());
         }
         out
     }
@@ -512,23 +585,28 @@ mod tests {
     }
 
     #[test]
-    fn stops_are_never_queued_and_every_waiting_stop_completes_on_the_next_reply() {
+    fn stops_are_never_queued_and_a_reply_completes_only_the_calls_it_can_answer() {
         let now = Instant::now();
         let t = now + Duration::from_secs(1);
         let mut p = Pairing::new(Duration::from_secs(1));
         for id in [id::STOP, id::FAST_STOP] {
-            // The first stop's reply is lost: the second still goes out at once.
+            // The first stop's reply is outstanding: the second still goes out at once.
             assert_eq!(sent(p.submit(req(1, id, t), now)), Some(1));
             assert_eq!(sent(p.submit(req(2, id, t), now)), Some(2));
-            assert_eq!(p.next_due(), None, "a stop never holds its id");
+            // Only a resend is ever due for a stop (it holds no id).
+            assert_eq!(p.next_due(), Some(now + super::super::stops::RESEND_AFTER));
+            // The first reply may answer the first stop, sent before the second call: it
+            // completes the first call only (issue 20.2 #3).
             assert_eq!(
                 p.on_reply(reply(id, Status::Success)),
-                Event::Stopped(vec![1, 2], reply(id, Status::Success))
+                Event::Stopped(vec![1], reply(id, Status::Success))
             );
-            // A third stop, sent after that reply, waits for a reply of its own; the second
-            // stop's reply (arriving late) is that one.
-            assert_eq!(sent(p.submit(req(3, id, t), now)), Some(3));
+            assert_eq!(
+                p.on_reply(reply(id, Status::Success)),
+                Event::Stopped(vec![2], reply(id, Status::Success))
+            );
             // A caller that went away is forgotten before the next stop goes out.
+            assert_eq!(sent(p.submit(req(3, id, t), now)), Some(3));
             assert_eq!(p.prune(id, |t| t != 3), vec![3]);
             assert!(matches!(
                 p.on_reply(reply(id, Status::Success)),
@@ -575,7 +653,7 @@ mod tests {
     }
 
     #[test]
-    fn a_running_motion_refuses_a_second_call_of_its_id() {
+    fn a_second_motion_call_is_refused_only_when_a_probe_after_it_sees_the_device_move() {
         let now = Instant::now();
         let t = now + Duration::from_secs(10);
         let mut p = Pairing::new(Duration::from_secs(1));
@@ -583,13 +661,29 @@ mod tests {
             assert!(matches!(p.submit(req(1, id, t), now), Submit::Send(_)));
             // Not acknowledged yet: the second waits to see whether the first runs ...
             assert!(matches!(p.submit(req(2, id, t), now), Submit::Queued));
+            assert_eq!(p.next_due(), Some(t + Duration::from_secs(1)));
             assert_eq!(
                 p.on_reply(reply(id, Status::CmdPending)),
                 Event::Accepted(1)
             );
-            // ... and is refused once it does, like any later one.
-            assert_eq!(p.refuse_queued(id), vec![2]);
-            assert!(matches!(p.submit(req(3, id, t), now), Submit::Refused(r) if r.token == 3));
+            // ... and once it does, the device is asked at once (no refusal on a belief).
+            p.verify_queued(id, now);
+            assert_eq!(p.next_due(), Some(now));
+            assert_eq!(p.due(now), vec![Due::Probe(id, 1)]);
+            // A call made after the probe went out (probe token 10) is not refused on it ...
+            assert!(matches!(p.submit(req(11, id, t), now), Submit::Queued));
+            assert_eq!(
+                p.on_probe(id, 1, Observation::Moving, now, 10),
+                Verdict::Running(vec![2])
+            );
+            // ... it gets a probe of its own, at once.
+            assert_eq!(p.due(now), vec![Due::Probe(id, 1)]);
+            assert_eq!(
+                p.on_probe(id, 1, Observation::Moving, now, 12),
+                Verdict::Running(vec![11])
+            );
+            // Nobody waits: no probe before the first call's deadline.
+            assert_eq!(p.next_due(), Some(t));
             assert!(matches!(
                 p.on_reply(reply(id, Status::Success)),
                 Event::Resolved(1, _)
@@ -604,6 +698,35 @@ mod tests {
             Event::Resolved(4, _)
         ));
         assert_eq!(p.next(0x21, |_| true).0.map(|r| r.token), Some(5));
+    }
+
+    /// Issue 20.2 #1: a second call behind an acknowledged move whose final reply is lost is
+    /// sent once the device said twice, a grace apart, that it does not move, before the first
+    /// call's deadline: never refused on the belief that the move still runs.
+    #[test]
+    fn a_lost_final_reply_frees_the_id_for_a_waiting_call_before_the_deadline() {
+        let now = Instant::now();
+        let grace = Duration::from_millis(100);
+        let t = now + Duration::from_secs(30);
+        let mut p = Pairing::new(grace);
+        assert!(matches!(p.submit(req(1, 0x21, t), now), Submit::Send(_)));
+        assert_eq!(
+            p.on_reply(reply(0x21, Status::CmdPending)),
+            Event::Accepted(1)
+        );
+        assert!(matches!(p.submit(req(2, 0x21, t), now), Submit::Queued));
+        assert_eq!(p.due(now), vec![Due::Probe(0x21, 1)]);
+        assert_eq!(
+            p.on_probe(0x21, 1, Observation::Idle, now, 3),
+            Verdict::Undecided
+        );
+        assert_eq!(p.next_due(), Some(now + grace));
+        assert_eq!(p.due(now + grace), vec![Due::Probe(0x21, 1)]);
+        assert_eq!(
+            p.on_probe(0x21, 1, Observation::Idle, now + grace, 4),
+            Verdict::Abandoned
+        );
+        assert_eq!(p.next(0x21, |_| true).0.map(|r| r.token), Some(2));
     }
 
     #[test]
@@ -633,28 +756,27 @@ mod tests {
         ));
         // Moving: the waiting call is refused, the next probe comes a grace later.
         assert_eq!(
-            p.on_probe(0x25, 1, Observation::Moving, later),
-            Verdict::Running
+            p.on_probe(0x25, 1, Observation::Moving, later, 100),
+            Verdict::Running(vec![2])
         );
-        assert_eq!(p.refuse_queued(0x25), vec![2]);
         assert_eq!(p.next_due(), Some(later + grace));
         // One "idle" is not enough ...
         let t1 = later + grace;
         assert_eq!(p.due(t1), vec![Due::Probe(0x25, 1)]);
         assert_eq!(
-            p.on_probe(0x25, 1, Observation::Idle, t1),
+            p.on_probe(0x25, 1, Observation::Idle, t1, 100),
             Verdict::Undecided
         );
         // ... a failed probe starts over ...
         assert_eq!(p.due(t1 + grace), vec![Due::Probe(0x25, 1)]);
         assert_eq!(
-            p.on_probe(0x25, 1, Observation::Unknown, t1 + grace),
+            p.on_probe(0x25, 1, Observation::Unknown, t1 + grace, 100),
             Verdict::Undecided
         );
         let t2 = t1 + grace * 2;
         assert_eq!(p.due(t2), vec![Due::Probe(0x25, 1)]);
         assert_eq!(
-            p.on_probe(0x25, 1, Observation::Idle, t2),
+            p.on_probe(0x25, 1, Observation::Idle, t2, 100),
             Verdict::Undecided
         );
         // ... and a final reply in between ends the recovery: it answers its own request.
@@ -667,7 +789,7 @@ mod tests {
             Event::Resolved(1, r) if r.status == Status::AxisBlocked
         ));
         assert_eq!(
-            p.on_probe(0x25, 1, Observation::Idle, t2 + grace),
+            p.on_probe(0x25, 1, Observation::Idle, t2 + grace, 100),
             Verdict::Undecided
         );
         let (next, _) = p.next(0x25, |_| true);
@@ -681,12 +803,12 @@ mod tests {
         let d = next.deadline;
         assert_eq!(p.due(d), vec![Due::Probe(0x25, 3)]);
         assert_eq!(
-            p.on_probe(0x25, 3, Observation::Idle, d),
+            p.on_probe(0x25, 3, Observation::Idle, d, 100),
             Verdict::Undecided
         );
         assert_eq!(p.due(d + grace), vec![Due::Probe(0x25, 3)]);
         assert_eq!(
-            p.on_probe(0x25, 3, Observation::Idle, d + grace),
+            p.on_probe(0x25, 3, Observation::Idle, d + grace, 100),
             Verdict::Abandoned
         );
         assert!(matches!(
@@ -732,6 +854,44 @@ mod tests {
         assert!(matches!(
             p.on_reply(reply(0x21, Status::AlreadyRunning)),
             Event::Resolved(3, _)
+        ));
+    }
+
+    /// Issue 20.2 #4: an E_CMD_PENDING reordered after its own final reply (UDP) must not make
+    /// the next request of the id count as surely acknowledged: its own E_ALREADY_RUNNING
+    /// would then be dropped as a duplicate's, and the call would wait until its deadline.
+    #[test]
+    fn a_pending_reordered_after_its_final_reply_does_not_swallow_the_next_refusal() {
+        let now = Instant::now();
+        let t = now + Duration::from_secs(30);
+        let mut p = Pairing::new(Duration::from_secs(1));
+        assert!(matches!(p.submit(req(1, 0x21, t), now), Submit::Send(_)));
+        assert_eq!(
+            p.on_reply(reply(0x21, Status::Success)),
+            Event::Resolved(1, reply(0x21, Status::Success))
+        );
+        assert_eq!(p.next(0x21, |_| true).0.map(|r| r.token), None);
+        assert!(matches!(p.submit(req(2, 0x21, t), now), Submit::Send(_)));
+        // The first request's late E_CMD_PENDING (or the second's own: they cannot be told
+        // apart) ...
+        assert_eq!(
+            p.on_reply(reply(0x21, Status::CmdPending)),
+            Event::Accepted(2)
+        );
+        // ... so the device's refusal of the second still ends it.
+        assert_eq!(
+            p.on_reply(reply(0x21, Status::AlreadyRunning)),
+            Event::Resolved(2, reply(0x21, Status::AlreadyRunning))
+        );
+        // A request acknowledged with nothing owed still drops a duplicate's refusal.
+        assert!(matches!(p.submit(req(3, 0x21, t), now), Submit::Send(_)));
+        assert_eq!(
+            p.on_reply(reply(0x21, Status::CmdPending)),
+            Event::Accepted(3)
+        );
+        assert!(matches!(
+            p.on_reply(reply(0x21, Status::AlreadyRunning)),
+            Event::Unsolicited(_)
         ));
     }
 

@@ -14,7 +14,7 @@ use tokio::time::{sleep_until, timeout, Instant};
 
 use super::pairing::{Due, Event, Observation, Pairing, Request, Submit, Token, Verdict};
 use super::Reconnect;
-use crate::deadline::move_timer;
+use crate::deadline::{after, move_timer};
 use crate::int_map::IntMap;
 use crate::reconnect::{self, ConnectionEvent, EventSender};
 use crate::wsg::command::{id, Command, UpdateMode};
@@ -73,10 +73,13 @@ pub(crate) struct Task {
     /// reading cannot hold the task.
     write_timeout: Duration,
     pub(crate) announce_on_close: bool,
-    /// How long a partial frame may wait for its next byte before it is dropped as noise.
+    /// How long a frame may take from its first byte before it is dropped as noise.
     pub(crate) partial_frame_timeout: Duration,
-    /// Bytes of the partial frame held by the decoder, and since when that count is unchanged.
-    partial: (usize, Instant),
+    /// When the partial frame held by the decoder was first seen (`None`: none held). Measured
+    /// from the frame's first byte, not its last: bytes that keep coming (a stream of updates
+    /// behind a corrupted length field) must not keep a bogus frame, and every reply behind
+    /// it, waiting (issue 20.2 #2).
+    partial_since: Option<Instant>,
     /// Set to the reason when the connection breaks for good, so later calls can say why.
     lost: Arc<OnceLock<String>>,
     /// Where connection losses (and reconnects) are reported.
@@ -118,7 +121,7 @@ impl Task {
     ) -> Self {
         Self {
             partial_frame_timeout: super::DEFAULT_PARTIAL_FRAME_TIMEOUT,
-            partial: (0, Instant::now()),
+            partial_since: None,
             events: EventSender::new("wsg", super::EVENT_BUFFER),
             reconnect: None,
             closing: Arc::new(AtomicBool::new(false)),
@@ -233,9 +236,9 @@ impl Task {
             return false;
         };
         self.link = link;
-        self.partial = (0, Instant::now());
+        self.partial_since = None;
         // Their replies (the current values) go to the subscribers like any update.
-        let deadline = Instant::now() + self.query_timeout;
+        let deadline = after(Instant::now(), self.query_timeout);
         for frame in restore {
             let token = self.waiter(Waiter::Internal);
             // The ids are all free on a fresh connection: this only records what was sent.
@@ -260,7 +263,14 @@ impl Task {
         let mut due_timer = pin!(sleep_until(Instant::now() + IDLE_TIMER));
         let mut stale_timer = pin!(sleep_until(Instant::now() + IDLE_TIMER));
         loop {
-            let due = self.pairing.next_due();
+            let stale = self.partial_frame_deadline();
+            // While the decoder holds a partial frame, nothing is released or probed: the
+            // frames behind it may be the very replies awaited, and a released id's next
+            // request would take them (issue 20.2 #2). The hold ends by `stale` at the latest.
+            let due = self
+                .pairing
+                .next_due()
+                .map(|at| stale.map_or(at, |s| at.max(s)));
             if let Some(at) = due {
                 // Early is harmless (the pairing says what is due when the timer fires, and the
                 // timer is then set again): one set for an earlier request's deadline serves
@@ -269,7 +279,6 @@ impl Task {
                     due_timer.as_mut().reset(at);
                 }
             }
-            let stale = self.partial_frame_deadline();
             if let Some(at) = stale {
                 // Exact: the handler below takes the deadline as reached.
                 move_timer(stale_timer.as_mut(), at);
@@ -279,16 +288,21 @@ impl Task {
                 // so it is paired before the next request of its id goes out (a duplicated
                 // reply sitting in the buffer is then dropped as unsolicited).
                 biased;
-                received = self.link.recv() => match received {
-                    Some(Ok(frame)) => self.on_frame(frame).await.map_err(io_reason)?,
-                    Some(Err(e)) => return Err(e.to_string()),
-                    None => return Err("the gripper closed the connection".into()),
+                received = self.link.recv_or_partial(stale.is_some()) => match received {
+                    // A frame has started: the next pass times it.
+                    None => {}
+                    Some(Some(Ok(frame))) => {
+                        // Whatever the decoder holds now is the start of the next frame.
+                        self.partial_since = None;
+                        self.on_frame(frame).await.map_err(io_reason)?;
+                    }
+                    Some(Some(Err(e))) => return Err(e.to_string()),
+                    Some(None) => return Err("the gripper closed the connection".into()),
                 },
                 () = &mut stale_timer, if stale.is_some() => {
-                    if self.link.partial_len() == self.partial.0 {
-                        for frame in self.link.resync() {
-                            self.on_frame(frame).await.map_err(io_reason)?;
-                        }
+                    self.partial_since = None;
+                    for frame in self.link.resync() {
+                        self.on_frame(frame).await.map_err(io_reason)?;
                     }
                 }
                 msg = self.rx.recv() => match msg {
@@ -332,23 +346,28 @@ impl Task {
                     self.unsubscribe(id, key).await.map_err(io_reason)?;
                 }
                 () = &mut due_timer, if due.is_some() => {
-                    for due in self.pairing.due(Instant::now()) {
-                        self.on_due(due).await.map_err(io_reason)?;
+                    // The timer may have been set before a partial frame came: hold on until
+                    // that frame ends (the timer is then set to `stale`).
+                    let now = Instant::now();
+                    if stale.is_none_or(|s| s <= now) {
+                        for due in self.pairing.due(now) {
+                            self.on_due(due).await.map_err(io_reason)?;
+                        }
                     }
                 }
             }
         }
     }
 
-    /// When the partial frame held by the decoder (if any) counts as stalled: no new byte for
-    /// `partial_frame_timeout`. The count is compared when the timer fires, so bytes that arrive
-    /// while the task waits restart the wait instead of ending the frame.
+    /// When the partial frame held by the decoder (if any) is dropped as noise:
+    /// `partial_frame_timeout` after it was first seen, however many bytes came since.
     fn partial_frame_deadline(&mut self) -> Option<Instant> {
-        let len = self.link.partial_len();
-        if len != self.partial.0 {
-            self.partial = (len, Instant::now());
+        if self.link.partial_len() == 0 {
+            self.partial_since = None;
+            return None;
         }
-        (len > 0).then(|| self.partial.1 + self.partial_frame_timeout)
+        let since = *self.partial_since.get_or_insert_with(Instant::now);
+        Some(after(since, self.partial_frame_timeout))
     }
 
     fn waiter(&mut self, w: Waiter) -> Token {
@@ -366,17 +385,14 @@ impl Task {
         match self.pairing.submit(req, Instant::now()) {
             Submit::Send(req) => self.transmit(req).await,
             Submit::Queued => Ok(()),
-            Submit::Refused(req) => {
-                self.refuse(id, req.token);
-                Ok(())
-            }
         }
     }
 
     /// Fails call `token` of motion command `id` with E_ALREADY_RUNNING without sending it: a
-    /// motion command of that id runs, and the device would refuse it the same way (3.2.2).
+    /// motion command of that id is on the wire, and a system-state query sent after the call
+    /// found the fingers moving, so the device would refuse it the same way (3.2.2).
     fn refuse(&mut self, id: u8, token: Token) {
-        tracing::debug!(id, "motion command refused: one of this id is running");
+        tracing::debug!(id, "motion command refused: the device moves (SF_MOVING)");
         if let Some(Waiter::Caller(tx)) = self.waiters.remove(&token) {
             let _ = tx.send(Err(Error::Device {
                 command: id,
@@ -394,12 +410,29 @@ impl Task {
                     "no (final) reply within timeout + grace: command id released; \
                     a reply arriving later would be taken for the next request of this id"
                 );
-                if let Some(Waiter::Probe { id: motion, token }) = self.waiters.remove(&token) {
-                    self.on_probe(motion, token, Observation::Unknown).await?;
+                if let Some(Waiter::Probe {
+                    id: motion,
+                    token: t,
+                }) = self.waiters.remove(&token)
+                {
+                    self.on_probe(motion, t, Observation::Unknown, token)
+                        .await?;
                 }
                 self.send_next(id).await
             }
             Due::Probe(id, token) => self.send_probe(id, token).await,
+            Due::ResendStop(id) => {
+                tracing::debug!(
+                    id,
+                    "no reply to a stop sent at or after a waiting stop call: sent again"
+                );
+                send_within(
+                    &mut self.link,
+                    &Frame::new(id, Bytes::new()),
+                    self.write_timeout,
+                )
+                .await
+            }
         }
     }
 
@@ -411,25 +444,36 @@ impl Task {
         let req = Request {
             token: probe,
             frame: Command::SystemState(UpdateMode::ONCE).to_frame(),
-            deadline: Instant::now() + self.query_timeout,
+            deadline: after(Instant::now(), self.query_timeout),
         };
         self.submit(req).await
     }
 
-    /// Hands what a probe saw to the pairing and acts on its verdict.
-    async fn on_probe(&mut self, id: u8, token: Token, seen: Observation) -> io::Result<()> {
-        match self.pairing.on_probe(id, token, seen, Instant::now()) {
+    /// Hands what probe `probe` saw to the pairing and acts on its verdict.
+    async fn on_probe(
+        &mut self,
+        id: u8,
+        token: Token,
+        seen: Observation,
+        probe: Token,
+    ) -> io::Result<()> {
+        match self
+            .pairing
+            .on_probe(id, token, seen, Instant::now(), probe)
+        {
             Verdict::Abandoned => {
                 tracing::warn!(
                     id,
                     "the final reply of a motion command was lost (the device said twice, a \
                      grace period apart, that it does not move): id released"
                 );
-                self.waiters.remove(&token);
+                if let Some(Waiter::Caller(tx)) = self.waiters.remove(&token) {
+                    let _ = tx.send(Err(Error::ReplyLost { command: id }));
+                }
                 self.send_next(id).await
             }
-            Verdict::Running => {
-                for t in self.pairing.refuse_queued(id) {
+            Verdict::Running(refused) => {
+                for t in refused {
                     self.refuse(id, t);
                 }
                 Ok(())
@@ -479,8 +523,12 @@ impl Task {
                                 reason: reason.clone(),
                             }));
                         }
-                        Some(Waiter::Probe { id: motion, token }) => {
-                            self.on_probe(motion, token, Observation::Unknown).await?;
+                        Some(Waiter::Probe {
+                            id: motion,
+                            token: t,
+                        }) => {
+                            self.on_probe(motion, t, Observation::Unknown, *token)
+                                .await?;
                         }
                         Some(Waiter::Internal) | None => {}
                     }
@@ -494,10 +542,8 @@ impl Task {
         match self.pairing.on_reply(reply) {
             Event::Accepted(_) => {
                 tracing::debug!(id, "WSG command accepted (E_CMD_PENDING)");
-                // The device runs it: motion calls of the id queued behind it are refused.
-                for t in self.pairing.refuse_queued(id) {
-                    self.refuse(id, t);
-                }
+                // Motion calls of the id queued behind it: ask the device whether it moves.
+                self.pairing.verify_queued(id, Instant::now());
             }
             Event::Stopped(tokens, reply) => {
                 for token in tokens {
@@ -519,7 +565,10 @@ impl Task {
                             );
                         }
                     }
-                    Some(Waiter::Probe { id: motion, token }) => {
+                    Some(Waiter::Probe {
+                        id: motion,
+                        token: t,
+                    }) => {
                         let seen = match SystemState::decode(&reply.data) {
                             Ok(s) if reply.status == Status::Success => {
                                 if s.contains(SystemState::MOVING) {
@@ -530,7 +579,7 @@ impl Task {
                             }
                             _ => Observation::Unknown,
                         };
-                        self.on_probe(motion, token, seen).await?;
+                        self.on_probe(motion, t, seen, token).await?;
                     }
                     Some(Waiter::Internal) | None => {}
                 }
@@ -575,7 +624,7 @@ impl Task {
         self.streams.remove(&id);
         tracing::debug!(id, "last subscriber gone: turning auto-updates off");
         let token = self.waiter(Waiter::Internal);
-        let deadline = Instant::now() + self.query_timeout;
+        let deadline = after(Instant::now(), self.query_timeout);
         self.submit(Request {
             token,
             frame: stream_command(id, UpdateMode::ONCE),
@@ -591,7 +640,7 @@ impl Task {
         if self.announce_on_close {
             let (tx, mut rx) = oneshot::channel();
             let token = self.waiter(Waiter::Caller(tx));
-            let deadline = Instant::now() + self.query_timeout;
+            let deadline = after(Instant::now(), self.query_timeout);
             let frame = Command::AnnounceDisconnect.to_frame();
             if let Err(e) = self
                 .submit(Request {

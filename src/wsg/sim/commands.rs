@@ -5,7 +5,7 @@
 
 use bytes::{BufMut, Bytes, BytesMut};
 
-use super::device::{data, f32_bytes, status, Device, Out, SessionId, SessionKind};
+use super::device::{data, f32_bytes, status, Device, Out, PowerOn, SessionId, SessionKind};
 use super::motion::{Motion, MotionKind, Profile};
 use crate::wsg::command::{Command, HomingDirection, MAX_TAG_LEN};
 use crate::wsg::{
@@ -347,9 +347,26 @@ impl Device {
                     // Only generic fingers can be switched (3.6.3); the manual names no code.
                     out.push(status(session, id, Status::AccessDenied));
                 } else if on {
-                    self.finger_power_on[i] = Some((session, self.now + 0.5));
+                    // A second power-on while one is pending joins it: both are acknowledged
+                    // and both get the final reply when the finger is on (1.3). The 500 ms are
+                    // wall time (3.6.3: "nach etwa 500 ms"), not scaled like motion.
+                    let due_wall = wall.unwrap_or(0.0)
+                        + crate::wsg::client::FINGER_POWER_ON_DURATION.as_secs_f64();
+                    let p = self.finger_power_on[i].get_or_insert(PowerOn {
+                        due_wall,
+                        owed: Vec::new(),
+                    });
+                    match p.owed.iter_mut().find(|(s, _)| *s == session) {
+                        Some((_, n)) => *n = n.saturating_add(1),
+                        None => p.owed.push((session, 1)),
+                    }
                     out.push(status(session, id, Status::CmdPending));
                 } else {
+                    // Switching off "is carried out immediately" (3.6.3), a pending power-on
+                    // included: it ends unfinished, and never switches the finger on later.
+                    if let Some(p) = self.finger_power_on[i].take() {
+                        out.extend(p.finish(id, Status::CmdAborted));
+                    }
                     self.finger_powered[i] = false;
                     ok(out);
                 }

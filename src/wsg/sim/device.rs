@@ -61,11 +61,40 @@ pub struct Device {
     pub(super) tag: Option<String>,
     pub(super) stats: GraspingStatistics,
     pub(super) finger_powered: [bool; 2],
-    /// Pending finger power-on: (session, due time).
-    pub(super) finger_power_on: [Option<(SessionId, f64)>; 2],
+    /// Pending finger power-on, per finger.
+    pub(super) finger_power_on: [Option<PowerOn>; 2],
     pub(super) sessions: BTreeMap<SessionId, SessionKind>,
     pub(super) announced: HashSet<SessionId>,
     pub(super) streams: BTreeMap<(SessionId, u8), Stream>,
+}
+
+/// A finger power-on under way (manual 3.6.3: its final reply comes "nach etwa 500 ms").
+#[derive(Debug)]
+pub(super) struct PowerOn {
+    /// When the finger is on, in **wall** seconds: switching power is electronics, not
+    /// motion, so the motion time scale does not apply.
+    pub(super) due_wall: f64,
+    /// Who is owed a final reply, and how many (1.3: every E_CMD_PENDING is followed by one).
+    /// One entry per session, so the list is bounded by the sessions, not by the requests.
+    pub(super) owed: Vec<(SessionId, u32)>,
+}
+
+impl PowerOn {
+    /// The final replies of command `id` with `result`, one per acknowledged request.
+    pub(super) fn finish(self, id: u8, result: Status) -> impl Iterator<Item = Out> {
+        self.owed
+            .into_iter()
+            .flat_map(move |(session, n)| (0..n).map(move |_| status(session, id, result)))
+    }
+}
+
+/// The command id of finger `i`'s power switch (0x62, 0x72).
+pub(super) fn finger_power_id(i: usize) -> u8 {
+    if i == 0 {
+        crate::wsg::command::id::FINGER1_POWER
+    } else {
+        crate::wsg::command::id::FINGER2_POWER
+    }
 }
 
 pub(super) fn status(session: SessionId, id: u8, s: Status) -> Out {
@@ -178,11 +207,10 @@ impl Device {
         }
     }
 
-    /// When the next motion (or finger power-on) finishes, in simulated seconds.
+    /// When the next motion finishes, in simulated seconds (a finger power-on finishes on the
+    /// wall clock: see [`Device::next_update_due`]).
     pub fn next_event(&self) -> Option<f64> {
-        let motion = self.motion.as_ref().map(Motion::end);
-        let power = self.finger_power_on.iter().flatten().map(|(_, t)| *t);
-        motion.into_iter().chain(power).reduce(f64::min)
+        self.motion.as_ref().map(Motion::end)
     }
 
     /// Advances the simulated time to `now` and returns the results of what finished.
@@ -218,15 +246,6 @@ impl Device {
                 out.push(status(m.session, m.command, result));
             }
         }
-        for (i, slot) in self.finger_power_on.iter_mut().enumerate() {
-            if let Some((session, due)) = *slot {
-                if due <= self.now {
-                    *slot = None;
-                    self.finger_powered[i] = true;
-                    out.push(status(session, 0x62 + 0x10 * i as u8, Status::Success));
-                }
-            }
-        }
         out
     }
 
@@ -246,9 +265,10 @@ impl Device {
         let mut out = self.advance(now);
         let frame = match received {
             Decoded::Corrupt { id, len } => {
-                // The manual lists E_CHECKSUM_ERROR (Anhang A) under no command and says what
-                // the device cannot read is discarded (1.2.1, "als ungültig verworfen"). Any byte
-                // of such a frame may be the broken one, its id included: an answer under that id
+                // The manual does not say how the device treats a wrong checksum: it lists
+                // E_CHECKSUM_ERROR (Anhang A) under no command, and 1.2.1 only says a frame
+                // *missing* its checksum is discarded ("als ungültig verworfen"). Any byte of
+                // such a frame may be the broken one, its id included: an answer under that id
                 // could fail a caller that sent another command with it. So by default the frame
                 // is discarded unanswered (its sender times out, as for a lost frame); see
                 // `SimConfig::answer_bad_checksum`.
@@ -466,7 +486,8 @@ mod tests {
             o[0].reply,
             Reply::new(0x90, Status::CmdUnknown, Bytes::new())
         );
-        // A frame with a bad checksum is discarded (1.2.1), unless configured otherwise.
+        // A frame with a bad checksum is discarded (the manual does not say; see `handle_at`),
+        // unless configured otherwise.
         let corrupt = Decoded::Corrupt { id: 0x43, len: 3 };
         assert_eq!(d.handle(0.0, 1, &corrupt), []);
         d.cfg.answer_bad_checksum = true;
@@ -564,5 +585,89 @@ mod tests {
         );
         assert_eq!(o[0].reply.status, Status::Success);
         assert_eq!(d.next_update_due(), Some(0.01));
+    }
+
+    fn power(d: &mut Device, session: SessionId, wall: f64, on: bool) -> Vec<Out> {
+        let f = Command::FingerPower(crate::wsg::Finger::One, on).to_frame();
+        d.handle_at(0.0, Some(wall), session, &Decoded::Frame(f))
+    }
+
+    fn powered(d: &Device) -> bool {
+        d.finger_powered[0]
+    }
+
+    /// Manual 1.3: every asynchronous command gets its final reply. A second power-on while the
+    /// first is pending is acknowledged too, and both callers get the result.
+    #[test]
+    fn two_pending_power_ons_each_get_their_final_reply() {
+        let mut d = dev();
+        d.connect(2, SessionKind::Tcp);
+        assert_eq!(
+            power(&mut d, 1, 0.0, false)[0].reply.status,
+            Status::Success
+        );
+        assert_eq!(
+            power(&mut d, 1, 10.0, true)[0].reply.status,
+            Status::CmdPending
+        );
+        assert_eq!(
+            power(&mut d, 2, 10.1, true)[0].reply.status,
+            Status::CmdPending
+        );
+        assert!(d.owes_session(1) && d.owes_session(2));
+        let due = d.next_update_due().unwrap();
+        let o = d.updates_due(due, |_| false);
+        let mut got: Vec<_> = o
+            .iter()
+            .map(|o| (o.session, o.reply.id, o.reply.status))
+            .collect();
+        got.sort_by_key(|g| g.0);
+        assert_eq!(
+            got,
+            [(1, 0x62, Status::Success), (2, 0x62, Status::Success)]
+        );
+        assert!(powered(&d));
+        assert!(!d.owes_session(1) && !d.owes_session(2));
+    }
+
+    /// Manual 3.6.3: switching off "is carried out immediately", also while a power-on is
+    /// pending; the pending power-on ends (E_CMD_ABORTED) and never switches the finger on.
+    #[test]
+    fn power_off_while_a_power_on_is_pending_wins_at_once() {
+        let mut d = dev();
+        power(&mut d, 1, 0.0, false);
+        assert_eq!(
+            power(&mut d, 1, 1.0, true)[0].reply.status,
+            Status::CmdPending
+        );
+        let o = power(&mut d, 1, 1.2, false);
+        let got: Vec<_> = o.iter().map(|o| (o.reply.id, o.reply.status)).collect();
+        assert_eq!(got, [(0x62, Status::CmdAborted), (0x62, Status::Success)]);
+        assert!(!powered(&d));
+        assert!(d.updates_due(100.0, |_| false).is_empty());
+        assert!(
+            !powered(&d),
+            "the aborted power-on must not switch the finger on later"
+        );
+    }
+
+    /// The 500 ms of a power-on (3.6.3) are wall time: the motion time scale does not stretch
+    /// them (nor make them instant), and the simulated motion clock does not complete them.
+    #[test]
+    fn power_on_takes_500_ms_of_wall_time_whatever_the_motion_clock() {
+        let mut d = dev();
+        power(&mut d, 1, 0.0, false);
+        assert_eq!(
+            power(&mut d, 1, 5.0, true)[0].reply.status,
+            Status::CmdPending
+        );
+        assert!(
+            d.advance(1.0e6).is_empty(),
+            "the motion clock does not finish it"
+        );
+        assert_eq!(d.next_update_due(), Some(5.5));
+        assert!(d.updates_due(5.49, |_| false).is_empty());
+        assert_eq!(d.updates_due(5.5, |_| false).len(), 1);
+        assert!(powered(&d));
     }
 }

@@ -33,8 +33,9 @@
 //! - **Bytes that make no frame**: a partial frame that gets no new byte for
 //!   [`DEFAULT_PARTIAL_FRAME_TIMEOUT`](crate::wsg::client::DEFAULT_PARTIAL_FRAME_TIMEOUT) is
 //!   dropped as noise, as the client does. A frame with a bad checksum is discarded unanswered:
-//!   the manual lists E_CHECKSUM_ERROR (Anhang A) under no command and discards what it cannot
-//!   read (1.2.1), and an answer under a possibly corrupted id could fail an unrelated caller.
+//!   the manual does not say what the device does with one (it lists E_CHECKSUM_ERROR in
+//!   Anhang A under no command; 1.2.1 only discards frames *missing* their checksum), and an
+//!   answer under a possibly corrupted id could fail an unrelated caller.
 //!   [`SimConfig::answer_bad_checksum`] answers E_CHECKSUM_ERROR instead, to test a client's
 //!   handling of that code.
 //!

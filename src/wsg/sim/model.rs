@@ -99,7 +99,8 @@ pub struct SimConfig {
     /// Wall seconds per simulated second of motion: 0.0 makes motion instant (the default of
     /// [`SimConfig::new`], for tests), 1.0 is real time (the default of the standalone
     /// simulators, [`SimConfig::standalone`]), 1000.0 makes a move last long enough to be
-    /// stopped. Auto-update periods are always wall-clock periods.
+    /// stopped. Auto-update periods and the 500 ms of a finger power-on (3.6.3) are always
+    /// wall-clock time.
     pub time_scale: f64,
     /// Distance a grasp travels past its nominal width before reporting "no part", mm.
     pub clamping_travel_mm: f32,
@@ -123,9 +124,10 @@ pub struct SimConfig {
     pub fingers: [SimFinger; 2],
     /// Answer a frame with a bad checksum with E_CHECKSUM_ERROR under the id it carries, instead
     /// of discarding it (the default). The manual names the code (Anhang A) but lists it under
-    /// no command, and says frames the device cannot read are discarded (1.2.1); since the id
-    /// of a corrupted frame may be the corrupted byte, such an answer can fail a caller that
-    /// sent another command with that id. Turn it on to test a client's handling of the code.
+    /// no command and does not say how a wrong checksum is treated (1.2.1 only discards frames
+    /// *missing* their checksum); since the id of a corrupted frame may be the corrupted byte,
+    /// such an answer can fail a caller that sent another command with that id. Turn it on to
+    /// test a client's handling of the code.
     pub answer_bad_checksum: bool,
     /// The device's "UDP remote port" setting (web interface, "Settings -> Command
     /// Interface"): UDP replies go to the sender's IP address at this port, whatever port the

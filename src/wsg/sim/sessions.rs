@@ -5,9 +5,9 @@
 
 use bytes::Bytes;
 
-use super::device::{data, f32_bytes, Device, Out, SessionId, SessionKind};
+use super::device::{data, f32_bytes, finger_power_id, Device, Out, SessionId, SessionKind};
 use crate::wsg::command::{id, UpdateMode};
-use crate::wsg::GripState;
+use crate::wsg::{GripState, Status};
 
 /// The shortest auto-update period, ms: "Der minimale zulässige Wert beträgt 10 ms" (3.4.1,
 /// 3.4.2, 3.4.4–3.4.6).
@@ -71,7 +71,7 @@ impl Device {
                 .finger_power_on
                 .iter()
                 .flatten()
-                .any(|(s, _)| *s == session)
+                .any(|p| p.owed.iter().any(|(s, _)| *s == session))
     }
 
     /// Answers 0x40–0x45's flags and period (3.4.1): the value now, and with FLAGS bit0 set
@@ -131,9 +131,14 @@ impl Device {
         self.streams.len()
     }
 
-    /// When the next auto-update is due (wall seconds).
+    /// When the next auto-update or finger power-on is due (wall seconds).
     pub fn next_update_due(&self) -> Option<f64> {
-        self.streams.values().map(|s| s.next_due).reduce(f64::min)
+        let power = self.finger_power_on.iter().flatten().map(|p| p.due_wall);
+        self.streams
+            .values()
+            .map(|s| s.next_due)
+            .chain(power)
+            .reduce(f64::min)
     }
 
     /// The auto-updates due at wall time `wall` (after [`Device::advance`] to the current
@@ -141,14 +146,22 @@ impl Device {
     /// threshold (3.4.4–3.4.6: 0.01 mm, 0.05 mm/s, 0.05 N; any change of flags or state).
     /// Sessions for which `paused` is true get none this time (their next one is a period
     /// later): the server pauses a connection whose client does not read its replies.
+    ///
+    /// Finger power-ons due by `wall` finish here too (their 500 ms are wall time, 3.6.3).
     pub fn updates_due(&mut self, wall: f64, paused: impl Fn(SessionId) -> bool) -> Vec<Out> {
+        let mut out = Vec::new();
+        for i in 0..self.finger_power_on.len() {
+            if let Some(p) = self.finger_power_on[i].take_if(|p| p.due_wall <= wall) {
+                self.finger_powered[i] = true;
+                out.extend(p.finish(finger_power_id(i), Status::Success));
+            }
+        }
         let due: Vec<(SessionId, u8)> = self
             .streams
             .iter()
             .filter(|(_, s)| s.next_due <= wall)
             .map(|(k, _)| *k)
             .collect();
-        let mut out = Vec::new();
         for (session, id) in due {
             let value = self.streamed_value(id);
             let Some(s) = self.streams.get_mut(&(session, id)) else {

@@ -77,7 +77,7 @@ pub(super) async fn serve_udp(socket: Arc<UdpSocket>, parts: Parts, settings: Ud
                     Some(port) => SocketAddr::new(from.ip(), port),
                     None => from,
                 };
-                let expires = Instant::now() + settings.idle_timeout;
+                let expires = crate::deadline::after(Instant::now(), settings.idle_timeout);
                 let session = match peers.get_mut(&reply_to) {
                     Some(peer) => {
                         peer.expires = expires;
