@@ -314,10 +314,7 @@ async fn recovery(ctx: &ClientCtx, log: &Log, trace: &SharedTrace) -> Vec<String
         limit: Some(ctx.query_timeout),
         res: match r {
             Ok(_) => Res::Ok(workload::Expect::Success),
-            Err(e) => match e {
-                gripper::wsg::Error::ConnectionLost(_) => Res::Lost,
-                other => Res::Other(format!("{other:?}")),
-            },
+            Err(e) => workload::classify(&e),
         },
     });
     v

@@ -192,17 +192,30 @@ fn check_client(
             )),
         }
     }
+    // ReplyLost: the client gave the final reply up only after the device acknowledged the
+    // motion (E_CMD_PENDING) during the call.
+    for c in calls.iter().filter(|c| matches!(c.res, Res::ReplyLost(_))) {
+        let Res::ReplyLost(cmd) = c.res else { continue };
+        let acked = sent.iter().any(|s| {
+            s.id == cmd && s.status == Status::CmdPending && s.at >= c.start && s.at <= c.end
+        });
+        if !acked {
+            v.push(format!(
+                "4 (a status is the device's): {} {} ended ReplyLost, but the device acknowledged no {cmd:#04x} of this client during the call",
+                c.who, c.op
+            ));
+        }
+    }
+    // An update may be any value of that id the device sent this client before it was
+    // received: a stream shared by several subscribers (3.4.1: one stream per value) may hand a
+    // new one a value sent just before it subscribed, which is still the device's.
     for u in updates.iter().filter(|u| u.client == ci) {
         let ok = sent.iter().any(|s| {
-            s.id == u.id
-                && s.status == Status::Success
-                && s.data == u.data
-                && s.at >= u.since
-                && s.at <= u.at
+            s.id == u.id && s.status == Status::Success && s.data == u.data && s.at <= u.at
         });
         if !ok {
             v.push(format!(
-                "2 (each answer is the device's): client {ci} received an auto-update {:02x?} of {:#04x} at {} that the device did not send it since the subscription",
+                "2 (each answer is the device's): client {ci} received an auto-update {:02x?} of {:#04x} at {} that the device never sent it",
                 u.data, u.id, t(u.at, t0)
             ));
         }
@@ -236,7 +249,8 @@ fn motion_running(
                         return true;
                     }
                     running = true;
-                } else if at < start {
+                } else if at < start && *status != Status::AlreadyRunning {
+                    // E_ALREADY_RUNNING refuses a duplicate; it does not end the motion.
                     running = false;
                 }
             }

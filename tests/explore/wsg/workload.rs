@@ -39,6 +39,8 @@ pub enum Res {
     Device(u8, Status),
     /// `Error::Timeout`.
     Timeout,
+    /// `Error::ReplyLost`: the device must have acknowledged this motion during the call.
+    ReplyLost(u8),
     /// `Error::ConnectionLost`.
     Lost,
     /// `Error::Closed`.
@@ -81,9 +83,7 @@ pub struct Update {
     pub id: u8,
     /// The value's bytes as the device would send them.
     pub data: Vec<u8>,
-    /// When the subscription was made, and when the value was received.
-    pub since: Instant,
-    /// See `since`.
+    /// When the value was received.
     pub at: Instant,
 }
 
@@ -141,10 +141,12 @@ pub struct Log {
     pub unique: AtomicU32,
 }
 
-fn classify(e: &Error) -> Res {
+/// How an error counts for the oracle.
+pub fn classify(e: &Error) -> Res {
     match e {
         Error::Device { command, status } => Res::Device(*command, *status),
         Error::Timeout { .. } => Res::Timeout,
+        Error::ReplyLost { command } => Res::ReplyLost(*command),
         Error::ConnectionLost(_) => Res::Lost,
         Error::Closed => Res::Closed,
         Error::SubscriptionConflict { .. } => Res::Conflict,
@@ -226,7 +228,14 @@ async fn one_call(
         17 => ("request(0x46)".into(), id::TEMPERATURE, q),
         18 => ("request(0x50)".into(), id::SYSTEM_INFO, q),
         19 | 20 => ("subscribe_width_mm".into(), id::WIDTH, q),
-        _ => ("close".into(), id::ANNOUNCE_DISCONNECT, q),
+        // close() documents no bound of its own: the task may be in a write (bounded by
+        // query timeout + grace) when it gets the request, then waits for the announcement's
+        // reply (query timeout), then shuts the transport down (query timeout + grace).
+        _ => (
+            "close".into(),
+            id::ANNOUNCE_DISCONNECT,
+            q.saturating_add(2 * ctx.query_timeout.saturating_add(ctx.grace)),
+        ),
     };
     let payload = Bytes::from(format!("explore-{unique}").into_bytes());
     let period = rng.millis(10, 200);
@@ -264,7 +273,6 @@ async fn one_call(
                 Ok(Expect::Exact(r.status, r.data.to_vec()))
             }
             19 | 20 => {
-                let since = Instant::now();
                 let mut sub = cl
                     .subscribe_width_mm(UpdateOptions::periodic(period))
                     .await?;
@@ -283,7 +291,6 @@ async fn one_call(
                                 client,
                                 id: id::WIDTH,
                                 data: f32_data(v),
-                                since,
                                 at: Instant::now(),
                             }),
                             _ => break,
