@@ -30,14 +30,7 @@ impl DatagramProfile {
         if level == 0 {
             return DatagramProfile::default();
         }
-        let mut pick = |base: u64| {
-            if rng.one_in(4) {
-                0
-            } else {
-                rng.between(base / u64::from(level), 4 * base / u64::from(level))
-                    .max(2)
-            }
-        };
+        let mut pick = |base: u64| rng.fault_rate(level, base, 4);
         DatagramProfile {
             loss: pick(20),
             duplicate: pick(20),

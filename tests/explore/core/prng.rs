@@ -50,6 +50,16 @@ impl Prng {
         std::time::Duration::from_millis(self.between(lo_ms, hi_ms))
     }
 
+    /// How often a fault hits, as "one in `n`", for fault intensity `level` (1–3): never with
+    /// probability `1 / off_one_in`, else `base / level` to `4 × base / level` (at least 2).
+    pub fn fault_rate(&mut self, level: u32, base: u64, off_one_in: u64) -> u64 {
+        if level == 0 || self.one_in(off_one_in) {
+            return 0;
+        }
+        let level = u64::from(level);
+        self.between(base / level, 4 * base / level).max(2)
+    }
+
     /// An independent generator for one component (a fixed number of draws from this one).
     pub fn fork(&mut self) -> Prng {
         Prng::new(self.next_u64())

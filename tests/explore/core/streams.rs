@@ -47,14 +47,7 @@ impl StreamProfile {
             return StreamProfile::default();
         }
         // Higher levels make each fault more likely (smaller `n`).
-        let mut pick = |base: u64| {
-            if rng.one_in(3) {
-                0
-            } else {
-                rng.between(base / u64::from(level), 4 * base / u64::from(level))
-                    .max(2)
-            }
-        };
+        let mut pick = |base: u64| rng.fault_rate(level, base, 3);
         StreamProfile {
             delay: pick(6),
             split: pick(8),

@@ -58,6 +58,22 @@ impl Outbox {
     }
 }
 
+/// Tells the actor that session `session` opened; returns where its replies arrive, or `None`
+/// if the actor is gone (the server shut down).
+pub(super) async fn connect(
+    events: &mpsc::Sender<Event>,
+    session: SessionId,
+    kind: SessionKind,
+) -> Option<Inbox> {
+    let (outbox, inbox) = Outbox::new();
+    let connected = Event::Connected {
+        session,
+        kind,
+        outbox,
+    };
+    events.send(connected).await.ok().map(|()| inbox)
+}
+
 /// The connection's end of an [`Outbox`].
 #[derive(Debug)]
 pub(super) struct Inbox {

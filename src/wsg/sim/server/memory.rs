@@ -8,7 +8,7 @@
 use bytes::{Bytes, BytesMut};
 use tokio::sync::{mpsc, watch};
 
-use super::actor::{Event, Outbox};
+use super::actor::{self, Event};
 use crate::wsg::frame::{self, DEFAULT_MAX_PAYLOAD_LEN};
 use crate::wsg::sim::device::{SessionId, SessionKind};
 
@@ -22,19 +22,9 @@ pub(super) async fn serve_datagrams(
     events: mpsc::Sender<Event>,
     mut shutdown: watch::Receiver<bool>,
 ) {
-    let (outbox, mut inbox) = Outbox::new();
-    let kind = SessionKind::Udp;
-    if events
-        .send(Event::Connected {
-            session,
-            kind,
-            outbox,
-        })
-        .await
-        .is_err()
-    {
+    let Some(mut inbox) = actor::connect(&events, session, SessionKind::Udp).await else {
         return;
-    }
+    };
     let mut reading = true;
     loop {
         tokio::select! {
