@@ -14,7 +14,8 @@
 //! - `--determinism N` — seeds per variant run twice and compared (default 1);
 //! - `--until-fail N` — fresh seeds until one fails, at most `N` runs per variant; exits 0 and
 //!   says after how many runs if one did (for the planted-bug table), 1 if none did;
-//! - `--kind TEXT` — with `--until-fail`: only a violation containing `TEXT` counts;
+//! - `--kind TEXT` — only a violation containing `TEXT` counts (with `--until-fail`), or
+//!   count the fresh runs with such a violation (with `--seeds`/`--budget-secs`);
 //! - `--no-regressions` — skip the regression seeds;
 //! - `--strict` — known open findings (`tests/explore/known.txt`) fail a run too;
 //! - `--no-shrink` — do not shrink failures (long runs); failures are summarised by kind, with
@@ -376,6 +377,7 @@ fn main() -> ExitCode {
 
     let wall = Instant::now();
     let (mut runs, mut simulated, mut failures, mut known_runs) = (0u64, 0f64, 0u64, 0u64);
+    let mut of_kind = 0u64;
     let mut kinds: std::collections::BTreeMap<String, (u64, Vec<String>)> = Default::default();
     println!("fresh seeds from {base:#018x}");
     let mut i = 0u64;
@@ -393,6 +395,9 @@ fn main() -> ExitCode {
         let out = run_one(s, v, seed, Caps::FULL);
         runs += 1;
         simulated += out.simulated.as_secs_f64();
+        if let Some(k) = &o.kind {
+            of_kind += u64::from(out.violations.iter().any(|v| v.contains(k.as_str())));
+        }
         if !out.violations.is_empty() {
             if is_known(&out) {
                 known_runs += 1;
@@ -434,6 +439,9 @@ fn main() -> ExitCode {
         }
     }
     let secs = wall.elapsed().as_secs_f64();
+    if let Some(k) = &o.kind {
+        println!("kind {k:?}: in {of_kind} of {runs} runs");
+    }
     println!(
         "explore: {runs} runs in {secs:.1} s ({:.1} seeds/s), {:.3} simulated hours, {failures} failed, {known_runs} failed only on known open findings",
         runs as f64 / secs.max(1e-9),

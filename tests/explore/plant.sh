@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Shows that the explorer can fail (issue 20): applies each planted bug (tests/explore/planted/*.py)
 # in a throwaway worktree of HEAD, never in this tree, builds the explorer there and runs fresh
-# seeds until one fails (`--until-fail RUNS --strict`), per variant: the runs needed to catch it.
+# seeds, the same ones with and without the bug: the runs needed to catch it (`--until-fail`),
+# and how many of RUNS fresh runs per variant show the bug's violation (`--kind`).
 # Usage: tests/explore/plant.sh [RUNS] [--only VARIANT]
 set -euo pipefail
 root=$(git rev-parse --show-toplevel)
@@ -26,11 +27,16 @@ for bug in "$root"/tests/explore/planted/[0-9]*.py; do
   echo "== $name (violation: $kind)"
   echo "-- without the bug:"
   "$baseline" --until-fail "$runs" --kind "$kind" --start 0x91a7 "$@" || true
+  "$baseline" --seeds "$runs" --kind "$kind" --start 0x91a7 --no-regressions --determinism 0 \
+    --no-shrink --strict "$@" 2>/dev/null | grep -E '^(kind|explore)' || true
   git -C "$tree" checkout --quiet -- .
   if ! (cd "$root/tests/explore/planted" && python3 "$bug" "$tree"); then
     echo "-- not applied"
     continue
   fi
   echo "-- with the bug:"
-  "$(explorer)" --until-fail "$runs" --kind "$kind" --start 0x91a7 "$@" || true
+  planted=$(explorer)
+  "$planted" --until-fail "$runs" --kind "$kind" --start 0x91a7 "$@" || true
+  "$planted" --seeds "$runs" --kind "$kind" --start 0x91a7 --no-regressions --determinism 0 \
+    --no-shrink --strict "$@" 2>/dev/null | grep -E '^(kind|explore)' || true
 done
