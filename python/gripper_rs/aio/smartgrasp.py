@@ -1,8 +1,8 @@
-"""The smartgrasp client for asyncio (``gripper.smartgrasp`` has the types and the simulator)."""
+"""The smartgrasp client for asyncio (``gripper_rs.smartgrasp`` has the types and the simulator)."""
 
 from __future__ import annotations
 
-from gripper import _native
+from gripper_rs import _native
 
 __all__ = ["Client"]
 

@@ -1,8 +1,8 @@
-"""The WSG client for asyncio (``gripper.wsg`` has the types and the simulator)."""
+"""The WSG client for asyncio (``gripper_rs.wsg`` has the types and the simulator)."""
 
 from __future__ import annotations
 
-from gripper import _native
+from gripper_rs import _native
 
 __all__ = ["Client"]
 
