@@ -16,7 +16,7 @@ import socket
 import statistics
 import time
 
-from gripper import _native, wsg
+from gripper_rs import _native, wsg
 
 
 def percentiles(samples_ns: list[int]) -> tuple[float, float, float]:
@@ -70,10 +70,10 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, default=3, help="alternating rounds of each")
     args = parser.parse_args()
     print(f"load average before: {os.getloadavg()}")
-    results: dict[str, list[int]] = {"gripper (package)": [], "raw Python socket": []}
+    results: dict[str, list[int]] = {"gripper_rs (package)": [], "raw Python socket": []}
     with wsg.sim.SimServer() as sim:
         for _ in range(args.rounds):
-            results["gripper (package)"] += bench_package(sim.address, args.calls)
+            results["gripper_rs (package)"] += bench_package(sim.address, args.calls)
             results["raw Python socket"] += bench_raw(sim.address, args.calls)
     print(f"load average after: {os.getloadavg()}")
     print(f"{'':20} {'calls':>7} {'p50 µs':>8} {'p90 µs':>8} {'p99 µs':>8}")

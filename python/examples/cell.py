@@ -11,20 +11,20 @@ import argparse
 import asyncio
 import contextlib
 
-import gripper.aio
-from gripper import griplink, smartgrasp, wsg
-from gripper.smartgrasp import GraspMode, PoseFormat, Tool
+import gripper_rs.aio
+from gripper_rs import griplink, smartgrasp, wsg
+from gripper_rs.smartgrasp import GraspMode, PoseFormat, Tool
 
 
-async def watch_width(client: gripper.aio.wsg.Client, widths: list[float]) -> None:
+async def watch_width(client: gripper_rs.aio.wsg.Client, widths: list[float]) -> None:
     async for width in await client.subscribe_width_mm(0.02, on_change=True):
         widths.append(width)
 
 
 async def cell(wsg_addr: str, griplink_addr: str, kit_addr: str) -> None:
-    kit = await gripper.aio.smartgrasp.Client.connect(kit_addr)
-    hand = await gripper.aio.wsg.Client.connect_tcp(wsg_addr)
-    fixture_controller = await gripper.aio.griplink.Client.connect(griplink_addr)
+    kit = await gripper_rs.aio.smartgrasp.Client.connect(kit_addr)
+    hand = await gripper_rs.aio.wsg.Client.connect_tcp(wsg_addr)
+    fixture_controller = await gripper_rs.aio.griplink.Client.connect(griplink_addr)
     async with kit, hand, fixture_controller:
         fixture = fixture_controller.port(0)
         await asyncio.gather(hand.home(), fixture.home())

@@ -10,7 +10,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 
-from gripper import griplink
+from gripper_rs import griplink
 
 
 def grip(address: str) -> None:

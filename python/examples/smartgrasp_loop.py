@@ -10,8 +10,8 @@ from __future__ import annotations
 import argparse
 import contextlib
 
-from gripper import smartgrasp
-from gripper.smartgrasp import GetGraspOutcome, GraspMode, PoseFormat, RobotSystem, Tool
+from gripper_rs import smartgrasp
+from gripper_rs.smartgrasp import GetGraspOutcome, GraspMode, PoseFormat, RobotSystem, Tool
 
 
 def loop(address: str, picks: int) -> None:

@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 
-from gripper import wsg
+from gripper_rs import wsg
 
 
 def pick(address: str) -> None:

@@ -1,5 +1,5 @@
 //! Rust values to Python objects: plain values directly, the protocols' enums and records as the
-//! Python classes of the package (`gripper.wsg.GripState`, ...), so that they are `IntEnum`s and
+//! Python classes of the package (`gripper_rs.wsg.GripState`, ...), so that they are `IntEnum`s and
 //! dataclasses a type checker knows.
 
 use pyo3::prelude::*;

@@ -1,4 +1,4 @@
-//! Rust errors to the package's exception hierarchy (`gripper/errors.py`): one base class,
+//! Rust errors to the package's exception hierarchy (`gripper_rs/errors.py`): one base class,
 //! `DeviceError` with the device's code, name and description, `TimeoutError` (a builtin
 //! `TimeoutError`), `ConnectionLostError`, `ClosedError`, `MalformedReplyError`,
 //! `InvalidArgumentError` (a `ValueError`) and `TransportError` (an `OSError`).
@@ -7,7 +7,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use pyo3::IntoPyObjectExt;
 
-const ERRORS: &str = "gripper.errors";
+const ERRORS: &str = "gripper_rs.errors";
 
 /// The exception `class(message, **attrs)`; if the package itself is broken, that error instead.
 pub fn raise(class: &str, message: String, attrs: &[(&str, Py<PyAny>)]) -> PyErr {

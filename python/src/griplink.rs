@@ -1,5 +1,5 @@
-//! `gripper.griplink`: the GRIPLINK client and its ports (blocking and asyncio) and
-//! `gripper.griplink.sim.SimServer`.
+//! `gripper_rs.griplink`: the GRIPLINK client and its ports (blocking and asyncio) and
+//! `gripper_rs.griplink.sim.SimServer`.
 
 use std::collections::HashMap;
 use std::net::SocketAddr;
@@ -17,7 +17,7 @@ use crate::runtime::{self, seconds};
 use crate::sim::Slot;
 use crate::stream::Stream;
 
-const PY: &str = "gripper.griplink";
+const PY: &str = "gripper_rs.griplink";
 
 /// A GRIPLINK error as the package's exception.
 pub fn error(e: Error) -> PyErr {
@@ -173,13 +173,13 @@ fn config(
 
 /// A GRIPLINK controller (blocking API). `client.port(n)` is the device on port n. `with`
 /// closes the connection (BYE).
-#[pyclass(module = "gripper.griplink", name = "Client", frozen)]
+#[pyclass(module = "gripper_rs.griplink", name = "Client", frozen)]
 pub struct Client {
     inner: griplink::Client,
 }
 
-/// A GRIPLINK controller (asyncio API): the methods of `gripper.griplink.Client` as awaitables.
-#[pyclass(module = "gripper.aio.griplink", name = "Client", frozen)]
+/// A GRIPLINK controller (asyncio API): the methods of `gripper_rs.griplink.Client` as awaitables.
+#[pyclass(module = "gripper_rs.aio.griplink", name = "Client", frozen)]
 pub struct AioClient {
     inner: griplink::Client,
 }
@@ -304,13 +304,13 @@ fn watch_value(port: &griplink::Port, index: u32, interval_s: f64) -> PyResult<S
 // ---- a port --------------------------------------------------------------------------------
 
 /// The device on one port of a GRIPLINK controller (blocking API).
-#[pyclass(module = "gripper.griplink", name = "Port", frozen)]
+#[pyclass(module = "gripper_rs.griplink", name = "Port", frozen)]
 pub struct Port {
     inner: griplink::Port,
 }
 
 /// The device on one port of a GRIPLINK controller (asyncio API).
-#[pyclass(module = "gripper.aio.griplink", name = "Port", frozen)]
+#[pyclass(module = "gripper_rs.aio.griplink", name = "Port", frozen)]
 pub struct AioPort {
     inner: griplink::Port,
 }
@@ -444,7 +444,7 @@ twins! {
 // ---- the simulator -------------------------------------------------------------------------
 
 /// A simulated GRIPLINK controller serving TCP in this process.
-#[pyclass(module = "gripper.griplink.sim", name = "SimServer", frozen)]
+#[pyclass(module = "gripper_rs.griplink.sim", name = "SimServer", frozen)]
 pub struct SimServer {
     server: Slot<griplink::sim::SimServer>,
     addr: SocketAddr,
@@ -478,7 +478,7 @@ impl SimServer {
 }
 
 // `address`, `port`, `shutdown`, `with` and `repr` come with the macro (crate::sim).
-sim_pymethods! { SimServer, "gripper.griplink.sim.SimServer";
+sim_pymethods! { SimServer, "gripper_rs.griplink.sim.SimServer";
     /// Starts a simulated controller on `addr`. `preset` is the Rust `SimConfig` constructor
     /// ("ET4": a GRIPLINK-ET4 with an IEG 55-020 on port 0 and a CRG 200-085 on port 2; "WPG":
     /// a WPG 100-090); `devices` replaces devices by port (a name, or None for an empty port),
@@ -605,7 +605,7 @@ fn status_codes() -> Vec<(u32, &'static str, &'static str)> {
         .collect()
 }
 
-/// `gripper._native.griplink`.
+/// `gripper_rs._native.griplink`.
 pub fn module(py: Python<'_>) -> PyResult<Bound<'_, PyModule>> {
     let m = PyModule::new(py, "griplink")?;
     m.add_class::<Client>()?;

@@ -1,5 +1,5 @@
-//! `gripper._native`: the compiled half of the `gripper` Python package, a thin layer over the
-//! `gripper` crate. The Python half (`python/gripper/`) defines the exceptions, enums and
+//! `gripper_rs._native`: the compiled half of the `gripper_rs` Python package, a thin layer over
+//! the `gripper` crate. The Python half (`python/gripper_rs/`) defines the exceptions, enums and
 //! records these bindings build, and re-exports the classes under the Rust API's module names.
 #![forbid(unsafe_code)]
 

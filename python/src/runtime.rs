@@ -73,7 +73,7 @@ where
 /// How long [`quiesce`] waits at most for the runtime's tasks to end.
 const QUIESCE_LIMIT: Duration = Duration::from_millis(500);
 
-/// Called at interpreter exit (`atexit`, registered by `gripper/__init__.py`), while Python is
+/// Called at interpreter exit (`atexit`, registered by `gripper_rs/__init__.py`), while Python is
 /// still whole: waits, with the GIL released, until no task is left on the runtime (or
 /// [`QUIESCE_LIMIT`] passed), then a moment more for the completions those tasks handed to
 /// the blocking pool. An asyncio call's completion attaches to Python from a runtime thread

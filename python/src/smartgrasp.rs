@@ -1,5 +1,5 @@
-//! `gripper.smartgrasp`: the Grasping-Kit client (blocking and asyncio) and
-//! `gripper.smartgrasp.sim.SimServer`.
+//! `gripper_rs.smartgrasp`: the Grasping-Kit client (blocking and asyncio) and
+//! `gripper_rs.smartgrasp.sim.SimServer`.
 
 use std::net::SocketAddr;
 
@@ -15,7 +15,7 @@ use crate::errors;
 use crate::runtime::{self, seconds};
 use crate::sim::Slot;
 
-const PY: &str = "gripper.smartgrasp";
+const PY: &str = "gripper_rs.smartgrasp";
 
 /// A SmartGrasp error as the package's exception.
 pub fn error(e: Error) -> PyErr {
@@ -254,13 +254,13 @@ fn pose(format: u8, wire: [i32; 7]) -> PyResult<Pose> {
 // ---- the client ----------------------------------------------------------------------------
 
 /// A SCHUNK 2D Grasping-Kit (blocking API). `with` closes the connection.
-#[pyclass(module = "gripper.smartgrasp", name = "Client", frozen)]
+#[pyclass(module = "gripper_rs.smartgrasp", name = "Client", frozen)]
 pub struct Client {
     inner: smartgrasp::Client,
 }
 
 /// A SCHUNK 2D Grasping-Kit (asyncio API).
-#[pyclass(module = "gripper.aio.smartgrasp", name = "Client", frozen)]
+#[pyclass(module = "gripper_rs.aio.smartgrasp", name = "Client", frozen)]
 pub struct AioClient {
     inner: smartgrasp::Client,
 }
@@ -405,7 +405,7 @@ twins! {
 
 /// A simulated Grasping-Kit serving TCP in this process (the Rust `SimConfig::default()`: the
 /// demo project, operational).
-#[pyclass(module = "gripper.smartgrasp.sim", name = "SimServer", frozen)]
+#[pyclass(module = "gripper_rs.smartgrasp.sim", name = "SimServer", frozen)]
 pub struct SimServer {
     server: Slot<smartgrasp::sim::SimServer>,
     addr: SocketAddr,
@@ -422,7 +422,7 @@ impl SimServer {
 }
 
 // `address`, `port`, `shutdown`, `with` and `repr` come with the macro (crate::sim).
-sim_pymethods! { SimServer, "gripper.smartgrasp.sim.SimServer";
+sim_pymethods! { SimServer, "gripper_rs.smartgrasp.sim.SimServer";
     /// Starts a simulated Grasping-Kit on `addr`; `server_state` and `max_version` are the
     /// Rust `SimConfig`'s (defaults: OPERATIONAL, 4; 3 acts as a V3-only server).
     #[new]
@@ -495,7 +495,7 @@ sim_pymethods! { SimServer, "gripper.smartgrasp.sim.SimServer";
 
 }
 
-/// `gripper._native.smartgrasp`.
+/// `gripper_rs._native.smartgrasp`.
 pub fn module(py: Python<'_>) -> PyResult<Bound<'_, PyModule>> {
     let m = PyModule::new(py, "smartgrasp")?;
     m.add_class::<Client>()?;

@@ -30,7 +30,7 @@ type Shared = Arc<tokio::sync::Mutex<Option<Boxed>>>;
 
 /// A stream of values: `for v in stream` blocks for each (Ctrl-C ends the wait),
 /// `async for v in stream` awaits each. Ends when the connection does; `close()` ends it early.
-#[pyclass(module = "gripper", name = "Stream")]
+#[pyclass(module = "gripper_rs", name = "Stream")]
 pub struct Stream {
     inner: Shared,
 }

@@ -1,4 +1,4 @@
-//! `gripper.wsg`: the WSG client (blocking and asyncio) and `gripper.wsg.sim.SimServer`.
+//! `gripper_rs.wsg`: the WSG client (blocking and asyncio) and `gripper_rs.wsg.sim.SimServer`.
 
 use std::net::SocketAddr;
 
@@ -15,7 +15,7 @@ use crate::runtime::{self, seconds};
 use crate::sim::Slot;
 use crate::stream::Stream;
 
-const PY: &str = "gripper.wsg";
+const PY: &str = "gripper_rs.wsg";
 
 /// A WSG error as the package's exception.
 pub fn error(e: Error) -> PyErr {
@@ -239,14 +239,14 @@ async fn resolve(addr: &str) -> wsg::Result<SocketAddr> {
 /// A WSG gripper (blocking API): every method waits for the device's reply with the GIL
 /// released; any number of threads may share one client. `with` closes it (announcing the
 /// disconnect, command 0x07, so the gripper does not FAST STOP).
-#[pyclass(module = "gripper.wsg", name = "Client", frozen)]
+#[pyclass(module = "gripper_rs.wsg", name = "Client", frozen)]
 pub struct Client {
     inner: wsg::Client,
 }
 
-/// A WSG gripper (asyncio API): the same methods as `gripper.wsg.Client`, as awaitables.
+/// A WSG gripper (asyncio API): the same methods as `gripper_rs.wsg.Client`, as awaitables.
 /// Cancelling one leaves the client usable and its replies correctly paired.
-#[pyclass(module = "gripper.aio.wsg", name = "Client", frozen)]
+#[pyclass(module = "gripper_rs.aio.wsg", name = "Client", frozen)]
 pub struct AioClient {
     inner: wsg::Client,
 }
@@ -318,7 +318,7 @@ twins! {
 
 
         fn __repr__(&self) -> String {
-            format!("<gripper.wsg.Client over {:?}>", self.inner.transport())
+            format!("<gripper_rs.wsg.Client over {:?}>", self.inner.transport())
         }
     }
     aio {
@@ -365,7 +365,7 @@ twins! {
 
 
         fn __repr__(&self) -> String {
-            format!("<gripper.aio.wsg.Client over {:?}>", self.inner.transport())
+            format!("<gripper_rs.aio.wsg.Client over {:?}>", self.inner.transport())
         }
     }
 
@@ -470,7 +470,7 @@ async fn close_for_exit(c: wsg::Client) -> wsg::Result<()> {
 
 /// A simulated WSG gripper serving TCP (or UDP) in this process, for tests and examples.
 /// `with SimServer() as sim:` stops it at the end of the block.
-#[pyclass(module = "gripper.wsg.sim", name = "SimServer", frozen)]
+#[pyclass(module = "gripper_rs.wsg.sim", name = "SimServer", frozen)]
 pub struct SimServer {
     server: Slot<wsg::sim::SimServer>,
     addr: SocketAddr,
@@ -500,7 +500,7 @@ impl SimServer {
 }
 
 // `address`, `port`, `shutdown`, `with` and `repr` come with the macro (crate::sim).
-sim_pymethods! { SimServer, "gripper.wsg.sim.SimServer";
+sim_pymethods! { SimServer, "gripper_rs.wsg.sim.SimServer";
     /// Starts a simulator on `addr` (port 0: a free port; see `address`). The options are the
     /// Rust `SimConfig`'s: the model, a part of `part_width_mm` found by a grasp within
     /// `part_tolerance_mm`, the time scale (0: motion is instant; 1: real time), the force
@@ -560,7 +560,7 @@ sim_pymethods! { SimServer, "gripper.wsg.sim.SimServer";
         let system_state = s.system_state.to_py(py)?;
         record(
             py,
-            "gripper.wsg.sim",
+            "gripper_rs.wsg.sim",
             "SimSnapshot",
             &[
                 ("grip_state", grip_state.into_bound(py)),
@@ -616,11 +616,12 @@ sim_pymethods! { SimServer, "gripper.wsg.sim.SimServer";
 
 }
 
-/// `gripper._native.wsg`.
+/// `gripper_rs._native.wsg`.
 pub fn module(py: Python<'_>) -> PyResult<Bound<'_, PyModule>> {
     let m = PyModule::new(py, "wsg")?;
     m.add_class::<Client>()?;
-    // Both are named `Client` (in `gripper.wsg` and `gripper.aio.wsg`): one attribute each here.
+    // Both are named `Client` (in `gripper_rs.wsg` and `gripper_rs.aio.wsg`): one attribute each
+    // here.
     m.add("AioClient", py.get_type::<AioClient>())?;
     m.add_class::<SimServer>()?;
     m.add("DEFAULT_PORT", wsg::DEFAULT_PORT)?;

@@ -6,7 +6,7 @@ from collections.abc import Iterator
 
 import pytest
 
-from gripper import griplink, smartgrasp, wsg
+from gripper_rs import griplink, smartgrasp, wsg
 
 
 @pytest.fixture

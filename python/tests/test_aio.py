@@ -6,16 +6,16 @@ import asyncio
 
 import pytest
 
-import gripper
-import gripper.aio
-from gripper import griplink, smartgrasp, wsg
+import gripper_rs
+import gripper_rs.aio
+from gripper_rs import griplink, smartgrasp, wsg
 
 WIDTH_ID = 0x43
 
 
 def test_wsg_calls_and_context(wsg_sim: wsg.sim.SimServer) -> None:
     async def main() -> None:
-        async with await gripper.aio.wsg.Client.connect_tcp(wsg_sim.address) as client:
+        async with await gripper_rs.aio.wsg.Client.connect_tcp(wsg_sim.address) as client:
             await client.home()
             await client.pre_position(50.0, 100.0)
             assert await client.width_mm() == 50.0
@@ -24,7 +24,7 @@ def test_wsg_calls_and_context(wsg_sim: wsg.sim.SimServer) -> None:
             # Concurrent calls on one client each get their own reply.
             widths = await asyncio.gather(*(client.width_mm() for _ in range(20)))
             assert widths == [40.0] * 20
-            with pytest.raises(gripper.InvalidArgumentError):
+            with pytest.raises(gripper_rs.InvalidArgumentError):
                 await client.home(9)
         assert wsg_sim.received_ids()[-1] == 0x07  # the disconnect announcement
 
@@ -33,7 +33,7 @@ def test_wsg_calls_and_context(wsg_sim: wsg.sim.SimServer) -> None:
 
 def test_wsg_cancelled_call_leaves_the_client_paired(wsg_sim: wsg.sim.SimServer) -> None:
     async def main() -> None:
-        client = await gripper.aio.wsg.Client.connect_tcp(wsg_sim.address)
+        client = await gripper_rs.aio.wsg.Client.connect_tcp(wsg_sim.address)
         await client.home()
         await client.pre_position(70.0, 100.0)
         wsg_sim.delay_next_reply(WIDTH_ID, 0.3)
@@ -68,7 +68,7 @@ def test_wsg_async_stream(wsg_client: wsg.Client) -> None:
 
 def test_wsg_stream_ends_with_the_connection(wsg_sim: wsg.sim.SimServer) -> None:
     async def main() -> int:
-        client = await gripper.aio.wsg.Client.connect_tcp(wsg_sim.address)
+        client = await gripper_rs.aio.wsg.Client.connect_tcp(wsg_sim.address)
         stream = await client.subscribe_grip_state(0.01)
         seen = 0
         async for _ in stream:
@@ -82,7 +82,7 @@ def test_wsg_stream_ends_with_the_connection(wsg_sim: wsg.sim.SimServer) -> None
 
 def test_griplink_aio(griplink_sim: griplink.sim.SimServer) -> None:
     async def main() -> None:
-        async with await gripper.aio.griplink.Client.connect(griplink_sim.address) as client:
+        async with await gripper_rs.aio.griplink.Client.connect(griplink_sim.address) as client:
             assert await client.id() == "GRIPLINK-ET4"
             port = client.port(0)
             await port.home()
@@ -101,7 +101,7 @@ def test_griplink_aio(griplink_sim: griplink.sim.SimServer) -> None:
 
 def test_smartgrasp_aio(kit_sim: smartgrasp.sim.SimServer) -> None:
     async def main() -> None:
-        kit = await gripper.aio.smartgrasp.Client.connect(kit_sim.address)
+        kit = await gripper_rs.aio.smartgrasp.Client.connect(kit_sim.address)
         # The negotiated version is known at once, on either view of the connection.
         assert kit.protocol_version() == kit.blocking.protocol_version() == 4
         assert kit.counter_gaps() == 0

@@ -6,9 +6,9 @@ import threading
 
 import pytest
 
-import gripper
-from gripper import _native, griplink
-from gripper.griplink.sim import SimServer
+import gripper_rs
+from gripper_rs import _native, griplink
+from gripper_rs.griplink.sim import SimServer
 
 RECIPE = [5.0, 18.0, 50.0, 0.0, 0.0, 0.0, 0.0, 0.0]
 
@@ -21,7 +21,7 @@ def test_controller_identity(griplink_client: griplink.Client) -> None:
     assert griplink_client.label() == "cell 7"
     assert griplink_client.version() == "4.0.0"
     assert griplink_client.set_verbose(True) is True
-    with pytest.raises(gripper.DeviceError):
+    with pytest.raises(gripper_rs.DeviceError):
         griplink_client.protocol_assert("GRIPLINK", 99)
 
 
@@ -73,7 +73,7 @@ def test_flex_motion_and_recipes(griplink_client: griplink.Client) -> None:
 
 def test_device_error(griplink_client: griplink.Client, griplink_sim: SimServer) -> None:
     griplink_sim.fail_next(int(griplink.Status.STATE_CONFLICT))
-    with pytest.raises(gripper.DeviceError) as caught:
+    with pytest.raises(gripper_rs.DeviceError) as caught:
         griplink_client.port(0).home()
     assert caught.value.code == 19
     assert caught.value.name == "E_STATE_CONFLICT"
@@ -90,13 +90,13 @@ def test_timeout_and_malformed(griplink_sim: SimServer) -> None:
         # timed-out one on the wire, so it gets more time).
         assert client.with_timeout(5.0).serial_number() == "123456"
         griplink_sim.raw_next_reply(b"\x01garbage\n")
-        with pytest.raises(gripper.MalformedReplyError):
+        with pytest.raises(gripper_rs.MalformedReplyError):
             client.version()
 
 
 def test_connection_lost(griplink_client: griplink.Client, griplink_sim: SimServer) -> None:
     griplink_sim.close_next()
-    with pytest.raises(gripper.ConnectionLostError):
+    with pytest.raises(gripper_rs.ConnectionLostError):
         griplink_client.id()
     assert griplink_client.is_closed
 
@@ -104,7 +104,7 @@ def test_connection_lost(griplink_client: griplink.Client, griplink_sim: SimServ
 def test_with_says_bye(griplink_sim: SimServer) -> None:
     with griplink.Client.connect(griplink_sim.address) as client:
         client.id()
-    with pytest.raises(gripper.ClosedError):
+    with pytest.raises(gripper_rs.ClosedError):
         client.id()
 
 

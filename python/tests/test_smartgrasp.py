@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import pytest
 
-import gripper
-from gripper import smartgrasp
-from gripper.smartgrasp import GetGraspOutcome, GraspMode, PoseFormat, Tool
-from gripper.smartgrasp.sim import SimServer
+import gripper_rs
+from gripper_rs import smartgrasp
+from gripper_rs.smartgrasp import GetGraspOutcome, GraspMode, PoseFormat, Tool
+from gripper_rs.smartgrasp.sim import SimServer
 
 
 def test_session(kit: smartgrasp.Client, kit_sim: SimServer) -> None:
@@ -20,7 +20,7 @@ def test_session(kit: smartgrasp.Client, kit_sim: SimServer) -> None:
     kit.register_client(smartgrasp.RobotSystem.UR)
     assert kit_sim.registered_clients() == [smartgrasp.RobotSystem.UR]
     kit.set_project(0)
-    with pytest.raises(gripper.DeviceError) as caught:
+    with pytest.raises(gripper_rs.DeviceError) as caught:
         kit.set_project(99)
     assert caught.value.code == smartgrasp.ResponseCode.ERROR
     assert caught.value.command == "SET_PROJECT"
@@ -65,17 +65,17 @@ def test_timeout_lost_response_and_close(kit_sim: SimServer) -> None:
             kit.get_state()
         assert kit.with_timeout(5.0).get_state() is smartgrasp.ServerState.OPERATIONAL
         kit_sim.close_next()
-        with pytest.raises(gripper.ConnectionLostError):
+        with pytest.raises(gripper_rs.ConnectionLostError):
             kit.get_state()
     with smartgrasp.Client.connect(kit_sim.address) as kit:
         kit_sim.corrupt_next_length(5)
-        with pytest.raises(gripper.GripperError):
+        with pytest.raises(gripper_rs.GripperError):
             kit.get_state()
 
 
 def test_not_operational_is_a_protocol_error() -> None:
     with SimServer(server_state=smartgrasp.ServerState.STOPPED) as sim:
-        with pytest.raises(gripper.ProtocolError):
+        with pytest.raises(gripper_rs.ProtocolError):
             smartgrasp.Client.connect(sim.address)
 
 

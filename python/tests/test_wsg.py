@@ -8,9 +8,9 @@ import time
 
 import pytest
 
-import gripper
-from gripper import _native, wsg
-from gripper.wsg.sim import SimServer
+import gripper_rs
+from gripper_rs import _native, wsg
+from gripper_rs.wsg.sim import SimServer
 
 GRASP_ID = 0x25
 WIDTH_ID = 0x43
@@ -65,7 +65,7 @@ def test_fast_stop_must_be_acknowledged(wsg_client: wsg.Client) -> None:
     wsg_client.home()
     wsg_client.fast_stop()
     assert wsg.SystemState.FAST_STOP in wsg_client.system_state()
-    with pytest.raises(gripper.DeviceError):
+    with pytest.raises(gripper_rs.DeviceError):
         wsg_client.pre_position(50.0, 100.0)
     wsg_client.acknowledge_fast_stop()
     wsg_client.pre_position(50.0, 100.0)
@@ -77,10 +77,10 @@ def test_device_error_carries_code_name_and_description(
 ) -> None:
     wsg_client.home()
     wsg_sim.force_status(GRASP_ID, int(wsg.Status.AXIS_BLOCKED))
-    with pytest.raises(gripper.DeviceError) as caught:
+    with pytest.raises(gripper_rs.DeviceError) as caught:
         wsg_client.grasp(40.0, 50.0)
     e = caught.value
-    assert isinstance(e, gripper.GripperError)
+    assert isinstance(e, gripper_rs.GripperError)
     assert e.code == 29
     assert wsg.Status(e.code) is wsg.Status.AXIS_BLOCKED
     assert e.name == "E_AXIS_BLOCKED"
@@ -91,7 +91,7 @@ def test_device_error_carries_code_name_and_description(
 
 
 def test_invalid_arguments_are_value_errors(wsg_client: wsg.Client) -> None:
-    with pytest.raises(gripper.InvalidArgumentError) as caught:
+    with pytest.raises(gripper_rs.InvalidArgumentError) as caught:
         wsg_client.home(7)
     assert isinstance(caught.value, ValueError)
     with pytest.raises(ValueError):
@@ -117,7 +117,7 @@ def test_timeout_is_a_builtin_timeout_and_leaves_the_client_paired(wsg_sim: SimS
         wsg_sim.drop_next_reply(WIDTH_ID)
         with pytest.raises(TimeoutError) as caught:
             client.width_mm()
-        assert isinstance(caught.value, gripper.TimeoutError)
+        assert isinstance(caught.value, gripper_rs.TimeoutError)
         assert caught.value.timeout_s == pytest.approx(0.2)
         # The next call gets its own reply, not a stale one.
         assert client.grip_state() is wsg.GripState.IDLE
@@ -132,7 +132,7 @@ def test_corrupted_reply_is_skipped_as_noise(wsg_sim: SimServer) -> None:
         wsg_sim.corrupt_next_reply(WIDTH_ID)
         # A frame with a wrong checksum is noise (manual 2.2): the call times out, and the
         # connection stays usable.
-        with pytest.raises(gripper.TimeoutError):
+        with pytest.raises(gripper_rs.TimeoutError):
             client.width_mm()
         assert client.with_timeouts(5.0, 30.0).width_mm() == 110.0
 
@@ -140,17 +140,17 @@ def test_corrupted_reply_is_skipped_as_noise(wsg_sim: SimServer) -> None:
 def test_connection_lost_and_closed(wsg_sim: SimServer) -> None:
     client = wsg.Client.connect_tcp(wsg_sim.address)
     wsg_sim.unplug()
-    with pytest.raises(gripper.ConnectionLostError) as caught:
+    with pytest.raises(gripper_rs.ConnectionLostError) as caught:
         for _ in range(100):  # until the task has seen the connection end
             client.width_mm()
     assert isinstance(caught.value, ConnectionError)
     other = wsg.Client.connect_tcp(wsg_sim.address)
     other.close()
-    with pytest.raises(gripper.ClosedError):
+    with pytest.raises(gripper_rs.ClosedError):
         other.width_mm()
-    with pytest.raises(gripper.ClosedError):
+    with pytest.raises(gripper_rs.ClosedError):
         other.close()  # closing twice is an error of its own, not a hang
-    with pytest.raises(gripper.TransportError) as refused:
+    with pytest.raises(gripper_rs.TransportError) as refused:
         wsg.Client.connect_tcp(wsg_sim.address.replace(str(wsg_sim.port), "1"))
     assert isinstance(refused.value, OSError)
 
@@ -255,7 +255,7 @@ def test_sim_options(wsg_sim: SimServer) -> None:
         with wsg.Client.connect_tcp(sim.address) as client:
             assert client.system_info().device_type is wsg.DeviceType.WSG32
             assert client.temperature_c() == 30.0
-    assert repr(wsg_sim).startswith("<gripper.wsg.sim.SimServer at 127.0.0.1:")
+    assert repr(wsg_sim).startswith("<gripper_rs.wsg.sim.SimServer at 127.0.0.1:")
     wsg_sim.shutdown()
-    with pytest.raises(gripper.ClosedError):
+    with pytest.raises(gripper_rs.ClosedError):
         wsg_sim.snapshot()

@@ -2,7 +2,7 @@
 
 ``Client.connect("host:port")``; ``client.port(n)`` is the device on port n, with the Rust
 ``Port``'s methods (``home``, ``grip``, ``grip_and_wait``, ``position_mm``, ...).
-``gripper.griplink.sim.SimServer`` is a simulated controller; ``gripper.aio.griplink`` the
+``gripper_rs.griplink.sim.SimServer`` is a simulated controller; ``gripper_rs.aio.griplink`` the
 asyncio API.
 """
 
@@ -11,8 +11,8 @@ from __future__ import annotations
 import enum
 from dataclasses import dataclass
 
-from gripper import _native
-from gripper._enum import OpenIntEnum
+from gripper_rs import _native
+from gripper_rs._enum import OpenIntEnum
 
 __all__ = [
     "Client",
@@ -140,4 +140,4 @@ class GripConfigF:
     params: list[float]
 
 
-from gripper.griplink import sim  # noqa: E402
+from gripper_rs.griplink import sim  # noqa: E402

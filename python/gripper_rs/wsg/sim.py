@@ -14,10 +14,10 @@ import enum
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from gripper import _native
+from gripper_rs import _native
 
 if TYPE_CHECKING:
-    from gripper.wsg import GripState, SystemState
+    from gripper_rs.wsg import GripState, SystemState
 
 __all__ = ["Model", "SimServer", "SimSnapshot"]
 

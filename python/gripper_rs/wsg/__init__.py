@@ -3,7 +3,8 @@
 ``Client.connect_tcp("host:port")``, ``Client.connect_udp``, ``Client.open_serial``; the Rust
 client's methods under the same names (``home``, ``pre_position(width_mm, speed_mm_per_s)``,
 ``grasp``, ``release``, ``stop``, ``width_mm()``, ``grip_state()``, ``subscribe_width_mm(period_s)``,
-...). ``gripper.wsg.sim.SimServer`` is a simulated gripper; ``gripper.aio.wsg`` the asyncio API.
+...). ``gripper_rs.wsg.sim.SimServer`` is a simulated gripper; ``gripper_rs.aio.wsg`` the asyncio
+API.
 """
 
 from __future__ import annotations
@@ -11,8 +12,8 @@ from __future__ import annotations
 import enum
 from dataclasses import dataclass
 
-from gripper import _native
-from gripper._enum import OpenIntEnum
+from gripper_rs import _native
+from gripper_rs._enum import OpenIntEnum
 
 __all__ = [
     "Client",
@@ -233,4 +234,4 @@ class FingerInfo:
     data_size: int
 
 
-from gripper.wsg import sim  # noqa: E402  (sim builds on the records above)
+from gripper_rs.wsg import sim  # noqa: E402  (sim builds on the records above)

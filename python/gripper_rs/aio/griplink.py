@@ -1,8 +1,8 @@
-"""The griplink client for asyncio (``gripper.griplink`` has the types and the simulator)."""
+"""The griplink client for asyncio (``gripper_rs.griplink`` has the types and the simulator)."""
 
 from __future__ import annotations
 
-from gripper import _native
+from gripper_rs import _native
 
 __all__ = ["Client", "Port"]
 

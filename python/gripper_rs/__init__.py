@@ -1,18 +1,18 @@
 """Clients and simulators for Weiss WSG grippers, Weiss GRIPLINK controllers and the SCHUNK 2D
 Grasping-Kit, over the ``gripper`` Rust crate.
 
-``from gripper import wsg, griplink, smartgrasp``: blocking clients (the GIL is released while
+``from gripper_rs import wsg, griplink, smartgrasp``: blocking clients (the GIL is released while
 they wait; any number of threads may share one; Ctrl-C ends a wait), each protocol's simulator as
-``<protocol>.sim.SimServer``, and the asyncio API under ``gripper.aio``. Every error is a
-``gripper.GripperError`` (see ``gripper.errors``).
+``<protocol>.sim.SimServer``, and the asyncio API under ``gripper_rs.aio``. Every error is a
+``gripper_rs.GripperError`` (see ``gripper_rs.errors``).
 """
 
 from __future__ import annotations
 
 import atexit
 
-from gripper import _native
-from gripper.errors import (
+from gripper_rs import _native
+from gripper_rs.errors import (
     ClosedError,
     ConnectionLostError,
     DeviceError,
@@ -30,7 +30,7 @@ Stream = _native.Stream
 # `_quiesce` in python/src/runtime.rs): one that arrives during finalization crashes the process.
 atexit.register(_native._quiesce)
 
-from gripper import griplink, smartgrasp, wsg  # noqa: E402  (they use the names above)
+from gripper_rs import griplink, smartgrasp, wsg  # noqa: E402  (they use the names above)
 
 __all__ = [
     "ClosedError",

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from gripper import _native
+from gripper_rs import _native
 
 __all__ = ["SimServer"]
 

@@ -1,12 +1,13 @@
 # Types of the compiled half (python/src/*.rs). The classes are re-exported under the Rust API's
-# module names: gripper.wsg.Client is wsg.Client here, gripper.aio.wsg.Client is wsg.AioClient.
+# module names: gripper_rs.wsg.Client is wsg.Client here, gripper_rs.aio.wsg.Client is
+# wsg.AioClient.
 from collections.abc import Awaitable, Mapping, Sequence
 from types import TracebackType
 from typing import Generic, Self, TypeVar
 
-from gripper.griplink import DeviceState, GripConfig, GripConfigF, GripOutcome, ReleaseOutcome
-from gripper.smartgrasp import GraspResult, ObjectCount, Pose, RobotSystem, ServerState
-from gripper.wsg import (
+from gripper_rs.griplink import DeviceState, GripConfig, GripConfigF, GripOutcome, ReleaseOutcome
+from gripper_rs.smartgrasp import GraspResult, ObjectCount, Pose, RobotSystem, ServerState
+from gripper_rs.wsg import (
     FingerFlags,
     FingerInfo,
     GraspingStatistics,
@@ -16,7 +17,7 @@ from gripper.wsg import (
     SystemLimits,
     SystemState,
 )
-from gripper.wsg.sim import SimSnapshot
+from gripper_rs.wsg.sim import SimSnapshot
 
 _T = TypeVar("_T")
 

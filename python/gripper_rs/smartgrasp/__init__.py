@@ -2,8 +2,8 @@
 
 ``Client.connect("host:port")``; ``get_grasp(grasp_mode, object_class, tool, pose_format)``,
 ``grasp_feedback``, ``get_object_count``, ``robot_pose``, ...
-``gripper.smartgrasp.sim.SimServer`` is a simulated Grasping-Kit; ``gripper.aio.smartgrasp`` the
-asyncio API.
+``gripper_rs.smartgrasp.sim.SimServer`` is a simulated Grasping-Kit;
+``gripper_rs.aio.smartgrasp`` the asyncio API.
 """
 
 from __future__ import annotations
@@ -11,8 +11,8 @@ from __future__ import annotations
 import enum
 from dataclasses import dataclass
 
-from gripper import _native
-from gripper._enum import OpenIntEnum
+from gripper_rs import _native
+from gripper_rs._enum import OpenIntEnum
 
 __all__ = [
     "Client",
@@ -171,4 +171,4 @@ class ObjectCount:
     candidate_count: int
 
 
-from gripper.smartgrasp import sim  # noqa: E402
+from gripper_rs.smartgrasp import sim  # noqa: E402

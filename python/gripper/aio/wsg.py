@@ -1,9 +1,0 @@
-"""The WSG client for asyncio (``gripper.wsg`` has the types and the simulator)."""
-
-from __future__ import annotations
-
-from gripper import _native
-
-__all__ = ["Client"]
-
-Client = _native.wsg.AioClient
