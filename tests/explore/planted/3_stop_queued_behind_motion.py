@@ -7,17 +7,16 @@ KIND = "3 (a stop goes out at once)"
 plant(
     "src/wsg/client/pairing.rs",
     """        if is_stop(id) {
-            self.stops.entry(id).or_default().push(req.token);""",
+            let grace = self.grace;""",
     """        let busy = self
             .ids
             .iter()
             .find(|(i, st)| is_motion(**i) && st.in_flight.is_some())
             .map(|(i, _)| *i);
         if let (true, Some(motion)) = (is_stop(id), busy) {
-            self.stops.entry(id).or_default().push(req.token);
             self.ids.entry(motion).or_default().queue.push_back(req);
             return Submit::Queued;
         }
         if is_stop(id) {
-            self.stops.entry(id).or_default().push(req.token);""",
+            let grace = self.grace;""",
 )
