@@ -3,7 +3,7 @@
 # in a throwaway worktree of HEAD, never in this tree, builds the explorer there and runs fresh
 # seeds, the same ones with and without the bug: the runs needed to catch it (`--until-fail`),
 # and how many of RUNS fresh runs per variant show the bug's violation (`--kind`).
-# Usage: tests/explore/plant.sh [RUNS] [--only VARIANT]
+# Usage: [BUGS=N] tests/explore/plant.sh [RUNS] [--only VARIANT]   (BUGS=1: only bug 1)
 set -euo pipefail
 root=$(git rev-parse --show-toplevel)
 runs=${1:-3000}
@@ -21,7 +21,7 @@ explorer() {
 # Each bug names the violation that catches it (KIND = "..." in its file); the unplanted tree
 # runs the same seeds first, so the table can say how often that violation occurs without it.
 baseline=$(explorer)
-for bug in "$root"/tests/explore/planted/[0-9]*.py; do
+for bug in "$root"/tests/explore/planted/${BUGS:-[0-9]}*.py; do
   name=$(basename "$bug" .py)
   kind=$(sed -n 's/^KIND = "\(.*\)"$/\1/p' "$bug")
   echo "== $name (violation: $kind)"
