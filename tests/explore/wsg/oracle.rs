@@ -166,10 +166,10 @@ fn check_client(
         }
         let window = format!("[{}, {}]", t(c.start, t0), t(c.end, t0));
         match &c.res {
-            Res::Device(cmd, Status::AlreadyRunning) => {
-                if !motion_running(record, t0, &view.sessions, *cmd, c.start, c.end) {
+            Res::Device(_, Status::AlreadyRunning) => {
+                if !motion_running(record, t0, c.start, c.end) {
                     v.push(format!(
-                        "4 (a status is the device's): {} {} got E_ALREADY_RUNNING in {window}, but the device sent none and no {cmd:#04x} motion of this client was running at the call",
+                        "4 (a status is the device's): {} {} got E_ALREADY_RUNNING in {window}, but the device sent none and was executing no motion at the call",
                         c.who, c.op
                     ));
                 }
@@ -223,39 +223,37 @@ fn check_client(
     v
 }
 
-/// Whether a motion `cmd` that one of `sessions` started may have been running on the device
-/// during `[start, end]`: acknowledged (E_CMD_PENDING) before `start` with neither its final
-/// reply nor a restart before `start` (records at the very instant `start` may come before or
-/// after the call, so they do not count against it), or acknowledged during the call.
-fn motion_running(
-    record: &SimRecording,
-    t0: Instant,
-    sessions: &BTreeSet<SessionId>,
-    cmd: u8,
-    start: Instant,
-    end: Instant,
-) -> bool {
-    let mut running = false;
+/// Whether the device may have been executing a motion during `[start, end]` (manual 3.2.2:
+/// E_ALREADY_RUNNING means the module *is* executing a motion, whichever client started it):
+/// one acknowledged (E_CMD_PENDING) before `start` without its final reply or a restart before
+/// `start` (records at the very instant `start` may come before or after the call, so they do
+/// not count against it), or one acknowledged during the call.
+fn motion_running(record: &SimRecording, t0: Instant, start: Instant, end: Instant) -> bool {
+    let mut running: BTreeSet<(SessionId, u8)> = BTreeSet::new();
     for r in &record.records {
         let at = t0 + r.at;
         if at > end {
             break;
         }
         match &r.event {
-            SimEvent::Restarted if at < start => running = false,
-            SimEvent::Reply { id, status, .. } if *id == cmd && sessions.contains(&r.session) => {
+            SimEvent::Restarted if at < start => running.clear(),
+            SimEvent::Reply { id, status, .. } if is_motion(*id) => {
                 if *status == Status::CmdPending {
                     if at >= start {
                         return true;
                     }
-                    running = true;
+                    running.insert((r.session, *id));
                 } else if at < start && *status != Status::AlreadyRunning {
                     // E_ALREADY_RUNNING refuses a duplicate; it does not end the motion.
-                    running = false;
+                    running.remove(&(r.session, *id));
                 }
             }
             _ => {}
         }
     }
-    running
+    !running.is_empty()
+}
+
+fn is_motion(id: u8) -> bool {
+    matches!(id, id::HOMING | id::PRE_POSITION | id::GRASP | id::RELEASE)
 }
