@@ -168,10 +168,11 @@ pub async fn caller(
     trace: SharedTrace,
 ) {
     tokio::time::sleep(rng.millis(0, 500)).await;
+    let mut previous = None;
     for i in 0..ops {
         let who = format!("{}.{n}.{i}", ctx.index);
         let last = i + 1 == ops;
-        one_call(&ctx, &who, &mut rng, last, &log, &trace).await;
+        previous = Some(one_call(&ctx, &who, &mut rng, last, previous, &log, &trace).await);
         if rng.one_in(3) {
             tokio::time::sleep(rng.millis(0, 300)).await;
         }
@@ -183,9 +184,10 @@ async fn one_call(
     who: &str,
     rng: &mut Prng,
     last: bool,
+    previous: Option<u64>,
     log: &Log,
     trace: &SharedTrace,
-) {
+) -> u64 {
     // Timeouts: the client's, or the caller's own (sometimes "none": Duration::MAX).
     let (q, m) = match rng.below(60) {
         0 => (Duration::MAX, Duration::MAX),
@@ -198,7 +200,12 @@ async fn one_call(
         ctx.client.with_timeouts(q, m)
     };
     let unique = log.unique.fetch_add(1, Ordering::Relaxed);
-    let pick = rng.below(if last { 22 } else { 21 });
+    // A third of the calls repeat the caller's previous kind of call: the same command id
+    // right after a timeout or a cancellation is where a late reply can reach the wrong call.
+    let pick = match previous {
+        Some(p) if p < 21 && rng.one_in(3) => p,
+        _ => rng.below(if last { 22 } else { 21 }),
+    };
     let width = rng.float(0.0, 110.0);
     let speed = rng.float(5.0, 420.0);
     let (op, cmd, limit): (String, u8, Duration) = match pick {
@@ -353,4 +360,5 @@ async fn one_call(
         limit,
         res,
     });
+    pick
 }
