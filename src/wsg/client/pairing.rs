@@ -287,7 +287,7 @@ impl Pairing {
         if let Some(stops) = self.stops.get_mut(&id) {
             gone.extend(stops.prune(&alive));
         }
-        if let Some(st) = self.ids.get_mut(&id) {
+        if let Some(st) = self.ids.get_mut(&id).filter(|st| !st.queue.is_empty()) {
             st.queue.retain(|r| {
                 let keep = alive(r.token);
                 if !keep {
@@ -457,12 +457,20 @@ impl Pairing {
 
     /// When the next request needs the task ([`Pairing::due`]).
     pub(crate) fn next_due(&self) -> Option<Instant> {
-        let stops = self.stops.values().filter_map(Stops::next_due);
-        self.ids
+        let ids = self
+            .ids
             .iter()
             .filter_map(|(id, st)| st.in_flight.as_ref()?.due(*id))
-            .chain(stops)
-            .min()
+            .min();
+        // Checked apart: this runs on every pass of the task's loop, and stops are rare.
+        if self.stops.is_empty() {
+            return ids;
+        }
+        let stops = self.stops.values().filter_map(Stops::next_due).min();
+        match (ids, stops) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        }
     }
 
     /// The requests whose time has come by `now`: released ids (call [`Pairing::next`] for each
