@@ -32,7 +32,8 @@
 //!   auto-updates it switched on are still due to it; at most [`MAX_UDP_SESSIONS`] are kept.
 //! - **Bytes that make no frame**: a partial frame that gets no new byte for
 //!   [`DEFAULT_PARTIAL_FRAME_TIMEOUT`](crate::wsg::client::DEFAULT_PARTIAL_FRAME_TIMEOUT) is
-//!   dropped as noise, as the client does. A frame with a bad checksum is discarded unanswered:
+//!   dropped as noise (the client is stricter: it times a frame from its first byte, and knows
+//!   each reply's longest length). A frame with a bad checksum is discarded unanswered:
 //!   the manual does not say what the device does with one (it lists E_CHECKSUM_ERROR in
 //!   Anhang A under no command; 1.2.1 only discards frames *missing* their checksum), and an
 //!   answer under a possibly corrupted id could fail an unrelated caller.
