@@ -1,0 +1,72 @@
+//! `--sim wsg|griplink|smartgrasp`: the crate's simulator of the device, in process and in real
+//! time, on a loopback port of its own.
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use gripper::wsg::sim::{SimConfig, SimServer, SimSnapshot};
+use tokio::sync::watch;
+
+use crate::params::{DeviceKind, Params};
+
+/// How often the simulator's state is looked at for its log.
+const LOG_PERIOD: Duration = Duration::from_millis(10);
+
+/// A running simulator; it stops when dropped.
+pub enum Sim {
+    /// A WSG 50.
+    Wsg(Arc<SimServer>),
+}
+
+/// Starts the simulator of `kind` and points the parameters at it.
+pub async fn start(
+    kind: DeviceKind,
+    params: &mut Params,
+    shutdown: watch::Receiver<bool>,
+) -> Result<Sim, String> {
+    match kind {
+        DeviceKind::Wsg => {
+            // A WSG 50 with a 40 mm part (±2 mm), moving in real time.
+            let server = SimServer::bind("127.0.0.1:0", SimConfig::standalone())
+                .await
+                .map_err(|e| format!("WSG simulator: {e}"))?;
+            let addr = server
+                .local_addr()
+                .ok_or("the WSG simulator has no address")?;
+            tracing::info!("WSG simulator (WSG 50, 40 mm part, real time) on {addr}");
+            params.transport = "tcp".into();
+            params.address = addr.to_string();
+            let server = Arc::new(server);
+            tokio::spawn(log_wsg(server.clone(), shutdown));
+            Ok(Sim::Wsg(server))
+        }
+        other => Err(format!("--sim {other:?} is not available in this build")),
+    }
+}
+
+/// The simulator's log: each change of its grip state or system state flags (a stop shows as
+/// AXIS_STOPPED, manual Anhang B), with the width.
+async fn log_wsg(server: Arc<SimServer>, mut shutdown: watch::Receiver<bool>) {
+    let mut last: Option<SimSnapshot> = None;
+    let mut tick = tokio::time::interval(LOG_PERIOD);
+    loop {
+        tokio::select! {
+            _ = tick.tick() => {}
+            _ = shutdown.wait_for(|s| *s) => return,
+        }
+        let now = server.snapshot();
+        let changed = last
+            .as_ref()
+            .is_none_or(|l| l.grip_state != now.grip_state || l.system_state != now.system_state);
+        if changed {
+            tracing::info!(
+                target: "simulator",
+                "WSG simulator: grip state {:?}, {:?}, width {:.2} mm",
+                now.grip_state,
+                now.system_state,
+                now.width_mm
+            );
+        }
+        last = Some(now);
+    }
+}
