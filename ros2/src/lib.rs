@@ -81,5 +81,14 @@ pub async fn run(cli: Cli, stop: impl Future<Output = ()>) -> Result<(), String>
     if let Err(e) = &closed {
         tracing::warn!("{e}");
     }
+    // Dropping the last handle of a DDS participant joins RustDDS's event-loop thread: done on
+    // a blocking thread, bounded, so that it never stalls the runtime's workers.
+    let teardown = tokio::task::spawn_blocking(move || drop((node, context)));
+    if tokio::time::timeout(SHUTDOWN_GRACE, teardown)
+        .await
+        .is_err()
+    {
+        tracing::warn!("the DDS participant did not stop within {SHUTDOWN_GRACE:?}");
+    }
     Ok(())
 }

@@ -1,0 +1,128 @@
+//! The WSG node in process against the crate's WSG simulator, through ros2-client's own action
+//! and service clients, each test on a ROS domain of its own.
+
+mod common;
+
+use common::*;
+use gripper::wsg::sim::{SimConfig, SimServer};
+use gripper_ros2::msgs::{GripperCommand, GripperCommandGoal};
+use gripper_ros2::params::{DeviceKind, Mapping};
+use ros2_client::action::GoalStatusEnum;
+use ros2_client::action_msgs::CancelGoalResponseEnum;
+use ros2_client::builtin_interfaces::Time;
+use ros2_client::ServiceMapping;
+
+fn goal(position: f64, max_effort: f64) -> GripperCommandGoal {
+    GripperCommandGoal {
+        command: GripperCommand {
+            position,
+            max_effort,
+        },
+    }
+}
+
+async fn sim(config: SimConfig) -> (SimServer, String) {
+    let sim = SimServer::bind("127.0.0.1:0", config).await.unwrap();
+    let addr = sim.local_addr().unwrap().to_string();
+    (sim, addr)
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn goals_results_and_a_late_result_request_with_the_enhanced_mapping() {
+    // Instant motion: the moves cost no wall time.
+    let (_sim, addr) = sim(SimConfig::default().with_part(40.0, 2.0)).await;
+    let d = domain();
+    let node = Running::start(params(DeviceKind::Wsg, addr, d, Mapping::Enhanced));
+    let mut me = TestNode::new(d, "test_client");
+    let home = trigger_client(&mut me, ServiceMapping::Enhanced, "home").await;
+    assert!(trigger_retrying(&home).await.success);
+    let gripper = action_client(&mut me, ServiceMapping::Enhanced).await;
+
+    let (id, accepted) = bounded("send_goal", gripper.async_send_goal(goal(0.04, 30.0)))
+        .await
+        .unwrap();
+    assert!(accepted.accepted);
+    let (status, result) = bounded("get_result", gripper.async_request_result(id))
+        .await
+        .unwrap();
+    assert_eq!(status, GoalStatusEnum::Succeeded);
+    assert!(result.stalled && result.reached_goal, "{result:?}");
+    assert_eq!((result.position, result.effort), (0.04, 30.0));
+
+    // Asked again long after the goal ended: answered from the kept results (ros2-client's
+    // AsyncActionServer never answers this one).
+    let (status, again) = bounded("late get_result", gripper.async_request_result(id))
+        .await
+        .unwrap();
+    assert_eq!((status, again), (GoalStatusEnum::Succeeded, result));
+
+    // A goal id never sent: STATUS_UNKNOWN, as rclcpp_action answers.
+    let (status, _) = bounded(
+        "get_result of an unknown goal",
+        gripper.async_request_result(ros2_client::action::GoalId::new_random()),
+    )
+    .await
+    .unwrap();
+    assert_eq!(status, GoalStatusEnum::Unknown);
+
+    // Beyond the stroke, a negative effort, NaN: rejected, never sent to the gripper.
+    for bad in [goal(0.5, 0.0), goal(0.05, -1.0), goal(f64::NAN, 0.0)] {
+        let (_, response) = bounded("send_goal", gripper.async_send_goal(bad))
+            .await
+            .unwrap();
+        assert!(!response.accepted, "{bad:?} was accepted");
+    }
+    // A cancel of a goal that has ended.
+    let response = bounded("cancel", gripper.async_cancel_goal(id, Time::ZERO))
+        .await
+        .unwrap();
+    assert_eq!(response.return_code, CancelGoalResponseEnum::GoalTerminated);
+    node.stop().await.unwrap();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_cancel_stops_the_fingers_and_a_second_goal_is_rejected_meanwhile() {
+    let (sim, addr) = sim(SimConfig::default()).await;
+    let d = domain();
+    let mut p = params(DeviceKind::Wsg, addr, d, Mapping::Cyclone);
+    p.speed_m_per_s = 0.01;
+    let node = Running::start(p);
+    let mut me = TestNode::new(d, "test_client");
+    let home = trigger_client(&mut me, ServiceMapping::Cyclone, "home").await;
+    assert!(trigger_retrying(&home).await.success);
+    let gripper = action_client(&mut me, ServiceMapping::Cyclone).await;
+    // Real time from here: a 100 mm move at 10 mm/s takes 10 s, so the cancel finds it running.
+    sim.set_time_scale(1.0);
+    let (id, accepted) = bounded("send_goal", gripper.async_send_goal(goal(0.005, 0.0)))
+        .await
+        .unwrap();
+    assert!(accepted.accepted);
+    let (_, second) = bounded("second goal", gripper.async_send_goal(goal(0.05, 0.0)))
+        .await
+        .unwrap();
+    assert!(
+        !second.accepted,
+        "a goal while another runs must be rejected"
+    );
+
+    let response = bounded("cancel", gripper.async_cancel_goal(id, Time::ZERO))
+        .await
+        .unwrap();
+    assert_eq!(response.return_code, CancelGoalResponseEnum::None);
+    assert_eq!(response.goals_canceling.len(), 1);
+    let (status, result) = bounded("get_result", gripper.async_request_result(id))
+        .await
+        .unwrap();
+    assert_eq!(status, GoalStatusEnum::Canceled);
+    assert!(
+        result.position > 0.006 && !result.reached_goal,
+        "{result:?}"
+    );
+    // The stop (0x22) reached the gripper.
+    assert!(sim.received_ids().contains(&0x22));
+    assert!(sim
+        .snapshot()
+        .system_state
+        .contains(gripper::wsg::SystemState::AXIS_STOPPED));
+    node.stop().await.unwrap();
+}
