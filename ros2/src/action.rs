@@ -37,6 +37,11 @@ use crate::qos;
 pub const POLL_PERIOD: Duration = Duration::from_millis(10);
 /// How often a running goal publishes feedback.
 pub const FEEDBACK_PERIOD: Duration = Duration::from_millis(100);
+/// How long a cancelled goal waits, after the device acknowledged the stop, for its motion to
+/// report where it ended (the WSG answers the motion with E_CMD_ABORTED at once). A motion
+/// still waiting then (GRIPLINK's wait for a state transition that a DISABLE never brings) is
+/// abandoned, and the result is the latest reading.
+pub const CANCEL_GRACE: Duration = Duration::from_millis(500);
 /// Finished goals whose result is kept for a late `get_result`.
 pub const FINISHED_GOALS_KEPT: usize = 16;
 /// `get_result` requests waiting for one running goal, at most; more are answered
@@ -86,7 +91,47 @@ struct Active {
     info: GoalInfo,
     status: GoalStatusEnum,
     done: oneshot::Receiver<Outcome>,
+    /// The task running the motion (aborted when a cancelled motion does not end by itself).
+    task: tokio::task::JoinHandle<()>,
+    /// The stop of a cancel, while it runs.
+    stopping: Option<oneshot::Receiver<Result<(), String>>>,
+    /// After a successful stop: when to stop waiting for the motion to report its end.
+    give_up_at: Option<tokio::time::Instant>,
     waiters: Vec<RmwRequestId>,
+}
+
+/// What happened to the running goal.
+enum GoalEvent {
+    /// Its motion ended (`None`: its task ended without reporting).
+    Ended(Option<Outcome>),
+    /// The stop of a cancel was answered.
+    Stopped(Result<(), String>),
+    /// [`CANCEL_GRACE`] passed after the stop without the motion reporting its end.
+    GaveUp,
+}
+
+impl Active {
+    async fn next_event(&mut self) -> GoalEvent {
+        let give_up = async {
+            match self.give_up_at {
+                Some(at) => tokio::time::sleep_until(at).await,
+                None => std::future::pending().await,
+            }
+        };
+        let stopping = async {
+            match self.stopping.as_mut() {
+                Some(rx) => rx
+                    .await
+                    .unwrap_or_else(|_| Err("the stop task ended".into())),
+                None => std::future::pending().await,
+            }
+        };
+        tokio::select! {
+            outcome = &mut self.done => GoalEvent::Ended(outcome.ok()),
+            result = stopping => GoalEvent::Stopped(result),
+            () = give_up => GoalEvent::GaveUp,
+        }
+    }
 }
 
 struct Finished {
@@ -123,8 +168,18 @@ impl GoalKeeper {
             tokio::select! {
                 _ = poll.tick() => self.poll(&server),
                 _ = feedback.tick() => self.publish_feedback(&server),
-                outcome = async { (&mut self.active.as_mut().expect("guarded").done).await },
-                    if self.active.is_some() => self.finish(&server, outcome.ok()),
+                // Lazy: select! builds every branch's future, disabled ones too.
+                event = async { self.active.as_mut().expect("guarded").next_event().await },
+                    if self.active.is_some() => match event {
+                    GoalEvent::Ended(outcome) => self.finish(&server, outcome),
+                    GoalEvent::Stopped(result) => self.stopped(result),
+                    GoalEvent::GaveUp => {
+                        if let Some(active) = &self.active {
+                            active.task.abort();
+                        }
+                        self.finish(&server, None);
+                    }
+                },
                 _ = shutdown.wait_for(|stop| *stop) => break,
             }
         }
@@ -203,7 +258,7 @@ impl GoalKeeper {
         }
         let (tx, done) = oneshot::channel();
         let run = self.actuator.execute(goal);
-        tokio::spawn(async move {
+        let task = tokio::spawn(async move {
             let _ = tx.send(run.await);
         });
         // ACCEPTED and EXECUTING at once: the motion starts now.
@@ -211,6 +266,9 @@ impl GoalKeeper {
             info: GoalInfo { goal_id, stamp },
             status: GoalStatusEnum::Executing,
             done,
+            task,
+            stopping: None,
+            give_up_at: None,
             waiters: Vec::new(),
         });
         self.publish_statuses(server);
@@ -251,14 +309,15 @@ impl GoalKeeper {
             if active.status != GoalStatusEnum::Canceling {
                 active.status = GoalStatusEnum::Canceling;
                 tracing::info!(goal = ?active.info.goal_id, "cancel: stopping the fingers");
-                // Its own task: the answer to the cancel does not wait for the device, and the
-                // motion's end (E_CMD_ABORTED) finishes the goal as CANCELED.
+                // Its own task: the answer to the cancel does not wait for the device. The
+                // motion's end (E_CMD_ABORTED), or CANCEL_GRACE after the stop, finishes the
+                // goal as CANCELED.
                 let stop = self.actuator.stop();
+                let (tx, stopping) = oneshot::channel();
                 tokio::spawn(async move {
-                    if let Err(e) = stop.await {
-                        tracing::error!("the stop of a cancelled goal failed: {e}");
-                    }
+                    let _ = tx.send(stop.await);
                 });
+                active.stopping = Some(stopping);
             }
             let info = active.info.clone();
             self.publish_statuses(server);
@@ -280,6 +339,20 @@ impl GoalKeeper {
             return reject(CancelGoalResponseEnum::UnknownGoal);
         }
         reject(CancelGoalResponseEnum::Rejected)
+    }
+
+    fn stopped(&mut self, result: Result<(), String>) {
+        let Some(active) = self.active.as_mut() else {
+            return;
+        };
+        active.stopping = None;
+        match result {
+            Ok(()) => {
+                active.give_up_at = Some(tokio::time::Instant::now() + CANCEL_GRACE);
+            }
+            // The motion goes on: the goal stays CANCELING until it ends.
+            Err(e) => tracing::error!("the stop of a cancelled goal failed: {e}"),
+        }
     }
 
     fn result_request(

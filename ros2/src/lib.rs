@@ -8,8 +8,10 @@
 
 pub mod action;
 pub mod diagnostics;
+pub mod griplink_node;
 pub mod gripper_node;
 pub mod joint_states;
+pub mod link;
 pub mod msgs;
 pub mod params;
 pub mod qos;
@@ -33,6 +35,7 @@ pub const SHUTDOWN_GRACE: Duration = Duration::from_secs(3);
 /// The device link to close at shutdown.
 enum Link {
     Wsg(gripper::wsg::Client),
+    Griplink(gripper::griplink::Client),
 }
 
 /// Runs the node `cli` describes until `stop` completes, then shuts it down cleanly: a running
@@ -51,6 +54,11 @@ pub async fn run(cli: Cli, stop: impl Future<Output = ()>) -> Result<(), String>
             let client = wsg_node::connect(&params).await?;
             wsg_node::start(&mut node, &params, client.clone(), &shutdown).await?;
             Link::Wsg(client)
+        }
+        DeviceKind::Griplink => {
+            let client = griplink_node::connect(&params).await?;
+            griplink_node::start(&mut node, &params, client.clone(), &shutdown).await?;
+            Link::Griplink(client)
         }
         other => return Err(format!("device {other:?} is not available in this build")),
     };
@@ -77,6 +85,11 @@ pub async fn run(cli: Cli, stop: impl Future<Output = ()>) -> Result<(), String>
             .await
             .map_err(|_| "closing the WSG link timed out".to_owned())
             .and_then(|r| r.map_err(|e| format!("closing the WSG link: {e}"))),
+        // BYE(): ends the session (manual 3.3.1).
+        Link::Griplink(client) => tokio::time::timeout(SHUTDOWN_GRACE, client.close())
+            .await
+            .map_err(|_| "closing the GRIPLINK session timed out".to_owned())
+            .and_then(|r| r.map_err(|e| format!("closing the GRIPLINK session: {e}"))),
     };
     if let Err(e) = &closed {
         tracing::warn!("{e}");

@@ -123,6 +123,8 @@ pub struct Params {
     pub speed_m_per_s: f64,
     /// A goal is reached when the position is this close, m.
     pub goal_tolerance_m: f64,
+    /// GRIPLINK: the grip force when a goal's `max_effort` is 0, N (0: such a goal is rejected).
+    pub default_effort_n: f64,
     /// WSG: a closing goal grasps a part (0x25) rather than pre-positions (0x21).
     pub grasp_on_close: bool,
     /// Acknowledge a FAST STOP found after a reconnect (default: report it, leave it).
@@ -157,6 +159,7 @@ impl Default for Params {
             speed_m_per_s: 0.05,
             goal_tolerance_m: 0.001,
             grasp_on_close: true,
+            default_effort_n: 0.0,
             auto_acknowledge_fast_stop: false,
             reconnect: true,
             service_mapping: None,
@@ -317,6 +320,7 @@ impl Params {
             "joint_states_rate_hz" => self.joint_states_rate_hz = float()?,
             "speed_m_per_s" => self.speed_m_per_s = float()?,
             "goal_tolerance_m" => self.goal_tolerance_m = float()?,
+            "default_effort_n" => self.default_effort_n = float()?,
             "grasp_on_close" => self.grasp_on_close = boolean()?,
             "auto_acknowledge_fast_stop" => self.auto_acknowledge_fast_stop = boolean()?,
             "reconnect" => self.reconnect = boolean()?,
@@ -372,6 +376,11 @@ impl Params {
         }
         positive("speed_m_per_s", self.speed_m_per_s)?;
         positive("goal_tolerance_m", self.goal_tolerance_m)?;
+        if !self.default_effort_n.is_finite() || self.default_effort_n < 0.0 {
+            return Err(ParamError(
+                "default_effort_n must be 0 or a positive force".into(),
+            ));
+        }
         if !(1..=2).contains(&self.joint_names.len()) {
             return Err(ParamError(
                 "joint_names must hold one name (the opening) or two (the fingers)".into(),

@@ -4,6 +4,7 @@
 use std::sync::Arc;
 use std::time::Duration;
 
+use gripper::griplink::sim as gl;
 use gripper::wsg::sim::{SimConfig, SimServer, SimSnapshot};
 use tokio::sync::watch;
 
@@ -16,6 +17,8 @@ const LOG_PERIOD: Duration = Duration::from_millis(10);
 pub enum Sim {
     /// A WSG 50.
     Wsg(Arc<SimServer>),
+    /// A GRIPLINK-ET4.
+    Griplink(Arc<gl::SimServer>),
 }
 
 /// Starts the simulator of `kind` and points the parameters at it.
@@ -39,6 +42,25 @@ pub async fn start(
             let server = Arc::new(server);
             tokio::spawn(log_wsg(server.clone(), shutdown));
             Ok(Sim::Wsg(server))
+        }
+        DeviceKind::Griplink => {
+            // A GRIPLINK-ET4 (an IEG 55-020 on port 0, here with a 10 mm part; a CRG 200-085
+            // on port 2), moving in real time.
+            let mut config = gl::SimConfig::et4();
+            let ieg = gl::SimDevice::ieg_55_020().with_part(10.0);
+            config = config.device(0, Some(ieg));
+            let server = gl::SimServer::bind("127.0.0.1:0", config)
+                .await
+                .map_err(|e| format!("GRIPLINK simulator: {e}"))?;
+            let addr = server.local_addr();
+            tracing::info!(
+                "GRIPLINK simulator (ET4: IEG 55-020 with a 10 mm part on port 0, CRG 200-085 \
+                 on port 2, real time) on {addr}"
+            );
+            params.address = addr.to_string();
+            let server = Arc::new(server);
+            tokio::spawn(log_griplink(server.clone(), params.griplink_port, shutdown));
+            Ok(Sim::Griplink(server))
         }
         other => Err(format!("--sim {other:?} is not available in this build")),
     }
@@ -68,5 +90,27 @@ async fn log_wsg(server: Arc<SimServer>, mut shutdown: watch::Receiver<bool>) {
             );
         }
         last = Some(now);
+    }
+}
+
+/// The GRIPLINK simulator's log: each change of the port's device state (a cancel's DISABLE
+/// shows as `Disabled`).
+async fn log_griplink(
+    server: Arc<gl::SimServer>,
+    port: gripper::griplink::command::PortNumber,
+    mut shutdown: watch::Receiver<bool>,
+) {
+    let mut last = None;
+    let mut tick = tokio::time::interval(LOG_PERIOD);
+    loop {
+        tokio::select! {
+            _ = tick.tick() => {}
+            _ = shutdown.wait_for(|s| *s) => return,
+        }
+        let now = server.device_state(port);
+        if now != last {
+            tracing::info!(target: "simulator", "GRIPLINK simulator: port {port}: {now:?}");
+            last = now;
+        }
     }
 }

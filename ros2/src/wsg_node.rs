@@ -20,7 +20,7 @@ use std::time::Duration;
 
 use futures::future::BoxFuture;
 use futures::StreamExt;
-use gripper::reconnect::{ConnectionEvent, ReconnectPolicy};
+use gripper::reconnect::ReconnectPolicy;
 use gripper::wsg::{
     Client, Error, GripState, HomingDirection, Status, SystemLimits, SystemState, UpdateOptions,
 };
@@ -238,37 +238,17 @@ fn set_state(t: &mut Telemetry, key: &str, value: String) {
     }
 }
 
-/// Follows the link: lost, restored (counted), given up. A FAST STOP found after a reconnect
-/// is acknowledged only with `auto_acknowledge_fast_stop`.
+/// Follows the link. A FAST STOP found after a reconnect is acknowledged only with
+/// `auto_acknowledge_fast_stop`.
 async fn watch_link(client: Client, params: Params, telemetry: Shared) {
-    let mut events = client.connection_events();
-    while let Some(event) = events.next().await {
-        match event {
-            ConnectionEvent::Lost { reason } => {
-                tracing::warn!("WSG link lost: {reason}");
-                let mut t = telemetry.lock();
-                t.connected = false;
-                t.last_error = Some(format!("link lost: {reason}"));
-            }
-            ConnectionEvent::Restored { attempts } => {
-                tracing::info!("WSG link restored after {attempts} attempt(s)");
-                {
-                    let mut t = telemetry.lock();
-                    t.connected = true;
-                    t.reconnects += 1;
-                }
-                if params.auto_acknowledge_fast_stop {
-                    acknowledge_after_reconnect(&client, &telemetry).await;
-                }
-            }
-            ConnectionEvent::GaveUp { attempts } => {
-                let mut t = telemetry.lock();
-                t.connected = false;
-                t.last_error = Some(format!("gave up reconnecting after {attempts} attempt(s)"));
-            }
-            _ => {}
+    let events = client.connection_events();
+    let t = telemetry.clone();
+    crate::link::follow(events, "WSG", telemetry, || async {
+        if params.auto_acknowledge_fast_stop {
+            acknowledge_after_reconnect(&client, &t).await;
         }
-    }
+    })
+    .await;
 }
 
 async fn acknowledge_after_reconnect(client: &Client, telemetry: &Shared) {
