@@ -126,3 +126,65 @@ async fn a_cancel_stops_the_fingers_and_a_second_goal_is_rejected_meanwhile() {
         .contains(gripper::wsg::SystemState::AXIS_STOPPED));
     node.stop().await.unwrap();
 }
+
+/// The latest diagnostics of the node until `check` holds (bounded).
+async fn diagnostics_until(
+    sub: &ros2_client::Subscription<gripper_ros2::msgs::DiagnosticArray>,
+    what: &str,
+    check: impl Fn(&std::collections::HashMap<String, String>) -> bool,
+) -> std::collections::HashMap<String, String> {
+    bounded(what, async {
+        loop {
+            let (msg, _) = sub.async_take().await.expect("diagnostics");
+            let values: std::collections::HashMap<String, String> = msg.status[0]
+                .values
+                .iter()
+                .map(|kv| (kv.key.clone(), kv.value.clone()))
+                .collect();
+            if check(&values) {
+                return values;
+            }
+        }
+    })
+    .await
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_lost_link_reconnects_without_motion_and_reports_the_fast_stop() {
+    let (sim, addr) = sim(SimConfig::default()).await;
+    let d = domain();
+    let node = Running::start(params(DeviceKind::Wsg, addr, d, Mapping::Enhanced));
+    let mut me = TestNode::new(d, "test_client");
+    let topic = me
+        .node
+        .create_topic(
+            &ros2_client::Name::new("/", "diagnostics").unwrap(),
+            gripper_ros2::msgs::diagnostic_array_type(),
+            &gripper_ros2::qos::topic(),
+        )
+        .unwrap();
+    let sub = me.node.create_subscription(&topic, None).unwrap();
+    let home = trigger_client(&mut me, ServiceMapping::Enhanced, "home").await;
+    assert!(trigger_retrying(&home).await.success);
+    diagnostics_until(&sub, "connected", |v| v["connected"] == "true").await;
+
+    let before = sim.received_ids().len();
+    // A pulled cable: the WSG goes into FAST STOP (manual 1.4.2).
+    sim.unplug();
+    let v = diagnostics_until(&sub, "the reconnect with FAST STOP", |v| {
+        v["reconnects"] == "1" && v["fast_stop"] == "true" && v["connected"] == "true"
+    })
+    .await;
+    assert!(v["system_state"].contains("FAST_STOP"), "{v:?}");
+    // Nothing that moves the fingers was sent after the loss: no homing (0x20), no
+    // pre-position, grasp or release (0x21, 0x25, 0x26), and no acknowledge (0x24).
+    let after: Vec<u8> = sim.received_ids()[before..].to_vec();
+    for id in [0x20, 0x21, 0x24, 0x25, 0x26] {
+        assert!(!after.contains(&id), "{id:#04x} sent after the loss: {after:02x?}");
+    }
+    // The operator acknowledges it.
+    let ack = trigger_client(&mut me, ServiceMapping::Enhanced, "acknowledge").await;
+    assert!(trigger_retrying(&ack).await.success);
+    diagnostics_until(&sub, "FAST STOP cleared", |v| v["fast_stop"] == "false").await;
+    node.stop().await.unwrap();
+}
