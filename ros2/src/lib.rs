@@ -11,6 +11,7 @@ pub mod diagnostics;
 pub mod griplink_node;
 pub mod gripper_node;
 pub mod joint_states;
+pub mod kit_node;
 pub mod link;
 pub mod msgs;
 pub mod params;
@@ -36,6 +37,7 @@ pub const SHUTDOWN_GRACE: Duration = Duration::from_secs(3);
 enum Link {
     Wsg(gripper::wsg::Client),
     Griplink(gripper::griplink::Client),
+    SmartGrasp(gripper::smartgrasp::Client),
 }
 
 /// Runs the node `cli` describes until `stop` completes, then shuts it down cleanly: a running
@@ -60,7 +62,11 @@ pub async fn run(cli: Cli, stop: impl Future<Output = ()>) -> Result<(), String>
             griplink_node::start(&mut node, &params, client.clone(), &shutdown).await?;
             Link::Griplink(client)
         }
-        other => return Err(format!("device {other:?} is not available in this build")),
+        DeviceKind::SmartGrasp => {
+            let client = kit_node::connect(&params).await?;
+            kit_node::start(&mut node, &params, client.clone(), &shutdown)?;
+            Link::SmartGrasp(client)
+        }
     };
     tracing::info!(
         "ready: node {} on ROS domain {}, {:?} service mapping",
@@ -90,6 +96,10 @@ pub async fn run(cli: Cli, stop: impl Future<Output = ()>) -> Result<(), String>
             .await
             .map_err(|_| "closing the GRIPLINK session timed out".to_owned())
             .and_then(|r| r.map_err(|e| format!("closing the GRIPLINK session: {e}"))),
+        Link::SmartGrasp(client) => tokio::time::timeout(SHUTDOWN_GRACE, client.close())
+            .await
+            .map_err(|_| "closing the Grasping-Kit session timed out".to_owned())
+            .and_then(|r| r.map_err(|e| format!("closing the Grasping-Kit session: {e}"))),
     };
     if let Err(e) = &closed {
         tracing::warn!("{e}");

@@ -208,3 +208,19 @@ pub fn trigger_type() -> ServiceTypeName {
 pub fn gripper_command_type() -> ActionTypeName {
     ActionTypeName::new("control_msgs", "GripperCommand")
 }
+
+/// `std_msgs/msg/Float64`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Float64 {
+    /// The value.
+    pub data: f64,
+}
+impl Message for Float64 {}
+
+/// `std_msgs/msg/UInt16`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct UInt16 {
+    /// The value.
+    pub data: u16,
+}
+impl Message for UInt16 {}

@@ -138,6 +138,8 @@ pub struct Params {
     /// The IP addresses of the interfaces DDS uses (all when empty), e.g. `[127.0.0.1]` to
     /// keep discovery and traffic on this machine.
     pub dds_interfaces: Vec<std::net::IpAddr>,
+    /// Grasping-Kit: the object class to ask grasps for (0: any).
+    pub object_class: u16,
     /// Grasping-Kit: the frame of the grasp poses.
     pub frame_id: String,
 }
@@ -165,6 +167,7 @@ impl Default for Params {
             service_mapping: None,
             domain_id: 0,
             dds_interfaces: Vec::new(),
+            object_class: 0,
             frame_id: "grasping_kit".into(),
         }
     }
@@ -333,6 +336,12 @@ impl Params {
                 }
             }
             "frame_id" => self.frame_id = string()?,
+            "object_class" => {
+                self.object_class = v
+                    .as_u64()
+                    .and_then(|c| u16::try_from(c).ok())
+                    .ok_or_else(|| bad("a class id 0..=65535"))?
+            }
             "dds_interfaces" => {
                 self.dds_interfaces = v
                     .as_sequence()

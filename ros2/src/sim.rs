@@ -19,6 +19,8 @@ pub enum Sim {
     Wsg(Arc<SimServer>),
     /// A GRIPLINK-ET4.
     Griplink(Arc<gl::SimServer>),
+    /// A Grasping-Kit server.
+    SmartGrasp(gripper::smartgrasp::sim::SimServer),
 }
 
 /// Starts the simulator of `kind` and points the parameters at it.
@@ -62,7 +64,19 @@ pub async fn start(
             tokio::spawn(log_griplink(server.clone(), params.griplink_port, shutdown));
             Ok(Sim::Griplink(server))
         }
-        other => Err(format!("--sim {other:?} is not available in this build")),
+        DeviceKind::SmartGrasp => {
+            // An operational V4 server with the demo bin (three parts).
+            let server = gripper::smartgrasp::sim::SimServer::bind(
+                "127.0.0.1:0",
+                gripper::smartgrasp::sim::SimConfig::default(),
+            )
+            .await
+            .map_err(|e| format!("Grasping-Kit simulator: {e}"))?;
+            let addr = server.local_addr();
+            tracing::info!("Grasping-Kit simulator (V4, the demo bin of three parts) on {addr}");
+            params.address = addr.to_string();
+            Ok(Sim::SmartGrasp(server))
+        }
     }
 }
 

@@ -180,7 +180,10 @@ async fn a_lost_link_reconnects_without_motion_and_reports_the_fast_stop() {
     // pre-position, grasp or release (0x21, 0x25, 0x26), and no acknowledge (0x24).
     let after: Vec<u8> = sim.received_ids()[before..].to_vec();
     for id in [0x20, 0x21, 0x24, 0x25, 0x26] {
-        assert!(!after.contains(&id), "{id:#04x} sent after the loss: {after:02x?}");
+        assert!(
+            !after.contains(&id),
+            "{id:#04x} sent after the loss: {after:02x?}"
+        );
     }
     // The operator acknowledges it.
     let ack = trigger_client(&mut me, ServiceMapping::Enhanced, "acknowledge").await;
