@@ -75,6 +75,19 @@ pub struct Outcome {
     pub message: String,
 }
 
+/// The checks every device makes before accepting a goal: a position that is an opening
+/// (finite, not negative) and a force that is one (finite, not negative; 0 = the default).
+pub fn check_command(goal: &GripperCommandGoal) -> Result<(), String> {
+    let c = goal.command;
+    if !c.position.is_finite() || c.position < 0.0 {
+        return Err(format!("position {} m is not an opening", c.position));
+    }
+    if !c.max_effort.is_finite() || c.max_effort < 0.0 {
+        return Err(format!("max_effort {} N is not a force", c.max_effort));
+    }
+    Ok(())
+}
+
 /// What the action needs from a device.
 pub trait Actuator: Send + Sync + 'static {
     /// Checks a goal before it is accepted; `Err` rejects it with that reason.

@@ -6,8 +6,9 @@ use ros2_client::{Node, Publisher};
 use tokio::sync::watch;
 
 use crate::msgs::{diagnostic_array_type, DiagnosticArray, DiagnosticStatus, Header, KeyValue};
+use crate::params::Params;
 use crate::telemetry::{Shared, Telemetry};
-use crate::{qos, ros};
+use crate::{periodic, qos, ros};
 
 /// The diagnostics period (REP 107's 1 Hz).
 pub const PERIOD: Duration = Duration::from_secs(1);
@@ -66,8 +67,7 @@ fn kv(key: &str, value: String) -> KeyValue {
     }
 }
 
-/// Creates the publisher.
-pub fn publisher(node: &mut Node) -> Result<Publisher<DiagnosticArray>, String> {
+fn publisher(node: &mut Node) -> Result<Publisher<DiagnosticArray>, String> {
     let topic = node
         .create_topic(
             &ros::global_name("diagnostics")?,
@@ -79,20 +79,17 @@ pub fn publisher(node: &mut Node) -> Result<Publisher<DiagnosticArray>, String> 
         .map_err(|e| format!("diagnostics publisher: {e:?}"))
 }
 
-/// Publishes until `shutdown` turns true.
-pub async fn run(
-    publisher: Publisher<DiagnosticArray>,
-    node_name: String,
-    telemetry: Shared,
-    mut shutdown: watch::Receiver<bool>,
-) {
-    let mut tick = tokio::time::interval(PERIOD);
-    tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
-    loop {
-        tokio::select! {
-            _ = tick.tick() => {}
-            _ = shutdown.wait_for(|s| *s) => return,
-        }
+/// Creates the publisher and publishes `telemetry` until `shutdown` turns true.
+pub fn spawn(
+    node: &mut Node,
+    params: &Params,
+    telemetry: &Shared,
+    shutdown: &watch::Receiver<bool>,
+) -> Result<(), String> {
+    let publisher = publisher(node)?;
+    let node_name = params.fully_qualified_name();
+    let telemetry = telemetry.clone();
+    tokio::spawn(periodic::every(PERIOD, shutdown.clone(), move || {
         let msg = DiagnosticArray {
             header: Header::now(""),
             status: vec![status(&node_name, &telemetry.get())],
@@ -100,7 +97,9 @@ pub async fn run(
         if let Err(e) = publisher.publish(msg) {
             tracing::debug!("diagnostics not sent: {e:?}");
         }
-    }
+        std::future::ready(())
+    }));
+    Ok(())
 }
 
 #[cfg(test)]

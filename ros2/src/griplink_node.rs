@@ -195,11 +195,7 @@ pub fn apply_state(t: &mut Telemetry, s: DeviceState) {
         DeviceState::NotConnected => vec!["DS_NOT_CONNECTED: no device on the port".to_owned()],
         _ => Vec::new(),
     };
-    let value = format!("{s:?}");
-    match t.state.iter_mut().find(|(k, _)| k == "device_state") {
-        Some(entry) => entry.1 = value,
-        None => t.state.push(("device_state".to_owned(), value)),
-    }
+    t.set_state("device_state", format!("{s:?}"));
 }
 
 /// A GRIPLINK port as the action's actuator.
@@ -301,13 +297,8 @@ impl Griplink {
 
 impl Actuator for Griplink {
     fn check(&self, goal: &GripperCommandGoal) -> Result<(), String> {
+        crate::action::check_command(goal)?;
         let c = goal.command;
-        if !c.position.is_finite() || c.position < 0.0 {
-            return Err(format!("position {} m is not an opening", c.position));
-        }
-        if !c.max_effort.is_finite() || c.max_effort < 0.0 {
-            return Err(format!("max_effort {} N is not a force", c.max_effort));
-        }
         let width = self.0.params.position_convention.to_width_mm(c.position);
         let closing = self
             .0

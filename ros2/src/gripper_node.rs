@@ -46,20 +46,8 @@ pub fn serve(
         .map_err(|e| format!("action ~/gripper_cmd: {e:?}"))?;
     tokio::spawn(GoalKeeper::new(actuator).serve(server, shutdown.clone()));
 
-    let js = joint_states::publisher(node, params)?;
-    tokio::spawn(joint_states::run(
-        js,
-        params.clone(),
-        telemetry.clone(),
-        shutdown.clone(),
-    ));
-    let diag = diagnostics::publisher(node)?;
-    tokio::spawn(diagnostics::run(
-        diag,
-        params.fully_qualified_name(),
-        telemetry.clone(),
-        shutdown.clone(),
-    ));
+    joint_states::spawn(node, params, telemetry, shutdown)?;
+    diagnostics::spawn(node, params, telemetry, shutdown)?;
 
     for (name, handler) in [
         ("home", services.home),

@@ -8,7 +8,7 @@ use tokio::sync::watch;
 use crate::msgs::{joint_state_type, Header, JointState};
 use crate::params::Params;
 use crate::telemetry::{Shared, Telemetry};
-use crate::{qos, ros};
+use crate::{periodic, qos, ros};
 
 /// The joint state for `t`: with one joint name, the opening in the `position_convention`;
 /// with two, each finger's distance from the centre (half the opening), as the public URDFs'
@@ -33,8 +33,7 @@ pub fn joint_state(params: &Params, t: &Telemetry) -> Option<JointState> {
     })
 }
 
-/// Creates the publisher.
-pub fn publisher(node: &mut Node, params: &Params) -> Result<Publisher<JointState>, String> {
+fn publisher(node: &mut Node, params: &Params) -> Result<Publisher<JointState>, String> {
     let name = ros::namespaced_name(params, "joint_states")?;
     let topic = node
         .create_topic(&name, joint_state_type(), &qos::topic())
@@ -43,27 +42,25 @@ pub fn publisher(node: &mut Node, params: &Params) -> Result<Publisher<JointStat
         .map_err(|e| format!("joint_states publisher: {e:?}"))
 }
 
-/// Publishes until `shutdown` turns true.
-pub async fn run(
-    publisher: Publisher<JointState>,
-    params: Params,
-    telemetry: Shared,
-    mut shutdown: watch::Receiver<bool>,
-) {
-    let mut tick =
-        tokio::time::interval(Duration::from_secs_f64(1.0 / params.joint_states_rate_hz));
-    tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
-    loop {
-        tokio::select! {
-            _ = tick.tick() => {}
-            _ = shutdown.wait_for(|s| *s) => return,
-        }
+/// Creates the publisher and publishes `telemetry` until `shutdown` turns true.
+pub fn spawn(
+    node: &mut Node,
+    params: &Params,
+    telemetry: &Shared,
+    shutdown: &watch::Receiver<bool>,
+) -> Result<(), String> {
+    let publisher = publisher(node, params)?;
+    let period = Duration::from_secs_f64(1.0 / params.joint_states_rate_hz);
+    let (params, telemetry) = (params.clone(), telemetry.clone());
+    tokio::spawn(periodic::every(period, shutdown.clone(), move || {
         if let Some(msg) = joint_state(&params, &telemetry.get()) {
             if let Err(e) = publisher.publish(msg) {
                 tracing::debug!("joint state not sent: {e:?}");
             }
         }
-    }
+        std::future::ready(())
+    }));
+    Ok(())
 }
 
 #[cfg(test)]

@@ -32,7 +32,7 @@ use crate::msgs::{
 };
 use crate::params::{Mapping, Params};
 use crate::telemetry::Shared;
-use crate::{diagnostics, qos, ros, trigger};
+use crate::{diagnostics, periodic, qos, ros, trigger};
 
 /// Connects to the Grasping-Kit the parameters name and opens the session (protocol version,
 /// state, registration, project 0).
@@ -97,13 +97,7 @@ pub fn start(
         telemetry.clone(),
         shutdown.clone(),
     ));
-    let diag = diagnostics::publisher(node)?;
-    tokio::spawn(diagnostics::run(
-        diag,
-        params.fully_qualified_name(),
-        telemetry.clone(),
-        shutdown.clone(),
-    ));
+    diagnostics::spawn(node, params, &telemetry, shutdown)?;
 
     let grasps = Arc::new(Grasps {
         pose: publisher(node, params, "grasp_pose", pose_stamped_type())?,
@@ -226,33 +220,28 @@ async fn next_grasp(
     ))
 }
 
-async fn poll_state(client: Client, telemetry: Shared, mut shutdown: watch::Receiver<bool>) {
-    let mut tick = tokio::time::interval(diagnostics::PERIOD);
-    tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
-    loop {
-        tokio::select! {
-            _ = tick.tick() => {}
-            _ = shutdown.wait_for(|s| *s) => return,
-        }
-        if !telemetry.lock().connected {
-            continue;
-        }
-        let state = client.get_state().await;
-        let mut t = telemetry.lock();
-        match state {
-            Ok(s) => {
-                let value = s.to_string();
-                match t.state.iter_mut().find(|(k, _)| k == "server_state") {
-                    Some(entry) => entry.1 = value,
-                    None => t.state.push(("server_state".to_owned(), value)),
-                }
-                t.warnings = if s == gripper::smartgrasp::ServerState::Operational {
-                    Vec::new()
-                } else {
-                    vec![format!("server state {s}")]
-                };
+/// GET_STATE once a second into the diagnostics.
+async fn poll_state(client: Client, telemetry: Shared, shutdown: watch::Receiver<bool>) {
+    periodic::every(diagnostics::PERIOD, shutdown, move || {
+        let (client, telemetry) = (client.clone(), telemetry.clone());
+        async move {
+            if !telemetry.lock().connected {
+                return;
             }
-            Err(e) => t.last_error = Some(format!("GET_STATE: {e}")),
+            let state = client.get_state().await;
+            let mut t = telemetry.lock();
+            match state {
+                Ok(s) => {
+                    t.set_state("server_state", s.to_string());
+                    t.warnings = if s == gripper::smartgrasp::ServerState::Operational {
+                        Vec::new()
+                    } else {
+                        vec![format!("server state {s}")]
+                    };
+                }
+                Err(e) => t.last_error = Some(format!("GET_STATE: {e}")),
+            }
         }
-    }
+    })
+    .await;
 }

@@ -15,6 +15,7 @@ pub mod kit_node;
 pub mod link;
 pub mod msgs;
 pub mod params;
+pub mod periodic;
 pub mod qos;
 pub mod ros;
 pub mod sim;

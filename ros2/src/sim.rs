@@ -9,6 +9,7 @@ use gripper::wsg::sim::{SimConfig, SimServer, SimSnapshot};
 use tokio::sync::watch;
 
 use crate::params::{DeviceKind, Params};
+use crate::periodic;
 
 /// How often the simulator's state is looked at for its log.
 const LOG_PERIOD: Duration = Duration::from_millis(10);
@@ -82,14 +83,9 @@ pub async fn start(
 
 /// The simulator's log: each change of its grip state or system state flags (a stop shows as
 /// AXIS_STOPPED, manual Anhang B), with the width.
-async fn log_wsg(server: Arc<SimServer>, mut shutdown: watch::Receiver<bool>) {
+async fn log_wsg(server: Arc<SimServer>, shutdown: watch::Receiver<bool>) {
     let mut last: Option<SimSnapshot> = None;
-    let mut tick = tokio::time::interval(LOG_PERIOD);
-    loop {
-        tokio::select! {
-            _ = tick.tick() => {}
-            _ = shutdown.wait_for(|s| *s) => return,
-        }
+    periodic::every(LOG_PERIOD, shutdown, move || {
         let now = server.snapshot();
         let changed = last
             .as_ref()
@@ -104,7 +100,9 @@ async fn log_wsg(server: Arc<SimServer>, mut shutdown: watch::Receiver<bool>) {
             );
         }
         last = Some(now);
-    }
+        std::future::ready(())
+    })
+    .await;
 }
 
 /// The GRIPLINK simulator's log: each change of the port's device state (a cancel's DISABLE
@@ -112,19 +110,16 @@ async fn log_wsg(server: Arc<SimServer>, mut shutdown: watch::Receiver<bool>) {
 async fn log_griplink(
     server: Arc<gl::SimServer>,
     port: gripper::griplink::command::PortNumber,
-    mut shutdown: watch::Receiver<bool>,
+    shutdown: watch::Receiver<bool>,
 ) {
     let mut last = None;
-    let mut tick = tokio::time::interval(LOG_PERIOD);
-    loop {
-        tokio::select! {
-            _ = tick.tick() => {}
-            _ = shutdown.wait_for(|s| *s) => return,
-        }
+    periodic::every(LOG_PERIOD, shutdown, move || {
         let now = server.device_state(port);
         if now != last {
             tracing::info!(target: "simulator", "GRIPLINK simulator: port {port}: {now:?}");
             last = now;
         }
-    }
+        std::future::ready(())
+    })
+    .await;
 }

@@ -37,6 +37,16 @@ pub struct Telemetry {
     pub last_error: Option<String>,
 }
 
+impl Telemetry {
+    /// Sets a value of [`Telemetry::state`].
+    pub fn set_state(&mut self, key: &str, value: String) {
+        match self.state.iter_mut().find(|(k, _)| k == key) {
+            Some(entry) => entry.1 = value,
+            None => self.state.push((key.to_owned(), value)),
+        }
+    }
+}
+
 /// The shared telemetry of a node.
 #[derive(Clone, Debug, Default)]
 pub struct Shared(Arc<Mutex<Telemetry>>);

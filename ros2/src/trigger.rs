@@ -11,6 +11,9 @@ use crate::msgs::{trigger_type, TriggerRequest, TriggerResponse};
 use crate::params::Params;
 use crate::{qos, ros};
 
+/// The pause after a failed read of a request.
+const ERROR_BACKOFF: std::time::Duration = std::time::Duration::from_millis(100);
+
 /// What a service does: `Ok(message)` or `Err(why)`.
 pub type Handler = Arc<dyn Fn() -> BoxFuture<'static, Result<String, String>> + Send + Sync>;
 
@@ -43,6 +46,8 @@ pub fn spawn(
                 Ok((id, _)) => id,
                 Err(e) => {
                     tracing::warn!("~/{name}: reading a request failed: {e:?}");
+                    // A reader that keeps failing must not spin the runtime.
+                    tokio::time::sleep(ERROR_BACKOFF).await;
                     continue;
                 }
             };

@@ -31,6 +31,7 @@ use crate::action::{Actuator, Outcome};
 use crate::gripper_node::{self, Services};
 use crate::msgs::{GripperCommandFeedback, GripperCommandGoal, GripperCommandResult};
 use crate::params::Params;
+use crate::periodic;
 use crate::telemetry::{Shared, Telemetry};
 
 /// Connects to the WSG the parameters name.
@@ -218,9 +219,8 @@ pub fn apply_system_state(t: &mut Telemetry, s: SystemState) {
         .and_then(|f| f.strip_suffix(')'))
         .unwrap_or(&flags)
         .to_owned();
-    set_state(t, "system_state", flags);
-    set_state(
-        t,
+    t.set_state("system_state", flags);
+    t.set_state(
         "referenced",
         s.contains(SystemState::REFERENCED).to_string(),
     );
@@ -228,14 +228,7 @@ pub fn apply_system_state(t: &mut Telemetry, s: SystemState) {
 
 fn apply_grip_state(t: &mut Telemetry, g: GripState) {
     t.holding = g == GripState::Holding;
-    set_state(t, "grip_state", format!("{g:?}"));
-}
-
-fn set_state(t: &mut Telemetry, key: &str, value: String) {
-    match t.state.iter_mut().find(|(k, _)| k == key) {
-        Some(entry) => entry.1 = value,
-        None => t.state.push((key.to_owned(), value)),
-    }
+    t.set_state("grip_state", format!("{g:?}"));
 }
 
 /// Follows the link. A FAST STOP found after a reconnect is acknowledged only with
@@ -266,23 +259,21 @@ async fn acknowledge_after_reconnect(client: &Client, telemetry: &Shared) {
     }
 }
 
-async fn poll_temperature(client: Client, telemetry: Shared, mut shutdown: watch::Receiver<bool>) {
-    let mut tick = tokio::time::interval(crate::diagnostics::PERIOD);
-    tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
-    loop {
-        tokio::select! {
-            _ = tick.tick() => {}
-            _ = shutdown.wait_for(|s| *s) => return,
+/// The temperature (0x46) once a second into the diagnostics.
+async fn poll_temperature(client: Client, telemetry: Shared, shutdown: watch::Receiver<bool>) {
+    periodic::every(crate::diagnostics::PERIOD, shutdown, move || {
+        let (client, telemetry) = (client.clone(), telemetry.clone());
+        async move {
+            if !telemetry.lock().connected {
+                return;
+            }
+            match client.temperature_c().await {
+                Ok(c) => telemetry.lock().temperature_c = Some(f64::from(c)),
+                Err(e) => note_error(&telemetry, &e),
+            }
         }
-        if !telemetry.lock().connected {
-            continue;
-        }
-        match client.temperature_c().await {
-            Ok(c) => telemetry.lock().temperature_c = Some(f64::from(c)),
-            Err(Error::Closed) => return,
-            Err(e) => note_error(&telemetry, &e),
-        }
-    }
+    })
+    .await;
 }
 
 fn note_error(telemetry: &Shared, e: &Error) {
@@ -417,11 +408,9 @@ impl Wsg {
 
 impl Actuator for Wsg {
     fn check(&self, goal: &GripperCommandGoal) -> Result<(), String> {
+        crate::action::check_command(goal)?;
         let c = goal.command;
         let limits = &self.0.limits;
-        if !c.position.is_finite() || c.position < 0.0 {
-            return Err(format!("position {} m is not an opening", c.position));
-        }
         let width = self.0.params.position_convention.to_width_mm(c.position);
         if width > f64::from(limits.stroke_mm) {
             return Err(format!(
@@ -433,10 +422,7 @@ impl Actuator for Wsg {
             f64::from(limits.min_force_n),
             f64::from(limits.nominal_force_n),
         );
-        if !c.max_effort.is_finite()
-            || c.max_effort < 0.0
-            || (c.max_effort > 0.0 && !(min..=max).contains(&c.max_effort))
-        {
+        if c.max_effort > 0.0 && !(min..=max).contains(&c.max_effort) {
             return Err(format!(
                 "max_effort {} N: 0 (keep the setting) or {min}..={max} N",
                 c.max_effort

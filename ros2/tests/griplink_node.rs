@@ -6,21 +6,10 @@ mod common;
 use common::*;
 use gripper::griplink::sim::{SimConfig, SimDevice, SimServer};
 use gripper::griplink::DeviceState;
-use gripper_ros2::msgs::{GripperCommand, GripperCommandGoal};
 use gripper_ros2::params::{DeviceKind, Mapping};
 use ros2_client::action::GoalStatusEnum;
 use ros2_client::action_msgs::CancelGoalResponseEnum;
 use ros2_client::builtin_interfaces::Time;
-use ros2_client::ServiceMapping;
-
-fn goal(position: f64, max_effort: f64) -> GripperCommandGoal {
-    GripperCommandGoal {
-        command: GripperCommand {
-            position,
-            max_effort,
-        },
-    }
-}
 
 /// A GRIPLINK-ET4 with an IEG 55-020 (20 mm stroke) holding nothing yet on port 0.
 async fn sim(time_scale: f64) -> (SimServer, String) {
@@ -36,20 +25,15 @@ async fn sim(time_scale: f64) -> (SimServer, String) {
 async fn grip_on_a_part_release_and_a_grip_without_force_rejected() {
     let (sim, addr) = sim(0.0).await;
     sim.set_part(0, Some(10.0));
-    let d = domain();
-    let node = Running::start(params(DeviceKind::Griplink, addr, d, Mapping::Enhanced));
-    let mut me = TestNode::new(d, "test_client");
-    let home = trigger_client(&mut me, ServiceMapping::Enhanced, "home").await;
-    assert!(trigger_retrying(&home).await.success);
-    let gripper = action_client(&mut me, ServiceMapping::Enhanced).await;
+    let (node, _me, gripper) = homed_gripper(params(
+        DeviceKind::Griplink,
+        addr,
+        domain(),
+        Mapping::Enhanced,
+    ))
+    .await;
 
-    let (id, accepted) = bounded("send_goal", gripper.async_send_goal(goal(0.005, 15.0)))
-        .await
-        .unwrap();
-    assert!(accepted.accepted);
-    let (status, result) = bounded("get_result", gripper.async_request_result(id))
-        .await
-        .unwrap();
+    let (_, status, result) = run_goal(&gripper, 0.005, 15.0).await;
     assert_eq!(status, GoalStatusEnum::Succeeded, "{result:?}");
     assert!(result.stalled && !result.reached_goal, "{result:?}");
     assert_eq!(result.effort, 15.0);
@@ -62,12 +46,7 @@ async fn grip_on_a_part_release_and_a_grip_without_force_rejected() {
         .unwrap();
     assert!(!response.accepted);
 
-    let (id, _) = bounded("send_goal", gripper.async_send_goal(goal(0.018, 0.0)))
-        .await
-        .unwrap();
-    let (status, result) = bounded("get_result", gripper.async_request_result(id))
-        .await
-        .unwrap();
+    let (_, status, result) = run_goal(&gripper, 0.018, 0.0).await;
     assert_eq!(status, GoalStatusEnum::Succeeded, "{result:?}");
     assert!(result.reached_goal && !result.stalled, "{result:?}");
     assert_eq!(sim.device_state(0), Some(DeviceState::Released));
@@ -78,15 +57,10 @@ async fn grip_on_a_part_release_and_a_grip_without_force_rejected() {
 async fn a_cancel_disables_the_port_and_the_goal_ends_canceled() {
     // Real time: 20 mm at 2 mm/s takes 10 s, so the cancel finds the grip running.
     let (sim, addr) = sim(1.0).await;
-    let d = domain();
-    let mut p = params(DeviceKind::Griplink, addr, d, Mapping::Cyclone);
+    let mut p = params(DeviceKind::Griplink, addr, domain(), Mapping::Cyclone);
     p.speed_m_per_s = 0.002;
     p.default_effort_n = 10.0;
-    let node = Running::start(p);
-    let mut me = TestNode::new(d, "test_client");
-    let home = trigger_client(&mut me, ServiceMapping::Cyclone, "home").await;
-    assert!(trigger_retrying(&home).await.success);
-    let gripper = action_client(&mut me, ServiceMapping::Cyclone).await;
+    let (node, _me, gripper) = homed_gripper(p).await;
     let (id, accepted) = bounded("send_goal", gripper.async_send_goal(goal(0.0, 0.0)))
         .await
         .unwrap();

@@ -5,21 +5,11 @@ mod common;
 
 use common::*;
 use gripper::wsg::sim::{SimConfig, SimServer};
-use gripper_ros2::msgs::{GripperCommand, GripperCommandGoal};
 use gripper_ros2::params::{DeviceKind, Mapping};
 use ros2_client::action::GoalStatusEnum;
 use ros2_client::action_msgs::CancelGoalResponseEnum;
 use ros2_client::builtin_interfaces::Time;
 use ros2_client::ServiceMapping;
-
-fn goal(position: f64, max_effort: f64) -> GripperCommandGoal {
-    GripperCommandGoal {
-        command: GripperCommand {
-            position,
-            max_effort,
-        },
-    }
-}
 
 async fn sim(config: SimConfig) -> (SimServer, String) {
     let sim = SimServer::bind("127.0.0.1:0", config).await.unwrap();
@@ -30,21 +20,11 @@ async fn sim(config: SimConfig) -> (SimServer, String) {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn goals_results_and_a_late_result_request_with_the_enhanced_mapping() {
     // Instant motion: the moves cost no wall time.
-    let (_sim, addr) = sim(SimConfig::default().with_part(40.0, 2.0)).await;
-    let d = domain();
-    let node = Running::start(params(DeviceKind::Wsg, addr, d, Mapping::Enhanced));
-    let mut me = TestNode::new(d, "test_client");
-    let home = trigger_client(&mut me, ServiceMapping::Enhanced, "home").await;
-    assert!(trigger_retrying(&home).await.success);
-    let gripper = action_client(&mut me, ServiceMapping::Enhanced).await;
+    let (wsg, addr) = sim(SimConfig::default().with_part(40.0, 2.0)).await;
+    let (node, _me, gripper) =
+        homed_gripper(params(DeviceKind::Wsg, addr, domain(), Mapping::Enhanced)).await;
 
-    let (id, accepted) = bounded("send_goal", gripper.async_send_goal(goal(0.04, 30.0)))
-        .await
-        .unwrap();
-    assert!(accepted.accepted);
-    let (status, result) = bounded("get_result", gripper.async_request_result(id))
-        .await
-        .unwrap();
+    let (id, status, result) = run_goal(&gripper, 0.04, 30.0).await;
     assert_eq!(status, GoalStatusEnum::Succeeded);
     assert!(result.stalled && result.reached_goal, "{result:?}");
     assert_eq!((result.position, result.effort), (0.04, 30.0));
@@ -78,19 +58,20 @@ async fn goals_results_and_a_late_result_request_with_the_enhanced_mapping() {
         .unwrap();
     assert_eq!(response.return_code, CancelGoalResponseEnum::GoalTerminated);
     node.stop().await.unwrap();
+    // A clean shutdown announces the disconnect (0x07), so the WSG does not go into FAST STOP.
+    assert_eq!(wsg.received_ids().last(), Some(&0x07));
+    assert!(!wsg
+        .snapshot()
+        .system_state
+        .contains(gripper::wsg::SystemState::FAST_STOP));
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_cancel_stops_the_fingers_and_a_second_goal_is_rejected_meanwhile() {
     let (sim, addr) = sim(SimConfig::default()).await;
-    let d = domain();
-    let mut p = params(DeviceKind::Wsg, addr, d, Mapping::Cyclone);
+    let mut p = params(DeviceKind::Wsg, addr, domain(), Mapping::Cyclone);
     p.speed_m_per_s = 0.01;
-    let node = Running::start(p);
-    let mut me = TestNode::new(d, "test_client");
-    let home = trigger_client(&mut me, ServiceMapping::Cyclone, "home").await;
-    assert!(trigger_retrying(&home).await.success);
-    let gripper = action_client(&mut me, ServiceMapping::Cyclone).await;
+    let (node, _me, gripper) = homed_gripper(p).await;
     // Real time from here: a 100 mm move at 10 mm/s takes 10 s, so the cancel finds it running.
     sim.set_time_scale(1.0);
     let (id, accepted) = bounded("send_goal", gripper.async_send_goal(goal(0.005, 0.0)))
@@ -189,5 +170,36 @@ async fn a_lost_link_reconnects_without_motion_and_reports_the_fast_stop() {
     let ack = trigger_client(&mut me, ServiceMapping::Enhanced, "acknowledge").await;
     assert!(trigger_retrying(&ack).await.success);
     diagnostics_until(&sub, "FAST STOP cleared", |v| v["fast_stop"] == "false").await;
+    node.stop().await.unwrap();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn auto_acknowledge_clears_the_fast_stop_after_a_reconnect() {
+    let (sim, addr) = sim(SimConfig::default()).await;
+    let d = domain();
+    let mut p = params(DeviceKind::Wsg, addr, d, Mapping::Enhanced);
+    p.auto_acknowledge_fast_stop = true;
+    let node = Running::start(p);
+    let mut me = TestNode::new(d, "test_client");
+    let home = trigger_client(&mut me, ServiceMapping::Enhanced, "home").await;
+    assert!(trigger_retrying(&home).await.success);
+    let before = sim.received_ids().len();
+    sim.unplug();
+    bounded("the acknowledge after the reconnect", async {
+        while !sim.received_ids()[before..].contains(&0x24) {
+            tokio::time::sleep(POLL).await;
+        }
+    })
+    .await;
+    bounded("FAST STOP cleared", async {
+        while sim
+            .snapshot()
+            .system_state
+            .contains(gripper::wsg::SystemState::FAST_STOP)
+        {
+            tokio::time::sleep(POLL).await;
+        }
+    })
+    .await;
     node.stop().await.unwrap();
 }

@@ -15,7 +15,7 @@ use gripper_ros2::msgs::{
 };
 use gripper_ros2::params::{Cli, DeviceKind, Mapping, Params};
 use gripper_ros2::qos;
-use ros2_client::action::{ActionClient, ActionClientQosPolicies, GoalId};
+use ros2_client::action::{ActionClient, ActionClientQosPolicies, GoalId, GoalStatusEnum};
 use ros2_client::builtin_interfaces::Time;
 use ros2_client::dds::rustdds::DomainParticipantBuilder;
 use ros2_client::{Client, Context, Name, Node, NodeName, NodeOptions, ServiceMapping};
@@ -159,6 +159,51 @@ pub async fn ping<T, E: std::fmt::Debug, F: Future<Output = Result<T, E>>>(
 /// The GripperCommand client of `/gripper/gripper_cmd`.
 pub type GripperClient =
     ActionClient<GripperCommandGoal, GripperCommandResult, GripperCommandFeedback>;
+
+/// Starts the node for `params`, a test node beside it, homes the gripper through `~/home` and
+/// returns an action client (all with the parameters' service mapping).
+pub async fn homed_gripper(params: Params) -> (Running, TestNode, GripperClient) {
+    let mapping = params.service_mapping.expect("a mapping").to_ros2();
+    let domain = params.domain_id;
+    let node = Running::start(params);
+    let mut me = TestNode::new(domain, "test_client");
+    let home = trigger_client(&mut me, mapping, "home").await;
+    assert!(trigger_retrying(&home).await.success);
+    let gripper = action_client(&mut me, mapping).await;
+    (node, me, gripper)
+}
+
+/// Sends a goal, which must be accepted, and waits for its result.
+pub async fn run_goal(
+    gripper: &GripperClient,
+    position: f64,
+    max_effort: f64,
+) -> (GoalId, GoalStatusEnum, GripperCommandResult) {
+    let (id, accepted) = bounded(
+        "send_goal",
+        gripper.async_send_goal(goal(position, max_effort)),
+    )
+    .await
+    .unwrap();
+    assert!(
+        accepted.accepted,
+        "goal {position} m, {max_effort} N rejected"
+    );
+    let (status, result) = bounded("get_result", gripper.async_request_result(id))
+        .await
+        .unwrap();
+    (id, status, result)
+}
+
+/// A GripperCommand goal.
+pub fn goal(position: f64, max_effort: f64) -> GripperCommandGoal {
+    GripperCommandGoal {
+        command: GripperCommand {
+            position,
+            max_effort,
+        },
+    }
+}
 
 /// An action client of `/gripper/gripper_cmd`, its three services matched and answering (a
 /// goal with a NaN position is rejected, a result and a cancel of an unknown goal are
