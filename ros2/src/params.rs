@@ -377,10 +377,11 @@ impl Params {
             }
         };
         positive("joint_states_rate_hz", self.joint_states_rate_hz)?;
-        // At most 1 kHz: a sleep shorter than a millisecond would only burn the CPU.
-        if self.joint_states_rate_hz > 1000.0 {
+        // At most 1 kHz: a period shorter than a millisecond would only burn the CPU. At least
+        // 0.1 Hz, so that the period is a Duration (1e-300 Hz would overflow it and panic).
+        if !(0.1..=1000.0).contains(&self.joint_states_rate_hz) {
             return Err(ParamError(
-                "joint_states_rate_hz must be at most 1000".into(),
+                "joint_states_rate_hz must be within 0.1..=1000".into(),
             ));
         }
         positive("speed_m_per_s", self.speed_m_per_s)?;
@@ -502,6 +503,7 @@ mod tests {
         for bad in [
             "-p joint_states_rate_hz:=0",
             "-p joint_states_rate_hz:=.nan",
+            "-p joint_states_rate_hz:=1e-300",
             "-p joint_names:=[]",
             "-p griplink_port:=7",
             "-p baud_rate:=-1",
