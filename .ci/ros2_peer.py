@@ -288,7 +288,7 @@ def main():
         fail("the simulator's log does not show the stop of the cancelled goal")
     print("ros2 peer: the simulator's log shows the stop (AXIS_STOPPED); the node shut down cleanly")
     os.unlink(log.name)
-    print("ros2 peer: 8 passed, 0 failed")
+    print("ros2-peer: 8 passed, 0 failed")
 
 
 def run_checks(domain, log):
