@@ -36,6 +36,16 @@ async fn goals_results_and_a_late_result_request_with_the_enhanced_mapping() {
         .unwrap();
     assert_eq!((status, again), (GoalStatusEnum::Succeeded, result));
 
+    // Open (a release, the part is held), then close where no part is: the grasp finds none
+    // (E_CMD_FAILED) and the goal is ABORTED, its result answered all the same (ros2-client's
+    // abort_*_goal never answers a pending get_result).
+    let (_, status, result) = run_goal(&gripper, 0.07, 0.0).await;
+    assert_eq!(status, GoalStatusEnum::Succeeded);
+    assert!(result.reached_goal && !result.stalled, "{result:?}");
+    let (_, status, result) = run_goal(&gripper, 0.02, 0.0).await;
+    assert_eq!(status, GoalStatusEnum::Aborted, "{result:?}");
+    assert!(!result.stalled && !result.reached_goal, "{result:?}");
+
     // A goal id never sent: STATUS_UNKNOWN, as rclcpp_action answers.
     let (status, _) = bounded(
         "get_result of an unknown goal",
