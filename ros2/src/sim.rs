@@ -66,13 +66,16 @@ pub async fn start(
             Ok(Sim::Griplink(server))
         }
         DeviceKind::SmartGrasp => {
-            // An operational V4 server with the demo bin (three parts).
-            let server = gripper::smartgrasp::sim::SimServer::bind(
-                "127.0.0.1:0",
-                gripper::smartgrasp::sim::SimConfig::default(),
-            )
-            .await
-            .map_err(|e| format!("Grasping-Kit simulator: {e}"))?;
+            // An operational V4 server with the demo bin (three parts). A real Grasping-Kit's
+            // GRASP_FEEDBACK changes nothing (SCHUNK's examples); here an OK takes the part out of
+            // the bin, as `gripctl sim smartgrasp` does, so a picking loop ends.
+            let config = gripper::smartgrasp::sim::SimConfig {
+                feedback_removes_objects: true,
+                ..Default::default()
+            };
+            let server = gripper::smartgrasp::sim::SimServer::bind("127.0.0.1:0", config)
+                .await
+                .map_err(|e| format!("Grasping-Kit simulator: {e}"))?;
             let addr = server.local_addr();
             tracing::info!("Grasping-Kit simulator (V4, the demo bin of three parts) on {addr}");
             params.address = addr.to_string();

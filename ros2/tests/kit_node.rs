@@ -12,9 +12,12 @@ use ros2_client::{MessageTypeName, Name, ServiceMapping};
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn next_grasp_publishes_pose_stroke_and_class_until_the_bin_is_empty() {
-    let sim = SimServer::bind("127.0.0.1:0", SimConfig::default())
-        .await
-        .unwrap();
+    // OK takes the part out of the bin (a real Grasping-Kit's feedback changes nothing).
+    let config = SimConfig {
+        feedback_removes_objects: true,
+        ..SimConfig::default()
+    };
+    let sim = SimServer::bind("127.0.0.1:0", config).await.unwrap();
     let d = domain();
     let mut p = params(
         DeviceKind::SmartGrasp,
