@@ -48,6 +48,7 @@ mod model;
 mod motion;
 mod server;
 mod sessions;
+mod text;
 
 // Inlined, so that this page lists them with their summaries.
 #[doc(inline)]
