@@ -43,7 +43,9 @@ struct Strict {
 
 impl Strict {
     async fn connect(server: &SimServer) -> Strict {
-        let stream = TcpStream::connect(server.local_addr().unwrap()).await.unwrap();
+        let stream = TcpStream::connect(server.local_addr().unwrap())
+            .await
+            .unwrap();
         stream.set_nodelay(true).unwrap();
         Strict { stream }
     }
@@ -102,16 +104,19 @@ async fn every_command_with_one_line_per_segment() {
     g.expect("GRIPSTATE?", &["GRIPSTATE=4"]).await;
     g.expect("FORCE?", &["FORCE=40.0"]).await;
     g.expect("GRIP(40)", &["ERR GRIP 16"]).await; // not while holding
-    // RELEASE opens BY the pull-back, from where the fingers are.
-    g.expect("RELEASE(10)", &["ACK RELEASE", "FIN RELEASE"]).await;
+                                                  // RELEASE opens BY the pull-back, from where the fingers are.
+    g.expect("RELEASE(10)", &["ACK RELEASE", "FIN RELEASE"])
+        .await;
     g.expect("POS?", &["POS=50.0"]).await;
     g.expect("GRIPSTATE?", &["GRIPSTATE=0"]).await;
     g.expect("FORCE?", &["FORCE=0.0"]).await;
     g.expect("SPEED?", &["SPEED=0.0"]).await;
     g.expect("TEMP?", &["TEMP=23.4"]).await;
     // GRIP with a part width and speed; with no part there: E_CMD_FAILED, NO PART.
-    g.expect("GRIP(20, 40, 50)", &["ACK GRIP", "FIN GRIP"]).await;
-    g.expect("RELEASE(20,420)", &["ACK RELEASE", "FIN RELEASE"]).await;
+    g.expect("GRIP(20, 40, 50)", &["ACK GRIP", "FIN GRIP"])
+        .await;
+    g.expect("RELEASE(20,420)", &["ACK RELEASE", "FIN RELEASE"])
+        .await;
     g.expect("GRIP(20,10)", &["ACK GRIP", "ERR GRIP 18"]).await;
     g.expect("GRIPSTATE?", &["GRIPSTATE=2"]).await;
     g.expect("RELEASE()", &["ACK RELEASE", "FIN RELEASE"]).await;
@@ -166,12 +171,11 @@ async fn line(reader: &mut BufReader<TcpStream>) -> String {
 #[tokio::test]
 async fn several_commands_in_one_segment_and_one_command_in_pieces() {
     let server = sim().await;
-    let stream = TcpStream::connect(server.local_addr().unwrap()).await.unwrap();
-    let mut r = BufReader::new(stream);
-    r.get_mut()
-        .write_all(b"VERBOSE=1\nHOME()\n")
+    let stream = TcpStream::connect(server.local_addr().unwrap())
         .await
         .unwrap();
+    let mut r = BufReader::new(stream);
+    r.get_mut().write_all(b"VERBOSE=1\nHOME()\n").await.unwrap();
     assert_eq!(line(&mut r).await, "VERBOSE=1");
     assert_eq!(line(&mut r).await, "ACK HOME");
     assert_eq!(line(&mut r).await, "FIN HOME");
@@ -209,7 +213,9 @@ async fn a_close_without_bye_raises_fast_stop_unless_switched_off() {
 async fn per_connection_settings_and_pushes() {
     let server = sim().await;
     let mut a = Strict::connect(&server).await;
-    let b = TcpStream::connect(server.local_addr().unwrap()).await.unwrap();
+    let b = TcpStream::connect(server.local_addr().unwrap())
+        .await
+        .unwrap();
     let mut b = BufReader::new(b);
     a.expect("VERBOSE=1", &["VERBOSE=1"]).await;
     a.expect("PWT=3", &["PWT=3.0"]).await;
@@ -250,7 +256,11 @@ async fn the_client_api_against_the_text_simulator() {
     g.ack_fast_stop().await.unwrap();
     assert!(g.set_verbose(true).await.unwrap());
     let not_homed = g.move_to(50.0, None).await.unwrap_err();
-    assert_eq!(not_homed.status(), Some(Status::NotInitialized), "{not_homed}");
+    assert_eq!(
+        not_homed.status(),
+        Some(Status::NotInitialized),
+        "{not_homed}"
+    );
     g.home(HomingDirection::Default).await.unwrap();
     assert_eq!(g.position_mm().await.unwrap(), 110.0);
     g.move_to(60.0, Some(100.0)).await.unwrap();
@@ -376,7 +386,10 @@ async fn autosend_streams_pushes() {
     g.stop_autosend(Quantity::Position).await.unwrap();
     g.close().await.unwrap();
     // The streams end with the connection (after the pushes they buffered).
-    within("the end", async { while positions.next().await.is_some() {} }).await;
+    within("the end", async {
+        while positions.next().await.is_some() {}
+    })
+    .await;
     within("the end", async { while states.next().await.is_some() {} }).await;
 }
 
@@ -430,5 +443,8 @@ async fn a_lost_connection_fails_the_calls_in_flight() {
     let lost = within("the move", mover).await.unwrap().unwrap_err();
     assert!(matches!(lost, Error::ConnectionLost(_)), "{lost}");
     assert!(g.is_closed());
-    assert!(matches!(g.position_mm().await, Err(Error::ConnectionLost(_))));
+    assert!(matches!(
+        g.position_mm().await,
+        Err(Error::ConnectionLost(_))
+    ));
 }

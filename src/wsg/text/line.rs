@@ -72,8 +72,7 @@ impl std::fmt::Display for Malformed {
 
 fn is_name(s: &str) -> bool {
     !s.is_empty()
-        && s
-            .bytes()
+        && s.bytes()
             .all(|b| b.is_ascii_alphanumeric() || matches!(b, b'_' | b'[' | b']'))
 }
 
@@ -102,17 +101,20 @@ pub fn parse_reply(line: &str) -> Result<ReplyLine<'_>, Malformed> {
     let mut words = line.splitn(2, ' ');
     let first = words.next().unwrap_or_default();
     let rest = words.next().unwrap_or_default().trim_start();
-    match first {
-        "ACK" => Ok(ReplyLine::Ack(name(rest)?)),
-        "FIN" => Ok(ReplyLine::Fin(name(rest)?)),
-        "ERR" => Ok(parse_err(rest)),
-        _ => {
-            let (n, value) = line.split_once('=').ok_or(Malformed::Unknown)?;
-            Ok(ReplyLine::Value {
-                name: name(n.trim())?,
-                value: value.trim(),
-            })
-        }
+    // The manual's replies are upper case (§2); a lower-case keyword reads the same.
+    let is = |keyword: &str| first.eq_ignore_ascii_case(keyword);
+    if is("ACK") {
+        Ok(ReplyLine::Ack(name(rest)?))
+    } else if is("FIN") {
+        Ok(ReplyLine::Fin(name(rest)?))
+    } else if is("ERR") {
+        Ok(parse_err(rest))
+    } else {
+        let (n, value) = line.split_once('=').ok_or(Malformed::Unknown)?;
+        Ok(ReplyLine::Value {
+            name: name(n.trim())?,
+            value: value.trim(),
+        })
     }
 }
 

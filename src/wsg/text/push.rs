@@ -66,7 +66,8 @@ impl Push {
     /// The grip state, for a [`Quantity::GripState`] push with a whole number 0–255.
     pub fn grip_state(&self) -> Option<GripState> {
         let whole = self.value.fract() == 0.0 && (0.0..=255.0).contains(&self.value);
-        (self.quantity == Quantity::GripState && whole).then(|| GripState::from_u8(self.value as u8))
+        (self.quantity == Quantity::GripState && whole)
+            .then(|| GripState::from_u8(self.value as u8))
     }
 }
 

@@ -222,7 +222,10 @@ impl Book {
             .iter()
             .find(|(k, _)| k.eq_ignore_ascii_case(name))
         else {
-            tracing::debug!(line = text, "wsg text: reply for no command on the wire, dropped");
+            tracing::debug!(
+                line = text,
+                "wsg text: reply for no command on the wire, dropped"
+            );
             return Handled::Nothing;
         };
         let result = match (reply, slot.expect) {

@@ -33,7 +33,6 @@ use crate::wsg::command::{id, Command, HomingDirection, UpdateMode};
 use crate::wsg::frame::Decoded;
 use crate::wsg::{GripState, Reply, Status};
 
-
 /// The longest command line the simulator reads, bytes (§6.2).
 pub(crate) const MAX_LINE_LEN: usize = 256;
 

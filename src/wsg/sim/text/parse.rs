@@ -169,7 +169,10 @@ mod tests {
         };
         assert_eq!(parse("VERBOSE=(1)"), bad("VERBOSE", Status::CmdFormatError));
         assert_eq!(parse("MOVE(1e5)"), bad("MOVE", Status::CmdFormatError));
-        assert_eq!(parse("MOVE(nan)").map(|l| l.form), Ok(Form::Call(vec![Arg::Str("nan".into())])));
+        assert_eq!(
+            parse("MOVE(nan)").map(|l| l.form),
+            Ok(Form::Call(vec![Arg::Str("nan".into())]))
+        );
         assert_eq!(parse("MOVE(10"), bad("MOVE", Status::CmdFormatError));
         assert_eq!(parse(""), bad("?", Status::CmdUnknown));
         assert_eq!(parse("(1)"), bad("?", Status::CmdUnknown));
