@@ -30,6 +30,7 @@ __all__ = [
     "SystemLimits",
     "SystemState",
     "sim",
+    "text",
 ]
 
 Client = _native.wsg.Client
@@ -234,3 +235,4 @@ class FingerInfo:
 
 
 from gripper.wsg import sim  # noqa: E402  (sim builds on the records above)
+from gripper.wsg import text  # noqa: E402  (the text interface's client, GCL)
