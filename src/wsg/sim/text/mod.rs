@@ -22,7 +22,9 @@
 //! Not modelled: PWT and CLT are kept per connection and reported back, but the simulated
 //! grip finds its part with the simulator's own tolerance ([`SimConfig::part`]); a
 //! `GRIP()` without a part ends in NO PART (`ERR GRIP 18`), where the manual says the
-//! fingers grip each other and report HOLDING; E_AXIS_BLOCKED is never reported.
+//! fingers grip each other and report HOLDING; E_AXIS_BLOCKED is never reported. The injected
+//! reply faults of [`SimServer`](super::SimServer) (drop, corrupt, delay, force a status) act on
+//! binary sessions only: use the fault proxy (`crate::fault`) for a text session's wire.
 
 mod parse;
 
@@ -289,7 +291,7 @@ impl TextSession {
                 format!("VERBOSE={}", u8::from(self.verbose))
             }
             ("VERBOSE", Form::Query, _) => format!("VERBOSE={}", u8::from(self.verbose)),
-            ("PWT" | "CLT", Form::Set(Arg::Num(v)), _) if *v >= 0.0 => {
+            ("PWT" | "CLT", Form::Set(Arg::Num(v)), _) if *v >= 0.0 && (*v as f32).is_finite() => {
                 let slot = if name == "PWT" {
                     &mut self.pwt_mm
                 } else {
