@@ -11,7 +11,7 @@
 //! → BYE()              ← ACK BYE
 //! ```
 //!
-//! Layers: [`line`] encodes commands and parses replies (pure, fuzzed); [`Client`] is the async
+//! Layers: [`line`](mod@line) encodes commands and parses replies (pure, fuzzed); [`Client`] is the async
 //! client (a task owns the connection, the handle is `Clone`, every call has a timeout);
 //! [`Pushes`] streams `AUTOSEND` values. The simulator serves GCL from the same device model as
 //! the binary one: [`SimConfig::text`](crate::wsg::sim::SimConfig::text).
