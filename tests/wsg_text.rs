@@ -311,6 +311,16 @@ async fn the_client_api_against_the_text_simulator() {
     assert!(!state.contains(SystemState::FAST_STOP));
 }
 
+/// Waits until the gripper reports a motion running (POSITIONING).
+async fn moving(g: &Client) {
+    within("the move to start", async {
+        while g.grip_state().await.unwrap() != GripState::Positioning {
+            tokio::task::yield_now().await;
+        }
+    })
+    .await;
+}
+
 #[tokio::test]
 async fn stop_ends_a_running_motion_with_its_err_while_queries_run_alongside() {
     let server = sim().await;
@@ -323,12 +333,7 @@ async fn stop_ends_a_running_motion_with_its_err_while_queries_run_alongside() {
         tokio::spawn(async move { g.move_to(10.0, Some(1.0)).await })
     };
     // Queries are answered while the MOVE waits for its FIN.
-    within("the move to start", async {
-        while g.grip_state().await.unwrap() != GripState::Positioning {
-            tokio::task::yield_now().await;
-        }
-    })
-    .await;
+    moving(&g).await;
     assert!(g.position_mm().await.unwrap() <= 110.0);
     assert!(g.speed_mm_per_s().await.unwrap() >= 0.0);
     g.stop().await.unwrap();
@@ -348,12 +353,7 @@ async fn a_second_motion_while_one_runs_is_refused_with_its_own_err() {
         let g = g.clone();
         tokio::spawn(async move { g.move_to(10.0, Some(1.0)).await })
     };
-    within("the move to start", async {
-        while g.grip_state().await.unwrap() != GripState::Positioning {
-            tokio::task::yield_now().await;
-        }
-    })
-    .await;
+    moving(&g).await;
     let grip = g.grip(None).await.unwrap_err();
     assert_eq!(grip.status(), Some(Status::AlreadyRunning));
     assert!(!mover.is_finished(), "the GRIP's ERR went to the MOVE");
@@ -433,12 +433,7 @@ async fn a_lost_connection_fails_the_calls_in_flight() {
         let g = g.clone();
         tokio::spawn(async move { g.move_to(10.0, Some(1.0)).await })
     };
-    within("the move to start", async {
-        while g.grip_state().await.unwrap() != GripState::Positioning {
-            tokio::task::yield_now().await;
-        }
-    })
-    .await;
+    moving(&g).await;
     server.unplug();
     let lost = within("the move", mover).await.unwrap().unwrap_err();
     assert!(matches!(lost, Error::ConnectionLost(_)), "{lost}");

@@ -58,19 +58,22 @@ impl Fake {
     }
 }
 
+/// Runs `call` on a clone of `g` in a task of its own.
+fn spawn<T, F>(g: &Client, call: impl FnOnce(Client) -> F) -> tokio::task::JoinHandle<T>
+where
+    F: Future<Output = T> + Send + 'static,
+    T: Send + 'static,
+{
+    tokio::spawn(call(g.clone()))
+}
+
 #[tokio::test]
 async fn replies_are_paired_by_name_whatever_their_order() {
     let (g, mut fake) = Fake::pair(ClientConfig::default()).await;
-    let mover = {
-        let g = g.clone();
-        tokio::spawn(async move { g.move_to(20.0, Some(50.0)).await })
-    };
+    let mover = spawn(&g, |g| async move { g.move_to(20.0, Some(50.0)).await });
     assert_eq!(fake.read().await, "MOVE(20,50)");
     fake.say("ACK MOVE\n").await;
-    let pos = {
-        let g = g.clone();
-        tokio::spawn(async move { g.position_mm().await })
-    };
+    let pos = spawn(&g, |g| async move { g.position_mm().await });
     assert_eq!(fake.read().await, "POS?");
     // Lines for nobody, a push nobody asked for, and lines that are not GCL come first.
     fake.say(
@@ -88,19 +91,10 @@ async fn replies_are_paired_by_name_whatever_their_order() {
 #[tokio::test]
 async fn one_command_of_each_name_on_the_wire() {
     let (g, mut fake) = Fake::pair(ClientConfig::default()).await;
-    let a = tokio::spawn({
-        let g = g.clone();
-        async move { g.position_mm().await }
-    });
+    let a = spawn(&g, |g| async move { g.position_mm().await });
     assert_eq!(fake.read().await, "POS?");
-    let b = tokio::spawn({
-        let g = g.clone();
-        async move { g.position_mm().await }
-    });
-    let speed = tokio::spawn({
-        let g = g.clone();
-        async move { g.speed_mm_per_s().await }
-    });
+    let b = spawn(&g, |g| async move { g.position_mm().await });
+    let speed = spawn(&g, |g| async move { g.speed_mm_per_s().await });
     // The second POS? waits; SPEED? goes out at once.
     assert_eq!(fake.read().await, "SPEED?");
     fake.say("SPEED=2.0\nPOS=1.0\n").await;
@@ -114,38 +108,29 @@ async fn one_command_of_each_name_on_the_wire() {
 #[tokio::test]
 async fn wrong_forms_are_typed_errors() {
     let (g, mut fake) = Fake::pair(ClientConfig::default()).await;
-    let call = tokio::spawn({
-        let g = g.clone();
-        async move { g.position_mm().await }
-    });
+    let call = spawn(&g, |g| async move { g.position_mm().await });
     fake.read().await;
     fake.say("ACK POS\n").await;
     let e = within("POS?", call).await.unwrap().unwrap_err();
     assert!(matches!(e, Error::UnexpectedReply { .. }), "{e}");
 
-    let call = tokio::spawn({
-        let g = g.clone();
-        async move { g.position_mm().await }
-    });
+    let call = spawn(&g, |g| async move { g.position_mm().await });
     fake.read().await;
     fake.say("POS=nan\n").await;
     let e = within("POS?", call).await.unwrap().unwrap_err();
     assert!(matches!(e, Error::MalformedReply { .. }), "{e}");
 
-    let call = tokio::spawn({
-        let g = g.clone();
-        async move { g.grip_state().await }
-    });
+    let call = spawn(&g, |g| async move { g.grip_state().await });
     fake.read().await;
     fake.say("GRIPSTATE=4.5\n").await;
     let e = within("GRIPSTATE?", call).await.unwrap().unwrap_err();
     assert!(matches!(e, Error::MalformedReply { .. }), "{e}");
 
     // An ERR whose code is not in the binary table keeps its number and its line.
-    let call = tokio::spawn({
-        let g = g.clone();
-        async move { g.home(HomingDirection::Positive).await }
-    });
+    let call = spawn(
+        &g,
+        |g| async move { g.home(HomingDirection::Positive).await },
+    );
     assert_eq!(fake.read().await, "HOME(1)");
     fake.say("ERR HOME 99 something\n").await;
     let e = within("HOME", call).await.unwrap().unwrap_err();
@@ -153,10 +138,7 @@ async fn wrong_forms_are_typed_errors() {
     assert!(matches!(&e, Error::Device { line, .. } if line == "ERR HOME 99 something"));
 
     // An over-long line is skipped, not taken for a reply.
-    let call = tokio::spawn({
-        let g = g.clone();
-        async move { g.position_mm().await }
-    });
+    let call = spawn(&g, |g| async move { g.position_mm().await });
     fake.read().await;
     fake.say(&format!("POS={}\nPOS=7.0\n", "1".repeat(5000)))
         .await;
@@ -166,10 +148,7 @@ async fn wrong_forms_are_typed_errors() {
 #[tokio::test]
 async fn a_reply_cut_off_by_the_close_is_no_reply() {
     let (g, mut fake) = Fake::pair(ClientConfig::default()).await;
-    let call = tokio::spawn({
-        let g = g.clone();
-        async move { g.position_mm().await }
-    });
+    let call = spawn(&g, |g| async move { g.position_mm().await });
     fake.read().await;
     fake.say("POS=12").await;
     drop(fake);
@@ -189,10 +168,7 @@ async fn a_missing_reply_times_out_then_gives_up_the_connection() {
     assert!(matches!(e, Error::Timeout { .. }), "{e}");
     assert_eq!(fake.read().await, "POS?");
     // Another name still works meanwhile.
-    let speed = tokio::spawn({
-        let g = g.clone();
-        async move { g.speed_mm_per_s().await }
-    });
+    let speed = spawn(&g, |g| async move { g.speed_mm_per_s().await });
     assert_eq!(fake.read().await, "SPEED?");
     fake.say("SPEED=0.0\n").await;
     assert_eq!(within("SPEED?", speed).await.unwrap().unwrap(), 0.0);

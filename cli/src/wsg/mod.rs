@@ -452,6 +452,17 @@ async fn after_motion(client: &Client, done: &str, out: Out) -> Result<(), CliEr
     let grip = client.grip_state().await.map_err(classify)?;
     let width_mm = client.width_mm().await.map_err(classify)?;
     let force_n = client.force_n().await.map_err(classify)?;
+    report_motion(done, width_mm, force_n, grip, out)
+}
+
+/// The line (and JSON) after a motion, for both interfaces.
+pub(super) fn report_motion(
+    done: &str,
+    width_mm: f32,
+    force_n: f32,
+    grip: gripper::wsg::GripState,
+    out: Out,
+) -> Result<(), CliError> {
     out.emit(
         format!(
             "{done}: width {width_mm:.2} mm, force {force_n:.1} N, grip state {}",

@@ -12,7 +12,7 @@ use gripper::wsg::{GripState, HomingDirection};
 use serde_json::json;
 
 use super::show::{grip_json, grip_name};
-use super::{device_error, Command, Direction};
+use super::{device_error, report_motion, Command, Direction};
 use crate::error::{CliError, Kind};
 use crate::output::Out;
 
@@ -167,14 +167,8 @@ async fn after_motion(client: &Client, done: &str, out: Out) -> Result<(), CliEr
     let grip = client.grip_state().await.map_err(classify)?;
     let width_mm = client.position_mm().await.map_err(classify)?;
     let force_n = client.force_n().await.map_err(classify)?;
-    out.emit(
-        format!(
-            "{done}: width {width_mm:.2} mm, force {force_n:.1} N, grip state {}",
-            grip_name(grip)
-        ),
-        json!({ "done": done, "width_mm": width_mm, "force_n": force_n,
-                "grip_state": grip_json(grip) }),
-    )
+    // GCL's values have one decimal (shared note §2): `f32` keeps them exactly.
+    report_motion(done, width_mm as f32, force_n as f32, grip, out)
 }
 
 /// `AUTOSEND` of the width, speed, force and grip state; one line each time all four have a
