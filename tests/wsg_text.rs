@@ -9,10 +9,11 @@ use std::time::Duration;
 
 use futures_util::StreamExt;
 use gripper::wsg::sim::{Model, SimConfig, SimServer};
-use gripper::wsg::text::{Client, ClientConfig, Error, Quantity};
+use gripper::wsg::text::{Client, Error, Quantity};
 use gripper::wsg::{GripState, HomingDirection, Status, SystemState};
 use tokio::io::{AsyncBufReadExt, AsyncReadExt, AsyncWriteExt, BufReader};
 use tokio::net::TcpStream;
+use tokio::task::JoinHandle;
 
 /// Upper bound for anything that should happen promptly; only reached when a test fails.
 const LIMIT: Duration = Duration::from_secs(20);
@@ -321,19 +322,29 @@ async fn moving(g: &Client) {
     .await;
 }
 
-#[tokio::test]
-async fn stop_ends_a_running_motion_with_its_err_while_queries_run_alongside() {
+/// A homed gripper in real time, and a MOVE from 110 mm to 10 mm at 1 mm/s (100 s: long
+/// enough to be stopped) running in a task of its own.
+async fn slow_move() -> (
+    SimServer,
+    Client,
+    JoinHandle<gripper::wsg::text::Result<()>>,
+) {
     let server = sim().await;
     let g = Client::connect(server.local_addr().unwrap()).await.unwrap();
     g.home(HomingDirection::Default).await.unwrap();
-    // Slow enough to be stopped: 100 mm at 1 mm/s would take 100 s of simulated time.
     server.set_time_scale(1.0);
     let mover = {
         let g = g.clone();
         tokio::spawn(async move { g.move_to(10.0, Some(1.0)).await })
     };
-    // Queries are answered while the MOVE waits for its FIN.
     moving(&g).await;
+    (server, g, mover)
+}
+
+#[tokio::test]
+async fn stop_ends_a_running_motion_with_its_err_while_queries_run_alongside() {
+    let (_server, g, mover) = slow_move().await;
+    // Queries are answered while the MOVE waits for its FIN.
     assert!(g.position_mm().await.unwrap() <= 110.0);
     assert!(g.speed_mm_per_s().await.unwrap() >= 0.0);
     g.stop().await.unwrap();
@@ -345,15 +356,7 @@ async fn stop_ends_a_running_motion_with_its_err_while_queries_run_alongside() {
 
 #[tokio::test]
 async fn a_second_motion_while_one_runs_is_refused_with_its_own_err() {
-    let server = sim().await;
-    let g = Client::connect(server.local_addr().unwrap()).await.unwrap();
-    g.home(HomingDirection::Default).await.unwrap();
-    server.set_time_scale(1.0);
-    let mover = {
-        let g = g.clone();
-        tokio::spawn(async move { g.move_to(10.0, Some(1.0)).await })
-    };
-    moving(&g).await;
+    let (_server, g, mover) = slow_move().await;
     let grip = g.grip(None).await.unwrap_err();
     assert_eq!(grip.status(), Some(Status::AlreadyRunning));
     assert!(!mover.is_finished(), "the GRIP's ERR went to the MOVE");
@@ -423,17 +426,7 @@ async fn a_dropped_call_never_hands_its_reply_to_the_next() {
 
 #[tokio::test]
 async fn a_lost_connection_fails_the_calls_in_flight() {
-    let server = sim().await;
-    let g = Client::connect_with(server.local_addr().unwrap(), ClientConfig::default())
-        .await
-        .unwrap();
-    g.home(HomingDirection::Default).await.unwrap();
-    server.set_time_scale(1.0);
-    let mover = {
-        let g = g.clone();
-        tokio::spawn(async move { g.move_to(10.0, Some(1.0)).await })
-    };
-    moving(&g).await;
+    let (server, g, mover) = slow_move().await;
     server.unplug();
     let lost = within("the move", mover).await.unwrap().unwrap_err();
     assert!(matches!(lost, Error::ConnectionLost(_)), "{lost}");
