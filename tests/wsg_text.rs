@@ -121,9 +121,19 @@ async fn every_command_with_one_line_per_segment() {
     g.expect("GRIP(20,10)", &["ACK GRIP", "ERR GRIP 18"]).await;
     g.expect("GRIPSTATE?", &["GRIPSTATE=2"]).await;
     g.expect("RELEASE()", &["ACK RELEASE", "FIN RELEASE"]).await;
-    // Per-connection settings.
-    g.expect("PWT=20", &["PWT=20.0"]).await;
-    g.expect("PWT?", &["PWT=20.0"]).await;
+    // Per-connection settings; PWT decides what a grip with a part width finds.
+    g.expect("PWT?", &["PWT=4.0"]).await;
+    g.expect("CLT?", &["CLT=4.0"]).await;
+    g.expect("MOVE(60)", &["ACK MOVE", "FIN MOVE"]).await;
+    g.expect("GRIP(20, 43)", &["ACK GRIP", "ERR GRIP 18"]).await;
+    g.expect("RELEASE(20)", &["ACK RELEASE", "FIN RELEASE"])
+        .await;
+    g.expect("PWT=8", &["PWT=8.0"]).await;
+    g.expect("PWT?", &["PWT=8.0"]).await;
+    g.expect("GRIP(20, 43)", &["ACK GRIP", "FIN GRIP"]).await;
+    g.expect("POS?", &["POS=40.0"]).await;
+    g.expect("RELEASE(20)", &["ACK RELEASE", "FIN RELEASE"])
+        .await;
     g.expect("CLT=10", &["CLT=10.0"]).await;
     g.expect("CLT?", &["CLT=10.0"]).await;
     // Unknown commands, GETSTATE() among them (§3.9), and bad syntax.
@@ -167,6 +177,22 @@ async fn line(reader: &mut BufReader<TcpStream>) -> String {
     let mut line = String::new();
     within("a line", reader.read_line(&mut line)).await.unwrap();
     line.trim_end().to_owned()
+}
+
+/// `GRIP()` without a part: the fingers grip each other and the state is HOLDING (manual
+/// chapter 2); with the part outward of the fingers, the same.
+#[tokio::test]
+async fn grip_without_a_part_holds_at_zero() {
+    let mut config = config();
+    config.part = None;
+    let server = SimServer::bind("127.0.0.1:0", config).await.unwrap();
+    let mut g = Strict::connect(&server).await;
+    g.expect("HOME()", &["ACK HOME", "FIN HOME"]).await;
+    g.expect("GRIP()", &["ACK GRIP", "FIN GRIP"]).await;
+    g.expect("GRIPSTATE?", &["GRIPSTATE=4"]).await;
+    g.expect("POS?", &["POS=0.0"]).await;
+    g.expect("RELEASE()", &["ACK RELEASE", "FIN RELEASE"]).await;
+    g.expect("POS?", &["POS=10.0"]).await;
 }
 
 #[tokio::test]
@@ -222,7 +248,8 @@ async fn per_connection_settings_and_pushes() {
     a.expect("PWT=3", &["PWT=3.0"]).await;
     b.get_mut().write_all(b"VERBOSE?\nPWT?\n").await.unwrap();
     assert_eq!(line(&mut b).await, "VERBOSE=0");
-    assert_eq!(line(&mut b).await, "PWT=10.0");
+    // Twice the simulated part's tolerance (±2 mm).
+    assert_eq!(line(&mut b).await, "PWT=4.0");
     // AUTOSEND on b only: @NAME=value, the value at once, then periodically.
     b.get_mut()
         .write_all(b"AUTOSEND(\"GRIPSTATE\",10)\n")

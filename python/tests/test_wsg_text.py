@@ -39,7 +39,7 @@ def test_motion_queries_and_errors(text_sim: SimServer) -> None:
         g.release()
         assert g.set_verbose(True) is True
         assert g.set_part_width_tolerance_mm(4.5) == 4.5
-        assert g.clamping_travel_mm() == 2.0
+        assert g.clamping_travel_mm() == 4.0  # twice the simulator's 2 mm
         assert g.temperature_c() == 23.4
         assert g.speed_mm_per_s() == 0.0
         g.fast_stop()

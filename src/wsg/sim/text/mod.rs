@@ -14,15 +14,14 @@
 //! `ERR <NAME> 15` (E_CMD_FORMAT_ERROR), an unknown command (`GETSTATE()` among them)
 //! `ERR <NAME> 14`, a line over 256 bytes `ERR ? 27` (E_OVERRUN); GRIP while HOLDING and
 //! RELEASE without a grip answer `ERR <NAME> 16`; `MOVE` without a speed and `GRIP` without
-//! one use half the model's top speed; `RELEASE()` pulls back 10 mm; `GRIP()`/`GRIP(f)` grip
-//! toward the configured part, or close to 0 mm without one; AUTOSEND names POS, SPEED, FORCE
+//! one use half the model's top speed; `RELEASE()` pulls back 10 mm; a connection starts with
+//! PWT = twice the simulated part's tolerance (10 mm without a part) and CLT = twice
+//! [`SimConfig::clamping_travel_mm`]; AUTOSEND names POS, SPEED, FORCE
 //! and GRIPSTATE (TEMP is constant in the simulator and is refused with `ERR AUTOSEND 5`),
 //! interval 0 stops, below 10 ms runs at 10 ms.
 //!
-//! Not modelled: PWT and CLT are kept per connection and reported back, but the simulated
-//! grip finds its part with the simulator's own tolerance ([`SimConfig::part`]); a
-//! `GRIP()` without a part ends in NO PART (`ERR GRIP 18`), where the manual says the
-//! fingers grip each other and report HOLDING; E_AXIS_BLOCKED is never reported. The injected
+//! Not modelled: E_AXIS_BLOCKED (a contact before the tolerance zone) is never reported. The
+//! injected
 //! reply faults of [`SimServer`](super::SimServer) (drop, corrupt, delay, force a status) act on
 //! binary sessions only: use the fault proxy (`crate::fault`) for a text session's wire.
 
@@ -30,7 +29,7 @@ mod parse;
 
 use self::parse::{parse, Arg, Form, Line};
 use super::device::{Device, Out, SessionId};
-use super::model::SimConfig;
+use super::model::{Part, SimConfig};
 use crate::wsg::command::{id, Command, HomingDirection, UpdateMode};
 use crate::wsg::frame::Decoded;
 use crate::wsg::{GripState, Reply, Status};
@@ -41,7 +40,9 @@ pub(crate) const MAX_LINE_LEN: usize = 256;
 /// The pull-back of a `RELEASE()` without arguments, mm (the web interface's setting, [G]).
 const DEFAULT_PULL_BACK_MM: f32 = 10.0;
 
-/// The part width tolerance a connection starts with, mm (a web-interface setting, [G]).
+/// The part width tolerance a connection starts with when the simulator has no part, mm (a
+/// web-interface setting, [G]); with a part, twice its tolerance, so that text and binary grasps
+/// find it alike.
 const DEFAULT_PWT_MM: f32 = 10.0;
 
 /// What one command line produces, in order.
@@ -90,10 +91,12 @@ fn push_name(id: u8) -> Option<&'static str> {
 
 impl TextSession {
     pub(crate) fn new(cfg: &SimConfig) -> Self {
+        // PWT and CLT are whole widths around the nominal one (figure 5 marks PWT/2 and
+        // CLT/2); the simulator's tolerance and clamping travel are the halves.
         TextSession {
             verbose: false,
-            pwt_mm: DEFAULT_PWT_MM,
-            clt_mm: cfg.clamping_travel_mm,
+            pwt_mm: cfg.part.map_or(DEFAULT_PWT_MM, |p| 2.0 * p.tolerance_mm),
+            clt_mm: 2.0 * cfg.clamping_travel_mm,
         }
     }
 
@@ -182,6 +185,58 @@ impl TextSession {
         status
     }
 
+    /// `GRIP(…)` on the binary grasp. Where GCL decides differently from a binary grasp, the
+    /// simulator's part and clamping travel are set for this one grasp (its outcome is fixed
+    /// when it starts) and restored at once:
+    /// - `GRIP()`/`GRIP(f)` grip inward until something is found: the part if one lies inward,
+    ///   else the fingers themselves at 0 mm, and the state is HOLDING either way (manual
+    ///   chapter 2);
+    /// - `GRIP(f,w[,v])` finds its part within this connection's part width tolerance around `w`
+    ///   (±PWT/2) and travels CLT/2 past `w` before reporting no part (manual chapter 2,
+    ///   figure 5).
+    fn grip(
+        &self,
+        device: &mut Device,
+        args: &[f64],
+        default_speed: f32,
+        run: &mut impl FnMut(&mut Device, Command) -> Status,
+    ) -> Status {
+        let here = device.width_mm();
+        let saved = (device.cfg.part, device.cfg.clamping_travel_mm);
+        let width_mm = match args.get(1) {
+            Some(w) => {
+                if let Some(part) = &mut device.cfg.part {
+                    part.tolerance_mm = self.pwt_mm / 2.0;
+                }
+                device.cfg.clamping_travel_mm = self.clt_mm / 2.0;
+                *w as f32
+            }
+            None => {
+                let inward = saved.0.map(|p| p.width_mm).filter(|w| *w <= here);
+                let found_at = inward.unwrap_or(0.0);
+                device.cfg.part = Some(Part {
+                    width_mm: found_at,
+                    tolerance_mm: 0.0,
+                });
+                found_at
+            }
+        };
+        let speed_mm_per_s = args.get(2).map_or(default_speed, |v| *v as f32);
+        let status = run(
+            device,
+            Command::Grasp {
+                width_mm,
+                speed_mm_per_s,
+            },
+        );
+        (device.cfg.part, device.cfg.clamping_travel_mm) = saved;
+        if let (Status::CmdPending, Some(force)) = (status, args.first()) {
+            // The force of this grip (clamped to the model's range like 0x32).
+            let _ = run(device, Command::SetForce(*force as f32));
+        }
+        status
+    }
+
     fn command(
         &mut self,
         device: &mut Device,
@@ -241,29 +296,7 @@ impl TextSession {
                     // "It is not possible to send a grip command while holding a part."
                     self.err(&name, Status::AccessDenied)
                 } else {
-                    let here = device.width_mm();
-                    let width_mm = match args.get(1) {
-                        Some(w) => *w as f32,
-                        // GRIP()/GRIP(f): inward until a part is found.
-                        None => device
-                            .cfg
-                            .part
-                            .map(|p| p.width_mm)
-                            .filter(|w| *w <= here)
-                            .unwrap_or(0.0),
-                    };
-                    let speed_mm_per_s = args.get(2).map_or(default_speed, |v| *v as f32);
-                    let status = run(
-                        device,
-                        Command::Grasp {
-                            width_mm,
-                            speed_mm_per_s,
-                        },
-                    );
-                    if let (Status::CmdPending, Some(force)) = (status, args.first()) {
-                        // The force of this grip (clamped to the model's range like 0x32).
-                        let _ = run(device, Command::SetForce(*force as f32));
-                    }
+                    let status = self.grip(device, args, default_speed, &mut run);
                     motion(self, status)
                 }
             }
