@@ -140,6 +140,10 @@ async fn every_command_with_one_line_per_segment() {
     g.expect("GETSTATE()", &["ERR GETSTATE 14"]).await;
     g.expect("VERBOSE=(1)", &["ERR VERBOSE 15"]).await;
     g.expect("VERBOSE=1    ", &["VERBOSE=1"]).await;
+    g.expect("MOVE(1e5)", &["ERR MOVE 15 E_CMD_FORMAT_ERROR"])
+        .await;
+    g.expect("MOVE(nan)", &["ERR MOVE 15 E_CMD_FORMAT_ERROR"])
+        .await;
     g.expect("MOVE(1, 2, 3)", &["ERR MOVE 15 E_CMD_FORMAT_ERROR"])
         .await;
     g.expect(&"X".repeat(300), &["ERR ? 27 E_OVERRUN"]).await;

@@ -168,7 +168,12 @@ mod tests {
             })
         };
         assert_eq!(parse("VERBOSE=(1)"), bad("VERBOSE", Status::CmdFormatError));
-        assert_eq!(parse("MOVE(1e5)"), bad("MOVE", Status::CmdFormatError));
+        // Not a number (no exponents, no `nan`): a bare word, which no numeric argument takes,
+        // so the command answers E_CMD_FORMAT_ERROR (`TextSession::command`).
+        assert_eq!(
+            parse("MOVE(1e5)").map(|l| l.form),
+            Ok(Form::Call(vec![Arg::Str("1e5".into())]))
+        );
         assert_eq!(
             parse("MOVE(nan)").map(|l| l.form),
             Ok(Form::Call(vec![Arg::Str("nan".into())]))
