@@ -14,6 +14,7 @@ use tokio::time::{sleep_until, Instant};
 use super::{lock, take, Shared, SimSnapshot};
 use crate::wsg::frame::{self, Decoded};
 use crate::wsg::sim::device::{Device, Out, SessionId, SessionKind};
+use crate::wsg::sim::text::TextSession;
 use crate::wsg::Reply;
 
 /// Replies queued for one connection above which the simulator stops reading that
@@ -42,7 +43,7 @@ impl Outbox {
         (Outbox { tx, queued }, inbox)
     }
 
-    fn send(&self, bytes: Bytes) -> bool {
+    pub(super) fn send(&self, bytes: Bytes) -> bool {
         self.queued.fetch_add(1, Ordering::Relaxed);
         if self.tx.send(bytes).is_ok() {
             true
@@ -90,6 +91,13 @@ pub(super) enum Event {
         session: SessionId,
         decoded: Decoded,
     },
+    /// A text (GCL) connection opened (`text.rs`).
+    TextConnected { session: SessionId, outbox: Outbox },
+    /// One command line of a text connection (`None`: too long to read).
+    Line {
+        session: SessionId,
+        line: Option<String>,
+    },
     /// The connection ended (or, for UDP, nothing more will come): what is still owed to it is
     /// queued, then its outbox is dropped, which ends its writer once everything is written.
     Disconnected { session: SessionId },
@@ -116,7 +124,7 @@ pub(super) struct SimClock {
 }
 
 impl SimClock {
-    fn now(&self) -> f64 {
+    pub(super) fn now(&self) -> f64 {
         if self.scale > 0.0 {
             self.base_sim + self.base_wall.elapsed().as_secs_f64() / self.scale
         } else {
@@ -141,6 +149,8 @@ pub(super) struct Actor {
     pub(super) clock: SimClock,
     pub(super) started: Instant,
     pub(super) sessions: HashMap<SessionId, Outbox>,
+    /// The text (GCL) sessions' own state (`text.rs`).
+    pub(super) text: HashMap<SessionId, TextSession>,
     pub(super) shared: Arc<Mutex<Shared>>,
     pub(super) events: mpsc::Receiver<Event>,
     pub(super) control: mpsc::UnboundedReceiver<Control>,
@@ -148,7 +158,7 @@ pub(super) struct Actor {
 }
 
 impl Actor {
-    fn wall(&self) -> f64 {
+    pub(super) fn wall(&self) -> f64 {
         self.started.elapsed().as_secs_f64()
     }
 
@@ -226,6 +236,8 @@ impl Actor {
                 self.sessions.insert(session, outbox);
                 self.device.connect(session, kind);
             }
+            Event::TextConnected { session, outbox } => self.on_text_connected(session, outbox),
+            Event::Line { session, line } => self.on_text_line(session, line),
             Event::Disconnected { session } => self.forget(session),
             Event::Idle { session, forgotten } => {
                 let forget = !self.device.owes_session(session);
@@ -273,9 +285,10 @@ impl Actor {
         let outs = self.device.disconnect(session, self.clock.now());
         self.dispatch(outs);
         self.sessions.remove(&session);
+        self.text.remove(&session);
     }
 
-    fn dispatch(&mut self, outs: Vec<Out>) {
+    pub(super) fn dispatch(&mut self, outs: Vec<Out>) {
         for out in outs {
             let id = out.reply.id;
             let Some(outbox) = self.sessions.get(&out.session) else {
@@ -286,6 +299,9 @@ impl Actor {
                 );
                 continue;
             };
+            if self.dispatch_text(&out, outbox) {
+                continue;
+            }
             let (drop, corrupt, delay) = {
                 let mut shared = lock(&self.shared);
                 let f = &mut shared.faults;

@@ -7,6 +7,7 @@
 
 mod actor;
 mod stream;
+mod text;
 mod udp;
 
 use std::collections::{HashMap, VecDeque};
@@ -23,6 +24,7 @@ use tokio::time::Instant;
 
 use self::actor::{Actor, Control, Event, SimClock};
 use self::stream::serve_stream;
+use self::text::serve_text;
 use self::udp::{serve_udp, UdpSettings};
 use super::device::{Device, SessionKind};
 use super::model::SimConfig;
@@ -83,6 +85,8 @@ pub struct SimServer {
 
 pub(super) struct Parts {
     events: mpsc::Sender<Event>,
+    /// Serve GCL (`Some(ACK gap)`) instead of the binary protocol on byte streams.
+    text: Option<Duration>,
     shutdown: watch::Receiver<bool>,
     next_session: Arc<AtomicU64>,
 }
@@ -92,6 +96,7 @@ impl SimServer {
         let (events_tx, events) = mpsc::channel(1024);
         let (control_tx, control) = mpsc::unbounded_channel();
         let (shutdown_tx, shutdown) = watch::channel(false);
+        let text = config.text_interface.then_some(config.text_ack_gap);
         let device = Device::new(config);
         let shared = Arc::new(Mutex::new(Shared {
             faults: Faults::default(),
@@ -114,6 +119,7 @@ impl SimServer {
             device,
             started: now,
             sessions: HashMap::new(),
+            text: HashMap::new(),
             shared: shared.clone(),
             events,
             control,
@@ -132,6 +138,7 @@ impl SimServer {
             server,
             Parts {
                 events: events_tx,
+                text,
                 shutdown,
                 next_session: Arc::new(AtomicU64::new(1)),
             },
@@ -153,6 +160,12 @@ impl SimServer {
     /// at that port (the device's "UDP remote port"). A peer silent for
     /// [`SimConfig::udp_idle_timeout`] is forgotten (its auto-updates stop).
     pub async fn bind_udp(addr: impl ToSocketAddrs, config: SimConfig) -> io::Result<SimServer> {
+        if config.text_interface {
+            return Err(io::Error::new(
+                io::ErrorKind::InvalidInput,
+                "the text interface (GCL) is served over TCP only",
+            ));
+        }
         let socket = Arc::new(UdpSocket::bind(addr).await?);
         let settings = UdpSettings {
             remote_port: config.udp_remote_port,
@@ -192,13 +205,16 @@ impl SimServer {
     ) -> SimServer {
         let (server, parts) = Self::start(config);
         let session = parts.next_session.fetch_add(1, Ordering::Relaxed);
-        tokio::spawn(serve_stream(
-            io,
-            session,
-            kind,
-            parts.events,
-            parts.shutdown,
-        ));
+        match parts.text {
+            Some(gap) => tokio::spawn(serve_text(io, session, parts.events, parts.shutdown, gap)),
+            None => tokio::spawn(serve_stream(
+                io,
+                session,
+                kind,
+                parts.events,
+                parts.shutdown,
+            )),
+        };
         server
     }
 
@@ -275,6 +291,7 @@ impl Drop for SimServer {
 async fn accept(listener: TcpListener, parts: Parts) {
     let Parts {
         events,
+        text,
         mut shutdown,
         next_session,
     } = parts;
@@ -285,7 +302,10 @@ async fn accept(listener: TcpListener, parts: Parts) {
                     let _ = stream.set_nodelay(true);
                     let session = next_session.fetch_add(1, Ordering::Relaxed);
                     tracing::debug!(%peer, session, "simulator: TCP connection");
-                    tokio::spawn(serve_stream(stream, session, SessionKind::Tcp, events.clone(), shutdown.clone()));
+                    match text {
+                        Some(gap) => tokio::spawn(serve_text(stream, session, events.clone(), shutdown.clone(), gap)),
+                        None => tokio::spawn(serve_stream(stream, session, SessionKind::Tcp, events.clone(), shutdown.clone())),
+                    };
                 }
                 Err(e) => tracing::warn!(error = %e, "simulator: accept failed"),
             },
