@@ -40,6 +40,16 @@
 //!   [`SimConfig::answer_bad_checksum`] answers E_CHECKSUM_ERROR instead, to test a client's
 //!   handling of that code.
 //!
+//! # Text interface (GCL)
+//!
+//! With [`SimConfig::text`] (`wsg_simulator --text`, `gripctl sim wsg --text`) TCP connections
+//! speak the text interface ([`wsg::text`](crate::wsg::text)) instead of frames, served from
+//! the same device (one motion model, one state; the module `text` says how each GCL command
+//! maps onto the binary ones and which readings it takes where no source says). Replies end in
+//! LF only, each line is one write, and [`SimConfig::text_ack_gap`] separates a motion's `ACK`
+//! from its `FIN`, as the public GCL drivers need. A close without `BYE()` raises FAST STOP
+//! like an unannounced binary close, unless [`SimConfig::fast_stop_on_close`] is off.
+//!
 //! Where the manual is silent the simulator's choice is documented on the item concerned: an
 //! auto-update period under the 10 ms minimum runs at 10 ms (0x40–0x45 list no refusal for
 //! it); finger queries with parameters get E_CMD_FORMAT_ERROR (3.6.1–3.6.4).
@@ -50,6 +60,7 @@ mod model;
 mod motion;
 mod server;
 mod sessions;
+mod text;
 
 // Inlined, so that this page lists them with their summaries.
 #[doc(inline)]
