@@ -46,6 +46,14 @@ pub(crate) enum Link {
         /// their checksum). Allocated once per client.
         buf: Vec<u8>,
     },
+    /// In-memory datagrams (one frame per message, like UDP) without the operating system:
+    /// see [`ClientBuilder::attach_datagrams`](super::ClientBuilder::attach_datagrams).
+    #[cfg(feature = "sim")]
+    Datagrams {
+        tx: tokio::sync::mpsc::UnboundedSender<bytes::Bytes>,
+        rx: tokio::sync::mpsc::UnboundedReceiver<bytes::Bytes>,
+        max_payload_len: usize,
+    },
 }
 
 impl Link {
@@ -96,6 +104,18 @@ impl Link {
                     }
                 }
             }
+            #[cfg(feature = "sim")]
+            Link::Datagrams {
+                rx,
+                max_payload_len,
+                ..
+            } => loop {
+                // `recv` is cancel safe and the rest is synchronous, as for UDP above.
+                let d = rx.recv().await?;
+                if let Some(f) = decode_datagram(&d, *max_payload_len) {
+                    return Some(Ok(f));
+                }
+            },
         }
     }
 
@@ -150,6 +170,14 @@ impl Link {
                     .map_err(|e| io::Error::new(io::ErrorKind::InvalidInput, e))?;
                 socket.send_to(&b, *peer).await.map(drop)
             }
+            #[cfg(feature = "sim")]
+            Link::Datagrams { tx, .. } => {
+                let mut b = BytesMut::with_capacity(f.encoded_len());
+                frame::encode(f, &mut b)
+                    .map_err(|e| io::Error::new(io::ErrorKind::InvalidInput, e))?;
+                tx.send(b.freeze())
+                    .map_err(|_| io::Error::new(io::ErrorKind::BrokenPipe, "datagram peer gone"))
+            }
         }
     }
 
@@ -158,7 +186,7 @@ impl Link {
     pub(crate) fn partial_len(&self) -> usize {
         match self {
             Link::Stream(framed) => framed.read_buffer().len(),
-            Link::Udp { .. } => 0,
+            _ => 0,
         }
     }
 

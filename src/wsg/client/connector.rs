@@ -27,7 +27,14 @@ pub(crate) struct Connector {
     pub(crate) connect_timeout: Duration,
 }
 
-#[derive(Debug)]
+/// Opens a byte stream (see [`ClientBuilder::connect_with`](super::ClientBuilder::connect_with)).
+pub(crate) type Open = Box<
+    dyn Fn() -> std::pin::Pin<
+            Box<dyn std::future::Future<Output = io::Result<Box<dyn AsyncReadWrite>>> + Send>,
+        > + Send
+        + Sync,
+>;
+
 pub(crate) enum ConnectorKind {
     /// The addresses the first connect resolved (tried in order).
     Tcp(Vec<SocketAddr>),
@@ -37,6 +44,28 @@ pub(crate) enum ConnectorKind {
         baud_rate: u32,
         exclusive: bool,
     },
+    /// The caller's own way to open a stream.
+    Custom(Open),
+}
+
+impl std::fmt::Debug for ConnectorKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ConnectorKind::Tcp(addrs) => f.debug_tuple("Tcp").field(addrs).finish(),
+            #[cfg(feature = "serial")]
+            ConnectorKind::Serial {
+                path,
+                baud_rate,
+                exclusive,
+            } => f
+                .debug_struct("Serial")
+                .field("path", path)
+                .field("baud_rate", baud_rate)
+                .field("exclusive", exclusive)
+                .finish(),
+            ConnectorKind::Custom(_) => f.write_str("Custom"),
+        }
+    }
 }
 
 impl Connector {
@@ -50,6 +79,10 @@ impl Connector {
                 baud_rate,
                 exclusive,
             } => Box::new(serial(path, *baud_rate, *exclusive)?),
+            // Bounded like a TCP connect.
+            ConnectorKind::Custom(open) => tokio::time::timeout(self.connect_timeout, open())
+                .await
+                .map_err(|_| timed_out())??,
         };
         Ok(super::stream_link(io, self.max_payload_len))
     }

@@ -275,6 +275,44 @@ impl ClientBuilder {
         self.start(Box::new(io), TransportKind::Attached, None)
     }
 
+    /// Uses the byte streams `connect` opens: one now, and with
+    /// [`reconnect`](Self::reconnect) a new one after each loss (e.g. in-memory pipes to a
+    /// [`SimServer::serve_stream`](crate::wsg::sim::SimServer::serve_stream), so that a test
+    /// exercises reconnecting without sockets). The client treats it like an attached stream.
+    pub async fn connect_with<F, Fut, S>(self, connect: F) -> Result<Client>
+    where
+        F: Fn() -> Fut + Send + Sync + 'static,
+        Fut: std::future::Future<Output = std::io::Result<S>> + Send + 'static,
+        S: AsyncReadWrite,
+    {
+        let io = connect().await?;
+        let open: connector::Open = Box::new(move || {
+            let fut = connect();
+            Box::pin(async move { fut.await.map(|s| Box::new(s) as Box<dyn AsyncReadWrite>) })
+        });
+        let reconnect = ConnectorKind::Custom(open);
+        Ok(self.start(Box::new(io), TransportKind::Attached, Some(reconnect)))
+    }
+
+    /// Talks in datagrams over in-memory channels (feature `sim`): each frame goes to
+    /// `outgoing` as one message, each message from `incoming` is one datagram (one frame, as
+    /// on UDP, manual 1.2). The client behaves as over UDP. With
+    /// [`SimServer::serve_datagrams`](crate::wsg::sim::SimServer::serve_datagrams) on the
+    /// other end (possibly through a test's fault layer), a test runs UDP without sockets.
+    #[cfg(feature = "sim")]
+    pub fn attach_datagrams(
+        self,
+        outgoing: mpsc::UnboundedSender<Bytes>,
+        incoming: mpsc::UnboundedReceiver<Bytes>,
+    ) -> Client {
+        let link = Link::Datagrams {
+            tx: outgoing,
+            rx: incoming,
+            max_payload_len: self.max_payload_len,
+        };
+        self.start_link(link, TransportKind::Udp, None)
+    }
+
     /// Spawns the task on the current tokio runtime.
     fn start(
         self,

@@ -654,12 +654,20 @@ impl Task {
             }
             result = loop {
                 tokio::select! {
+                    // A fixed order, so that a seeded run replays exactly (issue 20): the
+                    // answer first; then the deadline, which a steady flow of frames (say
+                    // auto-updates) must not starve; then the next frame.
+                    biased;
                     r = &mut rx => break match r {
                         Ok(Ok(reply)) if reply.status == Status::Success => Ok(()),
                         Ok(Ok(reply)) => Err(Error::Device { command: id::ANNOUNCE_DISCONNECT, status: reply.status }),
                         Ok(Err(e)) => Err(e),
                         Err(_) => Err(Error::Closed),
                     },
+                    _ = sleep_until(deadline) => break Err(Error::Timeout {
+                        command: id::ANNOUNCE_DISCONNECT,
+                        timeout: self.query_timeout,
+                    }),
                     received = self.link.recv() => match received {
                         Some(Ok(frame)) => {
                             if let Err(e) = self.on_frame(frame).await {
@@ -669,10 +677,6 @@ impl Task {
                         Some(Err(e)) => break Err(Error::ConnectionLost(e.to_string())),
                         None => break Err(Error::ConnectionLost("closed by the gripper".into())),
                     },
-                    _ = sleep_until(deadline) => break Err(Error::Timeout {
-                        command: id::ANNOUNCE_DISCONNECT,
-                        timeout: self.query_timeout,
-                    }),
                 }
             };
         }

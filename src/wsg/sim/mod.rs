@@ -66,5 +66,5 @@ mod text;
 #[doc(inline)]
 pub use device::{Device, Out, SessionId, SessionKind};
 pub use model::{Model, Part, SimConfig, SimFinger, DEFAULT_UDP_IDLE_TIMEOUT, MAX_UDP_SESSIONS};
-pub use server::{SimServer, SimSnapshot};
+pub use server::{SimEvent, SimRecord, SimRecording, SimServer, SimSnapshot};
 pub use sessions::MIN_UPDATE_PERIOD_MS;

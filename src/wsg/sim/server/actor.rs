@@ -2,7 +2,7 @@
 //! connections' events in order, and queues each reply for the session it belongs to, applying
 //! the injected faults on the way out.
 
-use std::collections::HashMap;
+use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
@@ -11,6 +11,7 @@ use bytes::{Bytes, BytesMut};
 use tokio::sync::{mpsc, oneshot, watch};
 use tokio::time::{sleep_until, Instant};
 
+use super::record::{SimEvent, SimRecord};
 use super::{lock, take, Shared, SimSnapshot};
 use crate::wsg::frame::{self, Decoded};
 use crate::wsg::sim::device::{Device, Out, SessionId, SessionKind};
@@ -56,6 +57,22 @@ impl Outbox {
     fn full(&self) -> bool {
         self.queued.load(Ordering::Relaxed) >= HIGH_WATER
     }
+}
+
+/// Tells the actor that session `session` opened; returns where its replies arrive, or `None`
+/// if the actor is gone (the server shut down).
+pub(super) async fn connect(
+    events: &mpsc::Sender<Event>,
+    session: SessionId,
+    kind: SessionKind,
+) -> Option<Inbox> {
+    let (outbox, inbox) = Outbox::new();
+    let connected = Event::Connected {
+        session,
+        kind,
+        outbox,
+    };
+    events.send(connected).await.ok().map(|()| inbox)
 }
 
 /// The connection's end of an [`Outbox`].
@@ -113,8 +130,15 @@ pub(super) enum Event {
 pub(super) enum Control {
     LosePart,
     Unplug,
+    Restart,
     TimeScale(f64),
 }
+
+/// Added to every wake-up time computed from seconds in `f64`: the conversion to `Duration`
+/// truncates to whole nanoseconds, so without it the timer could fire a hair before the due
+/// time, find nothing due, and be set to the same instant again. Under tokio's paused clock
+/// (which only moves when every task waits) that loop never ends: the explorer found it.
+const WAKE_MARGIN: Duration = Duration::from_micros(1);
 
 /// Simulated seconds from the wall clock and a time scale.
 pub(super) struct SimClock {
@@ -139,7 +163,7 @@ impl SimClock {
         }
         let secs = ((sim - self.base_sim) * self.scale).clamp(0.0, 1e9);
         self.base_wall
-            .checked_add(Duration::from_secs_f64(secs))
+            .checked_add(Duration::from_secs_f64(secs) + WAKE_MARGIN)
             .map_or(far, |t| t.min(far))
     }
 }
@@ -148,9 +172,11 @@ pub(super) struct Actor {
     pub(super) device: Device,
     pub(super) clock: SimClock,
     pub(super) started: Instant,
-    pub(super) sessions: HashMap<SessionId, Outbox>,
-    /// The text (GCL) sessions' own state (`text.rs`).
-    pub(super) text: HashMap<SessionId, TextSession>,
+    /// Ordered (not hashed): it is iterated (unplug, restart), and a seeded run must drop the
+    /// connections in the same order every time to replay exactly.
+    pub(super) sessions: BTreeMap<SessionId, Outbox>,
+    /// The text (GCL) sessions' own state (`text.rs`). Ordered like `sessions`.
+    pub(super) text: BTreeMap<SessionId, TextSession>,
     pub(super) shared: Arc<Mutex<Shared>>,
     pub(super) events: mpsc::Receiver<Event>,
     pub(super) control: mpsc::UnboundedReceiver<Control>,
@@ -169,16 +195,18 @@ impl Actor {
             let update = self
                 .device
                 .next_update_due()
-                .map(|w| self.started + Duration::from_secs_f64(w.clamp(0.0, 1e9)));
+                .map(|w| self.started + Duration::from_secs_f64(w.clamp(0.0, 1e9)) + WAKE_MARGIN);
             let wake = match (motion, update) {
                 (Some(a), Some(b)) => Some(a.min(b)),
                 (a, b) => a.or(b),
             };
             tokio::select! {
-                ev = self.events.recv() => match ev {
-                    Some(ev) => self.on_event(ev),
-                    None => return,
-                },
+                // A fixed order, not tokio's random one, so that a seeded run replays exactly.
+                // It is fair: shutdown and control are rare; a steady flow of events cannot
+                // starve the timer, because `settle` above delivers what became due on every
+                // turn of the loop whichever branch woke it.
+                biased;
+                _ = self.shutdown.changed() => return,
                 Some(c) = self.control.recv() => match c {
                     Control::LosePart => self.device.lose_part(),
                     Control::TimeScale(scale) => {
@@ -193,9 +221,13 @@ impl Actor {
                         let device = &self.device;
                         self.sessions.retain(|s, _| device.session_kind(*s) == Some(SessionKind::Udp));
                     }
+                    Control::Restart => self.restart(),
+                },
+                ev = self.events.recv() => match ev {
+                    Some(ev) => self.on_event(ev),
+                    None => return,
                 },
                 _ = sleep_until(wake.unwrap_or_else(Instant::now)), if wake.is_some() => {}
-                _ = self.shutdown.changed() => return,
             }
         }
     }
@@ -226,6 +258,35 @@ impl Actor {
         lock(&self.shared).snapshot = snapshot;
     }
 
+    /// Adds to the record, if recording was started.
+    fn record(&self, session: SessionId, event: SimEvent) {
+        let mut shared = lock(&self.shared);
+        if let Some(r) = shared.recorder.as_mut() {
+            r.push(SimRecord {
+                session,
+                at: self.started.elapsed(),
+                event,
+            });
+        }
+    }
+
+    /// A power cycle: stream connections are dropped (their tasks see the outbox close), the
+    /// device starts from its configuration, UDP sessions carry on with it.
+    fn restart(&mut self) {
+        let cfg = self.device.config().clone();
+        let old = std::mem::replace(&mut self.device, Device::new(cfg));
+        self.sessions
+            .retain(|s, _| old.session_kind(*s) == Some(SessionKind::Udp));
+        // Text (GCL) sessions are byte streams: they went with the rest.
+        self.text.clear();
+        for &s in self.sessions.keys() {
+            self.device.connect(s, SessionKind::Udp);
+        }
+        self.clock.base_sim = 0.0;
+        self.clock.base_wall = Instant::now();
+        self.record(0, SimEvent::Restarted);
+    }
+
     fn on_event(&mut self, ev: Event) {
         match ev {
             Event::Connected {
@@ -235,6 +296,7 @@ impl Actor {
             } => {
                 self.sessions.insert(session, outbox);
                 self.device.connect(session, kind);
+                self.record(session, SimEvent::Connected { kind });
             }
             Event::TextConnected { session, outbox } => self.on_text_connected(session, outbox),
             Event::Line { session, line } => self.on_text_line(session, line),
@@ -258,6 +320,21 @@ impl Actor {
                         shared.received.pop_front();
                     }
                     shared.received.push_back(id);
+                    if let Some(r) = shared.recorder.as_mut() {
+                        let (payload, corrupt) = match &decoded {
+                            Decoded::Frame(f) => (f.payload.clone(), false),
+                            Decoded::Corrupt { .. } => (Bytes::new(), true),
+                        };
+                        r.push(SimRecord {
+                            session,
+                            at: self.started.elapsed(),
+                            event: SimEvent::Request {
+                                id,
+                                payload,
+                                corrupt,
+                            },
+                        });
+                    }
                     match &decoded {
                         Decoded::Frame(f) => take(&mut shared.faults.forced, |(i, _)| *i == f.id),
                         Decoded::Corrupt { .. } => None,
@@ -284,7 +361,9 @@ impl Actor {
     fn forget(&mut self, session: SessionId) {
         let outs = self.device.disconnect(session, self.clock.now());
         self.dispatch(outs);
-        self.sessions.remove(&session);
+        if self.sessions.remove(&session).is_some() {
+            self.record(session, SimEvent::Disconnected);
+        }
         self.text.remove(&session);
     }
 
@@ -326,6 +405,16 @@ impl Actor {
                 }
             }
             let bytes = b.freeze();
+            let moving = self.device.motion.is_some();
+            self.record(
+                out.session,
+                SimEvent::Reply {
+                    id,
+                    status: out.reply.status,
+                    data: out.reply.data.clone(),
+                    moving,
+                },
+            );
             match delay {
                 Some(d) => {
                     let outbox = outbox.clone();

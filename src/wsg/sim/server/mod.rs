@@ -6,27 +6,32 @@
 //! dropped for want of room: a connection whose client does not read stops being read.
 
 mod actor;
+mod memory;
+mod record;
 mod stream;
 mod text;
 mod udp;
 
-use std::collections::{HashMap, VecDeque};
+use std::collections::{BTreeMap, VecDeque};
 use std::io;
 use std::net::SocketAddr;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
 
+use bytes::Bytes;
 use tokio::io::{AsyncRead, AsyncWrite};
 use tokio::net::{TcpListener, ToSocketAddrs, UdpSocket};
 use tokio::sync::{mpsc, watch};
 use tokio::time::Instant;
 
 use self::actor::{Actor, Control, Event, SimClock};
+use self::record::Recorder;
+pub use self::record::{SimEvent, SimRecord, SimRecording};
 use self::stream::serve_stream;
 use self::text::serve_text;
 use self::udp::{serve_udp, UdpSettings};
-use super::device::{Device, SessionKind};
+use super::device::{Device, SessionId, SessionKind};
 use super::model::SimConfig;
 use crate::wsg::{GripState, Status, SystemState};
 
@@ -64,6 +69,8 @@ pub(super) struct Shared {
     /// Command ids received, oldest first (the last 4096).
     received: VecDeque<u8>,
     snapshot: SimSnapshot,
+    /// What was processed and sent, once [`SimServer::start_recording`] was called.
+    recorder: Option<Recorder>,
 }
 
 pub(super) fn lock(shared: &Mutex<Shared>) -> MutexGuard<'_, Shared> {
@@ -81,8 +88,11 @@ pub struct SimServer {
     shutdown: watch::Sender<bool>,
     /// Held so the pseudo-terminal stays open while the server runs.
     _keep: Option<Box<dyn std::any::Any + Send + Sync>>,
+    /// What a new connection needs ([`SimServer::serve_stream`], [`SimServer::serve_datagrams`]).
+    parts: Parts,
 }
 
+#[derive(Clone, Debug)]
 pub(super) struct Parts {
     events: mpsc::Sender<Event>,
     /// Serve GCL (`Some(ACK gap)`) instead of the binary protocol on byte streams.
@@ -108,6 +118,7 @@ impl SimServer {
                 sessions: 0,
                 streams: 0,
             },
+            recorder: None,
         }));
         let now = Instant::now();
         let actor = Actor {
@@ -118,14 +129,20 @@ impl SimServer {
             },
             device,
             started: now,
-            sessions: HashMap::new(),
-            text: HashMap::new(),
+            sessions: BTreeMap::new(),
+            text: BTreeMap::new(),
             shared: shared.clone(),
             events,
             control,
             shutdown: shutdown.clone(),
         };
         tokio::spawn(actor.run());
+        let parts = Parts {
+            events: events_tx,
+            text,
+            shutdown,
+            next_session: Arc::new(AtomicU64::new(1)),
+        };
         let server = SimServer {
             local_addr: None,
             serial_path: None,
@@ -133,16 +150,79 @@ impl SimServer {
             control: control_tx,
             shutdown: shutdown_tx,
             _keep: None,
+            parts: parts.clone(),
         };
-        (
-            server,
-            Parts {
-                events: events_tx,
-                text,
-                shutdown,
-                next_session: Arc::new(AtomicU64::new(1)),
-            },
-        )
+        (server, parts)
+    }
+
+    /// A simulator with no transport of its own: give it connections with
+    /// [`SimServer::serve_stream`] and [`SimServer::serve_datagrams`]. With in-memory
+    /// transports (`tokio::io::duplex`, channels) and tokio's paused clock, a test runs without
+    /// the operating system's sockets or clock, so it replays exactly.
+    pub fn in_memory(config: SimConfig) -> SimServer {
+        Self::start(config).0
+    }
+
+    /// Serves one more byte stream (e.g. one end of `tokio::io::duplex`) as a new session of
+    /// this simulator, beside the ones it has (in the text interface if the configuration
+    /// says so); returns the session's id.
+    pub fn serve_stream(
+        &self,
+        io: impl AsyncRead + AsyncWrite + Send + 'static,
+        kind: SessionKind,
+    ) -> SessionId {
+        let p = &self.parts;
+        let session = p.next_session.fetch_add(1, Ordering::Relaxed);
+        let (events, shutdown) = (p.events.clone(), p.shutdown.clone());
+        match p.text {
+            Some(gap) => tokio::spawn(serve_text(io, session, events, shutdown, gap)),
+            None => tokio::spawn(serve_stream(io, session, kind, events, shutdown)),
+        };
+        session
+    }
+
+    /// Serves an in-memory datagram peer as a new UDP session: each message from `incoming`
+    /// is one datagram (one frame, manual 1.2), each reply goes to `outgoing` as one message.
+    /// The session ends when `incoming` closes. Pairs with
+    /// [`ClientBuilder::attach_datagrams`](crate::wsg::ClientBuilder::attach_datagrams).
+    pub fn serve_datagrams(
+        &self,
+        incoming: mpsc::UnboundedReceiver<Bytes>,
+        outgoing: mpsc::UnboundedSender<Bytes>,
+    ) -> SessionId {
+        let p = &self.parts;
+        let session = p.next_session.fetch_add(1, Ordering::Relaxed);
+        tokio::spawn(memory::serve_datagrams(
+            incoming,
+            outgoing,
+            session,
+            p.events.clone(),
+            p.shutdown.clone(),
+        ));
+        session
+    }
+
+    /// Starts recording, per session, each request processed and each reply sent (see
+    /// [`SimRecording`]); at most `capacity` entries are kept (the oldest give way). Starting
+    /// again clears the record.
+    pub fn start_recording(&self, capacity: usize) {
+        lock(&self.shared).recorder = Some(Recorder::new(capacity));
+    }
+
+    /// The record so far (empty if recording was never started).
+    pub fn recording(&self) -> SimRecording {
+        lock(&self.shared)
+            .recorder
+            .as_ref()
+            .map(Recorder::snapshot)
+            .unwrap_or_default()
+    }
+
+    /// The gripper restarts (a power cycle): every byte-stream connection is dropped without
+    /// warning, the state (position, homing, settings, streams, a motion) is the
+    /// configuration's again, and UDP sessions carry on with the fresh device.
+    pub fn restart(&self) {
+        let _ = self.control.send(Control::Restart);
     }
 
     /// Serves the simulator over TCP on `addr` (port 0 picks a free port; see
@@ -297,6 +377,10 @@ async fn accept(listener: TcpListener, parts: Parts) {
     } = parts;
     loop {
         tokio::select! {
+            // Shutdown first (it is rarely ready and must not wait behind a flood of accepts);
+            // no random branch choice, so that runs replay.
+            biased;
+            _ = shutdown.changed() => return,
             r = listener.accept() => match r {
                 Ok((stream, peer)) => {
                     let _ = stream.set_nodelay(true);
@@ -309,7 +393,6 @@ async fn accept(listener: TcpListener, parts: Parts) {
                 }
                 Err(e) => tracing::warn!(error = %e, "simulator: accept failed"),
             },
-            _ = shutdown.changed() => return,
         }
     }
 }

@@ -25,7 +25,7 @@ use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
 use tokio::sync::{mpsc, watch};
 use tokio::time::{sleep_until, Instant};
 
-use super::actor::{Event, Outbox};
+use super::actor::{self, Event};
 use crate::wsg::client::DEFAULT_PARTIAL_FRAME_TIMEOUT;
 use crate::wsg::frame::{self, DEFAULT_MAX_PAYLOAD_LEN};
 use crate::wsg::sim::device::{SessionId, SessionKind};
@@ -42,18 +42,9 @@ pub(super) async fn serve_stream(
     events: mpsc::Sender<Event>,
     mut shutdown: watch::Receiver<bool>,
 ) {
-    let (outbox, mut inbox) = Outbox::new();
-    if events
-        .send(Event::Connected {
-            session,
-            kind,
-            outbox,
-        })
-        .await
-        .is_err()
-    {
+    let Some(mut inbox) = actor::connect(&events, session, kind).await else {
         return;
-    }
+    };
     let (mut rd, mut wr) = tokio::io::split(io);
     // What was read and not decoded yet: at most one partial frame plus one read, since every
     // complete frame is taken out before the next read (and `frame::decode` drops garbage).

@@ -12,7 +12,7 @@
 //! [`MAX_UDP_SESSIONS`](crate::wsg::sim::MAX_UDP_SESSIONS) are kept: a new sender beyond that
 //! replaces the longest-silent session, so a flood of sender addresses cannot grow memory.
 
-use std::collections::HashMap;
+use std::collections::BTreeMap;
 use std::net::SocketAddr;
 use std::sync::Arc;
 use std::time::Duration;
@@ -40,7 +40,9 @@ struct Peer {
     expires: Instant,
 }
 
-/// Receives datagrams until the server shuts down.
+/// Receives datagrams until the server shuts down. The peers are kept ordered (not hashed):
+/// they are iterated, and ties (equal expiry times under a paused clock) must break the same
+/// way every run.
 pub(super) async fn serve_udp(socket: Arc<UdpSocket>, parts: Parts, settings: UdpSettings) {
     let Parts {
         events,
@@ -48,11 +50,21 @@ pub(super) async fn serve_udp(socket: Arc<UdpSocket>, parts: Parts, settings: Ud
         text: _,
         next_session,
     } = parts;
-    let mut peers: HashMap<SocketAddr, Peer> = HashMap::new();
+    let mut peers: BTreeMap<SocketAddr, Peer> = BTreeMap::new();
     let mut buf = vec![0u8; 65536];
     loop {
         let next_expiry = peers.values().map(|p| p.expires).min();
         tokio::select! {
+            // A fixed order instead of tokio's random one (runs replay): shutdown and the
+            // expiry timer are ready only now and then, so datagrams are not starved, and a
+            // flood of datagrams cannot hold off forgetting idle peers.
+            biased;
+            _ = shutdown.changed() => return,
+            _ = sleep_until(next_expiry.unwrap_or_else(Instant::now)), if next_expiry.is_some() => {
+                if expire(&mut peers, &events, settings.idle_timeout).await.is_err() {
+                    return;
+                }
+            }
             r = socket.recv_from(&mut buf) => {
                 let (n, from) = match r {
                     Ok(r) => r,
@@ -97,12 +109,6 @@ pub(super) async fn serve_udp(socket: Arc<UdpSocket>, parts: Parts, settings: Ud
                     }
                 }
             }
-            _ = sleep_until(next_expiry.unwrap_or_else(Instant::now)), if next_expiry.is_some() => {
-                if expire(&mut peers, &events, settings.idle_timeout).await.is_err() {
-                    return;
-                }
-            }
-            _ = shutdown.changed() => return,
         }
     }
 }
@@ -110,7 +116,7 @@ pub(super) async fn serve_udp(socket: Arc<UdpSocket>, parts: Parts, settings: Ud
 /// Asks the actor to forget every peer whose time is up; one still owed a final reply is asked
 /// again a little later.
 async fn expire(
-    peers: &mut HashMap<SocketAddr, Peer>,
+    peers: &mut BTreeMap<SocketAddr, Peer>,
     events: &mpsc::Sender<Event>,
     idle_timeout: Duration,
 ) -> Result<(), ()> {
@@ -143,7 +149,7 @@ async fn expire(
 /// Forgets the session that has been silent longest, whatever it is still owed, to make room
 /// for a new sender.
 async fn evict_longest_silent(
-    peers: &mut HashMap<SocketAddr, Peer>,
+    peers: &mut BTreeMap<SocketAddr, Peer>,
     events: &mpsc::Sender<Event>,
 ) -> Result<(), ()> {
     let Some((&addr, _)) = peers.iter().min_by_key(|(_, p)| p.expires) else {

@@ -1,0 +1,109 @@
+//! A faulty datagram link (UDP) in memory: a channel per direction and a pump that loses,
+//! duplicates, delays and so reorders datagrams, from the seeded generator.
+
+use std::collections::BTreeMap;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+
+use bytes::Bytes;
+use tokio::sync::mpsc;
+use tokio::time::{sleep_until, Instant};
+
+use super::{note, Prng, SharedTrace};
+
+/// How often each fault hits a datagram: one in `n` (0: never).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct DatagramProfile {
+    /// Lose it.
+    pub loss: u64,
+    /// Deliver it twice (each copy delayed on its own).
+    pub duplicate: u64,
+    /// Delay it 1–`max_delay_ms` ms (later datagrams may overtake it).
+    pub delay: u64,
+    /// The longest delay.
+    pub max_delay_ms: u64,
+}
+
+impl DatagramProfile {
+    /// A random profile of intensity `level` (0: no faults).
+    pub fn random(rng: &mut Prng, level: u32) -> Self {
+        if level == 0 {
+            return DatagramProfile::default();
+        }
+        let mut pick = |base: u64| rng.fault_rate(level, base, 4);
+        DatagramProfile {
+            loss: pick(20),
+            duplicate: pick(20),
+            delay: pick(6),
+            max_delay_ms: 1 + rng.below(300),
+        }
+    }
+}
+
+/// A faulty one-way datagram link: returns (sender's end, receiver's end).
+pub fn faulty_datagrams(
+    rng: &mut Prng,
+    profile: DatagramProfile,
+    on: Arc<AtomicBool>,
+    trace: SharedTrace,
+    label: String,
+) -> (mpsc::UnboundedSender<Bytes>, mpsc::UnboundedReceiver<Bytes>) {
+    let (in_tx, in_rx) = mpsc::unbounded_channel();
+    let (out_tx, out_rx) = mpsc::unbounded_channel();
+    tokio::spawn(pump(label, rng.fork(), profile, on, trace, in_rx, out_tx));
+    (in_tx, out_rx)
+}
+
+async fn pump(
+    label: String,
+    mut rng: Prng,
+    p: DatagramProfile,
+    on: Arc<AtomicBool>,
+    trace: SharedTrace,
+    mut input: mpsc::UnboundedReceiver<Bytes>,
+    output: mpsc::UnboundedSender<Bytes>,
+) {
+    // Datagrams in flight, by delivery time (then by arrival, so ties keep their order).
+    let mut flight: BTreeMap<(Instant, u64), Bytes> = BTreeMap::new();
+    let mut n = 0u64;
+    loop {
+        let next = flight.keys().next().map(|k| k.0);
+        tokio::select! {
+            // Fixed order (replay): deliveries that are due go first; new datagrams are read
+            // only when none is due, and a due one is due only once, so neither starves.
+            biased;
+            _ = sleep_until(next.unwrap_or_else(Instant::now)), if next.is_some() => {
+                let now = Instant::now();
+                while let Some(entry) = flight.first_entry() {
+                    if entry.key().0 > now {
+                        break;
+                    }
+                    if output.send(entry.remove()).is_err() {
+                        return;
+                    }
+                }
+            }
+            d = input.recv() => {
+                // The sender is gone: what is in flight is lost with it.
+                let Some(d) = d else { return };
+                n += 1;
+                if !on.load(Ordering::Relaxed) {
+                    flight.insert((Instant::now(), n * 2), d);
+                    continue;
+                }
+                if rng.one_in(p.loss) {
+                    note(&trace, format!("fault {label}: datagram {n} lost"));
+                    continue;
+                }
+                let copies = if rng.one_in(p.duplicate) { 2 } else { 1 };
+                for copy in 0..copies {
+                    let delay = if rng.one_in(p.delay) { rng.millis(1, p.max_delay_ms.max(1)) } else { std::time::Duration::ZERO };
+                    if copies > 1 || !delay.is_zero() {
+                        note(&trace, format!("fault {label}: datagram {n} copy {copy} delayed {delay:?}"));
+                    }
+                    flight.insert((Instant::now() + delay, n * 2 + copy), d.clone());
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,251 @@
+//! A faulty byte-stream link (TCP or serial) in memory: two `tokio::io::duplex` pipes joined by
+//! one pump per direction, which applies the seeded faults to each chunk it forwards.
+//!
+//! Faults (issue 20, TCP and serial): delay, split into pieces written apart, merge with the
+//! next chunk, corruption of any byte (the length field included: any byte can be hit), stalls,
+//! cuts (both directions end: each end reads end-of-stream), half-close (one direction ends,
+//! the other goes on) and, on serial, line noise (random bytes inserted). A restarting device
+//! is the scenario's business (`SimServer::restart`).
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+
+use tokio::io::{AsyncReadExt, AsyncWriteExt, DuplexStream, ReadHalf, WriteHalf};
+use tokio::sync::watch;
+
+use super::{note, Prng, SharedTrace};
+
+/// Bytes each pipe buffers.
+const PIPE_BUFFER: usize = 64 * 1024;
+
+/// How often each fault hits a chunk: one in `n` (0: never).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct StreamProfile {
+    /// Hold the chunk 1–100 ms.
+    pub delay: u64,
+    /// Write it in pieces, 1–20 ms apart.
+    pub split: u64,
+    /// Hold it until the next chunk (at most 50 ms) and write both at once.
+    pub merge: u64,
+    /// Flip one bit of one byte.
+    pub corrupt: u64,
+    /// Hold it 0.3–3 s.
+    pub stall: u64,
+    /// Cut the connection before it.
+    pub cut: u64,
+    /// End this direction before it (the other goes on).
+    pub half_close: u64,
+    /// Insert 1–4 random bytes (serial line noise).
+    pub noise: u64,
+}
+
+impl StreamProfile {
+    /// A random profile of intensity `level` (0: no faults).
+    pub fn random(rng: &mut Prng, level: u32, serial: bool) -> Self {
+        if level == 0 {
+            return StreamProfile::default();
+        }
+        // Higher levels make each fault more likely (smaller `n`).
+        let mut pick = |base: u64| rng.fault_rate(level, base, 3);
+        StreamProfile {
+            delay: pick(6),
+            split: pick(8),
+            merge: pick(8),
+            corrupt: pick(60),
+            stall: pick(80),
+            cut: pick(200),
+            half_close: pick(400),
+            noise: if serial { pick(60) } else { 0 },
+        }
+    }
+}
+
+/// Creates a faulty link; returns (client end, server end). Faults apply while `on` is set.
+pub fn faulty_pipe(
+    rng: &mut Prng,
+    profile: StreamProfile,
+    on: Arc<AtomicBool>,
+    trace: SharedTrace,
+    label: String,
+) -> (DuplexStream, DuplexStream) {
+    let (client, client_net) = tokio::io::duplex(PIPE_BUFFER);
+    let (server, server_net) = tokio::io::duplex(PIPE_BUFFER);
+    let (c_rd, c_wr) = tokio::io::split(client_net);
+    let (s_rd, s_wr) = tokio::io::split(server_net);
+    let (cut_tx, cut_rx) = watch::channel(false);
+    let cut_tx = Arc::new(cut_tx);
+    let up = Pump {
+        dir: format!("{label} c>s"),
+        rng: rng.fork(),
+        profile,
+        on: on.clone(),
+        cut_tx: cut_tx.clone(),
+        cut: cut_rx.clone(),
+        trace: trace.clone(),
+    };
+    let down = Pump {
+        dir: format!("{label} s>c"),
+        rng: rng.fork(),
+        profile,
+        on,
+        cut_tx,
+        cut: cut_rx,
+        trace,
+    };
+    tokio::spawn(up.run(c_rd, s_wr));
+    tokio::spawn(down.run(s_rd, c_wr));
+    (client, server)
+}
+
+struct Pump {
+    dir: String,
+    rng: Prng,
+    profile: StreamProfile,
+    on: Arc<AtomicBool>,
+    cut_tx: Arc<watch::Sender<bool>>,
+    cut: watch::Receiver<bool>,
+    trace: SharedTrace,
+}
+
+impl Pump {
+    async fn run(mut self, mut rd: ReadHalf<DuplexStream>, mut wr: WriteHalf<DuplexStream>) {
+        let mut buf = vec![0u8; 512];
+        let mut held: Vec<u8> = Vec::new();
+        loop {
+            let chunk = self.rng.between(1, 512) as usize;
+            let mut cut = self.cut.clone();
+            let read = tokio::select! {
+                // Fixed order (replay): a cut ends the pump whatever else is ready; a merged
+                // chunk is written after its wait even while nothing new comes.
+                biased;
+                _ = cut.wait_for(|c| *c) => return,
+                _ = tokio::time::sleep(Duration::from_millis(50)), if !held.is_empty() => None,
+                r = rd.read(&mut buf[..chunk]) => Some(r),
+            };
+            let data = match read {
+                None => {
+                    let out = std::mem::take(&mut held);
+                    if !self.write(&mut wr, &out).await {
+                        return;
+                    }
+                    continue;
+                }
+                Some(Ok(0)) | Some(Err(_)) => {
+                    // The writer ended its side: pass the half-close on.
+                    let out = std::mem::take(&mut held);
+                    if self.write(&mut wr, &out).await {
+                        let _ = wr.shutdown().await;
+                    }
+                    return;
+                }
+                Some(Ok(n)) => buf[..n].to_vec(),
+            };
+            let mut out = std::mem::take(&mut held);
+            out.extend_from_slice(&data);
+            if !self.on.load(Ordering::Relaxed) {
+                if !self.write(&mut wr, &out).await {
+                    return;
+                }
+                continue;
+            }
+            let p = self.profile;
+            let r = &mut self.rng;
+            if r.one_in(p.cut) {
+                note(&self.trace, format!("fault {}: cut", self.dir));
+                let _ = self.cut_tx.send(true);
+                return;
+            }
+            if r.one_in(p.half_close) {
+                note(&self.trace, format!("fault {}: half-close", self.dir));
+                let _ = wr.shutdown().await;
+                // Keep reading (and discarding) so the writer is not blocked.
+                let mut cut = self.cut.clone();
+                loop {
+                    tokio::select! {
+                        biased;
+                        _ = cut.wait_for(|c| *c) => return,
+                        r = rd.read(&mut buf) => if !matches!(r, Ok(n) if n > 0) { return },
+                    }
+                }
+            }
+            if r.one_in(p.corrupt) {
+                let i = r.below(out.len() as u64) as usize;
+                let bit = 1u8 << r.below(8);
+                out[i] ^= bit;
+                note(
+                    &self.trace,
+                    format!("fault {}: byte {i} of {} ^ {bit:#04x}", self.dir, out.len()),
+                );
+            }
+            if r.one_in(p.noise) {
+                let at = r.below(out.len() as u64 + 1) as usize;
+                let n = r.between(1, 4) as usize;
+                let noise: Vec<u8> = (0..n).map(|_| r.below(256) as u8).collect();
+                note(
+                    &self.trace,
+                    format!("fault {}: noise {noise:02x?} at {at}", self.dir),
+                );
+                out.splice(at..at, noise);
+            }
+            let hold = if r.one_in(p.stall) {
+                Some(r.millis(300, 3000))
+            } else if r.one_in(p.delay) {
+                Some(r.millis(1, 100))
+            } else {
+                None
+            };
+            let merge = r.one_in(p.merge);
+            let split = r.one_in(p.split);
+            if let Some(d) = hold {
+                note(&self.trace, format!("fault {}: hold {d:?}", self.dir));
+                if !self.pause(d).await {
+                    return;
+                }
+            }
+            if merge {
+                note(&self.trace, format!("fault {}: merge", self.dir));
+                held = out;
+                continue;
+            }
+            if split && out.len() > 1 {
+                let at = self.rng.between(1, out.len() as u64 - 1) as usize;
+                let gap = self.rng.millis(1, 20);
+                note(
+                    &self.trace,
+                    format!("fault {}: split at {at}, {gap:?}", self.dir),
+                );
+                if !self.write(&mut wr, &out[..at]).await || !self.pause(gap).await {
+                    return;
+                }
+                out.drain(..at);
+            }
+            if !self.write(&mut wr, &out).await {
+                return;
+            }
+        }
+    }
+
+    /// Waits `d`; false if the link was cut meanwhile.
+    async fn pause(&self, d: Duration) -> bool {
+        let mut cut = self.cut.clone();
+        tokio::select! {
+            biased;
+            _ = cut.wait_for(|c| *c) => false,
+            _ = tokio::time::sleep(d) => true,
+        }
+    }
+
+    /// Writes `bytes`; false if the link was cut or the reader is gone.
+    async fn write(&self, wr: &mut WriteHalf<DuplexStream>, bytes: &[u8]) -> bool {
+        if bytes.is_empty() {
+            return true;
+        }
+        let mut cut = self.cut.clone();
+        tokio::select! {
+            biased;
+            _ = cut.wait_for(|c| *c) => false,
+            r = wr.write_all(bytes) => r.is_ok(),
+        }
+    }
+}

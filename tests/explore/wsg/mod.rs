@@ -1,0 +1,397 @@
+//! The WSG under the explorer: one simulated gripper, one or two clients over TCP, serial or
+//! UDP (in memory, through the fault layers), several callers each, a fault phase, a quiet
+//! phase (recovery, promise 5; a stop during a motion, promise 3), closing, then the oracle.
+
+mod oracle;
+mod workload;
+
+use std::collections::BTreeSet;
+use std::future::Future;
+use std::pin::Pin;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use gripper::reconnect::ReconnectPolicy;
+use gripper::wsg::command::id;
+use gripper::wsg::sim::{Model, SessionKind, SimConfig, SimEvent, SimServer};
+use gripper::wsg::{Client, Status};
+use tokio::time::Instant;
+
+use self::oracle::ClientView;
+use self::workload::{CallRec, ClientCtx, Log, Res};
+use crate::core::datagrams::{faulty_datagrams, DatagramProfile};
+use crate::core::streams::{faulty_pipe, StreamProfile};
+use crate::core::{note, Caps, Prng, Scenario, SharedTrace};
+
+/// The WSG scenario.
+pub struct Wsg;
+
+/// Entries the simulator records at most (a run stays far below).
+const RECORD_CAPACITY: usize = 1 << 20;
+
+impl Scenario for Wsg {
+    fn variants(&self) -> &'static [&'static str] {
+        &["wsg-tcp", "wsg-serial", "wsg-udp"]
+    }
+
+    fn run(
+        &self,
+        variant: &'static str,
+        seed: u64,
+        caps: Caps,
+        trace: SharedTrace,
+    ) -> Pin<Box<dyn Future<Output = Vec<String>> + '_>> {
+        Box::pin(run(variant, seed, caps, trace))
+    }
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+enum Transport {
+    Tcp,
+    Serial,
+    Udp,
+}
+
+async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -> Vec<String> {
+    let transport = match variant {
+        "wsg-tcp" => Transport::Tcp,
+        "wsg-serial" => Transport::Serial,
+        _ => Transport::Udp,
+    };
+    let mut rng = Prng::new(seed);
+    let sim_t0 = Instant::now();
+    let sim = Arc::new(SimServer::in_memory(
+        SimConfig::new(Model::Wsg50)
+            .with_part(40.0, 2.0)
+            .with_time_scale(1.0),
+    ));
+    sim.start_recording(RECORD_CAPACITY);
+    let faults_on = Arc::new(AtomicBool::new(true));
+    let level = rng.between(0, u64::from(caps.faults)) as u32;
+    let n_clients = rng.between(1, 2) as usize;
+    note(
+        &trace,
+        format!(
+            "run {variant}:{seed:#018x}{} level {level}, {n_clients} clients",
+            caps.suffix()
+        ),
+    );
+
+    let mut ctxs = Vec::new();
+    for index in 0..n_clients {
+        let mut crng = rng.fork();
+        ctxs.push(Arc::new(
+            open_client(index, transport, &mut crng, level, &sim, &faults_on, &trace).await,
+        ));
+    }
+
+    // The fault phase: every caller runs its calls; a device restart now and then.
+    let log = Arc::new(Log::default());
+    let mut callers = Vec::new();
+    for ctx in &ctxs {
+        let n = rng.between(1, u64::from(caps.callers)) as usize;
+        for k in 0..n {
+            let ops = rng.between(1, u64::from(caps.ops)) as u32;
+            let task =
+                workload::caller(ctx.clone(), k, rng.fork(), ops, log.clone(), trace.clone());
+            callers.push(tokio::spawn(task));
+        }
+    }
+    let restart = (level >= 2 && rng.one_in(4)).then(|| rng.millis(0, 5000));
+    if let Some(at) = restart {
+        let (sim, trace) = (sim.clone(), trace.clone());
+        tokio::spawn(async move {
+            tokio::time::sleep(at).await;
+            note(&trace, "fault: the device restarts");
+            sim.restart();
+        });
+    }
+    for c in callers {
+        // A caller that panicked is counted by the panic hook.
+        let _ = c.await;
+    }
+    faults_on.store(false, Ordering::SeqCst);
+    note(&trace, "faults off");
+
+    // The quiet phase.
+    let mut quiet = Vec::new();
+    for ctx in &ctxs {
+        quiet.extend(recovery(ctx, &log, &trace).await);
+    }
+    if let Some(ctx) = ctxs.iter().find(|c| !c.closing.load(Ordering::SeqCst)) {
+        quiet.extend(stop_is_not_queued(ctx, &sim, sim_t0, &trace).await);
+    }
+    for ctx in &ctxs {
+        if !ctx.closing.swap(true, Ordering::SeqCst) {
+            let lost = ctx.first_loss().is_some();
+            let r = ctx.client.close().await;
+            note(&trace, format!("close client {}: {r:?}", ctx.index));
+            let after = ctx.client.width_mm().await;
+            // After a loss, ConnectionLost stays a fair answer (the connection is gone either way).
+            let fine = match &after {
+                Err(gripper::wsg::Error::Closed) => true,
+                Err(gripper::wsg::Error::ConnectionLost(_)) => lost,
+                _ => false,
+            };
+            if !fine {
+                quiet.push(format!(
+                    "5 (documented errors): client {} after close(): width_mm() ended {after:?}, not Error::Closed",
+                    ctx.index
+                ));
+            }
+        }
+    }
+
+    let record = sim.recording();
+    for r in &record.records {
+        note(
+            &trace,
+            format!("sim {}us {} {:?}", r.at.as_micros(), r.session, r.event),
+        );
+    }
+    let views: Vec<ClientView> = ctxs
+        .iter()
+        .map(|c| ClientView {
+            sessions: c
+                .sessions
+                .lock()
+                .unwrap()
+                .iter()
+                .copied()
+                .collect::<BTreeSet<_>>(),
+            reconnect: c.reconnect,
+            first_loss: c.first_loss(),
+        })
+        .collect();
+    let calls = log.calls.lock().unwrap().clone();
+    let updates = log.updates.lock().unwrap().clone();
+    let mut v = oracle::check(&calls, &updates, &record, sim_t0, &views);
+    v.extend(quiet);
+    drop(ctxs);
+    drop(sim);
+    v
+}
+
+async fn open_client(
+    index: usize,
+    transport: Transport,
+    rng: &mut Prng,
+    level: u32,
+    sim: &Arc<SimServer>,
+    faults_on: &Arc<AtomicBool>,
+    trace: &SharedTrace,
+) -> ClientCtx {
+    let query_timeout = rng.millis(50, 1000);
+    let motion_timeout = rng.millis(1000, 10_000);
+    let grace = rng.millis(50, 2000);
+    let reconnect = transport != Transport::Udp && rng.one_in(2);
+    let announce = transport == Transport::Tcp;
+    let mut b = Client::builder()
+        .query_timeout(query_timeout)
+        .motion_timeout(motion_timeout)
+        .late_reply_grace(grace)
+        .announce_disconnect(announce);
+    if rng.one_in(3) {
+        b = b.partial_frame_timeout(rng.millis(20, 500));
+    }
+    if reconnect {
+        b = b.reconnect(ReconnectPolicy {
+            initial_delay: Duration::from_millis(50),
+            max_delay: Duration::from_millis(500),
+            factor: 2.0,
+            max_attempts: None,
+        });
+    }
+    let sessions = Arc::new(Mutex::new(Vec::new()));
+    let label = format!("client {index}");
+    note(trace, format!("{label}: {transport:?} query {query_timeout:?} motion {motion_timeout:?} grace {grace:?} reconnect {reconnect}"));
+    let client = match transport {
+        Transport::Udp => {
+            let profile = DatagramProfile::random(rng, level);
+            note(trace, format!("{label}: {profile:?}"));
+            let (up_tx, up_rx) = faulty_datagrams(
+                rng,
+                profile,
+                faults_on.clone(),
+                trace.clone(),
+                format!("{label} c>s"),
+            );
+            let (down_tx, down_rx) = faulty_datagrams(
+                rng,
+                profile,
+                faults_on.clone(),
+                trace.clone(),
+                format!("{label} s>c"),
+            );
+            sessions
+                .lock()
+                .unwrap()
+                .push(sim.serve_datagrams(up_rx, down_tx));
+            b.attach_datagrams(up_tx, down_rx)
+        }
+        Transport::Tcp | Transport::Serial => {
+            let serial = transport == Transport::Serial;
+            let kind = if serial {
+                SessionKind::Serial
+            } else {
+                SessionKind::Tcp
+            };
+            let profile = StreamProfile::random(rng, level, serial);
+            note(trace, format!("{label}: {profile:?}"));
+            let net = Arc::new(Mutex::new(rng.fork()));
+            let (sim, on, trace, sessions) = (
+                sim.clone(),
+                faults_on.clone(),
+                trace.clone(),
+                sessions.clone(),
+            );
+            let connect = move || {
+                let mut rng = net.lock().unwrap();
+                let (c, s) =
+                    faulty_pipe(&mut rng, profile, on.clone(), trace.clone(), label.clone());
+                let session = sim.serve_stream(s, kind);
+                note(&trace, format!("{label}: connected as session {session}"));
+                sessions.lock().unwrap().push(session);
+                async move { Ok(c) }
+            };
+            b.connect_with(connect)
+                .await
+                .expect("an in-memory connect cannot fail")
+        }
+    };
+    let losses = Arc::new(Mutex::new(Vec::new()));
+    workload::watch_losses(&client, losses.clone());
+    ClientCtx {
+        index,
+        losses,
+        client,
+        sessions,
+        reconnect,
+        announce,
+        closing: AtomicBool::new(false),
+        query_timeout,
+        motion_timeout,
+        grace,
+    }
+}
+
+/// Promise 5: once the faults stop, a client with reconnect recovers within a bound and its
+/// next call succeeds; without reconnect, if it lost its connection, every call fails with
+/// ConnectionLost. The bound: a motion's timeout plus the late-reply grace (ids busy with a
+/// call that timed out are free again by then) plus the longest reconnect wait.
+async fn recovery(ctx: &ClientCtx, log: &Log, trace: &SharedTrace) -> Vec<String> {
+    if ctx.closing.load(Ordering::SeqCst) {
+        return Vec::new();
+    }
+    let bound = ctx.motion_timeout + ctx.grace + Duration::from_millis(500) + ctx.query_timeout;
+    tokio::time::sleep(bound).await;
+    let lost = ctx.first_loss().is_some();
+    let mut v = Vec::new();
+    let start = Instant::now();
+    let r = ctx.client.system_info().await;
+    note(
+        trace,
+        format!("recovery client {}: system_info {r:?}", ctx.index),
+    );
+    match (&r, ctx.reconnect, lost) {
+        (Ok(_), _, _) => {}
+        (Err(gripper::wsg::Error::ConnectionLost(_)), false, true) => {}
+        _ => v.push(format!(
+            "5 (recovery): client {} (reconnect {}, lost before: {lost}): {:?} after the faults stopped, the next call (system_info) ended {r:?}",
+            ctx.index, ctx.reconnect, bound
+        )),
+    }
+    let end = Instant::now();
+    // Its answer is checked like any other call's.
+    log.calls.lock().unwrap().push(CallRec {
+        client: ctx.index,
+        who: format!("{}.recovery", ctx.index),
+        op: "system_info".into(),
+        id: id::SYSTEM_INFO,
+        start,
+        end,
+        limit: Some(ctx.query_timeout),
+        res: match r {
+            Ok(_) => Res::Ok(workload::Expect::Success),
+            Err(e) => workload::classify(&e),
+        },
+    });
+    v
+}
+
+/// Promise 3, live: with the network quiet, a stop sent while a slow motion runs reaches the
+/// device at once (not behind the motion), and the motion ends E_CMD_ABORTED.
+async fn stop_is_not_queued(
+    ctx: &ClientCtx,
+    sim: &SimServer,
+    sim_t0: Instant,
+    trace: &SharedTrace,
+) -> Vec<String> {
+    let c = ctx.client.clone();
+    let losses_before = ctx.losses.lock().unwrap().len();
+    let _ = c.acknowledge_fast_stop().await;
+    if c.home(gripper::wsg::HomingDirection::Default)
+        .await
+        .is_err()
+    {
+        return Vec::new();
+    }
+    let width = c.width_mm().await.unwrap_or(0.0);
+    let target = if width > 55.0 { 5.0 } else { 105.0 };
+    let mover = c.clone();
+    let motion_start = Instant::now();
+    let motion = tokio::spawn(async move { mover.pre_position(target, 5.0).await });
+    tokio::time::sleep(Duration::from_millis(100)).await;
+    let start = Instant::now();
+    let stopped = c.stop().await;
+    let took = start.elapsed();
+    let motion = motion.await;
+    note(
+        trace,
+        format!("stop check: stop {stopped:?} after {took:?}, motion {motion:?}"),
+    );
+    let rec = sim.recording();
+    let stop_seen = rec.records.iter().find(|r| {
+        sim_t0 + r.at >= start && matches!(r.event, SimEvent::Request { id: id::STOP, .. })
+    });
+    let mut v = Vec::new();
+    // A connection that ended meanwhile (a half-close from the fault phase reaching its end,
+    // say) makes this no test of the stop's queueing: its calls fail or wait for a reconnect.
+    if ctx.losses.lock().unwrap().len() != losses_before {
+        return v;
+    }
+    let pending = rec.records.iter().any(|r| {
+        matches!(
+            r.event,
+            SimEvent::Reply {
+                id: id::PRE_POSITION,
+                status: Status::CmdPending,
+                ..
+            }
+        ) && sim_t0 + r.at >= motion_start
+            && sim_t0 + r.at < start
+    });
+    if !pending {
+        return v; // The motion never started (e.g. refused): nothing to stop.
+    }
+    match stop_seen {
+        Some(r) if sim_t0 + r.at <= start + Duration::from_millis(1) => {}
+        other => v.push(format!(
+            "3 (a stop goes out at once): a stop called during a slow motion on a quiet network reached the device {:?} after the call (stop {stopped:?} after {took:?})",
+            other.map(|r| (sim_t0 + r.at).saturating_duration_since(start))
+        )),
+    }
+    if !matches!(
+        motion,
+        Ok(Err(gripper::wsg::Error::Device {
+            status: Status::CmdAborted,
+            ..
+        }))
+    ) {
+        v.push(format!(
+            "3 (a stop stops): the motion stopped during its run ended {motion:?}"
+        ));
+    }
+    v
+}

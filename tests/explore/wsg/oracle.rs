@@ -1,0 +1,259 @@
+//! The WSG oracle: checks what the callers got against what the simulator recorded. Each
+//! violation names the promise of issue 20 it breaks (1–5).
+
+use std::collections::BTreeSet;
+use std::time::Duration;
+
+use gripper::wsg::command::id;
+use gripper::wsg::sim::{SessionId, SimEvent, SimRecording};
+use gripper::wsg::Status;
+use tokio::time::Instant;
+
+use super::workload::{CallRec, Expect, Res, Update};
+
+/// How far past its timeout a call may end (promise 1): the client fails a call at its
+/// deadline, so this only absorbs the hand-over from the connection task to the caller.
+pub const CALL_SLACK: Duration = Duration::from_millis(10);
+
+/// One reply the device sent to one client.
+struct Sent {
+    at: Instant,
+    id: u8,
+    status: Status,
+    data: Vec<u8>,
+    moving: bool,
+    used: bool,
+}
+
+/// What one client is, for the oracle.
+pub struct ClientView {
+    /// Its sessions.
+    pub sessions: BTreeSet<SessionId>,
+    /// It reconnects after a loss.
+    pub reconnect: bool,
+    /// When it first reported a lost connection.
+    pub first_loss: Option<Instant>,
+}
+
+fn t(at: Instant, t0: Instant) -> String {
+    format!("{}us", at.saturating_duration_since(t0).as_micros())
+}
+
+/// Every violation found.
+pub fn check(
+    calls: &[CallRec],
+    updates: &[Update],
+    record: &SimRecording,
+    sim_t0: Instant,
+    clients: &[ClientView],
+) -> Vec<String> {
+    let mut v = Vec::new();
+    if record.dropped != 0 {
+        v.push(format!(
+            "explorer: the simulator's record lost {} entries (raise its capacity)",
+            record.dropped
+        ));
+    }
+    for (ci, view) in clients.iter().enumerate() {
+        let mine: Vec<&CallRec> = calls.iter().filter(|c| c.client == ci).collect();
+        v.extend(check_client(&mine, updates, record, sim_t0, ci, view));
+    }
+    v
+}
+
+fn check_client(
+    calls: &[&CallRec],
+    updates: &[Update],
+    record: &SimRecording,
+    t0: Instant,
+    ci: usize,
+    view: &ClientView,
+) -> Vec<String> {
+    let mut v = Vec::new();
+    let ours = |s: SessionId| view.sessions.contains(&s);
+    let mut sent: Vec<Sent> = record
+        .records
+        .iter()
+        .filter(|r| ours(r.session))
+        .filter_map(|r| match &r.event {
+            SimEvent::Reply {
+                id,
+                status,
+                data,
+                moving,
+            } => Some(Sent {
+                at: t0 + r.at,
+                id: *id,
+                status: *status,
+                data: data.to_vec(),
+                moving: *moving,
+                used: false,
+            }),
+            _ => None,
+        })
+        .collect();
+    let close_start = calls
+        .iter()
+        .filter(|c| c.op == "close")
+        .map(|c| c.start)
+        .min();
+    let first_lost = view.first_loss;
+
+    for c in calls {
+        // 1: bounded.
+        if let (Some(limit), false) = (c.limit, c.res == Res::Cancelled) {
+            let took = c.end - c.start;
+            if took > limit + CALL_SLACK {
+                v.push(format!(
+                    "1 (every call ends within its timeout + {CALL_SLACK:?}): {} {} took {took:?} with a timeout of {limit:?} and ended {:?}",
+                    c.who, c.op, c.res
+                ));
+            }
+        }
+        match &c.res {
+            Res::Other(e) => v.push(format!("2 (no wrong answer): {} {} failed with {e}", c.who, c.op)),
+            Res::Closed if close_start.is_none_or(|s| c.end < s) => v.push(format!(
+                "5 (documented errors): {} {} got Error::Closed at {} but close() was never called before it (a lost connection is ConnectionLost)",
+                c.who, c.op, t(c.end, t0)
+            )),
+            _ => {}
+        }
+        // 5: without reconnect, every call after a loss fails with ConnectionLost.
+        if let (false, Some(lost)) = (view.reconnect, first_lost) {
+            let fine = matches!(
+                c.res,
+                Res::Lost | Res::Cancelled | Res::Closed | Res::Conflict
+            );
+            if c.start > lost && !fine {
+                v.push(format!(
+                    "5 (documented errors): client {ci} lost its connection at {} (no reconnect), yet {} {} then ended {:?}",
+                    t(lost, t0), c.who, c.op, c.res
+                ));
+            }
+        }
+    }
+
+    // 2, 3, 4: each answer is one reply the device sent to this client during the call; one
+    // reply answers one call. Earliest end first, earliest reply first: for intervals this
+    // greedy finds a matching whenever one exists.
+    let mut answered: Vec<&&CallRec> = calls
+        .iter()
+        .filter(|c| {
+            matches!(c.res, Res::Device(..))
+                || matches!(&c.res, Res::Ok(e) if *e != Expect::Nothing)
+        })
+        .collect();
+    answered.sort_by_key(|c| c.end);
+    for c in answered {
+        let fits = |s: &Sent| -> bool {
+            match &c.res {
+                Res::Ok(Expect::Success) => s.id == c.id && s.status == Status::Success,
+                Res::Ok(Expect::Data(d)) => {
+                    s.id == c.id && s.status == Status::Success && s.data == *d
+                }
+                Res::Ok(Expect::Motion) => s.id == c.id && s.status == Status::Success && !s.moving,
+                Res::Ok(Expect::Exact(st, d)) => s.id == c.id && s.status == *st && s.data == *d,
+                Res::Device(cmd, st) => s.id == *cmd && s.status == *st,
+                _ => false,
+            }
+        };
+        if let Some(s) = sent
+            .iter_mut()
+            .find(|s| !s.used && s.at >= c.start && s.at <= c.end && fits(s))
+        {
+            s.used = true;
+            continue;
+        }
+        let window = format!("[{}, {}]", t(c.start, t0), t(c.end, t0));
+        match &c.res {
+            Res::Device(_, Status::AlreadyRunning) => {
+                if !motion_running(record, t0, c.start, c.end) {
+                    v.push(format!(
+                        "4 (a status is the device's): {} {} got E_ALREADY_RUNNING in {window}, but the device sent none and was executing no motion at the call",
+                        c.who, c.op
+                    ));
+                }
+            }
+            Res::Ok(Expect::Motion)
+                if sent.iter().any(|s| s.id == c.id && s.status == Status::Success && s.at >= c.start && s.at <= c.end) =>
+            {
+                v.push(format!(
+                    "4 (a completed motion has stopped): {} {} returned Ok in {window} on a final reply sent while the fingers were moving",
+                    c.who, c.op
+                ));
+            }
+            Res::Ok(Expect::Success) if c.id == id::STOP || c.id == id::FAST_STOP => v.push(format!(
+                "3 (stop Ok only if the device processed a stop sent at or after the call): {} {} returned Ok in {window}, but no {:#04x} reply of this client in that window was left unpaired",
+                c.who, c.op, c.id
+            )),
+            _ => v.push(format!(
+                "2 (each answer is the device's answer to that request): {} {} ended {:?} in {window}, but the device sent no such reply (left unpaired) to this client in that window",
+                c.who, c.op, c.res
+            )),
+        }
+    }
+    // ReplyLost: the client gave the final reply up only after the device acknowledged the
+    // motion (E_CMD_PENDING) during the call.
+    for c in calls.iter().filter(|c| matches!(c.res, Res::ReplyLost(_))) {
+        let Res::ReplyLost(cmd) = c.res else { continue };
+        let acked = sent.iter().any(|s| {
+            s.id == cmd && s.status == Status::CmdPending && s.at >= c.start && s.at <= c.end
+        });
+        if !acked {
+            v.push(format!(
+                "4 (a status is the device's): {} {} ended ReplyLost, but the device acknowledged no {cmd:#04x} of this client during the call",
+                c.who, c.op
+            ));
+        }
+    }
+    // An update may be any value of that id the device sent this client before it was
+    // received: a stream shared by several subscribers (3.4.1: one stream per value) may hand a
+    // new one a value sent just before it subscribed, which is still the device's.
+    for u in updates.iter().filter(|u| u.client == ci) {
+        let ok = sent.iter().any(|s| {
+            s.id == u.id && s.status == Status::Success && s.data == u.data && s.at <= u.at
+        });
+        if !ok {
+            v.push(format!(
+                "2 (each answer is the device's): client {ci} received an auto-update {:02x?} of {:#04x} at {} that the device never sent it",
+                u.data, u.id, t(u.at, t0)
+            ));
+        }
+    }
+    v
+}
+
+/// Whether the device may have been executing a motion during `[start, end]` (manual 3.2.2:
+/// E_ALREADY_RUNNING means the module *is* executing a motion, whichever client started it):
+/// one acknowledged (E_CMD_PENDING) before `start` without its final reply or a restart before
+/// `start` (records at the very instant `start` may come before or after the call, so they do
+/// not count against it), or one acknowledged during the call.
+fn motion_running(record: &SimRecording, t0: Instant, start: Instant, end: Instant) -> bool {
+    let mut running: BTreeSet<(SessionId, u8)> = BTreeSet::new();
+    for r in &record.records {
+        let at = t0 + r.at;
+        if at > end {
+            break;
+        }
+        match &r.event {
+            SimEvent::Restarted if at < start => running.clear(),
+            SimEvent::Reply { id, status, .. } if is_motion(*id) => {
+                if *status == Status::CmdPending {
+                    if at >= start {
+                        return true;
+                    }
+                    running.insert((r.session, *id));
+                } else if at < start && *status != Status::AlreadyRunning {
+                    // E_ALREADY_RUNNING refuses a duplicate; it does not end the motion.
+                    running.remove(&(r.session, *id));
+                }
+            }
+            _ => {}
+        }
+    }
+    !running.is_empty()
+}
+
+fn is_motion(id: u8) -> bool {
+    matches!(id, id::HOMING | id::PRE_POSITION | id::GRASP | id::RELEASE)
+}
