@@ -17,7 +17,7 @@
 //! | An acknowledged motion past its caller's deadline keeps its id until its final reply or two "not moving" a grace apart ([`Error::ReplyLost`] for a caller still waiting). | 1.3, Anhang B | all | as above |
 //! | Stop and FAST STOP are never queued; a stop call is `Ok` only on a reply to a stop sent at or after it (each reply is taken for the oldest unanswered stop); a call still waiting [`RESEND_STOP_AFTER`] later gets the stop sent again. | 1.2.2, 3.2.3, 3.2.4 | TCP, serial | UDP: a stop reply later than the grace, or duplicated, is taken for a later stop; a stop sent again may arrive after `stop()` returned and abort a move started right after |
 //! | A frame must complete within [`ClientBuilder::partial_frame_timeout`] from its first byte; a header longer than any reply of its id is noise at once; while a frame is held, no id is released. | 1.2.1, chapter 3 | TCP, serial (UDP: one frame per datagram) | a plausible corrupted length holds replies for up to the timeout |
-//! | Frames already received are paired before the next request goes out. | — | all | UDP: a duplicated reply arriving after the next request of its id went out is taken for it (same value unless the device changed) |
+//! | Frames already received are paired before the next request goes out: a request freed by a reply waits until no frame is ready to be read (a copy of that reply, already received, is then dropped as unsolicited). | 1.2.2 | all (needed on UDP) | UDP: a duplicated reply that arrives after the next request of its id went out is taken for it |
 
 mod connector;
 mod pairing;

@@ -300,6 +300,11 @@ impl Pairing {
         gone
     }
 
+    /// Whether requests of `id` wait to be sent.
+    pub(crate) fn has_queued(&self, id: u8) -> bool {
+        self.ids.get(&id).is_some_and(|st| !st.queue.is_empty())
+    }
+
     /// Asks for a probe at `now` if calls of motion command `id` wait behind its acknowledged
     /// request (called when it is acknowledged).
     pub(crate) fn verify_queued(&mut self, id: u8, now: Instant) {

@@ -93,6 +93,10 @@ pub(crate) struct Task {
     waiters: IntMap<Token, Waiter>,
     streams: IntMap<u8, StreamState>,
     next_token: Token,
+    /// Ids whose id is free and whose next queued request waits until every frame already
+    /// received has been paired (see [`Task::send_next`]): a frame received before a request
+    /// went out cannot answer it, but would be taken for its answer (a duplicated UDP reply).
+    ready: Vec<u8>,
 }
 
 /// Where the connection's timers wait while nothing is due (they are not polled then).
@@ -137,6 +141,7 @@ impl Task {
             waiters: IntMap::default(),
             streams: IntMap::default(),
             next_token: 0,
+            ready: Vec::new(),
         }
     }
 
@@ -184,6 +189,7 @@ impl Task {
             }
         }
         self.pairing.drain();
+        self.ready.clear();
     }
 
     /// What the connection events say about a loss: on TCP, that the gripper is now in FAST
@@ -305,6 +311,17 @@ impl Task {
                         self.on_frame(frame).await.map_err(io_reason)?;
                     }
                 }
+                // Reached only when no frame is ready to be read: every frame already received
+                // is paired, so the next requests of the freed ids can go out. Unless the
+                // task's cooperative budget ran out, which makes a read return "not ready"
+                // whatever is received: then yield (that renews it) and read first.
+                () = std::future::ready(()), if !self.ready.is_empty() => {
+                    if !tokio::task::coop::has_budget_remaining() {
+                        tokio::task::yield_now().await;
+                        continue;
+                    }
+                    self.send_ready().await.map_err(io_reason)?;
+                }
                 msg = self.rx.recv() => match msg {
                     // A caller that gave up while its request waited in the channel: never sent.
                     Some(Msg::Call { reply, .. }) if reply.is_closed() => {}
@@ -418,7 +435,8 @@ impl Task {
                     self.on_probe(motion, t, Observation::Unknown, token)
                         .await?;
                 }
-                self.send_next(id).await
+                self.send_next(id);
+                Ok(())
             }
             Due::Probe(id, token) => self.send_probe(id, token).await,
             Due::ResendStop(id) => {
@@ -470,7 +488,8 @@ impl Task {
                 if let Some(Waiter::Caller(tx)) = self.waiters.remove(&token) {
                     let _ = tx.send(Err(Error::ReplyLost { command: id }));
                 }
-                self.send_next(id).await
+                self.send_next(id);
+                Ok(())
             }
             Verdict::Running(refused) => {
                 for t in refused {
@@ -496,7 +515,29 @@ impl Task {
         send_within(&mut self.link, &frame, self.write_timeout).await
     }
 
-    async fn send_next(&mut self, id: u8) -> io::Result<()> {
+    /// The request on the wire of `id` is done: its next queued request (if any) goes out once
+    /// every frame already received is paired ([`Task::send_ready`], from the task's loop),
+    /// not now. A frame already received cannot answer a request sent after it, yet would be
+    /// taken for its answer: a duplicated UDP reply whose copy sits in the socket's buffer.
+    fn send_next(&mut self, id: u8) {
+        if !self.pairing.has_queued(id) {
+            // Nothing to send: only the id's bookkeeping to drop.
+            let _ = self.pairing.next(id, |_| true);
+        } else if !self.ready.contains(&id) {
+            self.ready.push(id);
+        }
+    }
+
+    /// Sends the next request of each id [`Task::send_next`] set aside.
+    async fn send_ready(&mut self) -> io::Result<()> {
+        for id in std::mem::take(&mut self.ready) {
+            self.send_now(id).await?;
+        }
+        Ok(())
+    }
+
+    /// Sends the next queued request of `id`, if its id is free.
+    async fn send_now(&mut self, id: u8) -> io::Result<()> {
         let waiters = &self.waiters;
         let (next, skipped) = self.pairing.next(id, |t| alive(waiters, t));
         for t in skipped {
@@ -534,7 +575,7 @@ impl Task {
                     }
                 }
                 if !tokens.is_empty() {
-                    self.send_next(id).await?;
+                    self.send_next(id);
                 }
                 return Ok(());
             }
@@ -583,7 +624,7 @@ impl Task {
                     }
                     Some(Waiter::Internal) | None => {}
                 }
-                self.send_next(id).await?;
+                self.send_next(id);
             }
             Event::Unsolicited(reply) => {
                 if reply.status == Status::Success && self.streams.contains_key(&id) {
@@ -662,7 +703,12 @@ impl Task {
                     },
                     received = self.link.recv() => match received {
                         Some(Ok(frame)) => {
-                            if let Err(e) = self.on_frame(frame).await {
+                            // Requests freed here go out at once: closing reads no further.
+                            let paired = match self.on_frame(frame).await {
+                                Ok(()) => self.send_ready().await,
+                                Err(e) => Err(e),
+                            };
+                            if let Err(e) = paired {
                                 break Err(Error::ConnectionLost(e.to_string()));
                             }
                         }

@@ -1,0 +1,80 @@
+//! Replies that come late or twice must never answer a later request of their id (issue 20
+//! follow-up, found by the explorer): raw "grippers" on loopback sockets that answer exactly
+//! as the schedule needs, each answer naming the request it answers.
+
+use std::net::SocketAddr;
+use std::time::Duration;
+
+use bytes::BytesMut;
+use gripper::wsg::command::id;
+use gripper::wsg::frame::{self, Frame};
+use gripper::wsg::Client;
+use tokio::net::UdpSocket;
+
+/// Bounds a call that must end by itself well before this (a hang fails the test, it does not
+/// block the suite).
+async fn bounded<F: std::future::Future>(what: &str, call: F) -> F::Output {
+    tokio::time::timeout(Duration::from_secs(20), call)
+        .await
+        .unwrap_or_else(|_| panic!("{what}: no answer within 20 s"))
+}
+
+/// A reply frame of `command` with E_SUCCESS and `data`.
+fn reply(command: u8, data: &[u8]) -> Vec<u8> {
+    let mut payload = vec![0, 0];
+    payload.extend_from_slice(data);
+    let mut b = BytesMut::new();
+    frame::encode(&Frame::new(command, payload), &mut b).unwrap();
+    b.to_vec()
+}
+
+/// The answer to the `n`th width request (from 0): `n + 1` mm, so each answer names its request.
+fn width_reply(n: usize) -> Vec<u8> {
+    reply(id::WIDTH, &(n as f32 + 1.0).to_le_bytes())
+}
+
+/// A UDP "gripper" that answers the first width request twice (a duplicated datagram) and every
+/// later one once. Both copies are sent from one poll of its task, so on this single-threaded
+/// runtime both are in the client's socket buffer before the client reads the first.
+async fn duplicating_udp_device() -> SocketAddr {
+    let socket = UdpSocket::bind("127.0.0.1:0").await.unwrap();
+    let addr = socket.local_addr().unwrap();
+    tokio::spawn(async move {
+        let mut buf = [0u8; 512];
+        let mut n = 0;
+        while let Ok((len, from)) = socket.recv_from(&mut buf).await {
+            if len < frame::HEADER_LEN || buf[3] != id::WIDTH {
+                continue;
+            }
+            let answer = width_reply(n);
+            let copies = if n == 0 { 2 } else { 1 };
+            for _ in 0..copies {
+                socket.send_to(&answer, from).await.unwrap();
+            }
+            n += 1;
+        }
+    });
+    addr
+}
+
+/// (a) UDP: the copy of a reply, already received when its original was paired, answered the
+/// next request of its id, which was sent from inside the pairing of the original
+/// (`wsg-udp:0x96519dd7d49df4ae`). A frame already received cannot answer a request sent after
+/// it: it is paired (here: dropped as unsolicited) before the next request goes out.
+#[tokio::test]
+async fn a_duplicated_reply_already_received_never_answers_the_next_request_of_its_id() {
+    let addr = duplicating_udp_device().await;
+    let client = Client::builder().connect_udp(addr).await.unwrap();
+    // The second call queues behind the first (one request per id on the wire) and goes out
+    // when the first's reply is paired.
+    let (first, second) = bounded("widths", async {
+        tokio::join!(client.width_mm(), client.width_mm())
+    })
+    .await;
+    assert_eq!(first.unwrap(), 1.0);
+    assert_eq!(
+        second.unwrap(),
+        2.0,
+        "the copy of the first reply answered the second request"
+    );
+}
