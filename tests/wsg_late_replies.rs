@@ -78,3 +78,72 @@ async fn a_duplicated_reply_already_received_never_answers_the_next_request_of_i
         "the copy of the first reply answered the second request"
     );
 }
+
+/// A TCP "gripper" that handles its requests one after the other, in order, as the device's
+/// command interpreter does: the first width request takes `slow` (a device or link stalled
+/// past the caller's timeout plus the late-reply grace), every later request is answered at
+/// once. Loop-back requests are echoed.
+async fn slow_first_tcp_device(slow: Duration) -> SocketAddr {
+    use futures_util::StreamExt;
+    use tokio::io::AsyncWriteExt;
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let addr = listener.local_addr().unwrap();
+    tokio::spawn(async move {
+        let (socket, _) = listener.accept().await.unwrap();
+        let (read, mut write) = socket.into_split();
+        let mut requests = tokio_util::codec::FramedRead::new(read, gripper::wsg::WsgCodec::new());
+        let mut widths = 0;
+        while let Some(Ok(request)) = requests.next().await {
+            let answer = match request.id {
+                id::WIDTH => {
+                    if widths == 0 {
+                        tokio::time::sleep(slow).await;
+                    }
+                    widths += 1;
+                    width_reply(widths - 1)
+                }
+                id::LOOP => reply(id::LOOP, &request.payload),
+                other => reply(other, &[]),
+            };
+            if write.write_all(&answer).await.is_err() {
+                return;
+            }
+        }
+    });
+    addr
+}
+
+/// (b) TCP: a reply stalled past its request's timeout plus the grace answered the next request
+/// of its id (`wsg-tcp:0xe9966f076d4f365c`). On an ordered stream that is provably avoidable:
+/// the next request waits until the echo of a loop-back sent after the release comes back,
+/// and a reply of the id before that echo is the stale one.
+#[tokio::test]
+async fn a_reply_stalled_past_the_grace_never_answers_the_next_request_on_tcp() {
+    let addr = slow_first_tcp_device(Duration::from_millis(600)).await;
+    let client = Client::builder()
+        .late_reply_grace(Duration::from_millis(50))
+        .connect_tcp(addr)
+        .await
+        .unwrap();
+    let impatient = client.with_timeouts(Duration::from_millis(100), Duration::from_secs(1));
+    let first = bounded("first width", impatient.width_mm()).await;
+    assert!(
+        matches!(first, Err(gripper::wsg::Error::Timeout { .. })),
+        "{first:?}"
+    );
+    // Queued behind the first request, the second goes out once its id is released (the
+    // first's deadline plus the grace), while the first's reply is still on its way.
+    let patient = client.with_timeouts(Duration::from_secs(5), Duration::from_secs(5));
+    let second = bounded("second width", patient.width_mm()).await.unwrap();
+    assert_eq!(
+        second, 2.0,
+        "the stalled reply of the first request answered the second"
+    );
+    // The link goes on.
+    assert_eq!(
+        &bounded("loop", client.loop_back(&b"after"[..]))
+            .await
+            .unwrap()[..],
+        b"after"
+    );
+}

@@ -55,6 +55,11 @@ enum Waiter {
         id: u8,
         token: Token,
     },
+    /// A loop-back whose echo proves that every reply sent before it has been read, so the
+    /// fenced command id `id` can send its next request (see [`Task::send_barrier`]).
+    Barrier {
+        id: u8,
+    },
 }
 
 struct StreamState {
@@ -123,6 +128,9 @@ impl Task {
         announce_on_close: bool,
         lost: Arc<OnceLock<String>>,
     ) -> Self {
+        let mut pairing = Pairing::new(grace);
+        // A byte stream (TCP, serial, attached) keeps the device's replies in order.
+        pairing.set_ordered(matches!(link, Link::Stream(_)));
         Self {
             partial_frame_timeout: super::DEFAULT_PARTIAL_FRAME_TIMEOUT,
             partial_since: None,
@@ -134,7 +142,7 @@ impl Task {
             link,
             rx,
             unsubscribe,
-            pairing: Pairing::new(grace),
+            pairing,
             query_timeout,
             write_timeout: query_timeout.saturating_add(grace),
             announce_on_close,
@@ -427,16 +435,18 @@ impl Task {
                     "no (final) reply within timeout + grace: command id released; \
                     a reply arriving later would be taken for the next request of this id"
                 );
-                if let Some(Waiter::Probe {
-                    id: motion,
-                    token: t,
-                }) = self.waiters.remove(&token)
-                {
-                    self.on_probe(motion, t, Observation::Unknown, token)
-                        .await?;
-                }
+                self.unanswered(token).await?;
                 self.send_next(id);
                 Ok(())
+            }
+            Due::Fenced(id, token) => {
+                tracing::warn!(
+                    id,
+                    "no reply within timeout + grace: the next request of this id waits for \
+                    the echo of a loop-back (a reply before it is the late one)"
+                );
+                self.unanswered(token).await?;
+                self.send_barrier(id).await
             }
             Due::Probe(id, token) => self.send_probe(id, token).await,
             Due::ResendStop(id) => {
@@ -452,6 +462,37 @@ impl Task {
                 .await
             }
         }
+    }
+
+    /// Request `token` was released with no usable answer: its waiter goes; a probe counts as
+    /// "unknown", a barrier is sent again (its id stays fenced until one comes back).
+    async fn unanswered(&mut self, token: Token) -> io::Result<()> {
+        match self.waiters.remove(&token) {
+            Some(Waiter::Probe {
+                id: motion,
+                token: t,
+            }) => self.on_probe(motion, t, Observation::Unknown, token).await,
+            Some(Waiter::Barrier { id }) => self.send_barrier(id).await,
+            // A caller (who has given up by now) or an internal request: forgotten.
+            Some(Waiter::Caller(_) | Waiter::Internal) | None => Ok(()),
+        }
+    }
+
+    /// Sends a loop-back (0x06, manual 3.1.1) with a payload no other request carries, for
+    /// the fenced command id `id`. On a byte stream its echo comes after the reply to every
+    /// request sent before it: the device answers the commands of one connection one after
+    /// the other, and the stream keeps the order. (The manual does not promise this in so many
+    /// words; it is what its request-reply scheme (1.2.2) implies for immediate replies.)
+    async fn send_barrier(&mut self, id: u8) -> io::Result<()> {
+        let token = self.waiter(Waiter::Barrier { id });
+        let mut payload = b"gripper barrier ".to_vec();
+        payload.extend_from_slice(&token.to_le_bytes());
+        let req = Request {
+            token,
+            frame: Frame::new(id::LOOP, payload),
+            deadline: after(Instant::now(), self.query_timeout),
+        };
+        self.submit(req).await
     }
 
     /// Asks the device whether the acknowledged motion `token` of command `id` still runs: its
@@ -571,6 +612,7 @@ impl Task {
                             self.on_probe(motion, t, Observation::Unknown, *token)
                                 .await?;
                         }
+                        Some(Waiter::Barrier { id: fenced }) => self.send_barrier(fenced).await?,
                         Some(Waiter::Internal) | None => {}
                     }
                 }
@@ -622,6 +664,14 @@ impl Task {
                         };
                         self.on_probe(motion, t, seen, token).await?;
                     }
+                    // The echo is the barrier's own (a loop reply must echo the payload on
+                    // the wire): every reply sent before it has been read.
+                    Some(Waiter::Barrier { id: fenced }) if reply.status == Status::Success => {
+                        self.pairing.unfence(fenced);
+                        self.send_next(fenced);
+                    }
+                    // A refusal may be a stale one of an earlier loop-back: try again.
+                    Some(Waiter::Barrier { id: fenced }) => self.send_barrier(fenced).await?,
                     Some(Waiter::Internal) | None => {}
                 }
                 self.send_next(id);
@@ -749,7 +799,7 @@ async fn send_within(link: &mut Link, frame: &Frame, limit: Duration) -> io::Res
 fn alive(waiters: &IntMap<Token, Waiter>, token: Token) -> bool {
     match waiters.get(&token) {
         Some(Waiter::Caller(tx)) => !tx.is_closed(),
-        Some(Waiter::Internal | Waiter::Probe { .. }) => true,
+        Some(Waiter::Internal | Waiter::Probe { .. } | Waiter::Barrier { .. }) => true,
         None => false,
     }
 }
