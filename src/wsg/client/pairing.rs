@@ -346,9 +346,20 @@ impl Pairing {
         gone
     }
 
-    /// Whether requests of `id` wait to be sent.
-    pub(crate) fn has_queued(&self, id: u8) -> bool {
-        self.ids.get(&id).is_some_and(|st| !st.queue.is_empty())
+    /// The request of `id` on the wire is done: whether requests of `id` wait to be sent
+    /// ([`Pairing::next`] then sends them). If none waits, the id's state goes now (one map
+    /// lookup on the hot path: a reply with nobody queued behind it).
+    pub(crate) fn done(&mut self, id: u8) -> bool {
+        let Some(st) = self.ids.get_mut(&id) else {
+            return false;
+        };
+        if !st.queue.is_empty() {
+            return true;
+        }
+        if st.in_flight.is_none() && !st.pending_owed && !st.fenced {
+            self.ids.remove(&id);
+        }
+        false
     }
 
     /// Asks for a probe at `now` if calls of motion command `id` wait behind its acknowledged

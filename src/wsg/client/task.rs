@@ -561,10 +561,7 @@ impl Task {
     /// not now. A frame already received cannot answer a request sent after it, yet would be
     /// taken for its answer: a duplicated UDP reply whose copy sits in the socket's buffer.
     fn send_next(&mut self, id: u8) {
-        if !self.pairing.has_queued(id) {
-            // Nothing to send: only the id's bookkeeping to drop.
-            let _ = self.pairing.next(id, |_| true);
-        } else if !self.ready.contains(&id) {
+        if self.pairing.done(id) && !self.ready.contains(&id) {
             self.ready.push(id);
         }
     }
