@@ -3,6 +3,8 @@
 //! as the schedule needs, each answer naming the request it answers.
 
 use std::net::SocketAddr;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Arc;
 use std::time::Duration;
 
 use bytes::BytesMut;
@@ -26,6 +28,11 @@ fn reply(command: u8, data: &[u8]) -> Vec<u8> {
     let mut b = BytesMut::new();
     frame::encode(&Frame::new(command, payload), &mut b).unwrap();
     b.to_vec()
+}
+
+/// A loop-back's echo.
+fn echo(request: &Frame) -> Vec<u8> {
+    reply(id::LOOP, &request.payload)
 }
 
 /// The answer to the `n`th width request (from 0): `n + 1` mm, so each answer names its request.
@@ -82,8 +89,12 @@ async fn a_duplicated_reply_already_received_never_answers_the_next_request_of_i
 /// A TCP "gripper" that handles its requests one after the other, in order, as the device's
 /// command interpreter does: the first width request takes `slow` (a device or link stalled
 /// past the caller's timeout plus the late-reply grace), every later request is answered at
-/// once. Loop-back requests are echoed.
-async fn slow_first_tcp_device(slow: Duration) -> SocketAddr {
+/// once. Loop-back requests get `loop_answer`; each one received is counted in `loops`.
+async fn slow_first_tcp_device(
+    slow: Duration,
+    loop_answer: fn(&Frame) -> Vec<u8>,
+    loops: Arc<AtomicUsize>,
+) -> SocketAddr {
     use futures_util::StreamExt;
     use tokio::io::AsyncWriteExt;
     let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
@@ -102,7 +113,10 @@ async fn slow_first_tcp_device(slow: Duration) -> SocketAddr {
                     widths += 1;
                     width_reply(widths - 1)
                 }
-                id::LOOP => reply(id::LOOP, &request.payload),
+                id::LOOP => {
+                    loops.fetch_add(1, Ordering::SeqCst);
+                    loop_answer(&request)
+                }
                 other => reply(other, &[]),
             };
             if write.write_all(&answer).await.is_err() {
@@ -119,7 +133,8 @@ async fn slow_first_tcp_device(slow: Duration) -> SocketAddr {
 /// and a reply of the id before that echo is the stale one.
 #[tokio::test]
 async fn a_reply_stalled_past_the_grace_never_answers_the_next_request_on_tcp() {
-    let addr = slow_first_tcp_device(Duration::from_millis(600)).await;
+    let loops = Arc::new(AtomicUsize::new(0));
+    let addr = slow_first_tcp_device(Duration::from_millis(600), echo, loops.clone()).await;
     let client = Client::builder()
         .late_reply_grace(Duration::from_millis(50))
         .connect_tcp(addr)
@@ -146,4 +161,36 @@ async fn a_reply_stalled_past_the_grace_never_answers_the_next_request_on_tcp() 
             .unwrap()[..],
         b"after"
     );
+}
+
+/// (b) A device that answers no loop-back with its echo (here: E_CMD_UNKNOWN) must not make the
+/// client send barriers as fast as it answers: after three refusals the fenced id is released
+/// as on UDP, and its next call is sent and answered.
+#[tokio::test]
+async fn a_device_that_refuses_every_barrier_gets_three_and_the_id_goes_on() {
+    let loops = Arc::new(AtomicUsize::new(0));
+    let refuse = |_: &Frame| {
+        let mut b = BytesMut::new();
+        frame::encode(&Frame::new(id::LOOP, vec![0x0E, 0]), &mut b).unwrap();
+        b.to_vec()
+    };
+    let addr = slow_first_tcp_device(Duration::from_millis(300), refuse, loops.clone()).await;
+    let client = Client::builder()
+        .late_reply_grace(Duration::from_millis(50))
+        .connect_tcp(addr)
+        .await
+        .unwrap();
+    let impatient = client.with_timeouts(Duration::from_millis(100), Duration::from_secs(1));
+    let first = bounded("first width", impatient.width_mm()).await;
+    assert!(
+        matches!(first, Err(gripper::wsg::Error::Timeout { .. })),
+        "{first:?}"
+    );
+    let patient = client.with_timeouts(Duration::from_secs(5), Duration::from_secs(5));
+    // The stalled reply came before the refusals: still not taken for this call.
+    assert_eq!(
+        bounded("second width", patient.width_mm()).await.unwrap(),
+        2.0
+    );
+    assert_eq!(loops.load(Ordering::SeqCst), 3, "barriers sent");
 }

@@ -56,9 +56,11 @@ enum Waiter {
         token: Token,
     },
     /// A loop-back whose echo proves that every reply sent before it has been read, so the
-    /// fenced command id `id` can send its next request (see [`Task::send_barrier`]).
+    /// fenced command id `id` can send its next request (see [`Task::send_barrier`]);
+    /// `refused`: how many barriers of this fence got an answer other than their echo.
     Barrier {
         id: u8,
+        refused: u8,
     },
 }
 
@@ -103,6 +105,10 @@ pub(crate) struct Task {
     /// went out cannot answer it, but would be taken for its answer (a duplicated UDP reply).
     ready: Vec<u8>,
 }
+
+/// Barriers of one fence answered with something other than their echo before the fenced id is
+/// released anyway (see [`Task::barrier_refused`]).
+const BARRIER_REFUSALS: u8 = 3;
 
 /// Where the connection's timers wait while nothing is due (they are not polled then).
 const IDLE_TIMER: Duration = Duration::from_secs(3600);
@@ -446,7 +452,7 @@ impl Task {
                     the echo of a loop-back (a reply before it is the late one)"
                 );
                 self.unanswered(token).await?;
-                self.send_barrier(id).await
+                self.send_barrier(id, 0).await
             }
             Due::Probe(id, token) => self.send_probe(id, token).await,
             Due::ResendStop(id) => {
@@ -472,7 +478,7 @@ impl Task {
                 id: motion,
                 token: t,
             }) => self.on_probe(motion, t, Observation::Unknown, token).await,
-            Some(Waiter::Barrier { id }) => self.send_barrier(id).await,
+            Some(Waiter::Barrier { id, refused }) => self.send_barrier(id, refused).await,
             // A caller (who has given up by now) or an internal request: forgotten.
             Some(Waiter::Caller(_) | Waiter::Internal) | None => Ok(()),
         }
@@ -483,8 +489,8 @@ impl Task {
     /// request sent before it: the device answers the commands of one connection one after
     /// the other, and the stream keeps the order. (The manual does not promise this in so many
     /// words; it is what its request-reply scheme (1.2.2) implies for immediate replies.)
-    async fn send_barrier(&mut self, id: u8) -> io::Result<()> {
-        let token = self.waiter(Waiter::Barrier { id });
+    async fn send_barrier(&mut self, id: u8, refused: u8) -> io::Result<()> {
+        let token = self.waiter(Waiter::Barrier { id, refused });
         let mut payload = b"gripper barrier ".to_vec();
         payload.extend_from_slice(&token.to_le_bytes());
         let req = Request {
@@ -493,6 +499,26 @@ impl Task {
             deadline: after(Instant::now(), self.query_timeout),
         };
         self.submit(req).await
+    }
+
+    /// A barrier of fenced id `id` got an answer other than its echo (a refusal, a malformed
+    /// reply): it may be a stale answer to an earlier loop-back, so another barrier goes out.
+    /// Not for ever: a device that refuses every loop-back would have the task send them as
+    /// fast as it answers. After [`BARRIER_REFUSALS`] the id is released as on UDP (a reply
+    /// later than the grace may then answer its next request).
+    async fn barrier_refused(&mut self, id: u8, refused: u8) -> io::Result<()> {
+        let refused = refused.saturating_add(1);
+        if refused < BARRIER_REFUSALS {
+            return self.send_barrier(id, refused).await;
+        }
+        tracing::warn!(
+            id,
+            "the device answers no loop-back with its echo: command id released without proof \
+            that no late reply is on its way"
+        );
+        self.pairing.unfence(id);
+        self.send_next(id);
+        Ok(())
     }
 
     /// Asks the device whether the acknowledged motion `token` of command `id` still runs: its
@@ -609,7 +635,12 @@ impl Task {
                             self.on_probe(motion, t, Observation::Unknown, *token)
                                 .await?;
                         }
-                        Some(Waiter::Barrier { id: fenced }) => self.send_barrier(fenced).await?,
+                        Some(Waiter::Barrier {
+                            id: fenced,
+                            refused,
+                        }) => {
+                            self.barrier_refused(fenced, refused).await?;
+                        }
                         Some(Waiter::Internal) | None => {}
                     }
                 }
@@ -663,12 +694,16 @@ impl Task {
                     }
                     // The echo is the barrier's own (a loop reply must echo the payload on
                     // the wire): every reply sent before it has been read.
-                    Some(Waiter::Barrier { id: fenced }) if reply.status == Status::Success => {
+                    Some(Waiter::Barrier { id: fenced, .. }) if reply.status == Status::Success => {
                         self.pairing.unfence(fenced);
                         self.send_next(fenced);
                     }
-                    // A refusal may be a stale one of an earlier loop-back: try again.
-                    Some(Waiter::Barrier { id: fenced }) => self.send_barrier(fenced).await?,
+                    Some(Waiter::Barrier {
+                        id: fenced,
+                        refused,
+                    }) => {
+                        self.barrier_refused(fenced, refused).await?;
+                    }
                     Some(Waiter::Internal) | None => {}
                 }
                 self.send_next(id);
