@@ -9,7 +9,8 @@
 //! | Rule | Manual | Sound on | Residual risk |
 //! |------|--------|----------|---------------|
 //! | One request per id on the wire; the next call of the id queues behind it; other ids run concurrently. | 1.2.2 | all | none by itself |
-//! | A timed-out or dropped call keeps its id until its reply, or its deadline plus [`ClientBuilder::late_reply_grace`]; the late reply is discarded. | 1.2.2 | all | a reply later than the grace is taken for the next call of the id |
+//! | A timed-out or dropped call keeps its id until its reply, or its deadline plus [`ClientBuilder::late_reply_grace`]; the late reply is discarded. | 1.2.2 | all | UDP: a reply later than the grace is taken for the next call of the id (datagrams keep no order: no barrier can prove that none is still on its way) |
+//! | TCP, serial, attached streams: a request released with no reply at all *fences* its id: the next request of the id waits for the echo of a loop-back (0x06, unique payload) sent at the release, and a reply of the id before that echo is the late one (dropped). A released motion whose E_CMD_PENDING still comes before the echo goes back under recovery (below). | 1.2.2, 1.3, 3.1.1 | TCP, serial | the manual does not state in so many words that a connection's immediate replies keep the order of its commands (its request-reply scheme implies it); the final reply of an acknowledged non-motion command (finger power on) later than the grace is not fenced; while no echo comes, calls of the fenced id time out; a device that answers three barriers in a row with something other than their echo gets the id released as on UDP |
 //! | E_CMD_PENDING acknowledges; the final reply follows and ends the call. | 1.3 | all | — |
 //! | An E_CMD_PENDING after a final reply that had none may be that request's, reordered: it acknowledges the next request only doubtfully, and E_ALREADY_RUNNING still ends it. | 1.3 | all (needed on UDP) | UDP: a duplicated request's refusal, in that situation, ends the call as refused |
 //! | E_ALREADY_RUNNING for an acknowledged request refuses a duplicate of it: dropped. A loop reply that does not echo the payload on the wire is not its reply. | 1.3, 3.1.1 | all | — |
@@ -17,7 +18,7 @@
 //! | An acknowledged motion past its caller's deadline keeps its id until its final reply or two "not moving" a grace apart ([`Error::ReplyLost`] for a caller still waiting). | 1.3, Anhang B | all | as above |
 //! | Stop and FAST STOP are never queued; a stop call is `Ok` only on a reply to a stop sent at or after it (each reply is taken for the oldest unanswered stop); a call still waiting [`RESEND_STOP_AFTER`] later gets the stop sent again. | 1.2.2, 3.2.3, 3.2.4 | TCP, serial | UDP: a stop reply later than the grace, or duplicated, is taken for a later stop; a stop sent again may arrive after `stop()` returned and abort a move started right after |
 //! | A frame must complete within [`ClientBuilder::partial_frame_timeout`] from its first byte; a header longer than any reply of its id is noise at once; while a frame is held, no id is released. | 1.2.1, chapter 3 | TCP, serial (UDP: one frame per datagram) | a plausible corrupted length holds replies for up to the timeout |
-//! | Frames already received are paired before the next request goes out. | — | all | UDP: a duplicated reply arriving after the next request of its id went out is taken for it (same value unless the device changed) |
+//! | Frames already received are paired before the next request goes out: a request freed by a reply waits until no frame is ready to be read (a copy of that reply, already received, is then dropped as unsolicited). | 1.2.2 | all (needed on UDP) | UDP: a duplicated reply that arrives after the next request of its id went out is taken for it |
 
 mod connector;
 mod pairing;
@@ -448,8 +449,11 @@ impl Shared {
 /// A call that times out or whose future is dropped does not desync the connection: its request
 /// keeps its command id until its late reply arrives, and that reply is discarded. Because the
 /// protocol has no sequence numbers, an unanswered (and unacknowledged) request gives up its id
-/// after its deadline plus [`ClientBuilder::late_reply_grace`]; only a reply later than that could
-/// be taken for the next request of the same id.
+/// after its deadline plus [`ClientBuilder::late_reply_grace`]. On UDP only a reply later than
+/// that could be taken for the next request of the same id. On TCP and serial not even that:
+/// the next request of the id waits until the echo of a loop-back (0x06) sent at the release
+/// comes back; the stream keeps the device's replies in order, so a reply of the id before the
+/// echo is the late one (dropped), and none can come after it.
 ///
 /// # Lost final replies
 /// A request the device acknowledged (E_CMD_PENDING, manual 1.3) holds its command id until its
@@ -473,9 +477,10 @@ impl Shared {
 ///   for the verdict: it is sent once the id is released, or refused with E_ALREADY_RUNNING
 ///   when a query sent after it finds the device moving.
 ///
-/// In each case the residual risk is the same as for unanswered requests: a final reply later
-/// than the grace period (for a move: later than a grace period after the device said twice
-/// that it stopped) would be taken for the next call of the same id.
+/// In each case the residual risk is a final reply later than the grace period (for a move:
+/// later than a grace period after the device said twice that it stopped): it would be taken
+/// for the next call of the same id. The loop-back barrier (above) cannot close it: a final
+/// reply comes when the command ends, not in the order of the commands.
 ///
 /// # A misbehaving wire
 /// What the client does about each fault (each one is tested through the fault proxy in

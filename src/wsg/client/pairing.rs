@@ -28,8 +28,18 @@
 //!
 //! How long an id stays "poisoned" by a request that got no (final) reply: until its caller's
 //! deadline plus a grace period ([`Pairing::new`]); then the id is released, acknowledged or
-//! not, so a lost frame cannot block it forever. The residual risk is a reply arriving later
-//! than that grace: it would be taken as the reply to the next request of the same id.
+//! not, so a lost frame cannot block it forever. On UDP the residual risk is a reply arriving
+//! later than that grace: it would be taken as the reply to the next request of the same id.
+//! On an ordered transport (TCP, serial: [`Pairing::set_ordered`]) a request released with no
+//! reply at all *fences* its id instead ([`Due::Fenced`]): the task sends a loop-back with a
+//! payload of its own, and the next request of the id waits until its echo comes back
+//! ([`Pairing::unfence`]). The device answers a connection's commands one after the other
+//! (1.2.2: each reply acknowledges "the received command"), and the stream keeps that order,
+//! so the immediate reply of the released request, if any, comes before the echo: a reply of
+//! the id before the echo is that late one (unsolicited), and none comes after it. Only an
+//! immediate reply is fenced so: a final reply comes when its command ends. So a released
+//! motion whose E_CMD_PENDING comes before the echo is taken back on the wire under recovery
+//! (below), and an acknowledged non-motion command (finger power on) is released as before.
 //!
 //! An acknowledged motion command is not released that way: it may still be moving (a move
 //! can outlast its caller's timeout), and its final reply, E_CMD_ABORTED after a stop included,
@@ -156,6 +166,15 @@ struct IdState {
     /// was asynchronous, its E_CMD_PENDING may still come (UDP reorders, manual 1.3 fixes the
     /// order only as sent), and must not be taken for the next request's acknowledgement.
     pending_owed: bool,
+    /// A request of this id was released with no reply at all, on an ordered transport: its
+    /// reply may still be on its way, so the next request of the id waits until a barrier
+    /// ([`Due::Fenced`]) proves that every reply sent before it has been read
+    /// ([`Pairing::unfence`]).
+    fenced: bool,
+    /// The motion request released with no reply that fenced the id: if its E_CMD_PENDING
+    /// still comes (before the barrier), the move runs and its final reply will follow, so it
+    /// is taken back on the wire, under recovery ([`Due::Probe`]).
+    released: Option<InFlight>,
 }
 
 impl IdState {
@@ -205,6 +224,11 @@ pub(crate) enum Due {
     /// The request `Token` of this id got no final reply by its deadline plus grace: its id is
     /// released. Call [`Pairing::next`] for the id.
     Released(u8, Token),
+    /// Like [`Due::Released`], on an ordered transport, for a request that got no reply at
+    /// all: the id stays fenced (its next request waits) until the echo of a loop-back sent
+    /// now comes back. On a stream the device answers in order, so that echo comes after any
+    /// reply to a request sent before it (see [`Pairing::unfence`]).
+    Fenced(u8, Token),
     /// The acknowledged motion `Token` of this id is past its deadline: ask the device whether
     /// it still moves, and report the answer with [`Pairing::on_probe`].
     Probe(u8, Token),
@@ -245,6 +269,9 @@ pub(crate) struct Pairing {
     /// The stop and FAST STOP requests sent and not answered yet, by id.
     stops: IntMap<u8, Stops>,
     grace: Duration,
+    /// The transport keeps replies in order and loses none (TCP, serial): a released id can
+    /// be fenced by a barrier ([`Due::Fenced`]).
+    ordered: bool,
 }
 
 impl Pairing {
@@ -255,6 +282,25 @@ impl Pairing {
             ids: IntMap::default(),
             stops: IntMap::default(),
             grace,
+            ordered: false,
+        }
+    }
+
+    /// Says whether the transport keeps replies in order (TCP, serial, an attached stream):
+    /// then an id released with no reply waits for a barrier before its next request goes out
+    /// ([`Due::Fenced`]). On UDP it cannot: a barrier's echo proves nothing about a datagram
+    /// still on its way.
+    pub(crate) fn set_ordered(&mut self, ordered: bool) {
+        self.ordered = ordered;
+    }
+
+    /// The barrier of fenced id `id` came back: every reply the device sent before it has been
+    /// read, so no reply of the released request can come any more (an immediate reply: the
+    /// final reply of an acknowledged command is not fenced). Call [`Pairing::next`] for it.
+    pub(crate) fn unfence(&mut self, id: u8) {
+        if let Some(st) = self.ids.get_mut(&id) {
+            st.fenced = false;
+            st.released = None;
         }
     }
 
@@ -270,7 +316,7 @@ impl Pairing {
             return Submit::Send(req);
         }
         let st = self.ids.entry(id).or_default();
-        if st.in_flight.is_none() && st.queue.is_empty() {
+        if st.in_flight.is_none() && st.queue.is_empty() && !st.fenced {
             st.in_flight = Some(InFlight::new(&req, self.grace));
             return Submit::Send(req);
         }
@@ -300,6 +346,22 @@ impl Pairing {
         gone
     }
 
+    /// The request of `id` on the wire is done: whether requests of `id` wait to be sent
+    /// ([`Pairing::next`] then sends them). If none waits, the id's state goes now (one map
+    /// lookup on the hot path: a reply with nobody queued behind it).
+    pub(crate) fn done(&mut self, id: u8) -> bool {
+        let Some(st) = self.ids.get_mut(&id) else {
+            return false;
+        };
+        if !st.queue.is_empty() {
+            return true;
+        }
+        if st.in_flight.is_none() && !st.pending_owed && !st.fenced {
+            self.ids.remove(&id);
+        }
+        false
+    }
+
     /// Asks for a probe at `now` if calls of motion command `id` wait behind its acknowledged
     /// request (called when it is acknowledged).
     pub(crate) fn verify_queued(&mut self, id: u8, now: Instant) {
@@ -321,7 +383,29 @@ impl Pairing {
         let Some(st) = self.ids.get_mut(&reply.id) else {
             return Event::Unsolicited(reply);
         };
+        if st.in_flight.is_none() && reply.status == Status::CmdPending {
+            if let Some(mut f) = st.released.take() {
+                // The released motion was received after all and runs: its final reply will
+                // come at any time, before or after the barrier. Back on the wire, acknowledged
+                // and past its deadline: probed at once, like any move that outlasts its caller.
+                tracing::warn!(
+                    id = reply.id,
+                    "WSG motion released without a reply was accepted after all: under recovery"
+                );
+                f.acknowledged = true;
+                f.probe_at = Some(f.deadline);
+                let token = f.token;
+                st.in_flight = Some(f);
+                return Event::Accepted(token);
+            }
+        }
         let Some(f) = st.in_flight.as_mut() else {
+            if st.fenced {
+                // The released request's late reply (or an auto-update of the id): no request
+                // of the id is on the wire, so it answers none.
+                tracing::debug!(id = reply.id, status = %reply.status,
+                    "WSG reply of a fenced id (released after its deadline, barrier not back yet)");
+            }
             return Event::Unsolicited(reply);
         };
         if f.rejects(&reply) {
@@ -382,7 +466,7 @@ impl Pairing {
         let Some(st) = self.ids.get_mut(&id) else {
             return (None, skipped);
         };
-        if st.in_flight.is_some() {
+        if st.in_flight.is_some() || st.fenced {
             return (None, skipped);
         }
         while let Some(req) = st.queue.pop_front() {
@@ -392,7 +476,7 @@ impl Pairing {
             }
             skipped.push(req.token);
         }
-        if !st.pending_owed {
+        if !st.pending_owed && !st.fenced {
             self.ids.remove(&id);
         }
         (None, skipped)
@@ -495,6 +579,14 @@ impl Pairing {
             if f.acknowledged && is_motion(*id) {
                 f.probe_at = None;
                 out.push(Due::Probe(*id, f.token));
+            } else if self.ordered && !f.acknowledged && *id != id::LOOP {
+                // No reply at all: on an ordered stream the next request of the id waits for
+                // a barrier. (A loop reply needs none: it must echo its own payload. The final
+                // reply of an acknowledged command may come at any time: no barrier proves
+                // it will not.)
+                st.fenced = true;
+                out.push(Due::Fenced(*id, f.token));
+                st.released = st.in_flight.take().filter(|_| is_motion(*id));
             } else {
                 out.push(Due::Released(*id, f.token));
                 st.in_flight = None;
@@ -902,6 +994,76 @@ mod tests {
             p.on_reply(reply(0x21, Status::AlreadyRunning)),
             Event::Unsolicited(_)
         ));
+    }
+
+    /// On an ordered transport an id released with no reply is fenced: its next request waits
+    /// for the barrier, and a reply of the id before it answers nothing. On UDP, or once the
+    /// request was acknowledged, it is released as before.
+    #[test]
+    fn an_id_released_without_a_reply_waits_for_its_barrier_on_an_ordered_transport() {
+        let now = Instant::now();
+        let t = now + Duration::from_millis(100);
+        let grace = Duration::from_millis(50);
+        let mut p = Pairing::new(grace);
+        p.set_ordered(true);
+        assert!(matches!(p.submit(req(1, 0x43, t), now), Submit::Send(_)));
+        assert!(matches!(p.submit(req(2, 0x43, t), now), Submit::Queued));
+        assert_eq!(p.due(t + grace), vec![Due::Fenced(0x43, 1)]);
+        // Fenced: nothing goes out, and a new call queues too.
+        assert_eq!(p.next(0x43, |_| true).0.map(|r| r.token), None);
+        assert!(matches!(p.submit(req(3, 0x43, t), now), Submit::Queued));
+        // The late reply answers nobody.
+        assert!(matches!(
+            p.on_reply(reply(0x43, Status::Success)),
+            Event::Unsolicited(_)
+        ));
+        p.unfence(0x43);
+        for token in [2, 3] {
+            assert_eq!(p.next(0x43, |_| true).0.map(|r| r.token), Some(token));
+            assert!(matches!(
+                p.on_reply(reply(0x43, Status::Success)),
+                Event::Resolved(t, _) if t == token
+            ));
+        }
+        assert_eq!(p.next(0x43, |_| true).0.map(|r| r.token), None);
+        // A loop-back needs no barrier: its reply must echo its own payload.
+        assert!(matches!(
+            p.submit(req(4, id::LOOP, t), now),
+            Submit::Send(_)
+        ));
+        assert_eq!(p.due(t + grace), vec![Due::Released(id::LOOP, 4)]);
+        // Nor does an acknowledged command (its final reply may come at any time).
+        assert!(matches!(
+            p.submit(req(5, id::FINGER2_POWER, t), now),
+            Submit::Send(_)
+        ));
+        assert_eq!(
+            p.on_reply(reply(id::FINGER2_POWER, Status::CmdPending)),
+            Event::Accepted(5)
+        );
+        assert_eq!(p.due(t + grace), vec![Due::Released(id::FINGER2_POWER, 5)]);
+        // A released motion whose E_CMD_PENDING comes before the barrier runs after all: it is
+        // back on the wire under recovery (probed at once), its final reply ends it.
+        assert!(matches!(
+            p.submit(req(6, id::GRASP, t), now),
+            Submit::Send(_)
+        ));
+        assert_eq!(p.due(t + grace), vec![Due::Fenced(id::GRASP, 6)]);
+        assert_eq!(
+            p.on_reply(reply(id::GRASP, Status::CmdPending)),
+            Event::Accepted(6)
+        );
+        p.unfence(id::GRASP);
+        assert_eq!(p.next(id::GRASP, |_| true).0.map(|r| r.token), None);
+        assert_eq!(p.due(t + grace), vec![Due::Probe(id::GRASP, 6)]);
+        assert!(matches!(
+            p.on_reply(reply(id::GRASP, Status::Success)),
+            Event::Resolved(6, _)
+        ));
+        // Unordered (UDP): released as before.
+        let mut p = Pairing::new(grace);
+        assert!(matches!(p.submit(req(1, 0x43, t), now), Submit::Send(_)));
+        assert_eq!(p.due(t + grace), vec![Due::Released(0x43, 1)]);
     }
 
     #[test]

@@ -55,6 +55,13 @@ enum Waiter {
         id: u8,
         token: Token,
     },
+    /// A loop-back whose echo proves that every reply sent before it has been read, so the
+    /// fenced command id `id` can send its next request (see [`Task::send_barrier`]);
+    /// `refused`: how many barriers of this fence got an answer other than their echo.
+    Barrier {
+        id: u8,
+        refused: u8,
+    },
 }
 
 struct StreamState {
@@ -93,7 +100,15 @@ pub(crate) struct Task {
     waiters: IntMap<Token, Waiter>,
     streams: IntMap<u8, StreamState>,
     next_token: Token,
+    /// Ids whose id is free and whose next queued request waits until every frame already
+    /// received has been paired (see [`Task::send_next`]): a frame received before a request
+    /// went out cannot answer it, but would be taken for its answer (a duplicated UDP reply).
+    ready: Vec<u8>,
 }
+
+/// Barriers of one fence answered with something other than their echo before the fenced id is
+/// released anyway (see [`Task::barrier_refused`]).
+const BARRIER_REFUSALS: u8 = 3;
 
 /// Where the connection's timers wait while nothing is due (they are not polled then).
 const IDLE_TIMER: Duration = Duration::from_secs(3600);
@@ -119,6 +134,9 @@ impl Task {
         announce_on_close: bool,
         lost: Arc<OnceLock<String>>,
     ) -> Self {
+        let mut pairing = Pairing::new(grace);
+        // A byte stream (TCP, serial, attached) keeps the device's replies in order.
+        pairing.set_ordered(matches!(link, Link::Stream(_)));
         Self {
             partial_frame_timeout: super::DEFAULT_PARTIAL_FRAME_TIMEOUT,
             partial_since: None,
@@ -130,13 +148,14 @@ impl Task {
             link,
             rx,
             unsubscribe,
-            pairing: Pairing::new(grace),
+            pairing,
             query_timeout,
             write_timeout: query_timeout.saturating_add(grace),
             announce_on_close,
             waiters: IntMap::default(),
             streams: IntMap::default(),
             next_token: 0,
+            ready: Vec::new(),
         }
     }
 
@@ -184,6 +203,7 @@ impl Task {
             }
         }
         self.pairing.drain();
+        self.ready.clear();
     }
 
     /// What the connection events say about a loss: on TCP, that the gripper is now in FAST
@@ -305,6 +325,17 @@ impl Task {
                         self.on_frame(frame).await.map_err(io_reason)?;
                     }
                 }
+                // Reached only when no frame is ready to be read: every frame already received
+                // is paired, so the next requests of the freed ids can go out. Unless the
+                // task's cooperative budget ran out, which makes a read return "not ready"
+                // whatever is received: then yield (that renews it) and read first.
+                () = std::future::ready(()), if !self.ready.is_empty() => {
+                    if !tokio::task::coop::has_budget_remaining() {
+                        tokio::task::yield_now().await;
+                        continue;
+                    }
+                    self.send_ready().await.map_err(io_reason)?;
+                }
                 msg = self.rx.recv() => match msg {
                     // A caller that gave up while its request waited in the channel: never sent.
                     Some(Msg::Call { reply, .. }) if reply.is_closed() => {}
@@ -410,15 +441,18 @@ impl Task {
                     "no (final) reply within timeout + grace: command id released; \
                     a reply arriving later would be taken for the next request of this id"
                 );
-                if let Some(Waiter::Probe {
-                    id: motion,
-                    token: t,
-                }) = self.waiters.remove(&token)
-                {
-                    self.on_probe(motion, t, Observation::Unknown, token)
-                        .await?;
-                }
-                self.send_next(id).await
+                self.unanswered(token).await?;
+                self.send_next(id);
+                Ok(())
+            }
+            Due::Fenced(id, token) => {
+                tracing::warn!(
+                    id,
+                    "no reply within timeout + grace: the next request of this id waits for \
+                    the echo of a loop-back (a reply before it is the late one)"
+                );
+                self.unanswered(token).await?;
+                self.send_barrier(id, 0).await
             }
             Due::Probe(id, token) => self.send_probe(id, token).await,
             Due::ResendStop(id) => {
@@ -434,6 +468,57 @@ impl Task {
                 .await
             }
         }
+    }
+
+    /// Request `token` was released with no usable answer: its waiter goes; a probe counts as
+    /// "unknown", a barrier is sent again (its id stays fenced until one comes back).
+    async fn unanswered(&mut self, token: Token) -> io::Result<()> {
+        match self.waiters.remove(&token) {
+            Some(Waiter::Probe {
+                id: motion,
+                token: t,
+            }) => self.on_probe(motion, t, Observation::Unknown, token).await,
+            Some(Waiter::Barrier { id, refused }) => self.send_barrier(id, refused).await,
+            // A caller (who has given up by now) or an internal request: forgotten.
+            Some(Waiter::Caller(_) | Waiter::Internal) | None => Ok(()),
+        }
+    }
+
+    /// Sends a loop-back (0x06, manual 3.1.1) with a payload no other request carries, for
+    /// the fenced command id `id`. On a byte stream its echo comes after the reply to every
+    /// request sent before it: the device answers the commands of one connection one after
+    /// the other, and the stream keeps the order. (The manual does not promise this in so many
+    /// words; it is what its request-reply scheme (1.2.2) implies for immediate replies.)
+    async fn send_barrier(&mut self, id: u8, refused: u8) -> io::Result<()> {
+        let token = self.waiter(Waiter::Barrier { id, refused });
+        let mut payload = b"gripper barrier ".to_vec();
+        payload.extend_from_slice(&token.to_le_bytes());
+        let req = Request {
+            token,
+            frame: Frame::new(id::LOOP, payload),
+            deadline: after(Instant::now(), self.query_timeout),
+        };
+        self.submit(req).await
+    }
+
+    /// A barrier of fenced id `id` got an answer other than its echo (a refusal, a malformed
+    /// reply): it may be a stale answer to an earlier loop-back, so another barrier goes out.
+    /// Not for ever: a device that refuses every loop-back would have the task send them as
+    /// fast as it answers. After [`BARRIER_REFUSALS`] the id is released as on UDP (a reply
+    /// later than the grace may then answer its next request).
+    async fn barrier_refused(&mut self, id: u8, refused: u8) -> io::Result<()> {
+        let refused = refused.saturating_add(1);
+        if refused < BARRIER_REFUSALS {
+            return self.send_barrier(id, refused).await;
+        }
+        tracing::warn!(
+            id,
+            "the device answers no loop-back with its echo: command id released without proof \
+            that no late reply is on its way"
+        );
+        self.pairing.unfence(id);
+        self.send_next(id);
+        Ok(())
     }
 
     /// Asks the device whether the acknowledged motion `token` of command `id` still runs: its
@@ -470,7 +555,8 @@ impl Task {
                 if let Some(Waiter::Caller(tx)) = self.waiters.remove(&token) {
                     let _ = tx.send(Err(Error::ReplyLost { command: id }));
                 }
-                self.send_next(id).await
+                self.send_next(id);
+                Ok(())
             }
             Verdict::Running(refused) => {
                 for t in refused {
@@ -496,7 +582,26 @@ impl Task {
         send_within(&mut self.link, &frame, self.write_timeout).await
     }
 
-    async fn send_next(&mut self, id: u8) -> io::Result<()> {
+    /// The request on the wire of `id` is done: its next queued request (if any) goes out once
+    /// every frame already received is paired ([`Task::send_ready`], from the task's loop),
+    /// not now. A frame already received cannot answer a request sent after it, yet would be
+    /// taken for its answer: a duplicated UDP reply whose copy sits in the socket's buffer.
+    fn send_next(&mut self, id: u8) {
+        if self.pairing.done(id) && !self.ready.contains(&id) {
+            self.ready.push(id);
+        }
+    }
+
+    /// Sends the next request of each id [`Task::send_next`] set aside.
+    async fn send_ready(&mut self) -> io::Result<()> {
+        for id in std::mem::take(&mut self.ready) {
+            self.send_now(id).await?;
+        }
+        Ok(())
+    }
+
+    /// Sends the next queued request of `id`, if its id is free.
+    async fn send_now(&mut self, id: u8) -> io::Result<()> {
         let waiters = &self.waiters;
         let (next, skipped) = self.pairing.next(id, |t| alive(waiters, t));
         for t in skipped {
@@ -530,11 +635,17 @@ impl Task {
                             self.on_probe(motion, t, Observation::Unknown, *token)
                                 .await?;
                         }
+                        Some(Waiter::Barrier {
+                            id: fenced,
+                            refused,
+                        }) => {
+                            self.barrier_refused(fenced, refused).await?;
+                        }
                         Some(Waiter::Internal) | None => {}
                     }
                 }
                 if !tokens.is_empty() {
-                    self.send_next(id).await?;
+                    self.send_next(id);
                 }
                 return Ok(());
             }
@@ -581,9 +692,21 @@ impl Task {
                         };
                         self.on_probe(motion, t, seen, token).await?;
                     }
+                    // The echo is the barrier's own (a loop reply must echo the payload on
+                    // the wire): every reply sent before it has been read.
+                    Some(Waiter::Barrier { id: fenced, .. }) if reply.status == Status::Success => {
+                        self.pairing.unfence(fenced);
+                        self.send_next(fenced);
+                    }
+                    Some(Waiter::Barrier {
+                        id: fenced,
+                        refused,
+                    }) => {
+                        self.barrier_refused(fenced, refused).await?;
+                    }
                     Some(Waiter::Internal) | None => {}
                 }
-                self.send_next(id).await?;
+                self.send_next(id);
             }
             Event::Unsolicited(reply) => {
                 if reply.status == Status::Success && self.streams.contains_key(&id) {
@@ -670,7 +793,12 @@ impl Task {
                     }),
                     received = self.link.recv() => match received {
                         Some(Ok(frame)) => {
-                            if let Err(e) = self.on_frame(frame).await {
+                            // Requests freed here go out at once: closing reads no further.
+                            let paired = match self.on_frame(frame).await {
+                                Ok(()) => self.send_ready().await,
+                                Err(e) => Err(e),
+                            };
+                            if let Err(e) = paired {
                                 break Err(Error::ConnectionLost(e.to_string()));
                             }
                         }
@@ -707,7 +835,7 @@ async fn send_within(link: &mut Link, frame: &Frame, limit: Duration) -> io::Res
 fn alive(waiters: &IntMap<Token, Waiter>, token: Token) -> bool {
     match waiters.get(&token) {
         Some(Waiter::Caller(tx)) => !tx.is_closed(),
-        Some(Waiter::Internal | Waiter::Probe { .. }) => true,
+        Some(Waiter::Internal | Waiter::Probe { .. } | Waiter::Barrier { .. }) => true,
         None => false,
     }
 }

@@ -1,0 +1,196 @@
+//! Replies that come late or twice must never answer a later request of their id (issue 20
+//! follow-up, found by the explorer): raw "grippers" on loopback sockets that answer exactly
+//! as the schedule needs, each answer naming the request it answers.
+
+use std::net::SocketAddr;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+
+use bytes::BytesMut;
+use gripper::wsg::command::id;
+use gripper::wsg::frame::{self, Frame};
+use gripper::wsg::Client;
+use tokio::net::UdpSocket;
+
+/// Bounds a call that must end by itself well before this (a hang fails the test, it does not
+/// block the suite).
+async fn bounded<F: std::future::Future>(what: &str, call: F) -> F::Output {
+    tokio::time::timeout(Duration::from_secs(20), call)
+        .await
+        .unwrap_or_else(|_| panic!("{what}: no answer within 20 s"))
+}
+
+/// A reply frame of `command` with E_SUCCESS and `data`.
+fn reply(command: u8, data: &[u8]) -> Vec<u8> {
+    let mut payload = vec![0, 0];
+    payload.extend_from_slice(data);
+    let mut b = BytesMut::new();
+    frame::encode(&Frame::new(command, payload), &mut b).unwrap();
+    b.to_vec()
+}
+
+/// A loop-back's echo.
+fn echo(request: &Frame) -> Vec<u8> {
+    reply(id::LOOP, &request.payload)
+}
+
+/// The answer to the `n`th width request (from 0): `n + 1` mm, so each answer names its request.
+fn width_reply(n: usize) -> Vec<u8> {
+    reply(id::WIDTH, &(n as f32 + 1.0).to_le_bytes())
+}
+
+/// A UDP "gripper" that answers the first width request twice (a duplicated datagram) and every
+/// later one once. Both copies are sent from one poll of its task, so on this single-threaded
+/// runtime both are in the client's socket buffer before the client reads the first.
+async fn duplicating_udp_device() -> SocketAddr {
+    let socket = UdpSocket::bind("127.0.0.1:0").await.unwrap();
+    let addr = socket.local_addr().unwrap();
+    tokio::spawn(async move {
+        let mut buf = [0u8; 512];
+        let mut n = 0;
+        while let Ok((len, from)) = socket.recv_from(&mut buf).await {
+            if len < frame::HEADER_LEN || buf[3] != id::WIDTH {
+                continue;
+            }
+            let answer = width_reply(n);
+            let copies = if n == 0 { 2 } else { 1 };
+            for _ in 0..copies {
+                socket.send_to(&answer, from).await.unwrap();
+            }
+            n += 1;
+        }
+    });
+    addr
+}
+
+/// (a) UDP: the copy of a reply, already received when its original was paired, answered the
+/// next request of its id, which was sent from inside the pairing of the original
+/// (`wsg-udp:0x96519dd7d49df4ae`). A frame already received cannot answer a request sent after
+/// it: it is paired (here: dropped as unsolicited) before the next request goes out.
+#[tokio::test]
+async fn a_duplicated_reply_already_received_never_answers_the_next_request_of_its_id() {
+    let addr = duplicating_udp_device().await;
+    let client = Client::builder().connect_udp(addr).await.unwrap();
+    // The second call queues behind the first (one request per id on the wire) and goes out
+    // when the first's reply is paired.
+    let (first, second) = bounded("widths", async {
+        tokio::join!(client.width_mm(), client.width_mm())
+    })
+    .await;
+    assert_eq!(first.unwrap(), 1.0);
+    assert_eq!(
+        second.unwrap(),
+        2.0,
+        "the copy of the first reply answered the second request"
+    );
+}
+
+/// A TCP "gripper" that handles its requests one after the other, in order, as the device's
+/// command interpreter does: the first width request takes `slow` (a device or link stalled
+/// past the caller's timeout plus the late-reply grace), every later request is answered at
+/// once. Loop-back requests get `loop_answer`; each one received is counted in `loops`.
+async fn slow_first_tcp_device(
+    slow: Duration,
+    loop_answer: fn(&Frame) -> Vec<u8>,
+    loops: Arc<AtomicUsize>,
+) -> SocketAddr {
+    use futures_util::StreamExt;
+    use tokio::io::AsyncWriteExt;
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let addr = listener.local_addr().unwrap();
+    tokio::spawn(async move {
+        let (socket, _) = listener.accept().await.unwrap();
+        let (read, mut write) = socket.into_split();
+        let mut requests = tokio_util::codec::FramedRead::new(read, gripper::wsg::WsgCodec::new());
+        let mut widths = 0;
+        while let Some(Ok(request)) = requests.next().await {
+            let answer = match request.id {
+                id::WIDTH => {
+                    if widths == 0 {
+                        tokio::time::sleep(slow).await;
+                    }
+                    widths += 1;
+                    width_reply(widths - 1)
+                }
+                id::LOOP => {
+                    loops.fetch_add(1, Ordering::SeqCst);
+                    loop_answer(&request)
+                }
+                other => reply(other, &[]),
+            };
+            if write.write_all(&answer).await.is_err() {
+                return;
+            }
+        }
+    });
+    addr
+}
+
+/// (b) TCP: a reply stalled past its request's timeout plus the grace answered the next request
+/// of its id (`wsg-tcp:0xe9966f076d4f365c`). On an ordered stream that is provably avoidable:
+/// the next request waits until the echo of a loop-back sent after the release comes back,
+/// and a reply of the id before that echo is the stale one.
+#[tokio::test]
+async fn a_reply_stalled_past_the_grace_never_answers_the_next_request_on_tcp() {
+    let loops = Arc::new(AtomicUsize::new(0));
+    let addr = slow_first_tcp_device(Duration::from_millis(600), echo, loops.clone()).await;
+    let client = Client::builder()
+        .late_reply_grace(Duration::from_millis(50))
+        .connect_tcp(addr)
+        .await
+        .unwrap();
+    let impatient = client.with_timeouts(Duration::from_millis(100), Duration::from_secs(1));
+    let first = bounded("first width", impatient.width_mm()).await;
+    assert!(
+        matches!(first, Err(gripper::wsg::Error::Timeout { .. })),
+        "{first:?}"
+    );
+    // Queued behind the first request, the second goes out once its id is released (the
+    // first's deadline plus the grace), while the first's reply is still on its way.
+    let patient = client.with_timeouts(Duration::from_secs(5), Duration::from_secs(5));
+    let second = bounded("second width", patient.width_mm()).await.unwrap();
+    assert_eq!(
+        second, 2.0,
+        "the stalled reply of the first request answered the second"
+    );
+    // The link goes on.
+    assert_eq!(
+        &bounded("loop", client.loop_back(&b"after"[..]))
+            .await
+            .unwrap()[..],
+        b"after"
+    );
+}
+
+/// (b) A device that answers no loop-back with its echo (here: E_CMD_UNKNOWN) must not make the
+/// client send barriers as fast as it answers: after three refusals the fenced id is released
+/// as on UDP, and its next call is sent and answered.
+#[tokio::test]
+async fn a_device_that_refuses_every_barrier_gets_three_and_the_id_goes_on() {
+    let loops = Arc::new(AtomicUsize::new(0));
+    let refuse = |_: &Frame| {
+        let mut b = BytesMut::new();
+        frame::encode(&Frame::new(id::LOOP, vec![0x0E, 0]), &mut b).unwrap();
+        b.to_vec()
+    };
+    let addr = slow_first_tcp_device(Duration::from_millis(300), refuse, loops.clone()).await;
+    let client = Client::builder()
+        .late_reply_grace(Duration::from_millis(50))
+        .connect_tcp(addr)
+        .await
+        .unwrap();
+    let impatient = client.with_timeouts(Duration::from_millis(100), Duration::from_secs(1));
+    let first = bounded("first width", impatient.width_mm()).await;
+    assert!(
+        matches!(first, Err(gripper::wsg::Error::Timeout { .. })),
+        "{first:?}"
+    );
+    let patient = client.with_timeouts(Duration::from_secs(5), Duration::from_secs(5));
+    // The stalled reply came before the refusals: still not taken for this call.
+    assert_eq!(
+        bounded("second width", patient.width_mm()).await.unwrap(),
+        2.0
+    );
+    assert_eq!(loops.load(Ordering::SeqCst), 3, "barriers sent");
+}
