@@ -8,6 +8,9 @@
 //! cargo run --example wsg_pick -- --serial /dev/ttyUSB0 [--baud 115200] [--shared]
 //!     [--shared]     open the port without an exclusive lock (the simulator's --pty needs it)
 //!     [--width MM]   nominal part width (default 40)
+//! cargo run --example wsg_pick -- --text [--addr 192.168.1.20:1000]
+//!     the text interface (GCL) instead: an in-process text simulator, or a gripper set to
+//!     "Use text based interface"
 //! ```
 
 use std::net::SocketAddr;
@@ -32,6 +35,7 @@ enum Target {
 struct Args {
     target: Target,
     width_mm: f32,
+    text: bool,
 }
 
 fn parse() -> Result<Args, String> {
@@ -39,6 +43,7 @@ fn parse() -> Result<Args, String> {
     let mut baud = gripper::wsg::transport::DEFAULT_BAUD_RATE;
     let mut width_mm = 40.0;
     let mut exclusive = true;
+    let mut text = false;
     let mut it = std::env::args().skip(1);
     while let Some(a) = it.next() {
         let mut value = |name: &str| it.next().ok_or_else(|| format!("{name} needs a value"));
@@ -57,10 +62,11 @@ fn parse() -> Result<Args, String> {
             }
             "--serial" => target = Target::Serial { path: value("--serial")?, baud: 0, exclusive: true },
             "--shared" => exclusive = false,
+            "--text" => text = true,
             "--baud" => baud = value("--baud")?.parse().map_err(|e| format!("--baud: {e}"))?,
             "--width" => width_mm = value("--width")?.parse().map_err(|e| format!("--width: {e}"))?,
             "-h" | "--help" => {
-                return Err("usage: wsg_pick [--addr HOST:PORT | --udp HOST:PORT | --serial PATH [--baud N] [--shared]] [--width MM]".into())
+                return Err("usage: wsg_pick [--addr HOST:PORT | --udp HOST:PORT | --serial PATH [--baud N] [--shared]] [--width MM] [--text]".into())
             }
             other => return Err(format!("unknown argument {other} (try --help)")),
         }
@@ -74,7 +80,14 @@ fn parse() -> Result<Args, String> {
         *b = baud;
         *x = exclusive;
     }
-    Ok(Args { target, width_mm })
+    if text && !matches!(target, Target::Simulator | Target::Tcp(_)) {
+        return Err("--text works over TCP only".into());
+    }
+    Ok(Args {
+        target,
+        width_mm,
+        text,
+    })
 }
 
 async fn connect(target: Target) -> Result<(Client, Option<SimServer>), String> {
@@ -178,6 +191,57 @@ async fn pick(gripper: &Client, width_mm: f32) -> Result<(), Box<dyn std::error:
     Ok(())
 }
 
+/// The same pick over the text interface (GCL): `FSACK()` first as every public driver does
+/// (answered `ACK FSACK` with nothing pending), then HOME, MOVE, GRIP, watch with `AUTOSEND`,
+/// RELEASE (by a pull-back distance: GCL's release is relative) and `BYE()`.
+async fn pick_text(target: Target, width_mm: f32) -> Result<(), Box<dyn std::error::Error>> {
+    use gripper::wsg::text::{self, Quantity};
+    let (addr, _sim) = match target {
+        Target::Tcp(addr) => (addr, None),
+        _ => {
+            let config = SimConfig::new(Model::Wsg50).with_part(40.0, 2.0).text();
+            let sim = SimServer::bind("127.0.0.1:0", config).await?;
+            let addr = sim.local_addr().ok_or("the simulator has no address")?;
+            println!("started the text simulator on {addr}");
+            (addr.to_string(), Some(sim))
+        }
+    };
+    let gripper = text::Client::connect(addr.as_str()).await?;
+    let result = async {
+        gripper.ack_fast_stop().await?;
+        println!("homing");
+        gripper.home(HomingDirection::Default).await?;
+        let open_mm = f64::from(width_mm) + 20.0;
+        println!("moving to {open_mm} mm");
+        gripper.move_to(open_mm, Some(50.0)).await?;
+        println!("gripping a {width_mm} mm part");
+        gripper
+            .grip_part(40.0, f64::from(width_mm), Some(50.0))
+            .await?;
+        let mut positions = gripper.autosend(Quantity::Position, 50, false).await?;
+        for _ in 0..3 {
+            let Some(push) = positions.next().await else {
+                break;
+            };
+            println!(
+                "holding: width {:.1} mm, grip state {:?}",
+                push.value,
+                gripper.grip_state().await?
+            );
+        }
+        gripper.stop_autosend(Quantity::Position).await?;
+        println!("releasing by 20 mm");
+        gripper.release(Some(20.0), Some(50.0)).await?;
+        println!("grip state: {:?}", gripper.grip_state().await?);
+        Ok::<_, text::Error>(())
+    }
+    .await;
+    let closed = gripper.close().await;
+    result?;
+    closed?;
+    Ok(())
+}
+
 #[tokio::main]
 async fn main() -> ExitCode {
     let args = match parse() {
@@ -187,6 +251,18 @@ async fn main() -> ExitCode {
             return ExitCode::from(2);
         }
     };
+    if args.text {
+        return match pick_text(args.target, args.width_mm).await {
+            Ok(()) => {
+                println!("done: disconnected gracefully (BYE)");
+                ExitCode::SUCCESS
+            }
+            Err(e) => {
+                eprintln!("wsg_pick: {e}");
+                ExitCode::FAILURE
+            }
+        };
+    }
     let (gripper, _sim) = match connect(args.target).await {
         Ok(c) => c,
         Err(e) => {

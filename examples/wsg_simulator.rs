@@ -4,6 +4,7 @@
 //! cargo run --example wsg_simulator -- --listen 127.0.0.1:1000 [--part MM | --no-part]
 //!                                      [--udp [--udp-remote-port PORT]]
 //!                                      [--time-scale S] [--model wsg50|wsg32|wsg25|wsg70]
+//!                                      [--text] [--no-fast-stop-on-close]
 //! cargo run --example wsg_simulator -- --pty          # serial: prints the pseudo-terminal path
 //!     (open it non-exclusively: `wsg_pick --serial PATH --shared`)
 //! ```
@@ -15,6 +16,9 @@
 //! it, abort it or be refused with E_ALREADY_RUNNING; `--time-scale 0` makes motion instant.
 //! `--udp-remote-port PORT` is the device's "UDP remote port" setting: replies go to the
 //! sender's IP address at PORT, whatever port the request came from.
+//! `--text` serves the text interface (GCL, `gripper::wsg::text`) on TCP instead of the binary
+//! protocol, from the same device model. `--no-fast-stop-on-close` is the web interface's switch
+//! that keeps a close without 0x07 / `BYE()` from raising FAST STOP.
 
 use std::io::Write;
 use std::process::ExitCode;
@@ -48,6 +52,8 @@ fn parse() -> Result<Args, String> {
                 args.config.udp_remote_port = Some(port);
             }
             "--pty" => args.pty = true,
+            "--text" => args.config.text_interface = true,
+            "--no-fast-stop-on-close" => args.config.fast_stop_on_close = false,
             "--no-part" => args.config.part = None,
             "--part" => {
                 let w: f32 = value("--part")?
@@ -77,17 +83,22 @@ fn parse() -> Result<Args, String> {
                     part: old.part,
                     time_scale: old.time_scale,
                     udp_remote_port: old.udp_remote_port,
+                    text_interface: old.text_interface,
+                    fast_stop_on_close: old.fast_stop_on_close,
                     ..SimConfig::new(model)
                 };
             }
             "-h" | "--help" => return Err(
                 "usage: wsg_simulator [--listen ADDR] [--udp [--udp-remote-port PORT] | --pty] \
                             [--part MM | --no-part] [--time-scale S (default 1: real time)] \
-                            [--model wsg50|wsg32|wsg25|wsg70]"
+                            [--model wsg50|wsg32|wsg25|wsg70] [--text] [--no-fast-stop-on-close]"
                     .into(),
             ),
             other => return Err(format!("unknown argument {other} (try --help)")),
         }
+    }
+    if args.config.text_interface && (args.udp || args.pty) {
+        return Err("--text is served over TCP only".into());
     }
     if args.config.udp_remote_port.is_some() && !args.udp {
         return Err("--udp-remote-port needs --udp".into());

@@ -16,6 +16,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use gripper::fault::{At, Fault, FaultProxy, ProxyConfig};
+use gripper::wsg::client::DEFAULT_PARTIAL_FRAME_TIMEOUT;
 use gripper::wsg::command::id;
 use gripper::wsg::frame::frame_len;
 use gripper::wsg::sim::{Model, SimConfig, SimServer};
@@ -47,6 +48,13 @@ struct Rig {
 
 impl Rig {
     async fn new(config: SimConfig) -> Rig {
+        Self::with_partial_frame_timeout(config, DEFAULT_PARTIAL_FRAME_TIMEOUT).await
+    }
+
+    /// A frame must complete within the partial-frame timeout from its first byte (issue
+    /// 20.2 #2): a test that has the proxy deliver a frame byte by byte, with a pause after
+    /// each, gives it a timeout above that frame's delivery time on a loaded machine.
+    async fn with_partial_frame_timeout(config: SimConfig, partial: Duration) -> Rig {
         let sim = SimServer::bind("127.0.0.1:0", config).await.unwrap();
         let proxy = FaultProxy::start_with(
             sim.local_addr().unwrap(),
@@ -54,7 +62,7 @@ impl Rig {
         )
         .await
         .unwrap();
-        let client = client_to(proxy.local_addr()).await;
+        let client = client_with(proxy.local_addr(), partial).await;
         Rig { sim, proxy, client }
     }
 
@@ -78,10 +86,15 @@ impl Rig {
 }
 
 async fn client_to(addr: SocketAddr) -> Client {
+    client_with(addr, DEFAULT_PARTIAL_FRAME_TIMEOUT).await
+}
+
+async fn client_with(addr: SocketAddr, partial_frame_timeout: Duration) -> Client {
     Client::builder()
         .query_timeout(SURE)
         .motion_timeout(SURE)
         .late_reply_grace(Duration::from_millis(100))
+        .partial_frame_timeout(partial_frame_timeout)
         .connect_tcp(addr)
         .await
         .unwrap()
@@ -176,7 +189,8 @@ async fn a_request_delayed_past_the_timeout_times_out_and_the_next_call_works() 
 
 #[tokio::test]
 async fn frames_split_into_single_bytes_decode_in_both_directions() {
-    let rig = Rig::new(config()).await;
+    // 210 bytes with a 1 ms pause after each: at least 210 ms per frame, more under load.
+    let rig = Rig::with_partial_frame_timeout(config(), Duration::from_secs(10)).await;
     let split = Fault::Split {
         piece_len: 1,
         pause: Duration::from_millis(1),

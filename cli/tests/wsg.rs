@@ -481,3 +481,60 @@ async fn sim_wsg_udp_remote_port_sends_every_reply_to_that_port() {
         "nothing goes back to the sending port"
     );
 }
+
+/// `gripctl wsg --text …` against the text simulator in this process, and `gripctl sim wsg
+/// --text` as a child process.
+#[tokio::test]
+async fn the_text_interface_subcommands() {
+    let (server, addr) = tcp(with_part().text()).await;
+    let text = |args: &'static [&'static str]| {
+        let addr = addr.clone();
+        async move { wsg(&addr, &[&["--text"], args].concat()).await }
+    };
+    let home = text(&["home"]).await;
+    assert_eq!(
+        home.ok().trim(),
+        "homed: width 110.00 mm, force 0.0 N, grip state IDLE"
+    );
+    let moved = text(&["move", "60", "--json"]).await.json();
+    assert_eq!(moved["width_mm"], 60.0);
+    let grasp = text(&["grasp", "40", "--force", "30", "--json"])
+        .await
+        .json();
+    assert_eq!(grasp["grip_state"]["name"], "HOLDING");
+    assert_eq!(grasp["force_n"], 30.0);
+    // `release WIDTH` opens to WIDTH, though GCL's RELEASE is relative.
+    let release = text(&["release", "70", "--json"]).await.json();
+    assert_eq!(release["width_mm"], 70.0);
+    assert_eq!(release["grip_state"]["name"], "IDLE");
+    let info = text(&["info", "--json"]).await.json();
+    assert_eq!(info["temperature_c"], 23.4);
+    let watch = text(&["watch", "--count", "2", "--period", "10ms"]).await;
+    assert_eq!(watch.ok().lines().count(), 2, "{watch:?}");
+    let failed = text(&["grasp", "10"]).await;
+    assert!(failed.failed().contains("E_CMD_FAILED"), "{failed:?}");
+    let no = text(&["loop"]).await;
+    assert!(no
+        .failed()
+        .contains("not available over the text interface"));
+    text(&["fast-stop"]).await.ok();
+    assert!(text(&["home"]).await.failed().contains("E_ACCESS_DENIED"));
+    text(&["ack"]).await.ok();
+    // Every run said BYE(): no FAST STOP.
+    assert_eq!(server.snapshot().grip_state, GripState::Idle);
+
+    let sim = Simulator::start(&[
+        "wsg",
+        "--listen",
+        "127.0.0.1:0",
+        "--text",
+        "--time-scale",
+        "0",
+    ])
+    .await;
+    let args = ["wsg", "--text", "--addr", &sim.addr];
+    let home = gripctl(&[&args[..], &["home", "--json"]].concat())
+        .await
+        .json();
+    assert_eq!(home["width_mm"], 110.0);
+}

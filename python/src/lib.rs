@@ -15,6 +15,7 @@ mod runtime;
 mod smartgrasp;
 mod stream;
 mod wsg;
+mod wsg_text;
 
 use pyo3::prelude::*;
 
@@ -25,6 +26,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<stream::Stream>()?;
     m.add_function(wrap_pyfunction!(runtime::_quiesce, m)?)?;
     m.add_submodule(&wsg::module(py)?)?;
+    m.add_submodule(&wsg_text::module(py)?)?;
     m.add_submodule(&griplink::module(py)?)?;
     m.add_submodule(&smartgrasp::module(py)?)?;
     Ok(())

@@ -175,7 +175,7 @@ impl<T: ToPy> ToPy for Subscription<T> {
 
 // ---- arguments -----------------------------------------------------------------------------
 
-fn homing_direction(direction: u8) -> PyResult<HomingDirection> {
+pub(crate) fn homing_direction(direction: u8) -> PyResult<HomingDirection> {
     match direction {
         0 => Ok(HomingDirection::Default),
         1 => Ok(HomingDirection::Positive),
@@ -506,7 +506,10 @@ sim_pymethods! { SimServer, "gripper_rs.wsg.sim.SimServer";
     /// `part_tolerance_mm`, the time scale (0: motion is instant; 1: real time), the force
     /// sensor, the temperature.
     #[new]
-    #[pyo3(signature = (*, model="WSG50", part_width_mm=None, part_tolerance_mm=2.0, time_scale=0.0, force_sensor=false, temperature_c=None, addr="127.0.0.1:0", udp=false))]
+    /// `text=True` serves the text interface (GCL, `gripper_rs.wsg.text`) instead of the binary
+    /// protocol; `fast_stop_on_close=False` keeps a close without 0x07 / `BYE()` from raising
+    /// FAST STOP.
+    #[pyo3(signature = (*, model="WSG50", part_width_mm=None, part_tolerance_mm=2.0, time_scale=0.0, force_sensor=false, temperature_c=None, addr="127.0.0.1:0", udp=false, text=false, fast_stop_on_close=true))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
@@ -518,6 +521,8 @@ sim_pymethods! { SimServer, "gripper_rs.wsg.sim.SimServer";
         temperature_c: Option<f32>,
         addr: &str,
         udp: bool,
+        text: bool,
+        fast_stop_on_close: bool,
     ) -> PyResult<Self> {
         if !(time_scale.is_finite() && time_scale >= 0.0) {
             return Err(errors::invalid_argument(format!(
@@ -529,6 +534,8 @@ sim_pymethods! { SimServer, "gripper_rs.wsg.sim.SimServer";
             config = config.with_part(w, part_tolerance_mm);
         }
         config.force_sensor = force_sensor;
+        config.text_interface = text;
+        config.fast_stop_on_close = fast_stop_on_close;
         if let Some(t) = temperature_c {
             config.temperature_c = t;
         }

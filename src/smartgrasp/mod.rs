@@ -103,7 +103,13 @@
 //!     RobotSystem, SelectionCriterion, Tool,
 //! };
 //!
-//! let server = SimServer::bind("127.0.0.1:0", SimConfig::default()).await?;
+//! // GRASP_FEEDBACK OK stands in for the robot taking the part out, so that the loop ends (a
+//! // simulator option: SCHUNK's server ignores feedback, and the camera sees the bin empty).
+//! let sim = SimConfig {
+//!     feedback_removes_objects: true,
+//!     ..SimConfig::default()
+//! };
+//! let server = SimServer::bind("127.0.0.1:0", sim).await?;
 //! let config = ClientConfig {
 //!     robot_system: Some(RobotSystem::Kuka),
 //!     project_index: Some(0),

@@ -59,8 +59,9 @@ impl WsgCodec {
 
     fn next(&mut self, src: &mut BytesMut, eof: bool) -> Option<Frame> {
         let (max, replies) = (self.max_payload_len, self.replies);
-        let limit = |id: u8| match max_reply_payload_len(id) {
-            Some(n) if replies => n.min(max),
+        let limit = |id: u8| match REPLY_LIMITS[usize::from(id)] {
+            0 => max,
+            n if replies => usize::from(n).min(max),
             _ => max,
         };
         loop {
@@ -81,7 +82,7 @@ impl WsgCodec {
 /// manual's reply layouts (chapter 3; the client's decoders accept exactly these lengths and
 /// nothing longer); `None` for ids whose reply length is not fixed (finger data, commands the
 /// crate has no type for).
-pub(crate) fn max_reply_payload_len(command: u8) -> Option<usize> {
+pub(crate) const fn max_reply_payload_len(command: u8) -> Option<usize> {
     const STATUS: usize = 2;
     let data = match command {
         // 3.1.1: the echo of up to 256 bytes.
@@ -114,6 +115,19 @@ pub(crate) fn max_reply_payload_len(command: u8) -> Option<usize> {
     };
     Some(STATUS + data)
 }
+
+/// [`max_reply_payload_len`] for every id, 0 for none: one load per header on the hot path.
+const REPLY_LIMITS: [u16; 256] = {
+    let mut t = [0u16; 256];
+    let mut i = 0;
+    while i < 256 {
+        if let Some(n) = max_reply_payload_len(i as u8) {
+            t[i] = n as u16;
+        }
+        i += 1;
+    }
+    t
+};
 
 impl Decoder for WsgCodec {
     type Item = Frame;

@@ -94,6 +94,7 @@ pub use types::{
 };
 pub mod client;
 pub mod subscription;
+pub mod text;
 pub mod transport;
 
 #[doc(inline)]

@@ -41,6 +41,14 @@ pub struct WsgSim {
     /// can be stopped or refused with E_ALREADY_RUNNING as on the device; 0 is instant.
     #[arg(long, default_value_t = SimConfig::standalone().time_scale)]
     time_scale: f64,
+    /// Serve the text interface (GCL) instead of the binary protocol, over TCP, from the same
+    /// device model (the web interface's "Use text based interface").
+    #[arg(long, conflicts_with_all = ["udp", "pty"])]
+    text: bool,
+    /// A close without 0x07 / `BYE()` does not raise FAST STOP (the web interface's "Enable
+    /// Error on TCP Disconnect" switched off).
+    #[arg(long)]
+    no_fast_stop_on_close: bool,
 }
 
 #[derive(Debug, Clone, Copy, ValueEnum)]
@@ -65,6 +73,8 @@ pub async fn run(args: WsgSim, out: Out) -> Result<(), CliError> {
         part: None,
         time_scale: args.time_scale,
         udp_remote_port: args.udp_remote_port,
+        text_interface: args.text,
+        fast_stop_on_close: !args.no_fast_stop_on_close,
         ..SimConfig::new(model)
     };
     if !args.no_part {
@@ -101,6 +111,8 @@ pub async fn run(args: WsgSim, out: Out) -> Result<(), CliError> {
         "serial"
     } else if args.udp {
         "udp"
+    } else if args.text {
+        "tcp (text interface, GCL)"
     } else {
         "tcp"
     };
@@ -114,7 +126,7 @@ pub async fn run(args: WsgSim, out: Out) -> Result<(), CliError> {
                 .map_or(String::new(), |p| format!(", UDP replies to port {p}"))
         ),
         json!({ "device": "wsg", "model": format!("{model:?}"), "transport": transport,
-                "part_mm": part, "time_scale": scale, "udp_remote_port": args.udp_remote_port }),
+                "part_mm": part, "time_scale": scale, "udp_remote_port": args.udp_remote_port, "text": args.text }),
     )?;
     wait_for_ctrl_c().await?;
     server.shutdown();

@@ -8,6 +8,7 @@
 mod info;
 mod live;
 mod show;
+mod text;
 mod trace;
 
 use std::future::Future;
@@ -60,6 +61,11 @@ pub struct Args {
     /// final reply and draw them in this SVG file.
     #[arg(long, global = true, value_name = "FILE.svg")]
     plot: Option<PathBuf>,
+    /// Talk the text interface (GCL) over TCP instead of the binary protocol: for a gripper set
+    /// to "Use text based interface" (info, home, move, grasp, release, stop, fast-stop, ack,
+    /// watch).
+    #[arg(long, conflicts_with_all = ["udp", "serial", "plot"])]
+    text: bool,
     #[command(subcommand)]
     command: Command,
 }
@@ -205,6 +211,12 @@ pub async fn run(args: Args, timeout: Option<Duration>, out: Out) -> Result<(), 
         return Err(CliError::argument(
             "--plot traces home, move, grasp and release only",
         ));
+    }
+    if args.text {
+        let place = describe(&args);
+        return text::run(&place, args.command, timeout, out)
+            .await
+            .map_err(|e| e.context(format!("wsg --text {place}")));
     }
     let (client, place) = connect(&args, timeout)
         .await
@@ -440,6 +452,17 @@ async fn after_motion(client: &Client, done: &str, out: Out) -> Result<(), CliEr
     let grip = client.grip_state().await.map_err(classify)?;
     let width_mm = client.width_mm().await.map_err(classify)?;
     let force_n = client.force_n().await.map_err(classify)?;
+    report_motion(done, width_mm, force_n, grip, out)
+}
+
+/// The line (and JSON) after a motion, for both interfaces.
+pub(super) fn report_motion(
+    done: &str,
+    width_mm: f32,
+    force_n: f32,
+    grip: gripper::wsg::GripState,
+    out: Out,
+) -> Result<(), CliError> {
     out.emit(
         format!(
             "{done}: width {width_mm:.2} mm, force {force_n:.1} N, grip state {}",
@@ -538,7 +561,7 @@ pub(super) fn classify(e: Error) -> CliError {
     }
 }
 
-fn device_error(message: String, status: Status) -> CliError {
+pub(super) fn device_error(message: String, status: Status) -> CliError {
     CliError::device(
         message,
         DeviceCode {

@@ -31,6 +31,7 @@ __all__ = [
     "SystemLimits",
     "SystemState",
     "sim",
+    "text",
 ]
 
 Client = _native.wsg.Client
@@ -235,3 +236,4 @@ class FingerInfo:
 
 
 from gripper_rs.wsg import sim  # noqa: E402  (sim builds on the records above)
+from gripper_rs.wsg import text  # noqa: E402  (the text interface's client, GCL)

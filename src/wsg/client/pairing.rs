@@ -11,9 +11,10 @@
 //!
 //! Three kinds of command are treated apart:
 //! - **Stop (0x22) and FAST STOP (0x23)** are never queued (manual 3.2.3/3.2.4: they stop
-//!   "unmittelbar"): each is sent at once, whatever is on the wire. They carry no data and are
-//!   idempotent, so their replies cannot be told apart: every caller of that id waiting when a
-//!   reply arrives was sent before it, and completes on it (see [`Event::Stopped`]).
+//!   "unmittelbar"): each is sent at once, whatever is on the wire. They carry no data, so
+//!   their replies cannot be told apart: a call completes only on a reply to a stop sent at or
+//!   after it, and the stop is sent again while none comes ([`super::stops`],
+//!   [`Event::Stopped`], [`Due::ResendStop`]).
 //! - **Motion commands** (0x20, 0x21, 0x25, 0x26): the device refuses a motion command while
 //!   another one runs (3.2.1/3.2.2/3.2.6/3.2.7: E_ALREADY_RUNNING). A second call of the id
 //!   queues behind the first, and once the first is acknowledged the device's state is asked
@@ -287,7 +288,7 @@ impl Pairing {
         if let Some(stops) = self.stops.get_mut(&id) {
             gone.extend(stops.prune(&alive));
         }
-        if let Some(st) = self.ids.get_mut(&id) {
+        if let Some(st) = self.ids.get_mut(&id).filter(|st| !st.queue.is_empty()) {
             st.queue.retain(|r| {
                 let keep = alive(r.token);
                 if !keep {
@@ -457,12 +458,20 @@ impl Pairing {
 
     /// When the next request needs the task ([`Pairing::due`]).
     pub(crate) fn next_due(&self) -> Option<Instant> {
-        let stops = self.stops.values().filter_map(Stops::next_due);
-        self.ids
+        let ids = self
+            .ids
             .iter()
             .filter_map(|(id, st)| st.in_flight.as_ref()?.due(*id))
-            .chain(stops)
-            .min()
+            .min();
+        // Checked apart: this runs on every pass of the task's loop, and stops are rare.
+        if self.stops.is_empty() {
+            return ids;
+        }
+        let stops = self.stops.values().filter_map(Stops::next_due).min();
+        match (ids, stops) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        }
     }
 
     /// The requests whose time has come by `now`: released ids (call [`Pairing::next`] for each

@@ -32,12 +32,23 @@
 //!   auto-updates it switched on are still due to it; at most [`MAX_UDP_SESSIONS`] are kept.
 //! - **Bytes that make no frame**: a partial frame that gets no new byte for
 //!   [`DEFAULT_PARTIAL_FRAME_TIMEOUT`](crate::wsg::client::DEFAULT_PARTIAL_FRAME_TIMEOUT) is
-//!   dropped as noise, as the client does. A frame with a bad checksum is discarded unanswered:
+//!   dropped as noise (the client is stricter: it times a frame from its first byte, and knows
+//!   each reply's longest length). A frame with a bad checksum is discarded unanswered:
 //!   the manual does not say what the device does with one (it lists E_CHECKSUM_ERROR in
 //!   Anhang A under no command; 1.2.1 only discards frames *missing* their checksum), and an
 //!   answer under a possibly corrupted id could fail an unrelated caller.
 //!   [`SimConfig::answer_bad_checksum`] answers E_CHECKSUM_ERROR instead, to test a client's
 //!   handling of that code.
+//!
+//! # Text interface (GCL)
+//!
+//! With [`SimConfig::text`] (`wsg_simulator --text`, `gripctl sim wsg --text`) TCP connections
+//! speak the text interface ([`wsg::text`](crate::wsg::text)) instead of frames, served from
+//! the same device (one motion model, one state; the module `text` says how each GCL command
+//! maps onto the binary ones and which readings it takes where no source says). Replies end in
+//! LF only, each line is one write, and [`SimConfig::text_ack_gap`] separates a motion's `ACK`
+//! from its `FIN`, as the public GCL drivers need. A close without `BYE()` raises FAST STOP
+//! like an unannounced binary close, unless [`SimConfig::fast_stop_on_close`] is off.
 //!
 //! Where the manual is silent the simulator's choice is documented on the item concerned: an
 //! auto-update period under the 10 ms minimum runs at 10 ms (0x40–0x45 list no refusal for
@@ -49,6 +60,7 @@ mod model;
 mod motion;
 mod server;
 mod sessions;
+mod text;
 
 // Inlined, so that this page lists them with their summaries.
 #[doc(inline)]

@@ -143,6 +143,19 @@ pub struct SimConfig {
     /// stay a session for the life of the simulator. At most [`MAX_UDP_SESSIONS`] are kept: a
     /// new sender beyond that replaces the longest-silent one. Default 60 s.
     pub udp_idle_timeout: Duration,
+    /// Serve the text interface (GCL, [`wsg::text`](crate::wsg::text)) on TCP instead of the
+    /// binary protocol: the web interface's "Use text based interface" (Settings → Command
+    /// Interface). See [`SimConfig::text`].
+    pub text_interface: bool,
+    /// An unannounced TCP close (no 0x07, no `BYE()`) raises FAST STOP (binary manual 1.4.2,
+    /// GCL manual chapter 2). The web interface can switch this off ("Enable Error on TCP
+    /// Disconnect"); default on.
+    pub fast_stop_on_close: bool,
+    /// Text mode: the least time between a motion's `ACK` and the next line written to that
+    /// connection (its `FIN`, even for a zero-length move). Public GCL clients read one line
+    /// per `recv` and compare whole chunks, so `ACK` and `FIN` must not arrive together
+    /// (shared note §6.2, §6.3). Default 20 ms.
+    pub text_ack_gap: Duration,
 }
 
 impl SimConfig {
@@ -167,7 +180,26 @@ impl SimConfig {
             answer_bad_checksum: false,
             udp_remote_port: None,
             udp_idle_timeout: DEFAULT_UDP_IDLE_TIMEOUT,
+            text_interface: false,
+            fast_stop_on_close: true,
+            text_ack_gap: Duration::from_millis(20),
         }
+    }
+
+    /// Serving GCL, the text interface, over TCP ([`SimConfig::text_interface`]): LF-only
+    /// replies, one line per write, `ACK` and `FIN` apart by [`SimConfig::text_ack_gap`]; the
+    /// same device model as the binary protocol.
+    #[must_use]
+    pub fn text(mut self) -> Self {
+        self.text_interface = true;
+        self
+    }
+
+    /// With or without FAST STOP on an unannounced TCP close ([`SimConfig::fast_stop_on_close`]).
+    #[must_use]
+    pub fn with_fast_stop_on_close(mut self, on: bool) -> Self {
+        self.fast_stop_on_close = on;
+        self
     }
 
     /// What the standalone simulators (`wsg_simulator`, `gripctl sim wsg`) serve without

@@ -44,7 +44,7 @@ impl Device {
         let kind = self.sessions.remove(&session);
         let announced = self.announced.remove(&session);
         self.streams.retain(|(s, _), _| *s != session);
-        if kind == Some(SessionKind::Tcp) && !announced {
+        if kind == Some(SessionKind::Tcp) && !announced && self.cfg.fast_stop_on_close {
             out.extend(self.trigger_fast_stop());
         }
         out

@@ -15,6 +15,7 @@ use super::record::{SimEvent, SimRecord};
 use super::{lock, take, Shared, SimSnapshot};
 use crate::wsg::frame::{self, Decoded};
 use crate::wsg::sim::device::{Device, Out, SessionId, SessionKind};
+use crate::wsg::sim::text::TextSession;
 use crate::wsg::Reply;
 
 /// Replies queued for one connection above which the simulator stops reading that
@@ -43,7 +44,7 @@ impl Outbox {
         (Outbox { tx, queued }, inbox)
     }
 
-    fn send(&self, bytes: Bytes) -> bool {
+    pub(super) fn send(&self, bytes: Bytes) -> bool {
         self.queued.fetch_add(1, Ordering::Relaxed);
         if self.tx.send(bytes).is_ok() {
             true
@@ -107,6 +108,13 @@ pub(super) enum Event {
         session: SessionId,
         decoded: Decoded,
     },
+    /// A text (GCL) connection opened (`text.rs`).
+    TextConnected { session: SessionId, outbox: Outbox },
+    /// One command line of a text connection (`None`: too long to read).
+    Line {
+        session: SessionId,
+        line: Option<String>,
+    },
     /// The connection ended (or, for UDP, nothing more will come): what is still owed to it is
     /// queued, then its outbox is dropped, which ends its writer once everything is written.
     Disconnected { session: SessionId },
@@ -140,7 +148,7 @@ pub(super) struct SimClock {
 }
 
 impl SimClock {
-    fn now(&self) -> f64 {
+    pub(super) fn now(&self) -> f64 {
         if self.scale > 0.0 {
             self.base_sim + self.base_wall.elapsed().as_secs_f64() / self.scale
         } else {
@@ -167,6 +175,8 @@ pub(super) struct Actor {
     /// Ordered (not hashed): it is iterated (unplug, restart), and a seeded run must drop the
     /// connections in the same order every time to replay exactly.
     pub(super) sessions: BTreeMap<SessionId, Outbox>,
+    /// The text (GCL) sessions' own state (`text.rs`); ordered for the same reason.
+    pub(super) text: BTreeMap<SessionId, TextSession>,
     pub(super) shared: Arc<Mutex<Shared>>,
     pub(super) events: mpsc::Receiver<Event>,
     pub(super) control: mpsc::UnboundedReceiver<Control>,
@@ -174,7 +184,7 @@ pub(super) struct Actor {
 }
 
 impl Actor {
-    fn wall(&self) -> f64 {
+    pub(super) fn wall(&self) -> f64 {
         self.started.elapsed().as_secs_f64()
     }
 
@@ -286,6 +296,8 @@ impl Actor {
                 self.device.connect(session, kind);
                 self.record(session, SimEvent::Connected { kind });
             }
+            Event::TextConnected { session, outbox } => self.on_text_connected(session, outbox),
+            Event::Line { session, line } => self.on_text_line(session, line),
             Event::Disconnected { session } => self.forget(session),
             Event::Idle { session, forgotten } => {
                 let forget = !self.device.owes_session(session);
@@ -350,9 +362,10 @@ impl Actor {
         if self.sessions.remove(&session).is_some() {
             self.record(session, SimEvent::Disconnected);
         }
+        self.text.remove(&session);
     }
 
-    fn dispatch(&mut self, outs: Vec<Out>) {
+    pub(super) fn dispatch(&mut self, outs: Vec<Out>) {
         for out in outs {
             let id = out.reply.id;
             let Some(outbox) = self.sessions.get(&out.session) else {
@@ -363,6 +376,9 @@ impl Actor {
                 );
                 continue;
             };
+            if self.dispatch_text(&out, outbox) {
+                continue;
+            }
             let (drop, corrupt, delay) = {
                 let mut shared = lock(&self.shared);
                 let f = &mut shared.faults;

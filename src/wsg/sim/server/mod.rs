@@ -9,6 +9,7 @@ mod actor;
 mod memory;
 mod record;
 mod stream;
+mod text;
 mod udp;
 
 use std::collections::{BTreeMap, VecDeque};
@@ -28,6 +29,7 @@ use self::actor::{Actor, Control, Event, SimClock};
 use self::record::Recorder;
 pub use self::record::{SimEvent, SimRecord, SimRecording};
 use self::stream::serve_stream;
+use self::text::serve_text;
 use self::udp::{serve_udp, UdpSettings};
 use super::device::{Device, SessionId, SessionKind};
 use super::model::SimConfig;
@@ -93,6 +95,8 @@ pub struct SimServer {
 #[derive(Clone, Debug)]
 pub(super) struct Parts {
     events: mpsc::Sender<Event>,
+    /// Serve GCL (`Some(ACK gap)`) instead of the binary protocol on byte streams.
+    text: Option<Duration>,
     shutdown: watch::Receiver<bool>,
     next_session: Arc<AtomicU64>,
 }
@@ -102,6 +106,7 @@ impl SimServer {
         let (events_tx, events) = mpsc::channel(1024);
         let (control_tx, control) = mpsc::unbounded_channel();
         let (shutdown_tx, shutdown) = watch::channel(false);
+        let text = config.text_interface.then_some(config.text_ack_gap);
         let device = Device::new(config);
         let shared = Arc::new(Mutex::new(Shared {
             faults: Faults::default(),
@@ -125,6 +130,7 @@ impl SimServer {
             device,
             started: now,
             sessions: BTreeMap::new(),
+            text: BTreeMap::new(),
             shared: shared.clone(),
             events,
             control,
@@ -133,6 +139,7 @@ impl SimServer {
         tokio::spawn(actor.run());
         let parts = Parts {
             events: events_tx,
+            text,
             shutdown,
             next_session: Arc::new(AtomicU64::new(1)),
         };
@@ -165,13 +172,22 @@ impl SimServer {
     ) -> SessionId {
         let p = &self.parts;
         let session = p.next_session.fetch_add(1, Ordering::Relaxed);
-        tokio::spawn(serve_stream(
-            io,
-            session,
-            kind,
-            p.events.clone(),
-            p.shutdown.clone(),
-        ));
+        match p.text {
+            Some(gap) => tokio::spawn(serve_text(
+                io,
+                session,
+                p.events.clone(),
+                p.shutdown.clone(),
+                gap,
+            )),
+            None => tokio::spawn(serve_stream(
+                io,
+                session,
+                kind,
+                p.events.clone(),
+                p.shutdown.clone(),
+            )),
+        };
         session
     }
 
@@ -234,6 +250,12 @@ impl SimServer {
     /// at that port (the device's "UDP remote port"). A peer silent for
     /// [`SimConfig::udp_idle_timeout`] is forgotten (its auto-updates stop).
     pub async fn bind_udp(addr: impl ToSocketAddrs, config: SimConfig) -> io::Result<SimServer> {
+        if config.text_interface {
+            return Err(io::Error::new(
+                io::ErrorKind::InvalidInput,
+                "the text interface (GCL) is served over TCP only",
+            ));
+        }
         let socket = Arc::new(UdpSocket::bind(addr).await?);
         let settings = UdpSettings {
             remote_port: config.udp_remote_port,
@@ -273,13 +295,16 @@ impl SimServer {
     ) -> SimServer {
         let (server, parts) = Self::start(config);
         let session = parts.next_session.fetch_add(1, Ordering::Relaxed);
-        tokio::spawn(serve_stream(
-            io,
-            session,
-            kind,
-            parts.events,
-            parts.shutdown,
-        ));
+        match parts.text {
+            Some(gap) => tokio::spawn(serve_text(io, session, parts.events, parts.shutdown, gap)),
+            None => tokio::spawn(serve_stream(
+                io,
+                session,
+                kind,
+                parts.events,
+                parts.shutdown,
+            )),
+        };
         server
     }
 
@@ -356,6 +381,7 @@ impl Drop for SimServer {
 async fn accept(listener: TcpListener, parts: Parts) {
     let Parts {
         events,
+        text,
         mut shutdown,
         next_session,
     } = parts;
@@ -370,7 +396,10 @@ async fn accept(listener: TcpListener, parts: Parts) {
                     let _ = stream.set_nodelay(true);
                     let session = next_session.fetch_add(1, Ordering::Relaxed);
                     tracing::debug!(%peer, session, "simulator: TCP connection");
-                    tokio::spawn(serve_stream(stream, session, SessionKind::Tcp, events.clone(), shutdown.clone()));
+                    match text {
+                        Some(gap) => tokio::spawn(serve_text(stream, session, events.clone(), shutdown.clone(), gap)),
+                        None => tokio::spawn(serve_stream(stream, session, SessionKind::Tcp, events.clone(), shutdown.clone())),
+                    };
                 }
                 Err(e) => tracing::warn!(error = %e, "simulator: accept failed"),
             },

@@ -14,8 +14,9 @@
 //!
 //! A partial frame that gets no new byte for the client's
 //! [`DEFAULT_PARTIAL_FRAME_TIMEOUT`](crate::wsg::client::DEFAULT_PARTIAL_FRAME_TIMEOUT) is
-//! dropped as noise and the frames behind it are decoded, as the client does: a corrupted
-//! length field must not swallow the requests that follow.
+//! dropped as noise and the frames behind it are decoded (the client is stricter: it times a
+//! frame from its first byte): a corrupted length field must not swallow the requests that
+//! follow.
 
 use std::io;
 

@@ -47,6 +47,7 @@ pub(super) async fn serve_udp(socket: Arc<UdpSocket>, parts: Parts, settings: Ud
     let Parts {
         events,
         mut shutdown,
+        text: _,
         next_session,
     } = parts;
     let mut peers: BTreeMap<SocketAddr, Peer> = BTreeMap::new();

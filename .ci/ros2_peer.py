@@ -1,0 +1,367 @@
+"""An independent ROS 2 peer for `gripper-ros2`: Eclipse Cyclone DDS (the DDS under
+rmw_cyclonedds_cpp), with the ROS 2 types written here in IDL, and no ROS installation.
+
+Starts `gripper-ros2 --sim wsg` with RMW_IMPLEMENTATION=rmw_cyclonedds_cpp on a domain of its
+own, on loopback only, then checks over plain DDS what a ROS 2 client would see:
+joint_states and diagnostics with the ROS type names; the ~/home service
+(rq/gripper/homeRequest, rr/gripper/homeReply); GripperCommand goals through
+_action/send_goal and _action/get_result (an opening in metres is reached, a close on a part
+ends stalled with effort); a slow goal cancelled through _action/cancel_goal, and the
+simulator's log shows the stop. Every wait is bounded. Usage: ros2_peer.py PATH/TO/gripper-ros2
+"""
+
+import os
+import random
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+
+from cyclonedds.core import Policy, Qos
+from cyclonedds.domain import DomainParticipant
+from cyclonedds.idl import IdlStruct
+from cyclonedds.idl import types as t
+from cyclonedds.pub import DataWriter
+from cyclonedds.sub import DataReader
+from cyclonedds.topic import Topic
+from cyclonedds.util import duration
+
+# ---- ROS 2 types (Jazzy), as rosidl maps them to DDS --------------------------------------
+
+
+@dataclass
+class Time(IdlStruct, typename="builtin_interfaces::msg::dds_::Time_"):
+    sec: t.int32
+    nanosec: t.uint32
+
+
+@dataclass
+class Header(IdlStruct, typename="std_msgs::msg::dds_::Header_"):
+    stamp: Time
+    frame_id: str
+
+
+@dataclass
+class JointState(IdlStruct, typename="sensor_msgs::msg::dds_::JointState_"):
+    header: Header
+    name: t.sequence[str]
+    position: t.sequence[t.float64]
+    velocity: t.sequence[t.float64]
+    effort: t.sequence[t.float64]
+
+
+@dataclass
+class KeyValue(IdlStruct, typename="diagnostic_msgs::msg::dds_::KeyValue_"):
+    key: str
+    value: str
+
+
+@dataclass
+class DiagnosticStatus(IdlStruct, typename="diagnostic_msgs::msg::dds_::DiagnosticStatus_"):
+    level: t.uint8
+    name: str
+    message: str
+    hardware_id: str
+    values: t.sequence[KeyValue]
+
+
+@dataclass
+class DiagnosticArray(IdlStruct, typename="diagnostic_msgs::msg::dds_::DiagnosticArray_"):
+    header: Header
+    status: t.sequence[DiagnosticStatus]
+
+
+# rmw_cyclonedds_cpp puts a request header before each request and reply: the client's
+# 64-bit id and the request's sequence number (16 bytes).
+
+
+@dataclass
+class TriggerRequest(IdlStruct, typename="std_srvs::srv::dds_::Trigger_Request_"):
+    client_id: t.uint64
+    seq: t.int64
+    structure_needs_at_least_one_member: t.uint8
+
+
+@dataclass
+class TriggerReply(IdlStruct, typename="std_srvs::srv::dds_::Trigger_Response_"):
+    client_id: t.uint64
+    seq: t.int64
+    success: bool
+    message: str
+
+
+@dataclass
+class UUID(IdlStruct, typename="unique_identifier_msgs::msg::dds_::UUID_"):
+    uuid: t.array[t.uint8, 16]
+
+
+@dataclass
+class GripperCommand(IdlStruct, typename="control_msgs::msg::dds_::GripperCommand_"):
+    position: t.float64
+    max_effort: t.float64
+
+
+@dataclass
+class Goal(IdlStruct, typename="control_msgs::action::dds_::GripperCommand_Goal_"):
+    command: GripperCommand
+
+
+@dataclass
+class Result(IdlStruct, typename="control_msgs::action::dds_::GripperCommand_Result_"):
+    position: t.float64
+    effort: t.float64
+    stalled: bool
+    reached_goal: bool
+
+
+@dataclass
+class SendGoalRequest(
+    IdlStruct, typename="control_msgs::action::dds_::GripperCommand_SendGoal_Request_"
+):
+    client_id: t.uint64
+    seq: t.int64
+    goal_id: UUID
+    goal: Goal
+
+
+@dataclass
+class SendGoalReply(
+    IdlStruct, typename="control_msgs::action::dds_::GripperCommand_SendGoal_Response_"
+):
+    client_id: t.uint64
+    seq: t.int64
+    accepted: bool
+    stamp: Time
+
+
+@dataclass
+class GetResultRequest(
+    IdlStruct, typename="control_msgs::action::dds_::GripperCommand_GetResult_Request_"
+):
+    client_id: t.uint64
+    seq: t.int64
+    goal_id: UUID
+
+
+@dataclass
+class GetResultReply(
+    IdlStruct, typename="control_msgs::action::dds_::GripperCommand_GetResult_Response_"
+):
+    client_id: t.uint64
+    seq: t.int64
+    status: t.int8
+    result: Result
+
+
+@dataclass
+class GoalInfo(IdlStruct, typename="action_msgs::msg::dds_::GoalInfo_"):
+    goal_id: UUID
+    stamp: Time
+
+
+@dataclass
+class CancelRequest(IdlStruct, typename="action_msgs::srv::dds_::CancelGoal_Request_"):
+    client_id: t.uint64
+    seq: t.int64
+    goal_info: GoalInfo
+
+
+@dataclass
+class CancelReply(IdlStruct, typename="action_msgs::srv::dds_::CancelGoal_Response_"):
+    client_id: t.uint64
+    seq: t.int64
+    return_code: t.int8
+    goals_canceling: t.sequence[GoalInfo]
+
+
+SUCCEEDED, CANCELED = 4, 5
+RELIABLE = Qos(
+    Policy.Reliability.Reliable(duration(seconds=1)),
+    Policy.History.KeepLast(10),
+    # XCDR1, as every ROS 2 RMW writes it.
+    Policy.DataRepresentation(use_cdrv0_representation=True),
+)
+WAIT_S = 30.0
+
+
+def fail(msg):
+    raise SystemExit(f"ros2 peer: FAILED: {msg}")
+
+
+class Service:
+    """A client of one service with the Cyclone request/reply mapping."""
+
+    def __init__(self, dp, name, req_type, rep_type):
+        self.writer = DataWriter(dp, Topic(dp, f"rq/{name}Request", req_type), qos=RELIABLE)
+        self.reader = DataReader(dp, Topic(dp, f"rr/{name}Reply", rep_type), qos=RELIABLE)
+        self.client_id = random.getrandbits(63)
+        self.seq = 0
+        self.name = name
+
+    def call(self, make, timeout=WAIT_S, attempt_s=None):
+        """Sends a request and returns its reply. With `attempt_s`, the request is sent again
+        after each `attempt_s` without a reply: only for requests that may be repeated. The
+        node's reply writer may not have discovered our reader yet when we discovered it, and a
+        reply sent before then is lost (volatile QoS)."""
+        deadline = time.monotonic() + WAIT_S
+        # Both directions must be matched on our side first.
+        while (
+            self.writer.get_publication_matched_status().current_count == 0
+            or self.reader.get_subscription_matched_status().current_count == 0
+        ):
+            if time.monotonic() > deadline:
+                fail(f"{self.name}: the node's service was not discovered")
+            time.sleep(0.05)
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            self.seq += 1
+            self.writer.write(make(self.client_id, self.seq))
+            retry_at = time.monotonic() + (attempt_s or timeout)
+            while time.monotonic() < min(deadline, retry_at):
+                for reply in self.reader.take(N=16):
+                    if reply.client_id == self.client_id and reply.seq == self.seq:
+                        return reply
+                time.sleep(0.02)
+            if attempt_s is None:
+                break
+        fail(f"{self.name}: no reply within {timeout} s")
+
+
+def first_sample(reader, what, check):
+    deadline = time.monotonic() + WAIT_S
+    while time.monotonic() < deadline:
+        for s in reader.take(N=16):
+            if check(s):
+                return s
+        time.sleep(0.05)
+    fail(f"no {what} within {WAIT_S} s")
+
+
+def cyclone_config(domain):
+    # Loopback only, no multicast: nothing leaves this machine, and parallel runs on other
+    # domains do not meet.
+    return (
+        f'<CycloneDDS><Domain Id="{domain}"><General><Interfaces>'
+        '<NetworkInterface address="127.0.0.1"/></Interfaces>'
+        "<AllowMulticast>false</AllowMulticast></General>"
+        "<Discovery><ParticipantIndex>auto</ParticipantIndex>"
+        "<MaxAutoParticipantIndex>20</MaxAutoParticipantIndex>"
+        '<Peers><Peer address="127.0.0.1"/></Peers></Discovery></Domain></CycloneDDS>'
+    )
+
+
+def main():
+    binary = sys.argv[1]
+    # A domain of its own (0..=232), from the process id.
+    domain = 1 + os.getpid() % 232
+    os.environ["CYCLONEDDS_URI"] = cyclone_config(domain)
+    env = dict(os.environ, RMW_IMPLEMENTATION="rmw_cyclonedds_cpp", ROS_DOMAIN_ID=str(domain))
+    log = tempfile.NamedTemporaryFile("w+", prefix="gripper-ros2-", suffix=".log", delete=False)
+    node = subprocess.Popen(
+        [binary, "--sim", "wsg", "--ros-args", "-p", "dds_interfaces:=[127.0.0.1]",
+         "-p", "speed_m_per_s:=0.02"],
+        env=env, stdout=log, stderr=subprocess.STDOUT,
+    )
+    try:
+        run_checks(domain, log)
+    except BaseException:
+        node.kill()
+        node.wait(10)
+        log.seek(0)
+        print("---- the node's log ----\n" + log.read(), file=sys.stderr)
+        raise
+    node.send_signal(signal.SIGINT)
+    try:
+        code = node.wait(15)
+    except subprocess.TimeoutExpired:
+        node.kill()
+        fail("the node did not stop within 15 s of SIGINT")
+    log.seek(0)
+    text = log.read()
+    if code != 0:
+        print(text, file=sys.stderr)
+        fail(f"the node exited with {code}")
+    if "AXIS_STOPPED" not in text:
+        print(text, file=sys.stderr)
+        fail("the simulator's log does not show the stop of the cancelled goal")
+    print("ros2 peer: the simulator's log shows the stop (AXIS_STOPPED); the node shut down cleanly")
+    os.unlink(log.name)
+    print("ros2-peer: 8 passed, 0 failed")
+
+
+def run_checks(domain, log):
+    dp = DomainParticipant(domain)
+    js = DataReader(dp, Topic(dp, "rt/joint_states", JointState), qos=RELIABLE)
+    diag = DataReader(dp, Topic(dp, "rt/diagnostics", DiagnosticArray), qos=RELIABLE)
+    home = Service(dp, "gripper/home", TriggerRequest, TriggerReply)
+    action = "gripper/gripper_cmd/_action/"
+    send_goal = Service(dp, action + "send_goal", SendGoalRequest, SendGoalReply)
+    get_result = Service(dp, action + "get_result", GetResultRequest, GetResultReply)
+    cancel = Service(dp, action + "cancel_goal", CancelRequest, CancelReply)
+
+    s = first_sample(js, "rt/joint_states", lambda s: list(s.name) == ["gripper_joint"])
+    print(f"ros2 peer: ok joint_states: {list(s.name)} at {list(s.position)} m")
+    d = first_sample(diag, "rt/diagnostics", lambda d: len(d.status) == 1)
+    print(f"ros2 peer: ok diagnostics: {d.status[0].name!r}: {d.status[0].message!r}")
+    if not d.status[0].name.startswith("/gripper"):
+        fail(f"diagnostics name {d.status[0].name!r}")
+
+    # Repeatable: homing takes about 1 s here, a second one after 5 s finds it done.
+    r = home.call(lambda c, q: TriggerRequest(c, q, 0), attempt_s=5.0)
+    if not r.success:
+        fail(f"home: {r.message}")
+    print(f"ros2 peer: ok home through rq/gripper/homeRequest: {r.message!r}")
+
+    # Side-effect-free requests, repeated until answered, so that the first goal's reply is not
+    # lost to discovery still in progress: a goal with a NaN position is rejected, a result or a
+    # cancel of a goal never sent is answered with STATUS_UNKNOWN / ERROR_UNKNOWN_GOAL_ID.
+    nobody = UUID(list(random.randbytes(16)))
+    nan = Goal(GripperCommand(float("nan"), 0.0))
+    if send_goal.call(lambda c, q: SendGoalRequest(c, q, nobody, nan), attempt_s=2.0).accepted:
+        fail("a goal with a NaN position was accepted")
+    if get_result.call(lambda c, q: GetResultRequest(c, q, nobody), attempt_s=2.0).status != 0:
+        fail("the result of an unknown goal is not STATUS_UNKNOWN")
+    rep = cancel.call(lambda c, q: CancelRequest(c, q, GoalInfo(nobody, Time(0, 0))), attempt_s=2.0)
+    if rep.return_code != 2:
+        fail(f"a cancel of an unknown goal answered {rep.return_code}, not ERROR_UNKNOWN_GOAL_ID")
+    print("ros2 peer: ok a NaN goal rejected, unknown goal: STATUS_UNKNOWN, ERROR_UNKNOWN_GOAL_ID")
+
+    def goal(position, max_effort):
+        gid = UUID(list(random.randbytes(16)))
+        rep = send_goal.call(
+            lambda c, q: SendGoalRequest(c, q, gid, Goal(GripperCommand(position, max_effort)))
+        )
+        if not rep.accepted:
+            fail(f"goal {position} m rejected")
+        return gid
+
+    def result(gid):
+        # Repeatable: a finished goal's result is kept and answered again.
+        return get_result.call(lambda c, q: GetResultRequest(c, q, gid), attempt_s=10.0)
+
+    res = result(goal(0.04, 20.0))
+    if res.status != SUCCEEDED or not res.result.stalled or res.result.effort <= 0.0:
+        fail(f"closing on the 40 mm part: status {res.status}, {res.result}")
+    print(f"ros2 peer: ok close on the part: stalled with {res.result.effort} N: {res.result}")
+
+    res = result(goal(0.07, 0.0))
+    if res.status != SUCCEEDED or not res.result.reached_goal or abs(res.result.position - 0.07) > 0.001:
+        fail(f"opening to 0.07 m: status {res.status}, {res.result}")
+    print(f"ros2 peer: ok opening to 0.07 m reached: {res.result}")
+
+    # 70 -> 100 mm at 20 mm/s takes 1.5 s: cancelled after 0.5 s.
+    gid = goal(0.1, 0.0)
+    time.sleep(0.5)  # let the motion run a little: the point is to stop it midway
+    rep = cancel.call(lambda c, q: CancelRequest(c, q, GoalInfo(gid, Time(0, 0))))
+    if rep.return_code != 0 or len(rep.goals_canceling) != 1:
+        fail(f"cancel: return code {rep.return_code}, {rep.goals_canceling}")
+    res = result(gid)
+    if res.status != CANCELED or res.result.position >= 0.099:
+        fail(f"cancelled goal: status {res.status}, {res.result}")
+    print(f"ros2 peer: ok cancelled goal stopped at {res.result.position} m")
+
+
+if __name__ == "__main__":
+    main()

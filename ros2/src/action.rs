@@ -1,0 +1,535 @@
+//! The `control_msgs/action/GripperCommand` server: goals, cancels and results over
+//! ros2-client's plain [`ActionServer`], with our own goal bookkeeping.
+//!
+//! ros2-client's `AsyncActionServer` is not used: in 0.12.1 its `abort_*_goal` never answers a
+//! pending `get_result`, `send_result_response` blocks until the client asks for the result, a
+//! `get_result` that arrives after the goal finished is never answered, and cancel requests are
+//! read only while the application polls for them. Here:
+//! - every `get_result` is answered: at once for a finished goal (the last
+//!   [`FINISHED_GOALS_KEPT`] are kept), when the goal ends for a running one, and with
+//!   STATUS_UNKNOWN for a goal id never seen (as rclcpp_action does);
+//! - cancel requests are read all the time, and a cancel of the running goal sends the device's
+//!   stop at once, never queued behind the motion;
+//! - a goal that arrives while another runs is **rejected** (the running goal is not disturbed;
+//!   cancel it first). MoveIt sends one gripper goal at a time and waits for its result.
+//!
+//! ros2-client's servers hand out requests through `&mut` accessors or non-blocking reads, so
+//! the three services are read every [`POLL_PERIOD`].
+
+use std::collections::VecDeque;
+use std::sync::Arc;
+use std::time::Duration;
+
+use futures::future::BoxFuture;
+use ros2_client::action::{
+    ActionServerQosPolicies, CancelGoalRequest, CancelGoalResponse, GetResultResponse, GoalId,
+    GoalInfo, GoalStatusEnum, SendGoalResponse,
+};
+use ros2_client::action_msgs::{CancelGoalResponseEnum, GoalStatus, GoalStatusArray};
+use ros2_client::builtin_interfaces::Time;
+use ros2_client::{ActionServer, RmwRequestId};
+use tokio::sync::{oneshot, watch};
+
+use crate::msgs::{GripperCommandFeedback, GripperCommandGoal, GripperCommandResult};
+use crate::qos;
+
+/// How often the goal, cancel and result services are read.
+pub const POLL_PERIOD: Duration = Duration::from_millis(10);
+/// How often a running goal publishes feedback.
+pub const FEEDBACK_PERIOD: Duration = Duration::from_millis(100);
+/// How long a cancelled goal waits, after the device acknowledged the stop, for its motion to
+/// report where it ended (the WSG answers the motion with E_CMD_ABORTED at once). A motion
+/// still waiting then (GRIPLINK's wait for a state transition that a DISABLE never brings) is
+/// abandoned, and the result is the latest reading.
+pub const CANCEL_GRACE: Duration = Duration::from_millis(500);
+/// Finished goals whose result is kept for a late `get_result`.
+pub const FINISHED_GOALS_KEPT: usize = 16;
+/// `get_result` requests waiting for one running goal, at most; more are answered
+/// STATUS_UNKNOWN at once (a bounded buffer; no client needs this many).
+pub const RESULT_WAITERS_MAX: usize = 64;
+
+/// Our server type.
+pub type GripperActionServer =
+    ActionServer<GripperCommandGoal, GripperCommandResult, GripperCommandFeedback>;
+
+/// The QoS of the action's services and topics: rcl_action's defaults (services reliable and
+/// volatile, keep last 10; status transient-local keep last 1, so a late client sees it).
+pub fn action_qos() -> ActionServerQosPolicies {
+    ActionServerQosPolicies {
+        goal_service: qos::services(),
+        result_service: qos::services(),
+        cancel_service: qos::services(),
+        feedback_publisher: qos::topic(),
+        status_publisher: qos::status(),
+    }
+}
+
+/// How a goal ended on the device.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Outcome {
+    /// Whether the goal succeeded (else: aborted).
+    pub succeeded: bool,
+    /// The result to send.
+    pub result: GripperCommandResult,
+    /// Why, for the log.
+    pub message: String,
+}
+
+/// The checks every device makes before accepting a goal: a position that is an opening
+/// (finite, not negative) and a force that is one (finite, not negative; 0 = the default).
+pub fn check_command(goal: &GripperCommandGoal) -> Result<(), String> {
+    let c = goal.command;
+    if !c.position.is_finite() || c.position < 0.0 {
+        return Err(format!("position {} m is not an opening", c.position));
+    }
+    if !c.max_effort.is_finite() || c.max_effort < 0.0 {
+        return Err(format!("max_effort {} N is not a force", c.max_effort));
+    }
+    Ok(())
+}
+
+/// What the action needs from a device.
+pub trait Actuator: Send + Sync + 'static {
+    /// Checks a goal before it is accepted; `Err` rejects it with that reason.
+    fn check(&self, goal: &GripperCommandGoal) -> Result<(), String>;
+    /// Runs an accepted goal to its end (the device's own timeouts bound it).
+    fn execute(&self, goal: GripperCommandGoal) -> BoxFuture<'static, Outcome>;
+    /// Stops the fingers now (a cancel).
+    fn stop(&self) -> BoxFuture<'static, Result<(), String>>;
+    /// The current position, effort and state, for feedback and a cancelled goal's result.
+    fn feedback(&self) -> GripperCommandFeedback;
+}
+
+struct Active {
+    info: GoalInfo,
+    status: GoalStatusEnum,
+    done: oneshot::Receiver<Outcome>,
+    /// The task running the motion (aborted when a cancelled motion does not end by itself).
+    task: tokio::task::JoinHandle<()>,
+    /// The stop of a cancel, while it runs.
+    stopping: Option<oneshot::Receiver<Result<(), String>>>,
+    /// After a successful stop: when to stop waiting for the motion to report its end.
+    give_up_at: Option<tokio::time::Instant>,
+    waiters: Vec<RmwRequestId>,
+}
+
+/// What happened to the running goal.
+enum GoalEvent {
+    /// Its motion ended (`None`: its task ended without reporting).
+    Ended(Option<Outcome>),
+    /// The stop of a cancel was answered.
+    Stopped(Result<(), String>),
+    /// [`CANCEL_GRACE`] passed after the stop without the motion reporting its end.
+    GaveUp,
+}
+
+impl Active {
+    async fn next_event(&mut self) -> GoalEvent {
+        let give_up = async {
+            match self.give_up_at {
+                Some(at) => tokio::time::sleep_until(at).await,
+                None => std::future::pending().await,
+            }
+        };
+        let stopping = async {
+            match self.stopping.as_mut() {
+                Some(rx) => rx
+                    .await
+                    .unwrap_or_else(|_| Err("the stop task ended".into())),
+                None => std::future::pending().await,
+            }
+        };
+        tokio::select! {
+            outcome = &mut self.done => GoalEvent::Ended(outcome.ok()),
+            result = stopping => GoalEvent::Stopped(result),
+            () = give_up => GoalEvent::GaveUp,
+        }
+    }
+}
+
+struct Finished {
+    info: GoalInfo,
+    status: GoalStatusEnum,
+    result: GripperCommandResult,
+}
+
+/// The goal bookkeeping of one action server.
+pub struct GoalKeeper {
+    actuator: Arc<dyn Actuator>,
+    active: Option<Active>,
+    finished: VecDeque<Finished>,
+}
+
+impl GoalKeeper {
+    /// A keeper for goals that `actuator` carries out.
+    pub fn new(actuator: Arc<dyn Actuator>) -> Self {
+        GoalKeeper {
+            actuator,
+            active: None,
+            finished: VecDeque::new(),
+        }
+    }
+
+    /// Serves the action until `shutdown` turns true (or its sender is dropped); a goal still
+    /// running then is stopped and aborted.
+    pub async fn serve(mut self, server: GripperActionServer, mut shutdown: watch::Receiver<bool>) {
+        let mut poll = tokio::time::interval(POLL_PERIOD);
+        poll.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+        let mut feedback = tokio::time::interval(FEEDBACK_PERIOD);
+        feedback.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+        loop {
+            tokio::select! {
+                _ = poll.tick() => self.poll(&server),
+                _ = feedback.tick() => self.publish_feedback(&server),
+                // Lazy: select! builds every branch's future, disabled ones too.
+                event = async { self.active.as_mut().expect("guarded").next_event().await },
+                    if self.active.is_some() => match event {
+                    GoalEvent::Ended(outcome) => self.finish(&server, outcome),
+                    GoalEvent::Stopped(result) => self.stopped(result),
+                    GoalEvent::GaveUp => {
+                        if let Some(active) = &self.active {
+                            active.task.abort();
+                        }
+                        self.finish(&server, None);
+                    }
+                },
+                _ = shutdown.wait_for(|stop| *stop) => break,
+            }
+        }
+        if let Some(active) = self.active.as_mut() {
+            tracing::info!(goal = ?active.info.goal_id, "shutting down: stopping the running goal");
+            if let Err(e) = self.actuator.stop().await {
+                tracing::warn!("stop at shutdown failed: {e}");
+            }
+            self.finish(&server, None);
+        }
+    }
+
+    fn poll(&mut self, server: &GripperActionServer) {
+        // Cancels first: a cancel and a goal read in the same round must not see the goal
+        // started after the cancel was handled.
+        loop {
+            match server.receive_cancel_request() {
+                Ok(Some((id, req))) => self.cancel(server, id, req),
+                Ok(None) => break,
+                Err(e) => {
+                    tracing::warn!("reading a cancel request failed: {e:?}");
+                    break;
+                }
+            }
+        }
+        loop {
+            match server.receive_goal() {
+                Ok(Some((id, req))) => self.goal(server, id, req.goal_id, req.goal),
+                Ok(None) => break,
+                Err(e) => {
+                    tracing::warn!("reading a goal failed: {e:?}");
+                    break;
+                }
+            }
+        }
+        loop {
+            match server.receive_result_request() {
+                Ok(Some((id, req))) => self.result_request(server, id, req.goal_id),
+                Ok(None) => break,
+                Err(e) => {
+                    tracing::warn!("reading a result request failed: {e:?}");
+                    break;
+                }
+            }
+        }
+    }
+
+    fn goal(
+        &mut self,
+        server: &GripperActionServer,
+        req_id: RmwRequestId,
+        goal_id: GoalId,
+        goal: GripperCommandGoal,
+    ) {
+        let stamp = Time::now();
+        let verdict = if let Some(a) = &self.active {
+            Err(format!(
+                "goal {:?} still runs (one goal at a time: cancel it first)",
+                a.info.goal_id
+            ))
+        } else if self.known(&goal_id) {
+            Err("a goal with this id was already received".to_owned())
+        } else {
+            self.actuator.check(&goal)
+        };
+        let accepted = verdict.is_ok();
+        match verdict {
+            Ok(()) => tracing::info!(?goal_id, ?goal, "goal accepted"),
+            Err(why) => tracing::warn!(?goal_id, ?goal, "goal rejected: {why}"),
+        }
+        if let Err(e) = server.send_goal_response(req_id, SendGoalResponse { accepted, stamp }) {
+            tracing::warn!("answering a goal failed: {e:?}");
+        }
+        if !accepted {
+            return;
+        }
+        let (tx, done) = oneshot::channel();
+        let run = self.actuator.execute(goal);
+        let task = tokio::spawn(async move {
+            let _ = tx.send(run.await);
+        });
+        // ACCEPTED and EXECUTING at once: the motion starts now.
+        self.active = Some(Active {
+            info: GoalInfo { goal_id, stamp },
+            status: GoalStatusEnum::Executing,
+            done,
+            task,
+            stopping: None,
+            give_up_at: None,
+            waiters: Vec::new(),
+        });
+        self.publish_statuses(server);
+    }
+
+    fn known(&self, goal_id: &GoalId) -> bool {
+        self.active
+            .as_ref()
+            .is_some_and(|a| a.info.goal_id == *goal_id)
+            || self.finished.iter().any(|f| f.info.goal_id == *goal_id)
+    }
+
+    fn cancel(
+        &mut self,
+        server: &GripperActionServer,
+        req_id: RmwRequestId,
+        req: CancelGoalRequest,
+    ) {
+        let response = match cancel_target(&req) {
+            Err(e) => {
+                tracing::warn!("cancel request not understood: {e}");
+                reject(CancelGoalResponseEnum::Rejected)
+            }
+            Ok(target) => self.cancel_matching(server, &target),
+        };
+        if let Err(e) = server.send_cancel_response(req_id, response) {
+            tracing::warn!("answering a cancel request failed: {e:?}");
+        }
+    }
+
+    fn cancel_matching(
+        &mut self,
+        server: &GripperActionServer,
+        target: &GoalInfo,
+    ) -> CancelGoalResponse {
+        let matches = |info: &GoalInfo| cancel_matches(target, info);
+        if let Some(active) = self.active.as_mut().filter(|a| matches(&a.info)) {
+            if active.status != GoalStatusEnum::Canceling {
+                active.status = GoalStatusEnum::Canceling;
+                tracing::info!(goal = ?active.info.goal_id, "cancel: stopping the fingers");
+                // Its own task: the answer to the cancel does not wait for the device. The
+                // motion's end (E_CMD_ABORTED), or CANCEL_GRACE after the stop, finishes the
+                // goal as CANCELED.
+                let stop = self.actuator.stop();
+                let (tx, stopping) = oneshot::channel();
+                tokio::spawn(async move {
+                    let _ = tx.send(stop.await);
+                });
+                active.stopping = Some(stopping);
+            }
+            let info = active.info.clone();
+            self.publish_statuses(server);
+            return CancelGoalResponse {
+                return_code: CancelGoalResponseEnum::None,
+                goals_canceling: vec![info],
+            };
+        }
+        // rcl_action's answers: a named goal that ended is TERMINATED, one never seen UNKNOWN;
+        // a request that cancels nothing is REJECTED.
+        if target.goal_id != GoalId::ZERO {
+            if self
+                .finished
+                .iter()
+                .any(|f| f.info.goal_id == target.goal_id)
+            {
+                return reject(CancelGoalResponseEnum::GoalTerminated);
+            }
+            return reject(CancelGoalResponseEnum::UnknownGoal);
+        }
+        reject(CancelGoalResponseEnum::Rejected)
+    }
+
+    fn stopped(&mut self, result: Result<(), String>) {
+        let Some(active) = self.active.as_mut() else {
+            return;
+        };
+        active.stopping = None;
+        match result {
+            Ok(()) => {
+                active.give_up_at = Some(tokio::time::Instant::now() + CANCEL_GRACE);
+            }
+            // The motion goes on: the goal stays CANCELING until it ends.
+            Err(e) => tracing::error!("the stop of a cancelled goal failed: {e}"),
+        }
+    }
+
+    fn result_request(
+        &mut self,
+        server: &GripperActionServer,
+        req_id: RmwRequestId,
+        goal_id: GoalId,
+    ) {
+        if let Some(active) = self.active.as_mut().filter(|a| a.info.goal_id == goal_id) {
+            if active.waiters.len() < RESULT_WAITERS_MAX {
+                active.waiters.push(req_id);
+                return;
+            }
+            tracing::warn!(
+                ?goal_id,
+                "too many result requests for one goal; answered UNKNOWN"
+            );
+        }
+        let (status, result) = match self.finished.iter().find(|f| f.info.goal_id == goal_id) {
+            Some(f) => (f.status, f.result),
+            None => (GoalStatusEnum::Unknown, GripperCommandResult::default()),
+        };
+        send_result(server, req_id, status, result);
+    }
+
+    /// The running goal ended: `outcome` is `None` when it did not report (shutdown, or its
+    /// task ended without an answer).
+    fn finish(&mut self, server: &GripperActionServer, outcome: Option<Outcome>) {
+        let Some(active) = self.active.take() else {
+            return;
+        };
+        let (status, result) = match (active.status, outcome) {
+            (GoalStatusEnum::Canceling, o) => {
+                // The result of a cancelled goal is where the fingers stopped.
+                let result = o.map_or_else(|| self.actuator.feedback(), |o| o.result);
+                (GoalStatusEnum::Canceled, result)
+            }
+            (_, Some(o)) => {
+                let status = if o.succeeded {
+                    GoalStatusEnum::Succeeded
+                } else {
+                    GoalStatusEnum::Aborted
+                };
+                tracing::info!(goal = ?active.info.goal_id, ?status, result = ?o.result, "{}", o.message);
+                (status, o.result)
+            }
+            (_, None) => (GoalStatusEnum::Aborted, self.actuator.feedback()),
+        };
+        if status == GoalStatusEnum::Canceled {
+            tracing::info!(goal = ?active.info.goal_id, ?result, "goal cancelled");
+        }
+        for waiter in active.waiters {
+            send_result(server, waiter, status, result);
+        }
+        if self.finished.len() == FINISHED_GOALS_KEPT {
+            self.finished.pop_front();
+        }
+        self.finished.push_back(Finished {
+            info: active.info,
+            status,
+            result,
+        });
+        self.publish_statuses(server);
+    }
+
+    fn publish_feedback(&self, server: &GripperActionServer) {
+        if let Some(active) = &self.active {
+            if let Err(e) = server.send_feedback(active.info.goal_id, self.actuator.feedback()) {
+                tracing::debug!("feedback not sent: {e:?}");
+            }
+        }
+    }
+
+    fn publish_statuses(&self, server: &GripperActionServer) {
+        let finished = self.finished.iter().map(|f| GoalStatus {
+            goal_info: f.info.clone(),
+            status: f.status,
+        });
+        let active = self.active.iter().map(|a| GoalStatus {
+            goal_info: a.info.clone(),
+            status: a.status,
+        });
+        let status_list = finished.chain(active).collect();
+        if let Err(e) = server.send_goal_statuses(GoalStatusArray { status_list }) {
+            tracing::debug!("goal statuses not sent: {e:?}");
+        }
+    }
+}
+
+fn send_result(
+    server: &GripperActionServer,
+    req_id: RmwRequestId,
+    status: GoalStatusEnum,
+    result: GripperCommandResult,
+) {
+    if let Err(e) = server.send_result(req_id, GetResultResponse { status, result }) {
+        tracing::warn!("sending a result failed: {e:?}");
+    }
+}
+
+fn reject(code: CancelGoalResponseEnum) -> CancelGoalResponse {
+    CancelGoalResponse {
+        return_code: code,
+        goals_canceling: Vec::new(),
+    }
+}
+
+/// Whether a cancel request for `target` covers the goal `info` (action_msgs/srv/CancelGoal):
+/// id and stamp zero cancel all goals; a zero id with a stamp, those accepted at or before it;
+/// an id, that goal (and with a stamp, also those accepted at or before it).
+pub fn cancel_matches(target: &GoalInfo, info: &GoalInfo) -> bool {
+    let all = target.goal_id == GoalId::ZERO && target.stamp == Time::ZERO;
+    let by_id = target.goal_id != GoalId::ZERO && target.goal_id == info.goal_id;
+    let by_time = target.stamp != Time::ZERO && info.stamp <= target.stamp;
+    all || by_id || by_time
+}
+
+/// The goal info of a cancel request. ros2-client 0.12.1 keeps the field private
+/// (`pub(crate) goal_info`), but the type is serde: a round trip through a serde value reads it.
+pub fn cancel_target(req: &CancelGoalRequest) -> Result<GoalInfo, String> {
+    #[derive(serde::Deserialize)]
+    struct Mirror {
+        goal_info: GoalInfo,
+    }
+    let value = serde_json::to_value(req).map_err(|e| e.to_string())?;
+    serde_json::from_value::<Mirror>(value)
+        .map(|m| m.goal_info)
+        .map_err(|e| e.to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn info(id: u8, stamp_s: i32) -> GoalInfo {
+        let mut bytes = [0u8; 16];
+        bytes[15] = id;
+        GoalInfo {
+            goal_id: GoalId {
+                uuid: uuid::Uuid::from_bytes(bytes),
+            },
+            stamp: Time::new(stamp_s, 0),
+        }
+    }
+
+    #[test]
+    fn cancel_policy_of_action_msgs() {
+        let goal = info(7, 100);
+        let zero = GoalInfo {
+            goal_id: GoalId::ZERO,
+            stamp: Time::ZERO,
+        };
+        assert!(cancel_matches(&zero, &goal), "all goals");
+        assert!(cancel_matches(&info(7, 0), &goal), "by id");
+        assert!(!cancel_matches(&info(8, 0), &goal), "another id");
+        let before = GoalInfo {
+            goal_id: GoalId::ZERO,
+            stamp: Time::new(100, 0),
+        };
+        assert!(cancel_matches(&before, &goal), "accepted at the stamp");
+        let earlier = GoalInfo {
+            goal_id: GoalId::ZERO,
+            stamp: Time::new(99, 0),
+        };
+        assert!(!cancel_matches(&earlier, &goal), "accepted after the stamp");
+    }
+}

@@ -1,0 +1,405 @@
+//! The async GCL client: a cheap, clonable handle to the connection task (`task.rs`).
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use tokio::net::{TcpStream, ToSocketAddrs};
+use tokio::sync::{mpsc, oneshot};
+use tokio::time::Instant;
+
+use super::error::{Error, Result};
+use super::line::{encode_call, encode_set, parse_number, BadArgument, DEFAULT_MAX_LINE_LEN};
+use super::push::{Pushes, Quantity};
+use super::task::{self, after, Answer, Expect, Request, Shared, TaskConfig};
+use crate::connection::Connection;
+use crate::wsg::{GripState, HomingDirection};
+
+/// Client settings. `ClientConfig::default()` suits a gripper on a local network.
+#[derive(Debug, Clone)]
+pub struct ClientConfig {
+    /// Timeout of commands answered at once (queries, setters, STOP, FSACK, BYE). Default 2 s.
+    pub query_timeout: Duration,
+    /// Timeout of motions (HOME, MOVE, GRIP, RELEASE) up to their `FIN` or `ERR`. Default 30 s.
+    pub motion_timeout: Duration,
+    /// How long past a call's timeout a missing reply is tolerated before the connection is
+    /// declared broken (replies carry only a name, so a reply that comes later than this could
+    /// be taken for the next command of that name). Default 30 s.
+    pub give_up_after: Duration,
+    /// Timeout of the TCP connect. Default 5 s.
+    pub connect_timeout: Duration,
+    /// Longest reply line accepted; longer ones are discarded. Default 256 bytes.
+    pub max_line_len: usize,
+    /// How many calls may wait to be sent (in the channel, and again in the task while a
+    /// command of their name is on the wire). Default 64.
+    pub queue_len: usize,
+    /// Pushes each [`Pushes`] stream buffers. Default 64.
+    pub push_buffer: usize,
+}
+
+impl Default for ClientConfig {
+    fn default() -> Self {
+        ClientConfig {
+            query_timeout: Duration::from_secs(2),
+            motion_timeout: Duration::from_secs(30),
+            give_up_after: Duration::from_secs(30),
+            connect_timeout: Duration::from_secs(5),
+            max_line_len: DEFAULT_MAX_LINE_LEN,
+            queue_len: 64,
+            push_buffer: 64,
+        }
+    }
+}
+
+/// A handle to a WSG connection in text mode (GCL). Cheap to clone; every clone talks over the
+/// same connection, which closes when the last handle is dropped or [`Client::close`] is called.
+///
+/// Dropping the last handle without [`Client::close`] closes the socket **without `BYE()`**: the
+/// gripper then raises FAST STOP (manual chapter 2, `BYE`), unless that is switched off in its
+/// web interface.
+#[derive(Debug, Clone)]
+pub struct Client {
+    connection: Connection,
+    requests: mpsc::Sender<Request>,
+    shared: Arc<Shared>,
+    config: Arc<ClientConfig>,
+    timeout: Option<Duration>,
+}
+
+impl From<BadArgument> for Error {
+    fn from(b: BadArgument) -> Self {
+        Error::InvalidArgument {
+            what: b.what,
+            reason: b.reason,
+        }
+    }
+}
+
+impl Client {
+    /// Connects to a gripper (`"192.168.1.20:1000"`) with the default configuration.
+    ///
+    /// Cancel-safe: dropped, nothing is left running.
+    pub async fn connect(addr: impl ToSocketAddrs) -> Result<Client> {
+        Client::connect_with(addr, ClientConfig::default()).await
+    }
+
+    /// Connects with the given configuration.
+    ///
+    /// Cancel-safe: dropped, nothing is left running.
+    pub async fn connect_with(addr: impl ToSocketAddrs, config: ClientConfig) -> Result<Client> {
+        let timed_out = || {
+            Error::from(std::io::Error::new(
+                std::io::ErrorKind::TimedOut,
+                "connecting to the gripper timed out",
+            ))
+        };
+        let stream = tokio::time::timeout(config.connect_timeout, TcpStream::connect(addr))
+            .await
+            .map_err(|_| timed_out())??;
+        stream.set_nodelay(true)?;
+        Ok(Client::spawn(stream, config))
+    }
+
+    /// Runs the client over an already connected stream. Must be called inside a tokio runtime.
+    pub fn from_stream(stream: TcpStream, config: ClientConfig) -> Client {
+        Client::spawn(stream, config)
+    }
+
+    fn spawn(stream: TcpStream, config: ClientConfig) -> Client {
+        let (requests, rx) = mpsc::channel(config.queue_len.max(1));
+        let shared = Arc::new(Shared::default());
+        let task_config = TaskConfig {
+            give_up_after: config.give_up_after,
+            max_line_len: config.max_line_len,
+            waiting_len: config.queue_len.max(1),
+        };
+        Client {
+            connection: Connection::spawn(task::run(stream, rx, task_config, shared.clone())),
+            requests,
+            shared,
+            config: Arc::new(config),
+            timeout: None,
+        }
+    }
+
+    /// Whether the connection is closed for good (every call fails).
+    pub fn is_closed(&self) -> bool {
+        self.requests.is_closed()
+    }
+
+    /// A handle whose calls all use `timeout` instead of the defaults. Shares the connection.
+    pub fn with_timeout(&self, timeout: Duration) -> Client {
+        Client {
+            timeout: Some(timeout),
+            ..self.clone()
+        }
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &ClientConfig {
+        &self.config
+    }
+
+    async fn submit(&self, name: &'static str, line: String, expect: Expect) -> Result<Answer> {
+        if line.len() > self.config.max_line_len || line.bytes().any(|b| b.is_ascii_control()) {
+            return Err(Error::invalid(
+                "command line",
+                "too long, or with control characters",
+            ));
+        }
+        let timeout = self.timeout.unwrap_or(match expect {
+            Expect::Fin => self.config.motion_timeout,
+            Expect::Ack | Expect::Value => self.config.query_timeout,
+        });
+        let deadline = after(Instant::now(), timeout);
+        let (waiter, answer) = oneshot::channel();
+        // The line goes to the task; a timeout error needs it too, rarely.
+        let line_again = line.clone();
+        let request = Request {
+            name,
+            line,
+            expect,
+            deadline,
+            timeout,
+            waiter,
+        };
+        let exchange = async {
+            self.requests
+                .send(request)
+                .await
+                .map_err(|_| self.shared.failure())?;
+            answer.await.map_err(|_| self.shared.failure())?
+        };
+        let exchange = std::pin::pin!(tokio::time::timeout_at(deadline, exchange));
+        match self.connection.call(exchange).await {
+            Ok(result) => result,
+            Err(_) => Err(Error::Timeout {
+                command: line_again,
+                timeout,
+            }),
+        }
+    }
+
+    async fn motion(&self, name: &'static str, line: String) -> Result<()> {
+        self.submit(name, line, Expect::Fin).await.map(drop)
+    }
+
+    async fn ack(&self, name: &'static str, line: String) -> Result<()> {
+        self.submit(name, line, Expect::Ack).await.map(drop)
+    }
+
+    async fn number(&self, name: &'static str, line: String) -> Result<f64> {
+        let command = line.clone();
+        match self.submit(name, line, Expect::Value).await? {
+            Answer::Value(v) => parse_number(&v).ok_or_else(|| Error::MalformedReply {
+                command,
+                line: format!("{name}={v}"),
+                reason: "not a finite number".into(),
+            }),
+            // `Expect::Value` takes only `NAME=value` (task.rs).
+            Answer::Done => Err(Error::UnexpectedReply {
+                command,
+                line: format!("ACK {name}"),
+            }),
+        }
+    }
+
+    /// `HOME()`, `HOME(1)` (positive, outward) or `HOME(0)` (negative): references the fingers;
+    /// resolves on `FIN HOME`. Needed before any other motion (manual chapter 2). **Differs from
+    /// the binary protocol**, whose homing takes 0 = default, 1 = positive, 2 = negative; this
+    /// method takes the same [`HomingDirection`] and writes GCL's form.
+    ///
+    /// Cancel-safe for the connection: dropped after it was sent, the gripper still homes and
+    /// its `FIN` is consumed when it comes (the name `HOME` stays busy until then).
+    pub async fn home(&self, direction: HomingDirection) -> Result<()> {
+        let line = match direction {
+            HomingDirection::Default => "HOME()",
+            HomingDirection::Positive => "HOME(1)",
+            HomingDirection::Negative => "HOME(0)",
+        };
+        self.motion("HOME", line.to_owned()).await
+    }
+
+    /// `MOVE(p)` or `MOVE(p,v)`: moves the fingers to an opening width, with an optional speed
+    /// limit; resolves on `FIN MOVE`. The manual says not to grip or release with it; labs use
+    /// it to open a gripper that holds a part (shared note §3.4).
+    pub async fn move_to(&self, width_mm: f64, speed_mm_per_s: Option<f64>) -> Result<()> {
+        let mut args = vec![("width_mm", width_mm)];
+        args.extend(speed_mm_per_s.map(|v| ("speed_mm_per_s", v)));
+        self.motion("MOVE", encode_call("MOVE", &args)?).await
+    }
+
+    /// `GRIP()` or `GRIP(f)`: grips inward until a part is found, with the default or the given
+    /// force. Without a part the fingers grip each other and the state is still HOLDING (manual
+    /// chapter 2). Resolves on `FIN GRIP`.
+    pub async fn grip(&self, force_n: Option<f64>) -> Result<()> {
+        let args: Vec<_> = force_n.map(|f| ("force_n", f)).into_iter().collect();
+        self.motion("GRIP", encode_call("GRIP", &args)?).await
+    }
+
+    /// `GRIP(f,w)` or `GRIP(f,w,v)`: grips a part expected at `part_width_mm` (inward or
+    /// outward, from where the fingers are), within the part width tolerance (PWT) and clamping
+    /// travel (CLT). Resolves on `FIN GRIP`; no part fails with E_CMD_FAILED, a collision
+    /// before the tolerance zone with E_AXIS_BLOCKED (manual chapter 2).
+    pub async fn grip_part(
+        &self,
+        force_n: f64,
+        part_width_mm: f64,
+        speed_mm_per_s: Option<f64>,
+    ) -> Result<()> {
+        let mut args = vec![("force_n", force_n), ("part_width_mm", part_width_mm)];
+        args.extend(speed_mm_per_s.map(|v| ("speed_mm_per_s", v)));
+        self.motion("GRIP", encode_call("GRIP", &args)?).await
+    }
+
+    /// `RELEASE()`, `RELEASE(d)` or `RELEASE(d,v)`: opens **by** `pull_back_mm` from where the
+    /// fingers are (the web interface's default without it). **Differs from the binary
+    /// protocol**, whose release takes an absolute opening width. Only after a `GRIP` (manual
+    /// chapter 2). Resolves on `FIN RELEASE`.
+    pub async fn release(
+        &self,
+        pull_back_mm: Option<f64>,
+        speed_mm_per_s: Option<f64>,
+    ) -> Result<()> {
+        let args: Vec<_> = match (pull_back_mm, speed_mm_per_s) {
+            (None, None) => vec![],
+            (Some(d), None) => vec![("pull_back_mm", d)],
+            (Some(d), Some(v)) => vec![("pull_back_mm", d), ("speed_mm_per_s", v)],
+            (None, Some(_)) => {
+                return Err(Error::invalid(
+                    "speed_mm_per_s",
+                    "RELEASE takes a speed only after a pull-back distance",
+                ))
+            }
+        };
+        self.motion("RELEASE", encode_call("RELEASE", &args)?).await
+    }
+
+    /// `STOP()`: stops a motion at once; resolves on `ACK STOP`. The motion's own call then
+    /// fails with `ERR <NAME> …`, and the grip state returns to IDLE (shared note §3.7).
+    pub async fn stop(&self) -> Result<()> {
+        self.ack("STOP", "STOP()".into()).await
+    }
+
+    /// `FASTSTOP()`: stops at once and enters FAST STOP; motions are refused until
+    /// [`Client::ack_fast_stop`].
+    pub async fn fast_stop(&self) -> Result<()> {
+        self.ack("FASTSTOP", "FASTSTOP()".into()).await
+    }
+
+    /// `FSACK()`: acknowledges FAST STOP; answered `ACK FSACK` also with none pending (§3.7).
+    pub async fn ack_fast_stop(&self) -> Result<()> {
+        self.ack("FSACK", "FSACK()".into()).await
+    }
+
+    /// `BYE()`: announces the disconnect, so closing does not raise FAST STOP; waits for
+    /// `ACK BYE`, then closes the connection. Calls made afterwards, on any clone, fail.
+    pub async fn close(&self) -> Result<()> {
+        self.ack("BYE", "BYE()".into()).await
+    }
+
+    /// `VERBOSE=0|1`: whether `ERR` lines carry a text besides the code (per connection, our
+    /// reading). Returns the mode the gripper reports back.
+    pub async fn set_verbose(&self, on: bool) -> Result<bool> {
+        let line = format!("VERBOSE={}", u8::from(on));
+        Ok(self.number("VERBOSE", line).await? != 0.0)
+    }
+
+    /// `PWT?`: the part width tolerance of this connection's grips, mm.
+    pub async fn part_width_tolerance_mm(&self) -> Result<f64> {
+        self.number("PWT", "PWT?".into()).await
+    }
+
+    /// `PWT=x`: sets the part width tolerance for this connection's grips (reset when the
+    /// connection closes, manual chapter 2); returns the value the gripper reports back.
+    pub async fn set_part_width_tolerance_mm(&self, mm: f64) -> Result<f64> {
+        let line = encode_set("PWT", "part width tolerance", mm)?;
+        self.number("PWT", line).await
+    }
+
+    /// `CLT?`: the clamping travel of this connection's grips, mm.
+    pub async fn clamping_travel_mm(&self) -> Result<f64> {
+        self.number("CLT", "CLT?".into()).await
+    }
+
+    /// `CLT=x`: sets the clamping travel for this connection's grips (reset when the
+    /// connection closes); returns the value the gripper reports back.
+    pub async fn set_clamping_travel_mm(&self, mm: f64) -> Result<f64> {
+        let line = encode_set("CLT", "clamping travel", mm)?;
+        self.number("CLT", line).await
+    }
+
+    /// `POS?`: the opening width, mm. Answered during motion too.
+    pub async fn position_mm(&self) -> Result<f64> {
+        self.number("POS", "POS?".into()).await
+    }
+
+    /// `SPEED?`: the finger speed, mm/s.
+    pub async fn speed_mm_per_s(&self) -> Result<f64> {
+        self.number("SPEED", "SPEED?".into()).await
+    }
+
+    /// `FORCE?`: the grip force, N.
+    pub async fn force_n(&self) -> Result<f64> {
+        self.number("FORCE", "FORCE?".into()).await
+    }
+
+    /// `TEMP?`: the temperature, °C (chapter 3, not in our text: the form `TEMP=<float>` is
+    /// our reading, shared note §3.9).
+    pub async fn temperature_c(&self) -> Result<f64> {
+        self.number("TEMP", "TEMP?".into()).await
+    }
+
+    /// `GRIPSTATE?`: the grip state (numbering: shared note §4.4, the binary Anhang C).
+    pub async fn grip_state(&self) -> Result<GripState> {
+        let v = self.number("GRIPSTATE", "GRIPSTATE?".into()).await?;
+        if v.fract() == 0.0 && (0.0..=255.0).contains(&v) {
+            Ok(GripState::from_u8(v as u8))
+        } else {
+            Err(Error::MalformedReply {
+                command: "GRIPSTATE?".into(),
+                line: format!("GRIPSTATE={v}"),
+                reason: "not a whole number 0–255".into(),
+            })
+        }
+    }
+
+    /// Every push from now on (`@NAME=value`), whatever `AUTOSEND` switched it on.
+    pub fn pushes(&self) -> Pushes {
+        self.subscribe(None)
+    }
+
+    fn subscribe(&self, filter: Option<Quantity>) -> Pushes {
+        let (pushes, subscriber) = Pushes::new(filter, self.config.push_buffer);
+        if let Ok(mut subs) = self.shared.subscribers.lock() {
+            if !self.is_closed() {
+                subs.push(subscriber);
+            }
+        }
+        pushes
+    }
+
+    /// `AUTOSEND("NAME",ms)` or `AUTOSEND("NAME",ms,true)`: asks the gripper to push
+    /// `quantity` every `interval_ms` (or, with `only_on_change`, when it changes), and
+    /// returns the stream of those pushes, subscribed before the command went out. Resolves on
+    /// `ACK AUTOSEND`. AUTOSEND is in chapter 3, which we do not have: the quoted name and the
+    /// pushes' form are pinned by a hardware-run driver; the interval in ms, the flag and the
+    /// `ACK` are our reading (shared note §3.10).
+    pub async fn autosend(
+        &self,
+        quantity: Quantity,
+        interval_ms: u16,
+        only_on_change: bool,
+    ) -> Result<Pushes> {
+        let pushes = self.subscribe(Some(quantity));
+        let flag = if only_on_change { ",true" } else { "" };
+        let line = format!("AUTOSEND(\"{}\",{interval_ms}{flag})", quantity.name());
+        self.ack("AUTOSEND", line).await?;
+        Ok(pushes)
+    }
+
+    /// `AUTOSEND("NAME",0)`: stops pushing `quantity` (interval 0 = off is our reading).
+    pub async fn stop_autosend(&self, quantity: Quantity) -> Result<()> {
+        let line = format!("AUTOSEND(\"{}\",0)", quantity.name());
+        self.ack("AUTOSEND", line).await
+    }
+}

@@ -1,0 +1,269 @@
+//! Pure encoding of GCL command lines and parsing of reply lines: no I/O.
+//!
+//! Reply forms (shared note `WSG-TEXT-INTERFACE.md` §3, §4): `ACK <NAME>`, `FIN <NAME>`,
+//! `ERR <NAME> <code>[ <text>]`, `<NAME>=<value>` and the pushes `@<NAME>=<value>`. `<NAME>` is
+//! the bare command name, upper case, without arguments (pinned by a hardware-run client that
+//! compares it with the command it sent, §3).
+
+use std::fmt::Write as _;
+
+/// The longest line the client sends or accepts by default, in bytes without the LF. The manual
+/// text we have gives no limit (§6.1 item 7); public clients read with buffers of 20 to 4096
+/// bytes, and the simulator refuses command lines over 256 bytes (§6.2).
+pub const DEFAULT_MAX_LINE_LEN: usize = 256;
+
+/// One reply line, borrowed from the received text.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ReplyLine<'a> {
+    /// `ACK <NAME>`: the command was accepted (a motion then runs until its `FIN` or `ERR`).
+    Ack(&'a str),
+    /// `FIN <NAME>`: a motion command is done.
+    Fin(&'a str),
+    /// `ERR …`: the command failed or was refused.
+    Err {
+        /// The command's name (second token), when the line has one. Three public clients
+        /// rely on it being there (§4.3); a line without it cannot be paired.
+        name: Option<&'a str>,
+        /// The numeral code, when the line has one (the WSG binary table is our reading,
+        /// §4.3).
+        code: Option<u16>,
+        /// What follows the code (a description in verbose mode, §4.2), possibly empty.
+        text: &'a str,
+    },
+    /// `<NAME>=<value>`: the answer to a query `NAME?` or a setter `NAME=v`.
+    Value {
+        /// The name before `=`.
+        name: &'a str,
+        /// The text after `=`.
+        value: &'a str,
+    },
+    /// `@<NAME>=<value>`: a value pushed by `AUTOSEND` (§3.10).
+    Push {
+        /// The name between `@` and `=`.
+        name: &'a str,
+        /// The text after `=`.
+        value: &'a str,
+    },
+}
+
+/// Why a reply line is not GCL.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Malformed {
+    /// The line is empty.
+    Empty,
+    /// `ACK`/`FIN` without a command name.
+    MissingName,
+    /// A name with characters other than `A–Z`, `a–z`, `0–9`, `_`, `[`, `]`.
+    BadName,
+    /// None of the reply forms.
+    Unknown,
+}
+
+impl std::fmt::Display for Malformed {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Malformed::Empty => "empty line",
+            Malformed::MissingName => "ACK or FIN without a command name",
+            Malformed::BadName => "invalid command name",
+            Malformed::Unknown => "not a GCL reply",
+        })
+    }
+}
+
+fn is_name(s: &str) -> bool {
+    !s.is_empty()
+        && s.bytes()
+            .all(|b| b.is_ascii_alphanumeric() || matches!(b, b'_' | b'[' | b']'))
+}
+
+fn name(s: &str) -> Result<&str, Malformed> {
+    match s {
+        "" => Err(Malformed::MissingName),
+        s if is_name(s) => Ok(s),
+        _ => Err(Malformed::BadName),
+    }
+}
+
+/// Parses one reply line (without its LF; a trailing CR and surrounding spaces are ignored).
+/// Never panics, whatever the input (fuzzed: `fuzz/fuzz_targets/wsg_text_reply.rs`).
+pub fn parse_reply(line: &str) -> Result<ReplyLine<'_>, Malformed> {
+    let line = line.trim_matches(|c: char| c == ' ' || c == '\r' || c == '\t');
+    if line.is_empty() {
+        return Err(Malformed::Empty);
+    }
+    if let Some(rest) = line.strip_prefix('@') {
+        let (n, value) = rest.split_once('=').ok_or(Malformed::Unknown)?;
+        return Ok(ReplyLine::Push {
+            name: name(n.trim())?,
+            value: value.trim(),
+        });
+    }
+    let mut words = line.splitn(2, ' ');
+    let first = words.next().unwrap_or_default();
+    let rest = words.next().unwrap_or_default().trim_start();
+    // The manual's replies are upper case (§2); a lower-case keyword reads the same.
+    let is = |keyword: &str| first.eq_ignore_ascii_case(keyword);
+    if is("ACK") {
+        Ok(ReplyLine::Ack(name(rest)?))
+    } else if is("FIN") {
+        Ok(ReplyLine::Fin(name(rest)?))
+    } else if is("ERR") {
+        Ok(parse_err(rest))
+    } else {
+        let (n, value) = line.split_once('=').ok_or(Malformed::Unknown)?;
+        Ok(ReplyLine::Value {
+            name: name(n.trim())?,
+            value: value.trim(),
+        })
+    }
+}
+
+/// The tokens after `ERR`: `<NAME> <code> <text>`, or (not seen, but GRIPLINK's form, §4.3)
+/// `<code> <text>` without a name.
+fn parse_err(rest: &str) -> ReplyLine<'_> {
+    let mut tokens = rest.splitn(2, ' ');
+    let first = tokens.next().unwrap_or_default();
+    let after = tokens.next().unwrap_or_default().trim_start();
+    let code = |t: &str| -> Option<u16> {
+        (!t.is_empty() && t.bytes().all(|b| b.is_ascii_digit()))
+            .then(|| t.parse().ok())
+            .flatten()
+    };
+    if let Some(c) = code(first) {
+        return ReplyLine::Err {
+            name: None,
+            code: Some(c),
+            text: after,
+        };
+    }
+    let name = is_name(first).then_some(first);
+    let mut tokens = after.splitn(2, ' ');
+    let second = tokens.next().unwrap_or_default();
+    match code(second) {
+        Some(c) => ReplyLine::Err {
+            name,
+            code: Some(c),
+            text: tokens.next().unwrap_or_default().trim_start(),
+        },
+        None => ReplyLine::Err {
+            name,
+            code: None,
+            text: after,
+        },
+    }
+}
+
+/// Parses a reply value as a finite number (the manual's examples: `POS=20.0`, §3.9).
+pub fn parse_number(value: &str) -> Option<f64> {
+    // `f64::from_str` also takes `inf` and `NaN`: no gripper value.
+    value.parse::<f64>().ok().filter(|v| v.is_finite())
+}
+
+/// Why an argument cannot be sent.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct BadArgument {
+    /// Which argument.
+    pub what: &'static str,
+    /// Why.
+    pub reason: String,
+}
+
+/// Appends `NAME(a, b, …)` for finite numbers, written without exponent (Rust's `Display` of
+/// `f64` never uses one; S6's regex `[-+]?\d*\.?\d+` would break on it, §2).
+pub fn encode_call(name: &str, args: &[(&'static str, f64)]) -> Result<String, BadArgument> {
+    let mut line = String::with_capacity(name.len() + 2 + args.len() * 8);
+    line.push_str(name);
+    line.push('(');
+    for (i, (what, v)) in args.iter().enumerate() {
+        if !v.is_finite() {
+            return Err(BadArgument {
+                what,
+                reason: format!("{v} is not a finite number"),
+            });
+        }
+        if i > 0 {
+            line.push(',');
+        }
+        let _ = write!(line, "{v}");
+    }
+    line.push(')');
+    Ok(line)
+}
+
+/// `NAME=v` for a finite number.
+pub fn encode_set(name: &str, what: &'static str, v: f64) -> Result<String, BadArgument> {
+    if !v.is_finite() {
+        return Err(BadArgument {
+            what,
+            reason: format!("{v} is not a finite number"),
+        });
+    }
+    Ok(format!("{name}={v}"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_reply_forms() {
+        assert_eq!(parse_reply("ACK MOVE"), Ok(ReplyLine::Ack("MOVE")));
+        assert_eq!(parse_reply("FIN HOME\r"), Ok(ReplyLine::Fin("HOME")));
+        assert_eq!(
+            parse_reply("POS=20.0"),
+            Ok(ReplyLine::Value {
+                name: "POS",
+                value: "20.0"
+            })
+        );
+        assert_eq!(
+            parse_reply("@GRIPSTATE=4"),
+            Ok(ReplyLine::Push {
+                name: "GRIPSTATE",
+                value: "4"
+            })
+        );
+        assert_eq!(
+            parse_reply("ERR GRIP 18 E_CMD_FAILED"),
+            Ok(ReplyLine::Err {
+                name: Some("GRIP"),
+                code: Some(18),
+                text: "E_CMD_FAILED"
+            })
+        );
+        assert_eq!(
+            parse_reply("ERR 04"),
+            Ok(ReplyLine::Err {
+                name: None,
+                code: Some(4),
+                text: ""
+            })
+        );
+        assert_eq!(
+            parse_reply("ERR MOVE"),
+            Ok(ReplyLine::Err {
+                name: Some("MOVE"),
+                code: None,
+                text: ""
+            })
+        );
+        assert_eq!(parse_reply("ACK"), Err(Malformed::MissingName));
+        assert_eq!(parse_reply("ACK MO VE"), Err(Malformed::BadName));
+        assert_eq!(parse_reply("hello"), Err(Malformed::Unknown));
+        assert_eq!(parse_reply("  "), Err(Malformed::Empty));
+    }
+
+    #[test]
+    fn numbers_are_finite_and_written_without_exponent() {
+        assert_eq!(parse_number("20.0"), Some(20.0));
+        assert_eq!(parse_number("nan"), None);
+        assert_eq!(parse_number("inf"), None);
+        assert_eq!(
+            encode_call("MOVE", &[("position", 1e-7), ("speed", 1e21)]).unwrap(),
+            "MOVE(0.0000001,1000000000000000000000)"
+        );
+        assert!(encode_call("MOVE", &[("position", f64::NAN)]).is_err());
+        assert_eq!(encode_call("HOME", &[]).unwrap(), "HOME()");
+        assert_eq!(encode_set("PWT", "pwt", 2.5).unwrap(), "PWT=2.5");
+    }
+}

@@ -1,0 +1,108 @@
+//! The WSG's text interface, GCL ("Gripper Control Language"): the ASCII command set a WSG
+//! speaks on its TCP port instead of the binary protocol when "Use text based interface" is set
+//! in its web interface (Settings → Command Interface).
+//!
+//! ```text
+//! → FSACK()            ← ACK FSACK
+//! → HOME()             ← ACK HOME   … ← FIN HOME
+//! → POS?               ← POS=110.0
+//! → GRIP(40,20,50)     ← ACK GRIP   … ← FIN GRIP      (or ← ERR GRIP 18)
+//! → AUTOSEND("POS",50) ← ACK AUTOSEND, then ← @POS=20.0 every 50 ms
+//! → BYE()              ← ACK BYE
+//! ```
+//!
+//! Layers: [`line`](mod@line) encodes commands and parses replies (pure, fuzzed); [`Client`] is the async
+//! client (a task owns the connection, the handle is `Clone`, every call has a timeout);
+//! [`Pushes`] streams `AUTOSEND` values. The simulator serves GCL from the same device model as
+//! the binary one: [`SimConfig::text`](crate::wsg::sim::SimConfig::text).
+//!
+//! # Where each rule comes from
+//!
+//! Weiss's GCL manual is not among our specs; we have its chapter 2 ("Basic Command Set") and
+//! the code of public drivers (the repository's research note `WSG-TEXT-INTERFACE.md`, whose
+//! section numbers are cited as §). Every rule this module relies on is one of three kinds:
+//!
+//! **Pinned by the manual's chapter 2:**
+//! - the commands `VERBOSE=n`, `BYE()`, `HOME()`/`HOME(0|1)`, `MOVE(p[,v])`, `GRIP([f[,w[,v]]])`,
+//!   `RELEASE([d[,v]])`, `PWT`/`CLT` (`?` and `=`), `POS?`, `SPEED?`, `FORCE?`, `GRIPSTATE?`, and
+//!   their replies `ACK <NAME>` / `FIN <NAME>` / `NAME=value`;
+//! - `HOME(1)` is positive, `HOME(0)` negative (the binary protocol numbers 1/2);
+//! - `RELEASE` opens **by a pull-back distance**, relative to where the fingers are (the binary
+//!   protocol's release takes an absolute width); it is allowed only after a grip;
+//! - a grip with a part width that finds no part fails with E_CMD_FAILED, a collision before
+//!   the tolerance zone with E_AXIS_BLOCKED; `GRIP()`/`GRIP(f)` always end HOLDING;
+//! - PWT and CLT last for the connection only;
+//! - a close without `BYE()` raises FAST STOP, which blocks motion;
+//! - `GRIPSTATE=4` is HOLDING.
+//!
+//! **Pinned by clients that ran on real grippers:**
+//! - replies end in LF only, one reply per line; the name in `ACK`/`FIN`/`ERR` is the bare
+//!   upper-case command name (§2, §3);
+//! - `ERR` lines carry the command name as second token (§4.3, inferred from a client's use);
+//! - `STOP()`, `FASTSTOP()` and `FSACK()` exist; `STOP()` and `FSACK()` answer with an `ACK`
+//!   only, `FSACK()` also with no FAST STOP pending; STOP returns the grip state to IDLE (§3.7);
+//! - the gripper reads and answers queries, STOP and FASTSTOP while a motion runs (§3.7): this
+//!   client pairs replies by name, so a query resolves while a `MOVE` waits for its `FIN`;
+//! - `MOVE` works while a part is held (§3.4);
+//! - pushes read `@NAME=value`, and `AUTOSEND("POS",50)` is the command's form (§3.10).
+//!
+//! **Our reading (a guess where no source says; documented as such):**
+//! - the numeral code in `ERR` lines uses the WSG binary table ([`Status`](crate::wsg::Status));
+//!   [`Error::Device`] keeps the raw line beside it (§4.3, §6.1);
+//! - the `AUTOSEND` interval is in ms, its third argument means "only on change", it answers
+//!   `ACK AUTOSEND`, and an interval of 0 stops it (§3.10);
+//! - `TEMP?` answers `TEMP=<°C>` (§3.9);
+//! - what a second motion does while one runs (the simulator refuses it, `ERR MOVE 4`, §6.2);
+//! - the line length limit (this client: [`ClientConfig::max_line_len`], 256 bytes).
+//!
+//! # Pairing, timeouts, cancellation
+//!
+//! Replies carry no id, only the command's name: one command of each name is on the wire at a
+//! time, and a second call with that name waits in the client until the first is answered.
+//! Queries use [`ClientConfig::query_timeout`], motions [`ClientConfig::motion_timeout`] up to
+//! their `FIN` or `ERR`. A call that times out or whose future is dropped after its line was
+//! sent keeps its name busy until the reply comes, which is then consumed and handed to nobody;
+//! a command still queued when its caller leaves is never sent. A reply that stays away
+//! [`ClientConfig::give_up_after`] past its call's timeout ends the connection
+//! ([`Error::ConnectionLost`]): a later line with that name could no longer be paired with
+//! confidence. An `ERR` line without a command name, or a line that is not GCL, is logged and
+//! dropped (its caller times out) rather than failing a caller it may not belong to.
+//!
+//! # Memory bounds
+//! Reply lines longer than [`ClientConfig::max_line_len`] are skipped to their LF without being
+//! buffered; calls wait in a channel of [`ClientConfig::queue_len`] and at most as many again
+//! behind a busy name; each [`Pushes`] stream buffers [`ClientConfig::push_buffer`] values and
+//! counts the ones it drops ([`Pushes::missed`]).
+//!
+//! # Example
+//! ```
+//! # #[cfg(feature = "sim")]
+//! # #[tokio::main(flavor = "current_thread")]
+//! # async fn main() -> Result<(), Box<dyn std::error::Error>> {
+//! use gripper::wsg::{sim, text, GripState, HomingDirection};
+//!
+//! let config = sim::SimConfig::new(sim::Model::Wsg50).with_part(40.0, 2.0).text();
+//! let simulator = sim::SimServer::bind("127.0.0.1:0", config).await?;
+//! let gripper = text::Client::connect(simulator.local_addr().expect("TCP")).await?;
+//! gripper.ack_fast_stop().await?;
+//! gripper.home(HomingDirection::Default).await?;
+//! gripper.grip_part(40.0, 40.0, Some(50.0)).await?;
+//! assert_eq!(gripper.grip_state().await?, GripState::Holding);
+//! gripper.release(Some(10.0), None).await?; // opens BY 10 mm
+//! assert_eq!(gripper.position_mm().await?, 50.0);
+//! gripper.close().await?; // BYE(): no FAST STOP
+//! # Ok(())
+//! # }
+//! # #[cfg(not(feature = "sim"))]
+//! # fn main() {}
+//! ```
+
+mod client;
+mod error;
+pub mod line;
+mod push;
+mod task;
+
+pub use client::{Client, ClientConfig};
+pub use error::{Error, Result};
+pub use push::{Push, Pushes, Quantity};

@@ -1,0 +1,392 @@
+//! The background task that owns a GCL connection: it writes command lines and pairs each reply
+//! with its command **by name** (`ACK MOVE`, `FIN MOVE`, `ERR MOVE 4`, `POS=…`), so queries
+//! answered at once run alongside a motion whose `FIN` comes later (the gripper reads and
+//! answers during motion, shared note §3.7).
+//!
+//! One command of each name is on the wire at a time; a second one waits in the task until the
+//! first is answered. A reply carries nothing but the name, so two `MOVE`s on the wire could not
+//! be told apart: the `ERR MOVE 4` refusing the second (binary E_ALREADY_RUNNING, our reading
+//! §6.2) would end whichever call came first.
+
+use std::collections::{HashMap, VecDeque};
+use std::future::poll_fn;
+use std::pin::Pin;
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use bytes::BytesMut;
+use futures_core::Stream;
+use tokio::io::AsyncWriteExt;
+use tokio::net::tcp::{OwnedReadHalf, OwnedWriteHalf};
+use tokio::net::TcpStream;
+use tokio::sync::{mpsc, oneshot};
+use tokio::time::Instant;
+use tokio_util::codec::FramedRead;
+
+use super::error::Error;
+use super::line::{parse_number, parse_reply, ReplyLine};
+use super::push::{Push, PushSubscriber, Quantity};
+use crate::deadline::{move_timer, write_all_by};
+use crate::griplink::codec::{LineCodec, RawLine, RawLineCodec};
+use crate::wsg::Status;
+
+/// What a command's call waits for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Expect {
+    /// `NAME=value` (queries and setters).
+    Value,
+    /// `ACK NAME` (STOP, FASTSTOP, FSACK, BYE, AUTOSEND).
+    Ack,
+    /// `ACK NAME`, then `FIN NAME` (HOME, MOVE, GRIP, RELEASE).
+    Fin,
+}
+
+/// What a call gets back.
+#[derive(Debug)]
+pub(crate) enum Answer {
+    /// The value text of `NAME=value`.
+    Value(String),
+    /// `ACK` (or `FIN` for a motion).
+    Done,
+}
+
+pub(crate) type Waiter = oneshot::Sender<Result<Answer, Error>>;
+
+/// A caller's command, on its way to the task.
+#[derive(Debug)]
+pub(crate) struct Request {
+    /// The name replies carry (upper case, no arguments).
+    pub name: &'static str,
+    pub line: String,
+    pub expect: Expect,
+    /// The caller stops waiting here; a request not yet sent then is never sent.
+    pub deadline: Instant,
+    pub timeout: Duration,
+    pub waiter: Waiter,
+}
+
+/// A command on the wire.
+#[derive(Debug)]
+struct Slot {
+    line: String,
+    expect: Expect,
+    waiter: Waiter,
+    /// Past this the reply is so late that nothing can be paired with confidence any more.
+    give_up_at: Instant,
+}
+
+/// What the handles and the task share.
+#[derive(Debug, Default)]
+pub(crate) struct Shared {
+    failure: Mutex<Option<Error>>,
+    pub(crate) subscribers: Mutex<Vec<PushSubscriber>>,
+}
+
+impl Shared {
+    /// Why the connection is gone ([`Error::Closed`] if no reason was recorded).
+    pub(crate) fn failure(&self) -> Error {
+        self.failure
+            .lock()
+            .ok()
+            .and_then(|f| f.clone())
+            .unwrap_or(Error::Closed)
+    }
+
+    fn record(&self, error: &Error) {
+        if let Ok(mut f) = self.failure.lock() {
+            f.get_or_insert_with(|| error.clone());
+        }
+    }
+
+    fn deliver(&self, push: Push) {
+        if let Ok(mut subs) = self.subscribers.lock() {
+            subs.retain(|s| s.deliver(push));
+        }
+    }
+}
+
+/// Task settings.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct TaskConfig {
+    pub give_up_after: Duration,
+    pub max_line_len: usize,
+    /// Requests held while a command of their name is on the wire, at most.
+    pub waiting_len: usize,
+}
+
+/// `now + d`, or a far future where that overflows (`Duration::MAX` must not panic).
+pub(crate) fn after(from: Instant, d: Duration) -> Instant {
+    from.checked_add(d)
+        .or_else(|| from.checked_add(Duration::from_secs(86_400 * 365 * 30)))
+        .unwrap_or(from)
+}
+
+struct Conn {
+    reader: FramedRead<OwnedReadHalf, RawLineCodec>,
+    writer: OwnedWriteHalf,
+    out: BytesMut,
+}
+
+impl Conn {
+    async fn send(&mut self, line: &str, limit: Instant) -> Result<(), Error> {
+        self.out.clear();
+        self.out.extend_from_slice(line.as_bytes());
+        self.out.extend_from_slice(b"\n");
+        match write_all_by(&mut self.writer, &self.out, || limit).await {
+            Ok(Ok(())) => Ok(()),
+            Ok(Err(e)) => Err(io_error(e)),
+            Err(_) => Err(Error::ConnectionLost(
+                "the gripper stopped reading commands".into(),
+            )),
+        }
+    }
+}
+
+fn io_error(e: std::io::Error) -> Error {
+    use std::io::ErrorKind::{BrokenPipe, ConnectionAborted, ConnectionReset, UnexpectedEof};
+    match e.kind() {
+        UnexpectedEof | ConnectionReset | ConnectionAborted | BrokenPipe => {
+            Error::ConnectionLost(format!("the gripper closed the connection: {e}"))
+        }
+        _ => Error::from(e),
+    }
+}
+
+async fn next_line(
+    reader: &mut FramedRead<OwnedReadHalf, RawLineCodec>,
+) -> Option<std::io::Result<RawLine>> {
+    poll_fn(|cx| Pin::new(&mut *reader).poll_next(cx)).await
+}
+
+/// The commands on the wire (one per name) and the requests waiting for their name.
+struct Book {
+    on_wire: HashMap<&'static str, Slot>,
+    waiting: VecDeque<Request>,
+}
+
+impl Book {
+    /// The earliest give-up time of the commands on the wire.
+    fn give_up_at(&self) -> Option<Instant> {
+        self.on_wire.values().map(|s| s.give_up_at).min()
+    }
+
+    fn finish(&mut self, name: &str, result: Result<Answer, Error>) {
+        if let Some(slot) = self.on_wire.remove(name) {
+            // A caller that left (timeout, dropped future) no longer listens: its reply is
+            // consumed here and goes to nobody else.
+            let _ = slot.waiter.send(result);
+        }
+    }
+
+    /// The next waiting request of `name` that still has a caller and time, if any.
+    fn next_waiting(&mut self, name: &str) -> Option<Request> {
+        loop {
+            let i = self.waiting.iter().position(|r| r.name == name)?;
+            let request = self.waiting.remove(i)?;
+            if let Some(request) = usable(request) {
+                return Some(request);
+            }
+        }
+    }
+
+    /// Handles one reply line.
+    fn on_line(&mut self, text: &str, shared: &Shared) -> Handled {
+        let reply = match parse_reply(text) {
+            Ok(reply) => reply,
+            Err(why) => {
+                tracing::warn!(line = text, %why, "wsg text: reply that is not GCL, dropped");
+                return Handled::Nothing;
+            }
+        };
+        let name = match reply {
+            ReplyLine::Push { name, value } => {
+                match (Quantity::from_name(name), parse_number(value)) {
+                    (Some(quantity), Some(value)) => shared.deliver(Push { quantity, value }),
+                    _ => tracing::debug!(line = text, "wsg text: push not understood, dropped"),
+                }
+                return Handled::Nothing;
+            }
+            ReplyLine::Ack(n) | ReplyLine::Fin(n) | ReplyLine::Value { name: n, .. } => n,
+            ReplyLine::Err { name: Some(n), .. } => n,
+            ReplyLine::Err { name: None, .. } => {
+                // No name: it cannot be paired with confidence (§4.3). The caller it was meant
+                // for times out rather than a wrong caller failing.
+                tracing::warn!(line = text, "wsg text: ERR without a command name, dropped");
+                return Handled::Nothing;
+            }
+        };
+        // Names are compared upper-cased: the manual's replies are upper case (§2), a
+        // lower-case one is still the same command.
+        let Some((&key, slot)) = self
+            .on_wire
+            .iter()
+            .find(|(k, _)| k.eq_ignore_ascii_case(name))
+        else {
+            tracing::debug!(
+                line = text,
+                "wsg text: reply for no command on the wire, dropped"
+            );
+            return Handled::Nothing;
+        };
+        let result = match (reply, slot.expect) {
+            (ReplyLine::Err { code, .. }, _) => Err(Error::Device {
+                command: slot.line.clone(),
+                status: code.map(Status::from_code),
+                line: text.to_owned(),
+            }),
+            (ReplyLine::Ack(_), Expect::Ack) | (ReplyLine::Fin(_), Expect::Fin) => Ok(Answer::Done),
+            // The motion was accepted; its FIN or ERR follows.
+            (ReplyLine::Ack(_), Expect::Fin) => return Handled::Nothing,
+            (ReplyLine::Value { value, .. }, Expect::Value) => Ok(Answer::Value(value.to_owned())),
+            _ => Err(Error::UnexpectedReply {
+                command: slot.line.clone(),
+                line: text.to_owned(),
+            }),
+        };
+        let bye = key == "BYE" && result.is_ok();
+        self.finish(key, result);
+        if bye {
+            Handled::Bye
+        } else {
+            Handled::Freed(key)
+        }
+    }
+}
+
+/// What one reply line did.
+enum Handled {
+    /// Nothing a caller waits for (an `ACK` of a motion, a push, a line for nobody).
+    Nothing,
+    /// Answered the command of this name: the name is free.
+    Freed(&'static str),
+    /// `ACK BYE`: the session is over.
+    Bye,
+}
+
+/// The request, unless its caller left or its time ran out (then it is answered and dropped:
+/// a command nobody waits for must not move the fingers later).
+fn usable(request: Request) -> Option<Request> {
+    if request.waiter.is_closed() {
+        tracing::debug!(command = %request.line, "wsg text: caller gone before sending, dropped");
+        return None;
+    }
+    if Instant::now() >= request.deadline {
+        let _ = request.waiter.send(Err(Error::Timeout {
+            command: request.line,
+            timeout: request.timeout,
+        }));
+        return None;
+    }
+    Some(request)
+}
+
+/// Runs one connection until every handle is dropped, `BYE()` is acknowledged, or it is lost.
+pub(crate) async fn run(
+    stream: TcpStream,
+    mut requests: mpsc::Receiver<Request>,
+    config: TaskConfig,
+    shared: Arc<Shared>,
+) {
+    let (read, write) = stream.into_split();
+    let codec = RawLineCodec(LineCodec::new(config.max_line_len).reject_unterminated());
+    let mut conn = Conn {
+        reader: FramedRead::new(read, codec),
+        writer: write,
+        out: BytesMut::new(),
+    };
+    let mut book = Book {
+        on_wire: HashMap::new(),
+        waiting: VecDeque::new(),
+    };
+    let timer = tokio::time::sleep_until(Instant::now());
+    tokio::pin!(timer);
+    // A request whose line could not be written: told why at the end.
+    let mut unsent = None;
+    // `BYE()` is on the wire: nothing more is sent.
+    let mut closing = false;
+    let end = 'serve: loop {
+        let give_up = book.give_up_at();
+        if let Some(at) = give_up {
+            move_timer(timer.as_mut(), at);
+        }
+        let mut to_send: Option<Request> = None;
+        tokio::select! {
+            // Replies first: they free names and callers.
+            biased;
+            line = next_line(&mut conn.reader) => match line {
+                Some(Ok(line)) => match line.text() {
+                    Ok(text) => match book.on_line(text, &shared) {
+                        Handled::Bye => break Error::Closed,
+                        // A name freed: its next waiting request goes out.
+                        Handled::Freed(name) => to_send = book.next_waiting(name),
+                        Handled::Nothing => {}
+                    },
+                    Err(why) => tracing::warn!(%why, "wsg text: reply line discarded"),
+                },
+                Some(Err(e)) => break io_error(e),
+                None => break Error::ConnectionLost("the gripper closed the connection".into()),
+            },
+            () = &mut timer, if give_up.is_some() => {
+                let command = book
+                    .on_wire
+                    .values()
+                    .min_by_key(|s| s.give_up_at)
+                    .map(|s| s.line.clone())
+                    .unwrap_or_default();
+                tracing::error!(%command, "wsg text: reply overdue, giving up on the connection");
+                break Error::ConnectionLost(format!(
+                    "no reply to {command} long after its timeout; replies can no longer be paired"
+                ));
+            },
+            request = requests.recv(), if !closing && book.waiting.len() < config.waiting_len => {
+                let Some(request) = request else { break Error::Closed };
+                let Some(request) = usable(request) else { continue };
+                if book.on_wire.contains_key(request.name) {
+                    // Drop the waiting requests nobody waits for any more first, so the queue
+                    // holds at most one request per live caller.
+                    book.waiting.retain(|r| !r.waiter.is_closed());
+                    book.waiting.push_back(request);
+                } else {
+                    to_send = Some(request);
+                }
+            }
+        }
+        if let Some(request) = to_send {
+            let give_up_at = after(request.deadline, config.give_up_after);
+            if let Err(e) = conn.send(&request.line, give_up_at).await {
+                unsent = Some(request.waiter);
+                break 'serve e;
+            }
+            tracing::trace!(command = %request.line, "wsg text: sent");
+            closing |= request.name == "BYE";
+            book.on_wire.insert(
+                request.name,
+                Slot {
+                    line: request.line,
+                    expect: request.expect,
+                    waiter: request.waiter,
+                    give_up_at,
+                },
+            );
+        }
+    };
+    shared.record(&end);
+    requests.close();
+    if let Some(waiter) = unsent {
+        let _ = waiter.send(Err(end.clone()));
+    }
+    for (_, slot) in book.on_wire.drain() {
+        let _ = slot.waiter.send(Err(end.clone()));
+    }
+    for request in book.waiting.drain(..) {
+        let _ = request.waiter.send(Err(end.clone()));
+    }
+    while let Ok(request) = requests.try_recv() {
+        let _ = request.waiter.send(Err(end.clone()));
+    }
+    if let Ok(mut subs) = shared.subscribers.lock() {
+        // Ends every push stream.
+        subs.clear();
+    }
+    let _ = conn.writer.shutdown().await;
+}

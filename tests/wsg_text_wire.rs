@@ -1,0 +1,298 @@
+//! The GCL client on a hostile wire: a scripted fake gripper that answers out of order, sends
+//! lines for nobody, malformed, over-long and cut-off lines; the real text simulator behind the
+//! fault proxy (split, merged, duplicated, dropped and corrupted lines, a pulled cable); and a
+//! property test of the reply parser. The rule in every case: the right answer or a typed
+//! error, never another command's answer, never a hang past the call's timeout.
+#![cfg(feature = "sim")]
+
+use std::future::Future;
+use std::time::Duration;
+
+use gripper::fault::{Fault, FaultProxy, Framing, ProxyConfig};
+use gripper::wsg::sim::{Model, SimConfig, SimServer};
+use gripper::wsg::text::line::{parse_reply, ReplyLine};
+use gripper::wsg::text::{Client, ClientConfig, Error};
+use gripper::wsg::{HomingDirection, Status};
+use proptest::prelude::*;
+use tokio::io::{AsyncBufReadExt, AsyncWriteExt, BufReader};
+use tokio::net::tcp::OwnedWriteHalf;
+use tokio::net::TcpListener;
+
+const LIMIT: Duration = Duration::from_secs(20);
+
+async fn within<F: Future>(what: &str, future: F) -> F::Output {
+    tokio::time::timeout(LIMIT, future)
+        .await
+        .unwrap_or_else(|_| panic!("hung: {what}"))
+}
+
+/// A fake gripper: the test reads the client's lines and writes whatever it likes.
+struct Fake {
+    lines: tokio::io::Lines<BufReader<tokio::net::tcp::OwnedReadHalf>>,
+    write: OwnedWriteHalf,
+}
+
+impl Fake {
+    async fn pair(config: ClientConfig) -> (Client, Fake) {
+        let listener = TcpListener::bind("127.0.0.1:0").await.unwrap();
+        let addr = listener.local_addr().unwrap();
+        let (client, accepted) =
+            tokio::join!(Client::connect_with(addr, config), listener.accept());
+        let (read, write) = accepted.unwrap().0.into_split();
+        let fake = Fake {
+            lines: BufReader::new(read).lines(),
+            write,
+        };
+        (client.unwrap(), fake)
+    }
+
+    async fn read(&mut self) -> String {
+        within("a command line", self.lines.next_line())
+            .await
+            .unwrap()
+            .expect("the client closed")
+    }
+
+    async fn say(&mut self, bytes: &str) {
+        self.write.write_all(bytes.as_bytes()).await.unwrap();
+    }
+}
+
+/// Runs `call` on a clone of `g` in a task of its own.
+fn spawn<T, F>(g: &Client, call: impl FnOnce(Client) -> F) -> tokio::task::JoinHandle<T>
+where
+    F: Future<Output = T> + Send + 'static,
+    T: Send + 'static,
+{
+    tokio::spawn(call(g.clone()))
+}
+
+#[tokio::test]
+async fn replies_are_paired_by_name_whatever_their_order() {
+    let (g, mut fake) = Fake::pair(ClientConfig::default()).await;
+    let mover = spawn(&g, |g| async move { g.move_to(20.0, Some(50.0)).await });
+    assert_eq!(fake.read().await, "MOVE(20,50)");
+    fake.say("ACK MOVE\n").await;
+    let pos = spawn(&g, |g| async move { g.position_mm().await });
+    assert_eq!(fake.read().await, "POS?");
+    // Lines for nobody, a push nobody asked for, and lines that are not GCL come first.
+    fake.say(
+        "FIN HOME\nERR 4\n@POS=3.0\nhello\nACK\nERR GRIP 18\nSPEED=1.0\n\r\n\
+         POS=12.5\n",
+    )
+    .await;
+    assert_eq!(within("POS?", pos).await.unwrap().unwrap(), 12.5);
+    assert!(!mover.is_finished(), "MOVE ended by another command's line");
+    // Lower-case names are the same command.
+    fake.say("fin move\n").await;
+    within("MOVE", mover).await.unwrap().unwrap();
+}
+
+#[tokio::test]
+async fn one_command_of_each_name_on_the_wire() {
+    let (g, mut fake) = Fake::pair(ClientConfig::default()).await;
+    let a = spawn(&g, |g| async move { g.position_mm().await });
+    assert_eq!(fake.read().await, "POS?");
+    let b = spawn(&g, |g| async move { g.position_mm().await });
+    let speed = spawn(&g, |g| async move { g.speed_mm_per_s().await });
+    // The second POS? waits; SPEED? goes out at once.
+    assert_eq!(fake.read().await, "SPEED?");
+    fake.say("SPEED=2.0\nPOS=1.0\n").await;
+    assert_eq!(fake.read().await, "POS?");
+    fake.say("POS=2.0\n").await;
+    assert_eq!(within("a", a).await.unwrap().unwrap(), 1.0);
+    assert_eq!(within("b", b).await.unwrap().unwrap(), 2.0);
+    assert_eq!(within("speed", speed).await.unwrap().unwrap(), 2.0);
+}
+
+#[tokio::test]
+async fn wrong_forms_are_typed_errors() {
+    let (g, mut fake) = Fake::pair(ClientConfig::default()).await;
+    let call = spawn(&g, |g| async move { g.position_mm().await });
+    fake.read().await;
+    fake.say("ACK POS\n").await;
+    let e = within("POS?", call).await.unwrap().unwrap_err();
+    assert!(matches!(e, Error::UnexpectedReply { .. }), "{e}");
+
+    let call = spawn(&g, |g| async move { g.position_mm().await });
+    fake.read().await;
+    fake.say("POS=nan\n").await;
+    let e = within("POS?", call).await.unwrap().unwrap_err();
+    assert!(matches!(e, Error::MalformedReply { .. }), "{e}");
+
+    let call = spawn(&g, |g| async move { g.grip_state().await });
+    fake.read().await;
+    fake.say("GRIPSTATE=4.5\n").await;
+    let e = within("GRIPSTATE?", call).await.unwrap().unwrap_err();
+    assert!(matches!(e, Error::MalformedReply { .. }), "{e}");
+
+    // An ERR whose code is not in the binary table keeps its number and its line.
+    let call = spawn(
+        &g,
+        |g| async move { g.home(HomingDirection::Positive).await },
+    );
+    assert_eq!(fake.read().await, "HOME(1)");
+    fake.say("ERR HOME 99 something\n").await;
+    let e = within("HOME", call).await.unwrap().unwrap_err();
+    assert_eq!(e.status(), Some(Status::Unknown(99)));
+    assert!(matches!(&e, Error::Device { line, .. } if line == "ERR HOME 99 something"));
+
+    // An over-long line is skipped, not taken for a reply.
+    let call = spawn(&g, |g| async move { g.position_mm().await });
+    fake.read().await;
+    fake.say(&format!("POS={}\nPOS=7.0\n", "1".repeat(5000)))
+        .await;
+    assert_eq!(within("POS?", call).await.unwrap().unwrap(), 7.0);
+}
+
+#[tokio::test]
+async fn a_reply_cut_off_by_the_close_is_no_reply() {
+    let (g, mut fake) = Fake::pair(ClientConfig::default()).await;
+    let call = spawn(&g, |g| async move { g.position_mm().await });
+    fake.read().await;
+    fake.say("POS=12").await;
+    drop(fake);
+    let e = within("POS?", call).await.unwrap().unwrap_err();
+    assert!(matches!(e, Error::ConnectionLost(_)), "{e}");
+}
+
+#[tokio::test]
+async fn a_missing_reply_times_out_then_gives_up_the_connection() {
+    let config = ClientConfig {
+        query_timeout: Duration::from_millis(50),
+        give_up_after: Duration::from_millis(100),
+        ..ClientConfig::default()
+    };
+    let (g, mut fake) = Fake::pair(config).await;
+    let e = g.position_mm().await.unwrap_err();
+    assert!(matches!(e, Error::Timeout { .. }), "{e}");
+    assert_eq!(fake.read().await, "POS?");
+    // Another name still works meanwhile.
+    let speed = spawn(&g, |g| async move { g.speed_mm_per_s().await });
+    assert_eq!(fake.read().await, "SPEED?");
+    fake.say("SPEED=0.0\n").await;
+    assert_eq!(within("SPEED?", speed).await.unwrap().unwrap(), 0.0);
+    // POS? stays busy until its reply: a later POS? is not sent, and when the reply is overdue
+    // past `give_up_after` the connection is given up.
+    let e = within("give up", g.with_timeout(LIMIT).position_mm())
+        .await
+        .unwrap_err();
+    assert!(matches!(e, Error::ConnectionLost(_)), "{e}");
+    assert!(g.is_closed());
+}
+
+/// A text simulator behind a line-framed fault proxy.
+async fn rig() -> (SimServer, FaultProxy, Client) {
+    let config = SimConfig::new(Model::Wsg50).with_part(40.0, 2.0).text();
+    let server = SimServer::bind("127.0.0.1:0", config).await.unwrap();
+    let proxy = FaultProxy::start_with(
+        server.local_addr().unwrap(),
+        ProxyConfig::new().framing(Framing::Delimited(b'\n')),
+    )
+    .await
+    .unwrap();
+    let config = ClientConfig {
+        query_timeout: Duration::from_millis(300),
+        give_up_after: Duration::from_millis(200),
+        ..ClientConfig::default()
+    };
+    let g = Client::connect_with(proxy.local_addr(), config)
+        .await
+        .unwrap();
+    within("home", g.home(HomingDirection::Default))
+        .await
+        .unwrap();
+    (server, proxy, g)
+}
+
+#[tokio::test]
+async fn split_merged_and_duplicated_lines_change_no_answer() {
+    let (_server, proxy, g) = rig().await;
+    let split = Fault::Split {
+        piece_len: 1,
+        pause: Duration::from_millis(1),
+    };
+    let rule = proxy.server_to_client().add(split.always());
+    within("move", g.move_to(30.0, None)).await.unwrap();
+    assert_eq!(within("pos", g.position_mm()).await.unwrap(), 30.0);
+    rule.remove();
+    let merge = Fault::Merge {
+        frames: 2,
+        max_wait: Duration::from_millis(50),
+    };
+    let rule = proxy.server_to_client().add(merge.always());
+    let (a, b) = tokio::join!(g.position_mm(), g.grip_state());
+    assert_eq!(a.unwrap(), 30.0);
+    assert_eq!(b.unwrap(), gripper::wsg::GripState::Idle);
+    rule.remove();
+    // A duplicated FIN arrives when no MOVE is on the wire: dropped.
+    proxy.server_to_client().add(Fault::Duplicate.always());
+    within("move", g.move_to(40.0, None)).await.unwrap();
+    within("move", g.move_to(50.0, None)).await.unwrap();
+    assert_eq!(within("pos", g.position_mm()).await.unwrap(), 50.0);
+}
+
+#[tokio::test]
+async fn a_dropped_or_corrupted_reply_is_a_timeout_never_a_wrong_answer() {
+    let (_server, proxy, g) = rig().await;
+    // "POS=110.0" → "XOS=110.0": a reply for nobody.
+    proxy.server_to_client().add(
+        Fault::Corrupt {
+            at: gripper::fault::At::Start(0),
+            xor: b'P' ^ b'X',
+        }
+        .once(),
+    );
+    let e = within("pos", g.position_mm()).await.unwrap_err();
+    assert!(matches!(e, Error::Timeout { .. }), "{e}");
+    // The name stays busy until the reply would have been far too late: then the connection
+    // is given up rather than a later POS= taken for it.
+    let e = within("pos", g.with_timeout(LIMIT).position_mm())
+        .await
+        .unwrap_err();
+    assert!(matches!(e, Error::ConnectionLost(_)), "{e}");
+}
+
+#[tokio::test]
+async fn a_cut_cable_fails_the_call() {
+    let (_server, proxy, g) = rig().await;
+    proxy
+        .server_to_client()
+        .add(Fault::Cut { after_bytes: 3 }.once());
+    let e = within("pos", g.position_mm()).await.unwrap_err();
+    assert!(matches!(e, Error::ConnectionLost(_)), "{e}");
+}
+
+proptest! {
+    #[test]
+    fn the_reply_parser_never_panics(line in ".{0,300}") {
+        let _ = parse_reply(&line);
+    }
+
+    #[test]
+    fn replies_read_back_as_written(
+        name in "[A-Z][A-Z0-9_]{0,12}",
+        value in "[0-9]{1,6}\\.[0-9]",
+        code in 0u16..1000,
+    ) {
+        let (ack, fin) = (format!("ACK {name}"), format!("FIN {name}\r"));
+        let (set, push) = (format!("{name}={value}"), format!("@{name}={value}"));
+        let err = format!("ERR {name} {code} E_X");
+        prop_assert_eq!(parse_reply(&ack), Ok(ReplyLine::Ack(&name)));
+        prop_assert_eq!(parse_reply(&fin), Ok(ReplyLine::Fin(&name)));
+        prop_assert_eq!(parse_reply(&set), Ok(ReplyLine::Value { name: &name, value: &value }));
+        prop_assert_eq!(parse_reply(&push), Ok(ReplyLine::Push { name: &name, value: &value }));
+        prop_assert_eq!(
+            parse_reply(&err),
+            Ok(ReplyLine::Err { name: Some(&name), code: Some(code), text: "E_X" })
+        );
+    }
+}
+
+#[tokio::test]
+async fn connecting_to_nothing_is_an_error() {
+    let listener = TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let addr = listener.local_addr().unwrap();
+    drop(listener);
+    assert!(Client::connect(addr).await.is_err());
+}
