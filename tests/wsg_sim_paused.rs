@@ -33,7 +33,7 @@ fn auto_updates_under_a_paused_clock_do_not_spin() {
             // Periods whose sums are not exact in binary floating point.
             for ms in [10, 13, 17, 23, 37, 50, 77, 110, 133, 190] {
                 // Time passes between the streams, so each starts at another offset.
-                tokio::time::sleep(Duration::from_millis(u64::from(ms) * 7 + 3)).await;
+                tokio::time::sleep(Duration::from_millis(ms * 7 + 3)).await;
                 let mut updates = client
                     .subscribe_width_mm(UpdateOptions::periodic(Duration::from_millis(ms)))
                     .await
