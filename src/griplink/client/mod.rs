@@ -331,12 +331,7 @@ impl Client {
         let addrs: Vec<SocketAddr> =
             tokio::time::timeout(config.connect_timeout, tokio::net::lookup_host(addr))
                 .await
-                .map_err(|_| {
-                    Error::from(std::io::Error::new(
-                        std::io::ErrorKind::TimedOut,
-                        "resolving the controller's address timed out",
-                    ))
-                })??
+                .map_err(|_| task::timed_out("resolving the controller's address"))??
                 .collect();
         let stream = task::connect_any(&addrs, config.connect_timeout).await?;
         Ok(Client::spawn(Box::new(stream), Opener::Tcp(addrs), config))
@@ -364,12 +359,7 @@ impl Client {
         let (stream, open) =
             tokio::time::timeout(config.connect_timeout, crate::reconnect::first_open(open))
                 .await
-                .map_err(|_| {
-                    Error::from(std::io::Error::new(
-                        std::io::ErrorKind::TimedOut,
-                        "opening the connection timed out",
-                    ))
-                })??;
+                .map_err(|_| task::timed_out("opening the connection"))??;
         Ok(Client::spawn(stream, Opener::Custom(open), config))
     }
 

@@ -118,10 +118,7 @@ impl Opener {
             Opener::Tcp(addrs) => Ok(Box::new(connect_any(addrs, timeout).await?)),
             Opener::Custom(open) => match tokio::time::timeout(timeout, open()).await {
                 Ok(opened) => Ok(opened?),
-                Err(_) => Err(Error::from(std::io::Error::new(
-                    std::io::ErrorKind::TimedOut,
-                    "opening the connection timed out",
-                ))),
+                Err(_) => Err(timed_out("opening the connection")),
             },
         }
     }
@@ -236,6 +233,14 @@ pub(crate) async fn connect_any(
         }
     }
     Err(last)
+}
+
+/// `what` ran out of its time (the connect timeout).
+pub(crate) fn timed_out(what: &str) -> Error {
+    Error::from(std::io::Error::new(
+        std::io::ErrorKind::TimedOut,
+        format!("{what} timed out"),
+    ))
 }
 
 /// The controller ended the connection (EOF after it was open): the connection is lost, not

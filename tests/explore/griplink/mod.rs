@@ -68,6 +68,14 @@ struct Ctx {
     lost: Arc<AtomicBool>,
 }
 
+/// What every caller of a run shares.
+struct RunWide {
+    /// Numbers the labels set (unique values: an answer names its request).
+    labels: AtomicU64,
+    /// Whether a call may have no timeout (not in runs where the controller drops replies).
+    forever: bool,
+}
+
 /// One call as the caller saw it.
 struct CallRec {
     client: usize,
@@ -195,7 +203,10 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
         0
     };
     let log = Arc::new(Mutex::new(Vec::<CallRec>::new()));
-    let label_counter = Arc::new(AtomicU64::new(0));
+    let run_wide = Arc::new(RunWide {
+        labels: AtomicU64::new(0),
+        forever: drops == 0,
+    });
     let mut callers = Vec::new();
     for ctx in &ctxs {
         let n = rng.between(1, u64::from(caps.callers)) as usize;
@@ -207,8 +218,7 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
                 rng.fork(),
                 ops,
                 log.clone(),
-                label_counter.clone(),
-                drops == 0,
+                run_wide.clone(),
                 trace.clone(),
             )));
         }
@@ -330,22 +340,23 @@ fn pick(rng: &mut Prng, labels: &AtomicU64) -> Command {
         7 => Command::Grip {
             port: 0,
             index: 0,
-            blocking: if rng.one_in(2) {
-                Blocking::UntilDone
-            } else {
-                Blocking::Immediate
-            },
+            blocking: blocking(rng),
         },
         8 => Command::Release {
             port: 0,
             index: 0,
-            blocking: if rng.one_in(2) {
-                Blocking::UntilDone
-            } else {
-                Blocking::Immediate
-            },
+            blocking: blocking(rng),
         },
         _ => Command::Version,
+    }
+}
+
+/// Blocking (the reply waits for the end of the motion) or not, at random.
+fn blocking(rng: &mut Prng) -> Blocking {
+    if rng.one_in(2) {
+        Blocking::UntilDone
+    } else {
+        Blocking::Immediate
     }
 }
 
@@ -355,8 +366,7 @@ async fn caller(
     mut rng: Prng,
     ops: u32,
     log: Arc<Mutex<Vec<CallRec>>>,
-    labels: Arc<AtomicU64>,
-    forever: bool,
+    run_wide: Arc<RunWide>,
     trace: SharedTrace,
 ) {
     for _ in 0..ops {
@@ -372,9 +382,9 @@ async fn caller(
             );
             return;
         }
-        let command = pick(&mut rng, &labels);
+        let command = pick(&mut rng, &run_wide.labels);
         let Ok(line) = command.encode() else { continue };
-        let timeout = if rng.one_in(30) && forever {
+        let timeout = if rng.one_in(30) && run_wide.forever {
             Duration::MAX
         } else {
             rng.millis(20, 5000)
