@@ -288,6 +288,37 @@ where
     }
 }
 
+/// A byte stream a client runs over: a socket, or any stream the program opens itself (a
+/// tunnel, an in-memory pipe to a simulator).
+pub(crate) trait ByteStream:
+    tokio::io::AsyncRead + tokio::io::AsyncWrite + Send + Unpin
+{
+}
+impl<T: tokio::io::AsyncRead + tokio::io::AsyncWrite + Send + Unpin> ByteStream for T {}
+
+/// A byte stream, boxed.
+pub(crate) type BoxStream = Box<dyn ByteStream>;
+
+/// Opens a byte stream again for a reconnect: the program's own opener (the GRIPLINK and
+/// SmartGrasp clients' `open_with`).
+pub(crate) type Open =
+    Box<dyn Fn() -> Pin<Box<dyn Future<Output = std::io::Result<BoxStream>> + Send>> + Send + Sync>;
+
+/// Boxes a program's opener; returns it with the first stream it opened.
+pub(crate) async fn first_open<F, Fut, S>(open: F) -> std::io::Result<(BoxStream, Open)>
+where
+    F: Fn() -> Fut + Send + Sync + 'static,
+    Fut: Future<Output = std::io::Result<S>> + Send + 'static,
+    S: tokio::io::AsyncRead + tokio::io::AsyncWrite + Send + Unpin + 'static,
+{
+    let first = open().await?;
+    let open: Open = Box::new(move || {
+        let fut = open();
+        Box::pin(async move { fut.await.map(|s| Box::new(s) as BoxStream) })
+    });
+    Ok((Box::new(first), open))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -22,6 +22,7 @@
 //!   the first three keys of each kind.
 
 mod core;
+mod griplink;
 mod wsg;
 
 use std::process::ExitCode;
@@ -31,7 +32,7 @@ use crate::core::{determinism_check, run_one, Caps, Outcome, Scenario};
 
 /// Every protocol plugged in.
 fn scenarios() -> Vec<&'static dyn Scenario> {
-    vec![&wsg::Wsg]
+    vec![&wsg::Wsg, &griplink::Griplink]
 }
 
 struct Opts {

@@ -125,7 +125,7 @@ pub use wait::{
 };
 pub use watch::Watch;
 
-use self::task::{Request, Shared, Task, TaskConfig};
+use self::task::{Opener, Request, Shared, Task, TaskConfig};
 use super::codec::DEFAULT_MAX_LINE_LEN;
 #[cfg(doc)]
 use super::command::Blocking;
@@ -135,7 +135,9 @@ use super::reply::{Answer, Checked, Datum};
 use super::state::DeviceState;
 use super::value::Value;
 use crate::connection::Connection;
-use crate::reconnect::{ConnectionEvents, EventSender, EventSubscriber, ReconnectPolicy};
+use crate::reconnect::{
+    BoxStream, ConnectionEvents, EventSender, EventSubscriber, ReconnectPolicy,
+};
 
 /// Connection events each [`Client::connection_events`] stream buffers, at most.
 const EVENT_BUFFER: usize = 32;
@@ -329,25 +331,39 @@ impl Client {
         let addrs: Vec<SocketAddr> =
             tokio::time::timeout(config.connect_timeout, tokio::net::lookup_host(addr))
                 .await
-                .map_err(|_| {
-                    Error::from(std::io::Error::new(
-                        std::io::ErrorKind::TimedOut,
-                        "resolving the controller's address timed out",
-                    ))
-                })??
+                .map_err(|_| task::timed_out("resolving the controller's address"))??
                 .collect();
         let stream = task::connect_any(&addrs, config.connect_timeout).await?;
-        Ok(Client::spawn(stream, addrs, config))
+        Ok(Client::spawn(Box::new(stream), Opener::Tcp(addrs), config))
     }
 
     /// Runs the client over an already connected stream. Must be called inside a tokio runtime.
     /// A reconnect ([`ClientConfig::reconnect`]) goes to the stream's peer address.
     pub fn from_stream(stream: TcpStream, config: ClientConfig) -> Client {
         let addrs = stream.peer_addr().into_iter().collect();
-        Client::spawn(stream, addrs, config)
+        Client::spawn(Box::new(stream), Opener::Tcp(addrs), config)
     }
 
-    fn spawn(stream: TcpStream, addrs: Vec<SocketAddr>, config: ClientConfig) -> Client {
+    /// Runs the client over the byte streams `open` opens: one now, and with
+    /// [`ClientConfig::reconnect`] a new one after each loss, each attempt bounded by
+    /// [`ClientConfig::connect_timeout`] (e.g. a tunnel, or in-memory pipes to
+    /// [`SimServer::serve_stream`](crate::griplink::sim::SimServer::serve_stream) so that a
+    /// test exercises reconnecting without sockets). A failure of the first open is returned
+    /// whatever the reconnect policy says. Must be called inside a tokio runtime.
+    pub async fn open_with<F, Fut, S>(open: F, config: ClientConfig) -> Result<Client>
+    where
+        F: Fn() -> Fut + Send + Sync + 'static,
+        Fut: std::future::Future<Output = std::io::Result<S>> + Send + 'static,
+        S: tokio::io::AsyncRead + tokio::io::AsyncWrite + Send + Unpin + 'static,
+    {
+        let (stream, open) =
+            tokio::time::timeout(config.connect_timeout, crate::reconnect::first_open(open))
+                .await
+                .map_err(|_| task::timed_out("opening the connection"))??;
+        Ok(Client::spawn(stream, Opener::Custom(open), config))
+    }
+
+    fn spawn(stream: BoxStream, opener: Opener, config: ClientConfig) -> Client {
         let (requests, rx) = mpsc::channel(config.queue_len.max(1));
         let shared = Arc::new(Shared::default());
         let events = EventSender::new("griplink", EVENT_BUFFER);
@@ -364,7 +380,7 @@ impl Client {
             shared: Arc::clone(&shared),
             reconnect: config.reconnect,
             events: events.clone(),
-            addrs,
+            opener,
         };
         Client {
             connection: Connection::spawn(task::run(stream, task)),
@@ -463,7 +479,7 @@ impl Client {
         bye: bool,
     ) -> Result<Checked> {
         let timeout = self.timeout_for(duty);
-        let deadline = Instant::now() + timeout;
+        let deadline = crate::deadline::after(Instant::now(), timeout);
         let (waiter, answer) = oneshot::channel();
         let request = Request {
             line,

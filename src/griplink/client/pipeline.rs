@@ -178,7 +178,7 @@ impl Pipeline {
                     line: probe.to_owned(),
                     expect,
                     waiter: slot.waiter,
-                    give_up_at: Instant::now() + self.probe_timeout,
+                    give_up_at: crate::deadline::after(Instant::now(), self.probe_timeout),
                     probe: Some(error),
                 });
                 Delivery::Resync(probe)

@@ -13,20 +13,19 @@ use std::time::Duration;
 
 use bytes::BytesMut;
 use futures_core::Stream;
-use tokio::io::AsyncWriteExt;
-use tokio::net::tcp::{OwnedReadHalf, OwnedWriteHalf};
+use tokio::io::{AsyncWriteExt, ReadHalf, WriteHalf};
 use tokio::net::TcpStream;
 use tokio::sync::mpsc;
 use tokio::time::Instant;
 use tokio_util::codec::{Encoder, FramedRead};
 
 use super::pipeline::{Delivery, Pipeline, Slot, Waiter};
-use crate::deadline::{move_timer, write_all_by};
+use crate::deadline::move_timer;
 use crate::griplink::codec::{LineCodec, RawLine, RawLineCodec};
 use crate::griplink::command::{Command, Expect};
 use crate::griplink::error::Error;
 use crate::griplink::reply::interpret;
-use crate::reconnect::{self, ConnectionEvent, EventSender, ReconnectPolicy};
+use crate::reconnect::{self, BoxStream, ConnectionEvent, EventSender, Open, ReconnectPolicy};
 
 /// A caller's command, on its way to the task.
 #[derive(Debug)]
@@ -99,19 +98,41 @@ pub(crate) struct Task {
     pub events: EventSender,
     /// Reconnect with this backoff (`None`: a lost connection stays closed).
     pub reconnect: Option<ReconnectPolicy>,
-    /// Where to reconnect to (resolved once, when the client connected).
-    pub addrs: Vec<SocketAddr>,
+    /// How to reconnect.
+    pub opener: Opener,
+}
+
+/// How a reconnect opens a new connection.
+pub(crate) enum Opener {
+    /// The addresses resolved once, when the client connected (tried in order).
+    Tcp(Vec<SocketAddr>),
+    /// The program's own opener ([`Client::open_with`](super::Client::open_with)).
+    Custom(Open),
+}
+
+impl Opener {
+    /// One attempt, bounded by `timeout` (a TCP connect would otherwise take the operating
+    /// system's minutes; a program's opener is bounded the same way).
+    async fn open(&self, timeout: Duration) -> Result<BoxStream, Error> {
+        match self {
+            Opener::Tcp(addrs) => Ok(Box::new(connect_any(addrs, timeout).await?)),
+            Opener::Custom(open) => match tokio::time::timeout(timeout, open()).await {
+                Ok(opened) => Ok(opened?),
+                Err(_) => Err(timed_out("opening the connection")),
+            },
+        }
+    }
 }
 
 /// One connection: the reply reader and the command writer.
 struct Conn {
-    reader: FramedRead<OwnedReadHalf, RawLineCodec>,
+    reader: FramedRead<ReadHalf<BoxStream>, RawLineCodec>,
     writer: Writer,
 }
 
 /// The command side of a connection.
 struct Writer {
-    half: OwnedWriteHalf,
+    half: WriteHalf<BoxStream>,
     encoder: LineCodec,
     /// The line being written, kept from one command to the next so that a command does not
     /// allocate a buffer.
@@ -126,7 +147,8 @@ impl Writer {
         self.encoder
             .encode(line, &mut self.out)
             .map_err(|e| Error::invalid("command line", e.to_string()))?;
-        match write_all_by(&mut self.half, &self.out, || limit).await {
+        // Not cancel-safe, and need not be: when the limit passes the connection is given up.
+        match tokio::time::timeout_at(limit, self.half.write_all(&self.out)).await {
             Ok(Ok(())) => Ok(()),
             Ok(Err(e)) => Err(io_error(e)),
             Err(_) => Err(Error::ConnectionLost(
@@ -137,8 +159,8 @@ impl Writer {
 }
 
 impl Conn {
-    fn new(stream: TcpStream, max_line_len: usize) -> Conn {
-        let (read, write) = stream.into_split();
+    fn new(stream: BoxStream, max_line_len: usize) -> Conn {
+        let (read, write) = tokio::io::split(stream);
         // A line cut off by the end of the connection is not a reply: `VALUE[0][0]=12` may be
         // the first half of `VALUE[0][0]=12345`.
         let codec = RawLineCodec(LineCodec::new(max_line_len).reject_unterminated());
@@ -152,9 +174,9 @@ impl Conn {
         }
     }
 
-    /// Connects to the first of `addrs` that answers.
-    async fn connect(addrs: &[SocketAddr], config: &TaskConfig) -> Result<Conn, Error> {
-        let stream = connect_any(addrs, config.connect_timeout).await?;
+    /// Opens a new connection.
+    async fn connect(opener: &Opener, config: &TaskConfig) -> Result<Conn, Error> {
+        let stream = opener.open(config.connect_timeout).await?;
         Ok(Conn::new(stream, config.max_line_len))
     }
 
@@ -162,7 +184,7 @@ impl Conn {
     /// session on a new connection).
     async fn exchange(&mut self, command: Command, timeout: Duration) -> Result<(), Error> {
         let line = command.encode()?;
-        let deadline = Instant::now() + timeout;
+        let deadline = crate::deadline::after(Instant::now(), timeout);
         self.writer.send(&line, deadline).await?;
         let reply = match tokio::time::timeout_at(deadline, next_line(&mut self.reader)).await {
             Err(_) => {
@@ -213,6 +235,14 @@ pub(crate) async fn connect_any(
     Err(last)
 }
 
+/// `what` ran out of its time (the connect timeout).
+pub(crate) fn timed_out(what: &str) -> Error {
+    Error::from(std::io::Error::new(
+        std::io::ErrorKind::TimedOut,
+        format!("{what} timed out"),
+    ))
+}
+
 /// The controller ended the connection (EOF after it was open): the connection is lost, not
 /// closed by this client.
 fn controller_closed() -> Error {
@@ -233,14 +263,14 @@ fn io_error(e: std::io::Error) -> Error {
 }
 
 async fn next_line(
-    reader: &mut FramedRead<OwnedReadHalf, RawLineCodec>,
+    reader: &mut FramedRead<ReadHalf<BoxStream>, RawLineCodec>,
 ) -> Option<std::io::Result<RawLine>> {
     poll_fn(|cx| Pin::new(&mut *reader).poll_next(cx)).await
 }
 
 /// Runs until every handle is dropped, the program closes the connection, or it is lost for
 /// good.
-pub(crate) async fn run(stream: TcpStream, mut task: Task) {
+pub(crate) async fn run(stream: BoxStream, mut task: Task) {
     let mut conn = Conn::new(stream, task.config.max_line_len);
     let end = loop {
         let reconnects = task.reconnect.is_some();
@@ -268,7 +298,7 @@ pub(crate) async fn run(stream: TcpStream, mut task: Task) {
             config,
             shared,
             events,
-            addrs,
+            opener,
             ..
         } = &task;
         let restored = reconnect::retry(
@@ -276,7 +306,7 @@ pub(crate) async fn run(stream: TcpStream, mut task: Task) {
             events,
             || requests.is_closed(),
             |_| async {
-                let mut conn = Conn::connect(addrs, config).await?;
+                let mut conn = Conn::connect(opener, config).await?;
                 events.send(ConnectionEvent::Connected);
                 if let Some(on) = shared.verbose() {
                     conn.exchange(Command::SetVerbose(on), config.query_timeout)
@@ -377,7 +407,7 @@ async fn serve(
                     }));
                     continue;
                 }
-                let give_up_at = request.deadline + config.give_up_after;
+                let give_up_at = crate::deadline::after(request.deadline, config.give_up_after);
                 match writer.send(&request.line, give_up_at).await {
                     Ok(()) => {}
                     Err(err @ Error::InvalidArgument { .. }) => {
@@ -431,7 +461,7 @@ mod tests {
         let listener = TcpListener::bind("127.0.0.1:0").await.unwrap();
         let client = TcpStream::connect(listener.local_addr().unwrap());
         let (client, accepted) = tokio::join!(client, listener.accept());
-        let conn = Conn::new(client.unwrap(), 1024);
+        let conn = Conn::new(Box::new(client.unwrap()), 1024);
         (conn.writer, accepted.unwrap().0)
     }
 

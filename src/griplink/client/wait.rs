@@ -297,7 +297,7 @@ impl Port {
         command: Command,
     ) -> Result<T> {
         let limit = self.motion_limit();
-        let deadline = Instant::now() + limit;
+        let deadline = crate::deadline::after(Instant::now(), limit);
         let err = || wait_timeout(what, self.port, limit);
         let query = Some(self.client.config.query_timeout);
         let start = self.within(deadline, query, &err)?.state().await?;

@@ -27,4 +27,4 @@ mod wait;
 // Inlined, so that this page lists them with their summaries.
 #[doc(inline)]
 pub use controller::{Controller, Role, SimConfig, SimDevice};
-pub use server::{Fault, ReplyGate, SimServer};
+pub use server::{Fault, ReplyGate, SimExchange, SimServer};

@@ -12,8 +12,8 @@ use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
 
 use futures_core::Stream;
-use tokio::io::AsyncWriteExt;
-use tokio::net::{TcpListener, TcpStream, ToSocketAddrs};
+use tokio::io::{AsyncRead, AsyncWrite, AsyncWriteExt};
+use tokio::net::{TcpListener, ToSocketAddrs};
 use tokio::sync::{watch, Notify, Semaphore};
 use tokio::task::JoinSet;
 use tokio::time::Instant;
@@ -81,6 +81,30 @@ struct Shared {
     faults: Mutex<VecDeque<Fault>>,
     epoch: Instant,
     max_line_len: usize,
+    /// Each request processed and the reply sent, per session (off until
+    /// [`SimServer::start_recording`]).
+    recording: Mutex<Option<Recording>>,
+}
+
+/// One command line a session processed and the reply line it sent (a test's oracle checks
+/// that a client's answer is the controller's answer to that request).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct SimExchange {
+    /// The connection (numbered from 1 in the order they were served).
+    pub session: u64,
+    /// The command line as received, without its LF.
+    pub request: String,
+    /// The reply line sent, without its LF (for a [`Fault::RawReply`], the raw bytes, lossy).
+    pub reply: String,
+    /// When the reply was written (tokio's clock).
+    pub sent_at: Instant,
+}
+
+/// The bounded record: the oldest entries give way.
+#[derive(Debug)]
+struct Recording {
+    capacity: usize,
+    entries: VecDeque<SimExchange>,
 }
 
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
@@ -109,6 +133,8 @@ pub struct SimServer {
     addr: SocketAddr,
     shared: Arc<Shared>,
     shutdown: watch::Sender<bool>,
+    /// Numbers the connections (the record's `session`).
+    next_session: Arc<std::sync::atomic::AtomicU64>,
 }
 
 impl std::fmt::Debug for SimServer {
@@ -123,24 +149,78 @@ impl SimServer {
     /// Binds `addr` (port 0 picks a free port) and serves `config` until shut down.
     pub async fn bind(addr: impl ToSocketAddrs, config: SimConfig) -> io::Result<SimServer> {
         let listener = TcpListener::bind(addr).await?;
-        let addr = listener.local_addr()?;
+        let mut server = SimServer::in_memory(config);
+        server.addr = listener.local_addr()?;
+        tokio::spawn(accept_loop(
+            listener,
+            Arc::clone(&server.shared),
+            server.shutdown.subscribe(),
+            Arc::clone(&server.next_session),
+        ));
+        Ok(server)
+    }
+
+    /// A controller with no listener of its own: give it connections with
+    /// [`SimServer::serve_stream`] (e.g. ends of `tokio::io::duplex`). With in-memory streams
+    /// and tokio's paused clock a test runs without the operating system's sockets or clock,
+    /// so it replays exactly. Its [`local_addr`](Self::local_addr) is the unspecified
+    /// `0.0.0.0:0`. Must be called inside a tokio runtime.
+    pub fn in_memory(config: SimConfig) -> SimServer {
         let shared = Arc::new(Shared {
             controller: Mutex::new(Controller::new(config)),
             changed: Notify::new(),
             faults: Mutex::new(VecDeque::new()),
             epoch: Instant::now(),
             max_line_len: DEFAULT_MAX_LINE_LEN,
+            recording: Mutex::new(None),
         });
-        let (shutdown, stop) = watch::channel(false);
-        tokio::spawn(accept_loop(listener, Arc::clone(&shared), stop));
-        Ok(SimServer {
-            addr,
+        let (shutdown, _) = watch::channel(false);
+        SimServer {
+            addr: SocketAddr::from(([0, 0, 0, 0], 0)),
             shared,
             shutdown,
-        })
+            next_session: Arc::new(std::sync::atomic::AtomicU64::new(1)),
+        }
     }
 
-    /// The bound address.
+    /// Serves one more byte stream as a new connection of this controller, beside the ones it
+    /// has, until the stream ends or the server is shut down; returns the session number.
+    pub fn serve_stream(&self, io: impl AsyncRead + AsyncWrite + Send + 'static) -> u64 {
+        let session = self
+            .next_session
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let shared = Arc::clone(&self.shared);
+        let mut stop = self.shutdown.subscribe();
+        tokio::spawn(async move {
+            tokio::select! {
+                // The shutdown first: a dropped server ends its connections whatever they do.
+                biased;
+                _ = stop.wait_for(|s| *s) => {}
+                () = serve(io, &shared, session) => {}
+            }
+        });
+        session
+    }
+
+    /// Starts recording, per session, each command line processed and the reply sent (see
+    /// [`SimExchange`]); at most `capacity` entries are kept (the oldest give way). Starting
+    /// again clears the record.
+    pub fn start_recording(&self, capacity: usize) {
+        *lock(&self.shared.recording) = Some(Recording {
+            capacity,
+            entries: VecDeque::new(),
+        });
+    }
+
+    /// The record so far, oldest first (empty if recording was never started).
+    pub fn recording(&self) -> Vec<SimExchange> {
+        lock(&self.shared.recording)
+            .as_ref()
+            .map(|r| r.entries.iter().cloned().collect())
+            .unwrap_or_default()
+    }
+
+    /// The bound address (`0.0.0.0:0` for [`SimServer::in_memory`]).
     pub fn local_addr(&self) -> SocketAddr {
         self.addr
     }
@@ -198,17 +278,27 @@ impl Drop for SimServer {
     }
 }
 
-async fn accept_loop(listener: TcpListener, shared: Arc<Shared>, mut stop: watch::Receiver<bool>) {
+async fn accept_loop(
+    listener: TcpListener,
+    shared: Arc<Shared>,
+    mut stop: watch::Receiver<bool>,
+    next_session: Arc<std::sync::atomic::AtomicU64>,
+) {
     // Dropping the set when the loop ends aborts every connection.
     let mut connections = JoinSet::new();
     loop {
         tokio::select! {
+            // Fixed order (replay): a shutdown ends the loop whatever else is ready; accepting
+            // and reaping cannot starve each other (a reap is instant, accepts are rare).
+            biased;
             _ = stop.changed() => break,
             accepted = listener.accept() => match accepted {
                 Ok((stream, peer)) => {
                     tracing::debug!(%peer, "griplink sim: connection");
                     let _ = stream.set_nodelay(true);
-                    connections.spawn(serve(stream, Arc::clone(&shared)));
+                    let session = next_session.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                    let shared = Arc::clone(&shared);
+                    connections.spawn(async move { serve(stream, &shared, session).await });
                 }
                 Err(e) => {
                     // E.g. out of file descriptors: back off instead of spinning.
@@ -221,26 +311,32 @@ async fn accept_loop(listener: TcpListener, shared: Arc<Shared>, mut stop: watch
     }
 }
 
-async fn serve(stream: TcpStream, shared: Arc<Shared>) {
-    if let Err(e) = serve_lines(stream, &shared).await {
+async fn serve(stream: impl AsyncRead + AsyncWrite, shared: &Shared, session: u64) {
+    if let Err(e) = serve_lines(stream, shared, session).await {
         tracing::debug!(error = %e, "griplink sim: connection ended");
     }
 }
 
-async fn serve_lines(stream: TcpStream, shared: &Shared) -> io::Result<()> {
-    let (read, mut write) = stream.into_split();
+async fn serve_lines(
+    stream: impl AsyncRead + AsyncWrite,
+    shared: &Shared,
+    number: u64,
+) -> io::Result<()> {
+    let (read, mut write) = tokio::io::split(stream);
     // A command is a line ended by LF (manual 2.1): one cut off by a lost connection is not
     // executed (`GRIP(0,1)` without its LF must not grip).
     let codec = LineCodec::new(shared.max_line_len).reject_unterminated();
     let mut reader = FramedRead::new(read, codec);
     let mut session = Session::default();
     while let Some(line) = poll_fn(|cx| Pin::new(&mut reader).poll_next(cx)).await {
+        let mut request = String::new();
         let command = match line? {
             Line::Text(text) => {
                 let clean = clean_line(&text);
                 if clean.is_empty() {
                     continue; // an empty line is no command and gets no reply
                 }
+                request = text.clone();
                 Ok(clean)
             }
             Line::Discarded(Discarded::TooLong) => Err(Status::Overrun),
@@ -266,12 +362,32 @@ async fn serve_lines(stream: TcpStream, shared: &Shared) -> io::Result<()> {
             _ => {}
         }
         write.write_all(&bytes).await?;
+        record(shared, number, request, &bytes);
         if close {
             write.shutdown().await?;
             return Ok(());
         }
     }
     Ok(())
+}
+
+/// Adds a sent reply to the record, if recording.
+fn record(shared: &Shared, session: u64, request: String, reply: &[u8]) {
+    let mut recording = lock(&shared.recording);
+    let Some(r) = recording.as_mut() else { return };
+    if r.entries.len() >= r.capacity {
+        r.entries.pop_front();
+    }
+    if r.capacity == 0 {
+        return;
+    }
+    let reply = String::from_utf8_lossy(reply.strip_suffix(b"\n").unwrap_or(reply)).into_owned();
+    r.entries.push_back(SimExchange {
+        session,
+        request,
+        reply,
+        sent_at: Instant::now(),
+    });
 }
 
 /// Runs one command; returns its reply line and whether to close the connection after it.
@@ -305,6 +421,8 @@ async fn hold(shared: &Shared, session: &Session, wait: &Wait) -> String {
             controller.next_wake(wait, now)
         };
         tokio::select! {
+            // Fixed order (replay): either branch only leads to the same re-check of the state.
+            biased;
             () = &mut changed => {}
             () = tokio::time::sleep_until(shared.epoch + wake) => {}
         }

@@ -84,6 +84,10 @@ pub(crate) async fn run(mut link: Link, mut task: Task) {
         );
         // `close()` stops reconnecting, in a backoff wait or in the middle of an attempt.
         let restored = tokio::select! {
+            // Fixed order (a seeded run replays exactly; unbiased select! draws from a
+            // per-process random seed): an attempt that completes at the same poll as the
+            // cancellation still counts, and `close()` is seen at the next poll either way.
+            biased;
             restored = retry => restored,
             () = shutdown.cancelled() => None,
         };

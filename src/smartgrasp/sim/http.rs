@@ -71,6 +71,9 @@ async fn accept_loop(listener: TcpListener, state: Weak<Mutex<SimState>>) {
     let mut connections = JoinSet::new();
     loop {
         tokio::select! {
+            // Fixed order (replay): reaping is instant and accepts are rare, so neither
+            // branch can starve the other.
+            biased;
             accepted = listener.accept() => match accepted {
                 Ok((stream, _)) => {
                     connections.spawn(serve(stream, state.clone()));

@@ -98,6 +98,9 @@ async fn accept_loop(listener: TcpListener, state: Arc<Mutex<SimState>>) {
     let mut connections = JoinSet::new();
     loop {
         tokio::select! {
+            // Fixed order (replay): reaping is instant and accepts are rare, so neither
+            // branch can starve the other.
+            biased;
             accepted = listener.accept() => match accepted {
                 Ok((stream, peer)) => {
                     tracing::debug!(%peer, "simulator: client connected");
