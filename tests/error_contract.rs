@@ -166,6 +166,40 @@ mod wsg {
         }
     }
 
+    /// Calls made from other tasks while the connection task winds down: a request queued in
+    /// the instant the task drops its queue must still be answered (found as a one-in-hundreds
+    /// `Timeout` of `every_call_after_a_cut_is_connection_lost`: a send that had taken its
+    /// place in the queue before the queue closed landed after the queue was emptied).
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn calls_racing_the_end_of_the_connection_are_connection_lost() {
+        let addr = cutting_server(6, b"\xaa\xaa").await;
+        for round in 0..10 * ROUNDS {
+            let client = within("connect", Client::connect_tcp(addr)).await.unwrap();
+            let callers: Vec<_> = (0..3)
+                .map(|_| {
+                    let client = client.clone();
+                    tokio::spawn(async move {
+                        // The server answers nothing: every call ends in the loss.
+                        for _ in 0..20 {
+                            let r = client.width_mm().await;
+                            if !matches!(r, Err(Error::ConnectionLost(_))) {
+                                return r;
+                            }
+                        }
+                        Err(Error::ConnectionLost(String::new()))
+                    })
+                })
+                .collect();
+            for caller in callers {
+                let r = within("racing caller", caller).await.unwrap();
+                assert!(
+                    matches!(r, Err(Error::ConnectionLost(_))),
+                    "round {round}: {r:?}"
+                );
+            }
+        }
+    }
+
     #[tokio::test]
     async fn calls_after_close_are_closed() {
         let sim = SimServer::bind("127.0.0.1:0", SimConfig::new(Model::Wsg50))

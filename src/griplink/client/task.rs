@@ -323,7 +323,10 @@ pub(crate) async fn run(stream: BoxStream, mut task: Task) {
     };
     task.shared.record(&end);
     task.requests.close();
-    while let Ok(request) = task.requests.try_recv() {
+    // `recv`, not `try_recv`: a call that took its place in the queue before it closed puts
+    // its request in afterwards, and `recv` waits for it where `try_recv` reports the queue
+    // empty; that request would then never be answered (its caller waited out its timeout).
+    while let Some(request) = task.requests.recv().await {
         let _ = request.waiter.send(Err(end.clone()));
     }
 }

@@ -99,7 +99,10 @@ pub(crate) async fn run(mut link: Link, mut task: Task) {
     };
     let _ = task.closed.set(reason.clone());
     task.calls.close();
-    while let Ok(call) = task.calls.try_recv() {
+    // `recv`, not `try_recv`: a call that took its place in the queue before it closed puts
+    // its request in afterwards, and `recv` waits for it where `try_recv` reports the queue
+    // empty; that request would then never be answered (its caller waited out its timeout).
+    while let Some(call) = task.calls.recv().await {
         let _ = call.reply.send(Err(closed_error(Some(&reason))));
     }
 }

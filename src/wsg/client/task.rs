@@ -183,9 +183,15 @@ impl Task {
             None => Error::Closed,
         };
         self.fail_waiters(&e);
-        // Dropping the subscribers' senders ends their streams; dropping the request channel
-        // fails the calls still in it (with the reason set above).
+        // Dropping the subscribers' senders ends their streams.
         self.streams.clear();
+        // Close the queue and drop what is in it: its calls fail with the reason set above.
+        // `recv` waits for a call that took its place in the queue before it closed and puts
+        // its request in afterwards; dropping the queue as it is would leave that request
+        // unanswered (its caller waited out its timeout: one call in thousands on a
+        // multi-thread runtime, `tests/error_contract.rs`).
+        self.rx.close();
+        while self.rx.recv().await.is_some() {}
         if let Some((done, result)) = done {
             let _ = done.send(result);
         }

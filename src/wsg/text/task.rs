@@ -381,7 +381,10 @@ pub(crate) async fn run(
     for request in book.waiting.drain(..) {
         let _ = request.waiter.send(Err(end.clone()));
     }
-    while let Ok(request) = requests.try_recv() {
+    // `recv`, not `try_recv`: a call that took its place in the queue before it closed puts
+    // its request in afterwards, and `recv` waits for it where `try_recv` reports the queue
+    // empty; that request would then never be answered (its caller waited out its timeout).
+    while let Some(request) = requests.recv().await {
         let _ = request.waiter.send(Err(end.clone()));
     }
     if let Ok(mut subs) = shared.subscribers.lock() {
