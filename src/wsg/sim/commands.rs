@@ -75,6 +75,7 @@ impl Device {
             kind,
             start: self.now,
             profile: Profile::new(from, to, self.clamp_speed(speed), self.acceleration),
+            settle: self.cfg.final_reply_lag.as_secs_f64(),
         });
         self.axis_stopped = false;
         self.target_reached = false;

@@ -166,6 +166,12 @@ impl Device {
         }
     }
 
+    /// Whether the fingers move (SF_MOVING): a motion runs and has not reached its end. Its
+    /// final reply may follow later ([`SimConfig::final_reply_lag`]).
+    pub(super) fn fingers_moving(&self) -> bool {
+        self.motion.is_some_and(|m| self.now < m.end())
+    }
+
     /// The grip state.
     pub fn grip_state(&self) -> GripState {
         self.grip
@@ -180,7 +186,7 @@ impl Device {
         };
         SystemState::empty()
             .with(SystemState::REFERENCED, self.referenced)
-            .with(SystemState::MOVING, self.motion.is_some())
+            .with(SystemState::MOVING, self.fingers_moving())
             .with(SystemState::SOFT_LIMIT_MINUS, lim_minus)
             .with(SystemState::SOFT_LIMIT_PLUS, lim_plus)
             .with(SystemState::AXIS_STOPPED, self.axis_stopped)
@@ -210,7 +216,7 @@ impl Device {
     /// When the next motion finishes, in simulated seconds (a finger power-on finishes on the
     /// wall clock: see [`Device::next_update_due`]).
     pub fn next_event(&self) -> Option<f64> {
-        self.motion.as_ref().map(Motion::end)
+        self.motion.as_ref().map(Motion::done)
     }
 
     /// Advances the simulated time to `now` and returns the results of what finished.
@@ -218,7 +224,7 @@ impl Device {
         self.now = now.max(self.now);
         let mut out = Vec::new();
         if let Some(m) = self.motion {
-            if m.end() <= self.now {
+            if m.done() <= self.now {
                 self.motion = None;
                 self.position_mm = m.profile.to_mm as f32;
                 self.target_reached = true;
@@ -317,6 +323,33 @@ mod tests {
         let mut d = Device::new(SimConfig::default().with_part(40.0, 1.0));
         d.connect(1, SessionKind::Tcp);
         d
+    }
+
+    /// Anhang B: SF_MOVING is reset when the fingers stop; the final reply comes when the
+    /// command ends (1.3), `final_reply_lag` later. A client must not take the one for the other.
+    #[test]
+    fn the_final_reply_may_come_after_the_moving_flag_is_reset() {
+        let mut cfg = SimConfig::default().with_part(40.0, 1.0);
+        cfg.final_reply_lag = std::time::Duration::from_millis(200);
+        let mut d = Device::new(cfg);
+        d.connect(1, SessionKind::Tcp);
+        let home = Command::Homing(HomingDirection::Default);
+        assert_eq!(cmd(&mut d, 0.0, home.clone()), [Status::CmdPending]);
+        let done = d.next_event().unwrap();
+        let stopped = done - 0.2;
+        assert!(stopped > 0.0);
+        assert!(d.advance(stopped - 0.01).is_empty());
+        assert!(d.system_state().contains(SystemState::MOVING));
+        // The fingers stand still: the flag is clear, the command not yet over.
+        assert!(d.advance(stopped + 0.01).is_empty());
+        assert!(!d.system_state().contains(SystemState::MOVING));
+        assert_eq!(cmd(&mut d, stopped + 0.02, home), [Status::AlreadyRunning]);
+        let finals: Vec<_> = d
+            .advance(done)
+            .into_iter()
+            .map(|o| o.reply.status)
+            .collect();
+        assert_eq!(finals, [Status::Success]);
     }
 
     #[test]

@@ -156,6 +156,13 @@ pub struct SimConfig {
     /// per `recv` and compare whole chunks, so `ACK` and `FIN` must not arrive together
     /// (shared note §6.2, §6.3). Default 20 ms.
     pub text_ack_gap: Duration,
+    /// How long a motion's final reply comes after its fingers stopped (a grasp's force build-up,
+    /// the controller settling), as motion time (scaled by [`SimConfig::time_scale`]). Meanwhile
+    /// SF_MOVING is already clear: the manual resets it "wenn die Bewegung stoppt" (Anhang B)
+    /// and sends the final reply when the command ends (1.3), and ties the two together nowhere.
+    /// A client that takes one "not moving" for the end of a move is then wrong. Default 0 (flag
+    /// and final reply together).
+    pub final_reply_lag: Duration,
 }
 
 impl SimConfig {
@@ -183,6 +190,7 @@ impl SimConfig {
             text_interface: false,
             fast_stop_on_close: true,
             text_ack_gap: Duration::from_millis(20),
+            final_reply_lag: Duration::ZERO,
         }
     }
 

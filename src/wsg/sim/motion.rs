@@ -97,12 +97,20 @@ pub(super) struct Motion {
     /// Simulated seconds.
     pub(super) start: f64,
     pub(super) profile: Profile,
+    /// Simulated seconds between the fingers' stop and the final reply
+    /// ([`SimConfig::final_reply_lag`](super::SimConfig::final_reply_lag)).
+    pub(super) settle: f64,
 }
 
 impl Motion {
-    /// When the move ends, simulated seconds.
+    /// When the fingers stop, simulated seconds.
     pub(super) fn end(&self) -> f64 {
         self.start + self.profile.total
+    }
+
+    /// When the command ends and its final reply is sent, simulated seconds.
+    pub(super) fn done(&self) -> f64 {
+        self.end() + self.settle
     }
 }
 #[cfg(test)]

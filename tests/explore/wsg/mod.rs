@@ -61,11 +61,15 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
     };
     let mut rng = Prng::new(seed);
     let sim_t0 = Instant::now();
-    let sim = Arc::new(SimServer::in_memory(
-        SimConfig::new(Model::Wsg50)
-            .with_part(40.0, 2.0)
-            .with_time_scale(1.0),
-    ));
+    // The final reply of a motion comes this long after its fingers stopped (SF_MOVING already
+    // clear, Anhang B): one "not moving" is no proof that a move is over. Every client's grace
+    // is longer, as the pairing's two-probe rule needs (`pairing.rs`).
+    let mut config = SimConfig::new(Model::Wsg50)
+        .with_part(40.0, 2.0)
+        .with_time_scale(1.0);
+    config.final_reply_lag = rng.millis(0, 300);
+    let settle = config.final_reply_lag;
+    let sim = Arc::new(SimServer::in_memory(config));
     sim.start_recording(RECORD_CAPACITY);
     let faults_on = Arc::new(AtomicBool::new(true));
     let level = rng.between(0, u64::from(caps.faults)) as u32;
@@ -82,7 +86,10 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
     for index in 0..n_clients {
         let mut crng = rng.fork();
         ctxs.push(Arc::new(
-            open_client(index, transport, &mut crng, level, &sim, &faults_on, &trace).await,
+            open_client(
+                index, transport, &mut crng, level, settle, &sim, &faults_on, &trace,
+            )
+            .await,
         ));
     }
 
@@ -178,13 +185,14 @@ async fn open_client(
     transport: Transport,
     rng: &mut Prng,
     level: u32,
+    settle: Duration,
     sim: &Arc<SimServer>,
     faults_on: &Arc<AtomicBool>,
     trace: &SharedTrace,
 ) -> ClientCtx {
     let query_timeout = rng.millis(50, 1000);
     let motion_timeout = rng.millis(1000, 10_000);
-    let grace = rng.millis(50, 2000);
+    let grace = rng.millis(50, 2000).max(settle + Duration::from_millis(50));
     let reconnect = transport != Transport::Udp && rng.one_in(2);
     let announce = transport == Transport::Tcp;
     let mut b = Client::builder()

@@ -405,7 +405,7 @@ impl Actor {
                 }
             }
             let bytes = b.freeze();
-            let moving = self.device.motion.is_some();
+            let moving = self.device.fingers_moving();
             self.record(
                 out.session,
                 SimEvent::Reply {
