@@ -180,6 +180,8 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
     v
 }
 
+// The run's draws and handles, each needed once here: a struct would only rename them.
+#[allow(clippy::too_many_arguments)]
 async fn open_client(
     index: usize,
     transport: Transport,
