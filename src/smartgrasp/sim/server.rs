@@ -47,7 +47,7 @@ pub struct SimExchange {
     /// The request frame as received.
     pub request: AnyRequestFrame,
     /// The bytes sent for it (a response frame, the "too old" empty message, or a
-    /// [`Fault::SendRaw`]'s bytes); a request answered with nothing is not recorded.
+    /// [`Fault::CorruptLength`]'s bytes); a request answered with nothing is not recorded.
     pub response: Vec<u8>,
     /// When the response was written (tokio's clock).
     pub sent_at: Instant,

@@ -10,12 +10,11 @@
 
 use std::future::Future;
 use std::pin::Pin;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use futures_util::StreamExt;
-use gripper::reconnect::{ConnectionEvent, ReconnectPolicy};
+use gripper::reconnect::ReconnectPolicy;
 use gripper::smartgrasp::frame::{AnyResponseFrame, FRAME_LEN};
 use gripper::smartgrasp::sim::{Fault, SimConfig, SimExchange, SimServer};
 use gripper::smartgrasp::types::SelectionCriterion;
@@ -25,7 +24,8 @@ use gripper::smartgrasp::{
 };
 use tokio::time::Instant;
 
-use crate::core::streams::{faulty_pipe, StreamProfile};
+use crate::core::servers::{watch_losses, Servers};
+use crate::core::streams::StreamProfile;
 use crate::core::{note, Caps, Prng, Scenario, SharedTrace};
 
 /// The SmartGrasp scenario.
@@ -53,8 +53,9 @@ impl Scenario for SmartGrasp {
     }
 }
 
-/// The server of the moment: a restart replaces it (its connections end with it).
-type SimSlot = Arc<Mutex<Arc<SimServer>>>;
+/// The server of the moment (a restart replaces it: its connections end with it) and the
+/// records of the ones it replaced.
+type Sims = Servers<SimServer, Vec<SimExchange>>;
 
 fn new_sim(version: u16) -> Arc<SimServer> {
     let sim = SimServer::in_memory(SimConfig {
@@ -93,10 +94,7 @@ struct CallRec {
 async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -> Vec<String> {
     let version: u16 = if variant.ends_with("v3") { 3 } else { 4 };
     let mut rng = Prng::new(seed);
-    let slot: SimSlot = Arc::new(Mutex::new(new_sim(version)));
-    let generation = Arc::new(AtomicU64::new(0));
-    // The records of the servers a restart replaced, by generation.
-    let records = Arc::new(Mutex::new(Vec::<Vec<SimExchange>>::new()));
+    let sims: Sims = Servers::new(new_sim(version));
     let faults_on = Arc::new(AtomicBool::new(true));
     let level = rng.between(0, u64::from(caps.faults)) as u32;
     let n_clients = rng.between(1, 2) as usize;
@@ -123,35 +121,15 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
             ..random
         };
         let sessions = Arc::new(Mutex::new(Vec::new()));
-        let open = {
-            let (slot, generation, faults_on, trace, sessions) = (
-                slot.clone(),
-                generation.clone(),
-                faults_on.clone(),
-                trace.clone(),
-                sessions.clone(),
-            );
-            let rng = Arc::new(Mutex::new(crng.fork()));
-            move || {
-                let sim = slot.lock().unwrap().clone();
-                let gen = generation.load(Ordering::SeqCst);
-                let mut r = rng.lock().unwrap();
-                let (client_end, server_end) = faulty_pipe(
-                    &mut r,
-                    profile,
-                    faults_on.clone(),
-                    trace.clone(),
-                    format!("c{index}"),
-                );
-                let session = sim.serve_stream(server_end);
-                sessions.lock().unwrap().push((gen, session));
-                note(
-                    &trace,
-                    format!("client {index}: open session {gen}/{session}"),
-                );
-                std::future::ready(Ok::<_, std::io::Error>(client_end))
-            }
-        };
+        let open = sims.opener(
+            index,
+            crng.fork(),
+            profile,
+            faults_on.clone(),
+            trace.clone(),
+            sessions.clone(),
+            |sim, io| sim.serve_stream(io),
+        );
         let config = ClientConfig {
             query_timeout: crng.millis(50, 2000),
             detection_timeout: crng.millis(100, 5000),
@@ -189,20 +167,7 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
             ));
             return violations;
         };
-        let lost = Arc::new(AtomicBool::new(false));
-        {
-            // The client's own account of a loss (documented errors after it).
-            let mut events = client.connection_events();
-            let (lost, trace) = (lost.clone(), trace.clone());
-            tokio::spawn(async move {
-                while let Some(ev) = events.next().await {
-                    note(&trace, format!("client {index}: event {ev:?}"));
-                    if matches!(ev, ConnectionEvent::Lost { .. }) {
-                        lost.store(true, Ordering::SeqCst);
-                    }
-                }
-            });
-        }
+        let lost = watch_losses(client.connection_events(), index, trace.clone());
         ctxs.push(Arc::new(Ctx {
             index,
             client,
@@ -245,30 +210,20 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
     }
     if level >= 2 && rng.one_in(4) {
         let at = rng.millis(0, 5000);
-        let (slot, records, generation, trace) = (
-            slot.clone(),
-            records.clone(),
-            generation.clone(),
+        sims.restart_at(
+            at,
+            move || new_sim(version),
+            SimServer::recording,
             trace.clone(),
         );
-        tokio::spawn(async move {
-            tokio::time::sleep(at).await;
-            note(&trace, "fault: the server restarts");
-            let old = std::mem::replace(&mut *slot.lock().unwrap(), new_sim(version));
-            let mut r = records.lock().unwrap();
-            r.push(old.recording());
-            generation.store(r.len() as u64, Ordering::SeqCst);
-            // Dropped, the old server ends its connections.
-            drop(old);
-        });
     }
     for _ in 0..drops {
         let at = rng.millis(0, 5000);
-        let (slot, trace) = (slot.clone(), trace.clone());
+        let (sims, trace) = (sims.clone(), trace.clone());
         tokio::spawn(async move {
             tokio::time::sleep(at).await;
             note(&trace, "fault: the server will drop its next response");
-            slot.lock().unwrap().inject(Fault::DropReply);
+            sims.current().0.inject(Fault::DropReply);
         });
     }
     for c in callers {
@@ -328,8 +283,7 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
         }
     }
     // The oracle needs every server's record; then everything ends.
-    let mut records = std::mem::take(&mut *records.lock().unwrap());
-    records.push(slot.lock().unwrap().recording());
+    let records = sims.all_records(SimServer::recording);
     for (g, rec) in records.iter().enumerate() {
         for e in rec {
             note(
@@ -346,7 +300,7 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
     let calls = std::mem::take(&mut *log.lock().unwrap());
     violations.extend(oracle(&ctxs, &calls, &records, drops > 0));
     drop(ctxs);
-    drop(slot);
+    drop(sims);
     violations
 }
 
