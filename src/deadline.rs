@@ -4,27 +4,35 @@
 
 use std::io::ErrorKind;
 use std::pin::Pin;
+use std::task::Poll;
 
 use std::time::Duration;
 
-use tokio::io::AsyncWriteExt;
-use tokio::net::tcp::OwnedWriteHalf;
+use tokio::io::{AsyncWrite, AsyncWriteExt};
 use tokio::time::error::Elapsed;
 use tokio::time::{Instant, Sleep};
 
 /// Writes all of `bytes` by `deadline()`, as `timeout_at(deadline(), write.write_all(bytes))`
-/// does. A request is short and the socket nearly always takes it whole at once, so that is
-/// tried first, without a timer; only what the socket did not take waits, timed. (`deadline` is
-/// asked only then: reading the clock for every write would cost more than the write.)
-pub(crate) async fn write_all_by(
-    write: &mut OwnedWriteHalf,
+/// does. A request is short and the stream nearly always takes it whole at once, so that is
+/// tried first (one write attempt), without a timer; only what the stream did not take waits,
+/// timed. (`deadline` is asked only then: reading the clock for every write would cost more
+/// than the write.) Any byte stream: a socket's write half, or a program's own stream.
+pub(crate) async fn write_all_by<W: AsyncWrite + Unpin + ?Sized>(
+    write: &mut W,
     bytes: &[u8],
     deadline: impl FnOnce() -> Instant,
 ) -> Result<std::io::Result<()>, Elapsed> {
-    let written = match write.try_write(bytes) {
+    // One attempt: a stream that cannot take anything now counts as 0 bytes taken (its waker
+    // is registered, and `write_all` below polls it again).
+    let attempt = std::future::poll_fn(|cx| match Pin::new(&mut *write).poll_write(cx, bytes) {
+        Poll::Pending => Poll::Ready(Ok(0)),
+        done => done,
+    })
+    .await;
+    let written = match attempt {
         Ok(n) => n,
-        // As `write_all` would: wait for the socket, or try again.
-        Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::Interrupted) => 0,
+        // As `write_all` would: try again.
+        Err(e) if e.kind() == ErrorKind::Interrupted => 0,
         Err(e) => return Ok(Err(e)),
     };
     match bytes.get(written..) {

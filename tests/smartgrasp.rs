@@ -685,3 +685,57 @@ async fn grasp_feedback_has_no_effect_by_default_as_schunks_examples_say() {
         }
     }
 }
+
+/// `Duration::MAX` is the common way to say "no timeout": it must not panic (the call's
+/// deadline and its give-up limit overflowed `Instant`; found by the explorer, issue 21 §3).
+#[tokio::test]
+async fn a_call_without_timeout_does_not_panic() {
+    let server = sim(v3_sim()).await;
+    let client = open(&server).await;
+    let forever = client.with_timeout(Duration::MAX);
+    assert_eq!(forever.get_state().await.unwrap(), ServerState::Operational);
+    assert_eq!(
+        forever.get_object_count(2).await.unwrap().candidate_count,
+        1
+    );
+}
+
+/// The same server over an in-memory stream, through `Client::open_with`; a reconnect calls
+/// the opener again, and the record holds each request with the bytes sent for it.
+#[tokio::test]
+async fn open_with_over_in_memory_streams_reconnects_through_the_opener() {
+    let server = std::sync::Arc::new(SimServer::in_memory(v3_sim()));
+    server.start_recording(64);
+    let opens = std::sync::Arc::new(std::sync::atomic::AtomicUsize::new(0));
+    let (srv, n) = (server.clone(), opens.clone());
+    let config = ClientConfig {
+        reconnect: Some(gripper::reconnect::ReconnectPolicy {
+            initial_delay: Duration::from_millis(1),
+            max_delay: Duration::from_millis(10),
+            factor: 2.0,
+            max_attempts: Some(5),
+        }),
+        ..ClientConfig::default()
+    };
+    let client = Client::open_with(
+        move || {
+            n.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+            let (a, b) = tokio::io::duplex(1024);
+            srv.serve_stream(b);
+            std::future::ready(Ok::<_, std::io::Error>(a))
+        },
+        config,
+    )
+    .await
+    .unwrap();
+    assert_eq!(client.get_state().await.unwrap(), ServerState::Operational);
+    server.inject(Fault::Close);
+    assert!(client.get_state().await.is_err());
+    assert_eq!(client.get_state().await.unwrap(), ServerState::Operational);
+    assert_eq!(opens.load(std::sync::atomic::Ordering::SeqCst), 2);
+    let record = server.recording();
+    assert!(record.iter().any(|e| e.session == 2), "{record:?}");
+    assert!(record
+        .iter()
+        .all(|e| e.response.len() == gripper::smartgrasp::frame::FRAME_LEN));
+}

@@ -294,3 +294,46 @@ async fn a_reconnect_restores_tool_and_workspace() {
         (Some(3), Some(1))
     );
 }
+
+/// A dropped GET_OBJECT_COUNT response: the next response, GRASP_FEEDBACK's (type 17), must not
+/// be taken for the count. The V3 manual's erratum (17 for a count) does not apply to V4, whose
+/// responses echo no class to tell them apart (found by the explorer, seed
+/// smartgrasp-v4:0x2bddb861cd355f42).
+#[tokio::test]
+async fn a_feedback_response_is_not_taken_for_a_lost_count_in_v4() {
+    let server = sim(4).await;
+    let client = within(
+        "connect",
+        Client::connect(server.local_addr(), ClientConfig::default()),
+    )
+    .await
+    .unwrap();
+    assert_eq!(client.protocol_version(), 4);
+    let before = within("count", client.get_object_count(1)).await.unwrap();
+    server.inject(gripper::smartgrasp::sim::Fault::DropReply);
+    let (count, feedback) = within("calls", async {
+        tokio::join!(
+            client.get_object_count(1),
+            client.grasp_feedback(GraspFeedback::Bad)
+        )
+    })
+    .await;
+    assert!(
+        matches!(count, Err(Error::ResponseLost { .. })),
+        "{count:?}"
+    );
+    // Its own response (the simulator refuses feedback without a grasp given).
+    assert!(
+        matches!(
+            feedback,
+            Ok(())
+                | Err(Error::Device {
+                    message_type: gripper::smartgrasp::MessageType::GraspFeedback,
+                    ..
+                })
+        ),
+        "{feedback:?}"
+    );
+    let after = within("count", client.get_object_count(1)).await.unwrap();
+    assert_eq!(after, before);
+}

@@ -23,6 +23,7 @@
 
 mod core;
 mod griplink;
+mod smartgrasp;
 mod wsg;
 
 use std::process::ExitCode;
@@ -32,7 +33,7 @@ use crate::core::{determinism_check, run_one, Caps, Outcome, Scenario};
 
 /// Every protocol plugged in.
 fn scenarios() -> Vec<&'static dyn Scenario> {
-    vec![&wsg::Wsg, &griplink::Griplink]
+    vec![&wsg::Wsg, &griplink::Griplink, &smartgrasp::SmartGrasp]
 }
 
 struct Opts {

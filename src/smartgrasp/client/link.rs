@@ -11,8 +11,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use futures_core::Stream;
-use tokio::io::AsyncWriteExt;
-use tokio::net::tcp::{OwnedReadHalf, OwnedWriteHalf};
+use tokio::io::{AsyncWriteExt, ReadHalf, WriteHalf};
 use tokio::net::TcpStream;
 use tokio::sync::{mpsc, oneshot};
 use tokio::time::Instant;
@@ -22,7 +21,8 @@ use tokio_util::sync::CancellationToken;
 use super::pairing::{ambiguous, check_response, Counted, Pairing};
 use super::shutdown::Shutdown;
 use super::{ClientConfig, Shared, Timeouts};
-use crate::deadline::{move_timer, write_all_by};
+use crate::deadline::{after, move_timer, write_all_by};
+use crate::reconnect::{BoxStream, Open};
 use crate::smartgrasp::codec::ClientCodec;
 use crate::smartgrasp::error::{Error, Malformed, Result};
 use crate::smartgrasp::frame::{
@@ -67,8 +67,8 @@ pub(crate) type OnPaired<'a> = dyn FnMut(&RequestFrame, &ResponseFrame) + Send +
 
 /// A connection and its pairing state.
 pub(crate) struct Link {
-    responses: FramedRead<OwnedReadHalf, ClientCodec>,
-    write: OwnedWriteHalf,
+    responses: FramedRead<ReadHalf<BoxStream>, ClientCodec>,
+    write: WriteHalf<BoxStream>,
     /// At most [`MAX_IN_FLIGHT`].
     waiting: VecDeque<Waiting>,
     pairing: Pairing,
@@ -84,21 +84,48 @@ pub(crate) struct Link {
     shared: Arc<Shared>,
 }
 
+/// How a link (the first one, and each reconnect) opens its byte stream.
+pub(crate) enum Opener {
+    /// The addresses resolved once, when the client connected.
+    Tcp(Vec<SocketAddr>),
+    /// The program's own opener ([`Client::open_with`](super::Client::open_with)).
+    Custom(Open),
+}
+
+impl Opener {
+    /// One attempt, within `timeout`.
+    async fn open(&self, timeout: Duration) -> Result<BoxStream> {
+        within_connect_timeout(timeout, async {
+            match self {
+                Opener::Tcp(addrs) => {
+                    let stream = TcpStream::connect(&addrs[..]).await?;
+                    // Requests are single 80-byte writes waiting for an answer: do not let
+                    // Nagle hold them.
+                    stream.set_nodelay(true)?;
+                    Ok(Box::new(stream) as BoxStream)
+                }
+                Opener::Custom(open) => Ok(open().await?),
+            }
+        })
+        .await
+    }
+}
+
 impl Link {
-    /// Connects within the configured connect timeout.
+    /// Opens a connection through `opener` within the configured connect timeout.
     pub(crate) async fn connect(
-        addrs: &[SocketAddr],
+        opener: &Opener,
         config: &ClientConfig,
         shared: &Arc<Shared>,
     ) -> Result<Link> {
-        let stream = within_connect_timeout(config.connect_timeout, async {
-            Ok(TcpStream::connect(addrs).await?)
-        })
-        .await?;
-        // Requests are single 80-byte writes waiting for an answer: do not let Nagle hold them.
-        stream.set_nodelay(true)?;
-        let (read, write) = stream.into_split();
-        Ok(Link {
+        let stream = opener.open(config.connect_timeout).await?;
+        Ok(Link::over(stream, config, shared))
+    }
+
+    /// A link over a stream already open.
+    pub(crate) fn over(stream: BoxStream, config: &ClientConfig, shared: &Arc<Shared>) -> Link {
+        let (read, write) = tokio::io::split(stream);
+        Link {
             // V3 until the opening sequence chose a version (see `set_version`).
             responses: FramedRead::new(read, ClientCodec::default()),
             write,
@@ -112,7 +139,7 @@ impl Link {
             timeouts: config.timeouts(),
             give_up_after: config.give_up_after,
             shared: Arc::clone(shared),
-        })
+        }
     }
 
     /// The protocol version requests on this link are sent in.
@@ -228,7 +255,7 @@ impl Link {
                             // within the configured timeout of its type.
                             let (reply, _) = oneshot::channel();
                             let limit = self.timeouts.for_type(marker.header().message_type);
-                            let deadline = Instant::now() + limit;
+                            let deadline = after(Instant::now(), limit);
                             if let Err(e) = self.send(marker, reply, deadline).await {
                                 let _ = call.reply.send(Err(e.clone()));
                                 break e;
@@ -262,7 +289,7 @@ impl Link {
         reply: oneshot::Sender<Result<ResponseFrame>>,
         deadline: Instant,
     ) -> Result<()> {
-        let give_up_at = deadline + self.give_up_after;
+        let give_up_at = after(deadline, self.give_up_after);
         if let Err(error) = write_within(&mut self.write, give_up_at, &request.encode()).await {
             let _ = reply.send(Err(error.clone()));
             return Err(error);
@@ -417,7 +444,11 @@ fn normalised(request: &RequestFrame, frame: &ResponseFrame) -> ResponseFrame {
 }
 
 /// Writes `bytes` by `limit`; on expiry the connection is lost (see [`Link::send`]).
-async fn write_within(write: &mut OwnedWriteHalf, limit: Instant, bytes: &[u8]) -> Result<()> {
+async fn write_within(
+    write: &mut (impl tokio::io::AsyncWrite + Unpin),
+    limit: Instant,
+    bytes: &[u8],
+) -> Result<()> {
     let started = Instant::now();
     match write_all_by(write, bytes, || limit).await {
         Ok(written) => Ok(written?),
@@ -489,7 +520,7 @@ mod tests {
     use tokio::io::AsyncReadExt;
     use tokio::net::TcpListener;
 
-    async fn pair() -> (TcpStream, OwnedWriteHalf) {
+    async fn pair() -> (TcpStream, tokio::net::tcp::OwnedWriteHalf) {
         let listener = TcpListener::bind("127.0.0.1:0").await.unwrap();
         let client = TcpStream::connect(listener.local_addr().unwrap());
         let (client, accepted) = tokio::join!(client, listener.accept());

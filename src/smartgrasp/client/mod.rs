@@ -28,7 +28,7 @@ use super::types::{
 };
 use crate::connection::Connection;
 use crate::reconnect::{ConnectionEvents, EventSender, EventSubscriber, ReconnectPolicy};
-use link::{Call, Link};
+use link::{Call, Link, Opener};
 use session::{success, unexpected_body, Opened, Session};
 
 /// The server's TCP port (manual 1.1).
@@ -286,7 +286,8 @@ impl Client {
     pub async fn connect(addr: impl ToSocketAddrs, config: ClientConfig) -> Result<Client> {
         let addrs = link::within_connect_timeout(config.connect_timeout, resolve(addr)).await?;
         let shared = Arc::new(Shared::new(crate::smartgrasp::frame::PROTOCOL_VERSION));
-        let mut link = Link::connect(&addrs, &config, &shared).await?;
+        let opener = Opener::Tcp(addrs);
+        let mut link = Link::connect(&opener, &config, &shared).await?;
         let session = Session::from_config(&config);
         let opened = session.open(&mut link, &config).await?;
         shared.set_opened(&opened);
@@ -295,7 +296,38 @@ impl Client {
             version = opened.version,
             "smartgrasp session open"
         );
-        Ok(Client::spawn(link, addrs, session, config, shared))
+        Ok(Client::spawn(link, opener, session, config, shared))
+    }
+
+    /// As [`connect`](Self::connect), over the byte streams `open` opens instead of TCP: one
+    /// now, and with [`ClientConfig::reconnect`] a new one after each loss (e.g. a tunnel, or
+    /// in-memory pipes to
+    /// [`SimServer::serve_stream`](crate::smartgrasp::sim::SimServer::serve_stream), so that a
+    /// test exercises reconnecting without sockets). Each open is bounded by
+    /// [`ClientConfig::connect_timeout`]; the opening sequence runs as with `connect`. A failure
+    /// here is returned whatever the reconnect policy says.
+    pub async fn open_with<F, Fut, S>(open: F, config: ClientConfig) -> Result<Client>
+    where
+        F: Fn() -> Fut + Send + Sync + 'static,
+        Fut: std::future::Future<Output = std::io::Result<S>> + Send + 'static,
+        S: tokio::io::AsyncRead + tokio::io::AsyncWrite + Send + Unpin + 'static,
+    {
+        let (stream, open) = link::within_connect_timeout(config.connect_timeout, async {
+            Ok(crate::reconnect::first_open(open).await?)
+        })
+        .await?;
+        let shared = Arc::new(Shared::new(crate::smartgrasp::frame::PROTOCOL_VERSION));
+        let mut link = Link::over(stream, &config, &shared);
+        let session = Session::from_config(&config);
+        let opened = session.open(&mut link, &config).await?;
+        shared.set_opened(&opened);
+        Ok(Client::spawn(
+            link,
+            Opener::Custom(open),
+            session,
+            config,
+            shared,
+        ))
     }
 
     /// Connects without sending anything (`config`'s opening-sequence fields are not used; a
@@ -312,11 +344,12 @@ impl Client {
             .unwrap_or(crate::smartgrasp::frame::PROTOCOL_VERSION);
         session::check_pinned(version)?;
         let shared = Arc::new(Shared::new(version));
-        let mut link = Link::connect(&addrs, &config, &shared).await?;
+        let opener = Opener::Tcp(addrs);
+        let mut link = Link::connect(&opener, &config, &shared).await?;
         link.set_version(version);
         Ok(Client::spawn(
             link,
-            addrs,
+            opener,
             Session::default(),
             config,
             shared,
@@ -325,7 +358,7 @@ impl Client {
 
     fn spawn(
         link: Link,
-        addrs: Vec<SocketAddr>,
+        opener: Opener,
         session: Session,
         config: ClientConfig,
         shared: Arc<Shared>,
@@ -340,7 +373,7 @@ impl Client {
             closed: Arc::clone(&closed),
             session,
             config,
-            addrs,
+            opener,
             events,
             shutdown: close.shutdown.clone(),
             shared: Arc::clone(&shared),
@@ -620,7 +653,10 @@ impl Client {
         let message_type = request.message_type();
         let frame = request.to_any_frame(self.protocol_version())?;
         let (reply, answer) = oneshot::channel();
-        let deadline = tokio::time::Instant::now() + self.timeouts.for_type(message_type);
+        let deadline = crate::deadline::after(
+            tokio::time::Instant::now(),
+            self.timeouts.for_type(message_type),
+        );
         let exchange = async {
             let call = Call {
                 request,

@@ -6,13 +6,12 @@
 //! (through `closed`). [`Client::close`](super::Client::close) ends it at any point, reconnecting
 //! included: the reason is then [`Error::Closed`].
 
-use std::net::SocketAddr;
 use std::sync::{Arc, OnceLock};
 
 use tokio::sync::mpsc;
 use tokio_util::sync::CancellationToken;
 
-use super::link::{closed_error, Call, Link};
+use super::link::{closed_error, Call, Link, Opener};
 use super::session::Session;
 use super::{ClientConfig, Shared};
 use crate::reconnect::{self, ConnectionEvent, EventSender};
@@ -24,8 +23,9 @@ pub(crate) struct Task {
     pub closed: Arc<OnceLock<Error>>,
     pub session: Session,
     pub config: ClientConfig,
-    /// Where to reconnect to (resolved once, by the first connect).
-    pub addrs: Vec<SocketAddr>,
+    /// How to reconnect: the addresses resolved once by the first connect, or the program's
+    /// opener.
+    pub opener: Opener,
     pub events: EventSender,
     /// Cancelled by `Client::close`.
     pub shutdown: CancellationToken,
@@ -64,7 +64,7 @@ pub(crate) async fn run(mut link: Link, mut task: Task) {
             calls,
             session,
             config,
-            addrs,
+            opener,
             events,
             shutdown,
             shared,
@@ -75,7 +75,7 @@ pub(crate) async fn run(mut link: Link, mut task: Task) {
             events,
             || calls.is_closed(),
             |_| async {
-                let mut link = Link::connect(addrs, config, shared).await?;
+                let mut link = Link::connect(opener, config, shared).await?;
                 events.send(ConnectionEvent::Connected);
                 let opened = session.open(&mut link, config).await?;
                 shared.set_opened(&opened);

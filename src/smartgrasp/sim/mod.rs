@@ -23,7 +23,7 @@ mod state;
 pub use http::{MonitorServer, MAX_REQUEST_BYTES, MONITOR_PATH, REQUEST_TIMEOUT};
 pub use scene_svg::scene_svg;
 
-pub use server::SimServer;
+pub use server::{SimExchange, SimServer};
 pub use state::{
     parse_request, Action, Fault, SimConfig, SimConnection, SimGrasp, SimObject, SimProject,
     SimState, RECORD_LIMIT,

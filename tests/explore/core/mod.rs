@@ -30,6 +30,7 @@
 
 pub mod datagrams;
 pub mod prng;
+pub mod servers;
 pub mod streams;
 
 use std::future::Future;

@@ -11,15 +11,15 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use futures_util::StreamExt;
 use gripper::griplink::command::{Blocking, Command, Expect};
 use gripper::griplink::reply::interpret;
 use gripper::griplink::sim::{Fault, SimConfig, SimExchange, SimServer};
 use gripper::griplink::{Answer, Client, ClientConfig, Error};
-use gripper::reconnect::{ConnectionEvent, ReconnectPolicy};
+use gripper::reconnect::ReconnectPolicy;
 use tokio::time::Instant;
 
-use crate::core::streams::{faulty_pipe, StreamProfile};
+use crate::core::servers::{watch_losses, Servers};
+use crate::core::streams::StreamProfile;
 use crate::core::{note, Caps, Prng, Scenario, SharedTrace};
 
 /// The GRIPLINK scenario.
@@ -47,8 +47,9 @@ impl Scenario for Griplink {
     }
 }
 
-/// The controller of the moment: a restart replaces it (its connections end with it).
-type SimSlot = Arc<Mutex<Arc<SimServer>>>;
+/// The controller of the moment (a restart replaces it: its connections end with it) and the
+/// records of the ones it replaced.
+type Sims = Servers<SimServer, Vec<SimExchange>>;
 
 fn new_sim() -> Arc<SimServer> {
     let sim = SimServer::in_memory(SimConfig::et4().time_scale(1.0));
@@ -90,10 +91,7 @@ struct CallRec {
 
 async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -> Vec<String> {
     let mut rng = Prng::new(seed);
-    let slot: SimSlot = Arc::new(Mutex::new(new_sim()));
-    let generation = Arc::new(AtomicU64::new(0));
-    // The records of the controllers a restart replaced, by generation.
-    let records = Arc::new(Mutex::new(Vec::<Vec<SimExchange>>::new()));
+    let sims: Sims = Servers::new(new_sim());
     let faults_on = Arc::new(AtomicBool::new(true));
     let level = rng.between(0, u64::from(caps.faults)) as u32;
     let n_clients = rng.between(1, 2) as usize;
@@ -118,35 +116,15 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
             ..StreamProfile::random(&mut crng, level, false)
         };
         let sessions = Arc::new(Mutex::new(Vec::new()));
-        let open = {
-            let (slot, generation, faults_on, trace, sessions) = (
-                slot.clone(),
-                generation.clone(),
-                faults_on.clone(),
-                trace.clone(),
-                sessions.clone(),
-            );
-            let rng = Arc::new(Mutex::new(crng.fork()));
-            move || {
-                let sim = slot.lock().unwrap().clone();
-                let gen = generation.load(Ordering::SeqCst);
-                let mut r = rng.lock().unwrap();
-                let (client_end, server_end) = faulty_pipe(
-                    &mut r,
-                    profile,
-                    faults_on.clone(),
-                    trace.clone(),
-                    format!("c{index}"),
-                );
-                let session = sim.serve_stream(server_end);
-                sessions.lock().unwrap().push((gen, session));
-                note(
-                    &trace,
-                    format!("client {index}: open session {gen}/{session}"),
-                );
-                std::future::ready(Ok::<_, std::io::Error>(client_end))
-            }
-        };
+        let open = sims.opener(
+            index,
+            crng.fork(),
+            profile,
+            faults_on.clone(),
+            trace.clone(),
+            sessions.clone(),
+            |sim, io| sim.serve_stream(io),
+        );
         let config = ClientConfig {
             query_timeout: crng.millis(50, 2000),
             motion_timeout: crng.millis(500, 10_000),
@@ -169,20 +147,7 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
                 return violations;
             }
         };
-        let lost = Arc::new(AtomicBool::new(false));
-        {
-            // The client's own account of a loss (documented errors after it).
-            let mut events = client.connection_events();
-            let (lost, trace) = (lost.clone(), trace.clone());
-            tokio::spawn(async move {
-                while let Some(ev) = events.next().await {
-                    note(&trace, format!("client {index}: event {ev:?}"));
-                    if matches!(ev, ConnectionEvent::Lost { .. }) {
-                        lost.store(true, Ordering::SeqCst);
-                    }
-                }
-            });
-        }
+        let lost = watch_losses(client.connection_events(), index, trace.clone());
         ctxs.push(Arc::new(Ctx {
             index,
             client,
@@ -225,30 +190,15 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
     }
     if level >= 2 && rng.one_in(4) {
         let at = rng.millis(0, 5000);
-        let (slot, records, generation, trace) = (
-            slot.clone(),
-            records.clone(),
-            generation.clone(),
-            trace.clone(),
-        );
-        tokio::spawn(async move {
-            tokio::time::sleep(at).await;
-            note(&trace, "fault: the controller restarts");
-            let old = std::mem::replace(&mut *slot.lock().unwrap(), new_sim());
-            let mut r = records.lock().unwrap();
-            r.push(old.recording());
-            generation.store(r.len() as u64, Ordering::SeqCst);
-            // Dropped, the old controller ends its connections (its shutdown signal).
-            drop(old);
-        });
+        sims.restart_at(at, new_sim, SimServer::recording, trace.clone());
     }
     for _ in 0..drops {
         let at = rng.millis(0, 5000);
-        let (slot, trace) = (slot.clone(), trace.clone());
+        let (sims, trace) = (sims.clone(), trace.clone());
         tokio::spawn(async move {
             tokio::time::sleep(at).await;
             note(&trace, "fault: the controller will drop its next reply");
-            slot.lock().unwrap().inject(Fault::DropReply);
+            sims.current().0.inject(Fault::DropReply);
         });
     }
     for c in callers {
@@ -310,8 +260,7 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
         }
     }
     // The oracle needs every controller's record; then everything ends.
-    let mut records = std::mem::take(&mut *records.lock().unwrap());
-    records.push(slot.lock().unwrap().recording());
+    let records = sims.all_records(SimServer::recording);
     for (g, rec) in records.iter().enumerate() {
         for e in rec {
             note(
@@ -323,7 +272,7 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
     let calls = std::mem::take(&mut *log.lock().unwrap());
     violations.extend(oracle(&ctxs, &calls, &records, drops > 0));
     drop(ctxs);
-    drop(slot);
+    drop(sims);
     violations
 }
 
