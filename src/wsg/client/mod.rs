@@ -342,7 +342,7 @@ impl ClientBuilder {
             rx,
             unsub_rx,
             self.late_reply_grace,
-            self.query_timeout,
+            (self.query_timeout, self.motion_timeout),
             announce,
             lost.clone(),
         );
