@@ -27,8 +27,12 @@
 //! - Everything else queues behind the request of its id on the wire.
 //!
 //! How long an id stays "poisoned" by a request that got no (final) reply: until its caller's
-//! deadline plus a grace period ([`Pairing::new`]); then the id is released, acknowledged or
-//! not, so a lost frame cannot block it forever. On UDP the residual risk is a reply arriving
+//! deadline plus a grace period ([`Pairing::new`]), and for an unacknowledged request at most
+//! the reply hold plus grace from when it was sent ([`Pairing::set_holds`]: a caller without
+//! timeout, or one that dropped the call, does not hold it for ever); then the id is released,
+//! acknowledged or not, so a lost frame cannot block it forever. An acknowledged motion goes
+//! under recovery (below) at its caller's deadline or the motion hold after it was sent,
+//! whichever comes first. On UDP the residual risk is a reply arriving
 //! later than that grace: it would be taken as the reply to the next request of the same id.
 //! On an ordered transport (TCP, serial: [`Pairing::set_ordered`]) a request released with no
 //! reply at all *fences* its id instead ([`Due::Fenced`]): the task sends a loop-back with a
@@ -772,7 +776,10 @@ mod tests {
         let (query, motion) = (Duration::from_secs(1), Duration::from_secs(10));
         let mut p = Pairing::new(grace);
         p.set_holds(query, motion);
-        assert!(matches!(p.submit(req(1, 0x50, never), now), Submit::Send(_)));
+        assert!(matches!(
+            p.submit(req(1, 0x50, never), now),
+            Submit::Send(_)
+        ));
         assert!(matches!(p.submit(req(2, 0x50, never), now), Submit::Queued));
         assert_eq!(p.next_due(), Some(now + query + grace));
         assert!(p.due(now + query).is_empty());
@@ -781,10 +788,19 @@ mod tests {
         assert_eq!(p.next(0x50, |_| true, later).0.map(|r| r.token), Some(2));
         // The next one is bounded from when it was sent.
         assert_eq!(p.next_due(), Some(later + query + grace));
-        assert!(matches!(p.on_reply(reply(0x50, Status::Success)), Event::Resolved(2, _)));
+        assert!(matches!(
+            p.on_reply(reply(0x50, Status::Success)),
+            Event::Resolved(2, _)
+        ));
 
-        assert!(matches!(p.submit(req(3, 0x21, never), now), Submit::Send(_)));
-        assert_eq!(p.on_reply(reply(0x21, Status::CmdPending)), Event::Accepted(3));
+        assert!(matches!(
+            p.submit(req(3, 0x21, never), now),
+            Submit::Send(_)
+        ));
+        assert_eq!(
+            p.on_reply(reply(0x21, Status::CmdPending)),
+            Event::Accepted(3)
+        );
         assert_eq!(p.due(now + motion), vec![Due::Probe(0x21, 3)]);
     }
 
@@ -803,7 +819,10 @@ mod tests {
         assert!(matches!(p.submit(req(2, 0x62, now), now), Submit::Queued));
         assert_eq!(p.next_due(), Some(now + grace));
         assert_eq!(p.due(now + grace), vec![Due::Released(0x62, 1)]);
-        assert_eq!(p.next(0x62, |_| true, Instant::now()).0.map(|r| r.token), Some(2));
+        assert_eq!(
+            p.next(0x62, |_| true, Instant::now()).0.map(|r| r.token),
+            Some(2)
+        );
     }
 
     #[test]
@@ -851,7 +870,10 @@ mod tests {
             p.on_reply(reply(0x21, Status::AccessDenied)),
             Event::Resolved(4, _)
         ));
-        assert_eq!(p.next(0x21, |_| true, Instant::now()).0.map(|r| r.token), Some(5));
+        assert_eq!(
+            p.next(0x21, |_| true, Instant::now()).0.map(|r| r.token),
+            Some(5)
+        );
     }
 
     /// Issue 20.2 #1: a second call behind an acknowledged move whose final reply is lost is
@@ -880,7 +902,10 @@ mod tests {
             p.on_probe(0x21, 1, Observation::Idle, now + grace, 4),
             Verdict::Abandoned
         );
-        assert_eq!(p.next(0x21, |_| true, Instant::now()).0.map(|r| r.token), Some(2));
+        assert_eq!(
+            p.next(0x21, |_| true, Instant::now()).0.map(|r| r.token),
+            Some(2)
+        );
     }
 
     #[test]
@@ -1024,7 +1049,10 @@ mod tests {
             p.on_reply(reply(0x21, Status::Success)),
             Event::Resolved(1, reply(0x21, Status::Success))
         );
-        assert_eq!(p.next(0x21, |_| true, Instant::now()).0.map(|r| r.token), None);
+        assert_eq!(
+            p.next(0x21, |_| true, Instant::now()).0.map(|r| r.token),
+            None
+        );
         assert!(matches!(p.submit(req(2, 0x21, t), now), Submit::Send(_)));
         // The first request's late E_CMD_PENDING (or the second's own: they cannot be told
         // apart) ...
@@ -1063,7 +1091,10 @@ mod tests {
         assert!(matches!(p.submit(req(2, 0x43, t), now), Submit::Queued));
         assert_eq!(p.due(t + grace), vec![Due::Fenced(0x43, 1)]);
         // Fenced: nothing goes out, and a new call queues too.
-        assert_eq!(p.next(0x43, |_| true, Instant::now()).0.map(|r| r.token), None);
+        assert_eq!(
+            p.next(0x43, |_| true, Instant::now()).0.map(|r| r.token),
+            None
+        );
         assert!(matches!(p.submit(req(3, 0x43, t), now), Submit::Queued));
         // The late reply answers nobody.
         assert!(matches!(
@@ -1072,13 +1103,19 @@ mod tests {
         ));
         p.unfence(0x43);
         for token in [2, 3] {
-            assert_eq!(p.next(0x43, |_| true, Instant::now()).0.map(|r| r.token), Some(token));
+            assert_eq!(
+                p.next(0x43, |_| true, Instant::now()).0.map(|r| r.token),
+                Some(token)
+            );
             assert!(matches!(
                 p.on_reply(reply(0x43, Status::Success)),
                 Event::Resolved(t, _) if t == token
             ));
         }
-        assert_eq!(p.next(0x43, |_| true, Instant::now()).0.map(|r| r.token), None);
+        assert_eq!(
+            p.next(0x43, |_| true, Instant::now()).0.map(|r| r.token),
+            None
+        );
         // A loop-back needs no barrier: its reply must echo its own payload.
         assert!(matches!(
             p.submit(req(4, id::LOOP, t), now),
