@@ -212,15 +212,57 @@ fn report(k: &str, o: &Outcome, label: &str) {
     eprintln!("  replay: {}", replay_command(k));
 }
 
-/// The texts of known open findings (`tests/explore/known.txt`).
-fn known_findings() -> Vec<String> {
+/// One known open finding (`tests/explore/known.txt`): `VARIANTS | TEXT && TEXT ... # why`.
+struct Known {
+    /// The variants it applies to (names or prefixes, comma separated in the file).
+    variants: Vec<String>,
+    /// Texts a violation must all contain.
+    texts: Vec<String>,
+}
+
+impl Known {
+    /// Whether violation `v` of a run of `variant` is this known finding.
+    fn covers(&self, variant: &str, v: &str) -> bool {
+        self.variants
+            .iter()
+            .any(|p| variant.starts_with(p.as_str()))
+            && self.texts.iter().all(|t| v.contains(t.as_str()))
+    }
+}
+
+/// The known open findings (`tests/explore/known.txt`). A line without `VARIANTS |` or without
+/// a text is an error: a finding known on every variant, or a line matching every violation,
+/// would make a promise unable to fail.
+fn known_findings() -> Result<Vec<Known>, String> {
     let file = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/explore/known.txt");
-    std::fs::read_to_string(file)
-        .unwrap_or_default()
-        .lines()
-        .map(|l| l.split(" # ").next().unwrap_or_default().trim().to_owned())
-        .filter(|l| !l.is_empty() && !l.starts_with('#'))
-        .collect()
+    let text = std::fs::read_to_string(file).unwrap_or_default();
+    let mut out = Vec::new();
+    for l in text.lines() {
+        let l = l.split(" # ").next().unwrap_or_default().trim();
+        if l.is_empty() || l.starts_with('#') {
+            continue;
+        }
+        let (variants, texts) = l
+            .split_once(" | ")
+            .ok_or(format!("known.txt: no `VARIANTS | ` in {l:?}"))?;
+        let variants: Vec<String> = variants
+            .split(',')
+            .map(|v| v.trim().to_owned())
+            .filter(|v| !v.is_empty())
+            .collect();
+        let texts: Vec<String> = texts
+            .split("&&")
+            .map(|t| t.trim().to_owned())
+            .filter(|t| !t.is_empty())
+            .collect();
+        if variants.is_empty() || texts.is_empty() {
+            return Err(format!(
+                "known.txt: a variant and a text are needed in {l:?}"
+            ));
+        }
+        out.push(Known { variants, texts });
+    }
+    Ok(out)
 }
 
 fn fresh_base(o: &Opts) -> u64 {
@@ -276,14 +318,20 @@ fn main() -> ExitCode {
     let known = if o.strict {
         Vec::new()
     } else {
-        known_findings()
+        match known_findings() {
+            Ok(k) => k,
+            Err(e) => {
+                eprintln!("explore: {e}");
+                return ExitCode::FAILURE;
+            }
+        }
     };
-    let is_known = |out: &Outcome| {
+    let is_known = |variant: &str, out: &Outcome| {
         !out.violations.is_empty()
             && out
                 .violations
                 .iter()
-                .all(|v| known.iter().any(|k| v.contains(k.as_str())))
+                .all(|v| known.iter().any(|k| k.covers(variant, v)))
     };
 
     if let Some(max) = o.until_fail {
@@ -295,7 +343,7 @@ fn main() -> ExitCode {
                 let out = run_one(*s, v, seed, Caps::FULL);
                 let hit = match &o.kind {
                     Some(k) => out.violations.iter().any(|v| v.contains(k.as_str())),
-                    None => !out.violations.is_empty() && !is_known(&out),
+                    None => !out.violations.is_empty() && !is_known(v, &out),
                 };
                 hit.then(|| (i + 1, seed, out))
             });
@@ -401,7 +449,7 @@ fn main() -> ExitCode {
             of_kind += u64::from(out.violations.iter().any(|v| v.contains(k.as_str())));
         }
         if !out.violations.is_empty() {
-            if is_known(&out) {
+            if is_known(v, &out) {
                 known_runs += 1;
             } else {
                 failures += 1;
@@ -417,14 +465,14 @@ fn main() -> ExitCode {
                     first_of_kind = true;
                 }
             }
-            if is_known(&out) {
+            if is_known(v, &out) {
                 if first_of_kind {
                     report(&k, &out, "KNOWN (open finding)");
                 }
             } else if o.shrink || first_of_kind {
                 report_failure(&k, &out);
             }
-            if o.shrink && !is_known(&out) {
+            if o.shrink && !is_known(v, &out) {
                 if let Some(small) = shrink(s, v, seed, &out.violations[0]) {
                     eprintln!("  shrunk: {}", replay_command(&small));
                 }

@@ -27,8 +27,12 @@
 //! - Everything else queues behind the request of its id on the wire.
 //!
 //! How long an id stays "poisoned" by a request that got no (final) reply: until its caller's
-//! deadline plus a grace period ([`Pairing::new`]); then the id is released, acknowledged or
-//! not, so a lost frame cannot block it forever. On UDP the residual risk is a reply arriving
+//! deadline plus a grace period ([`Pairing::new`]), and for an unacknowledged request at most
+//! the reply hold plus grace from when it was sent ([`Pairing::set_holds`]: a caller without
+//! timeout, or one that dropped the call, does not hold it for ever); then the id is released,
+//! acknowledged or not, so a lost frame cannot block it forever. An acknowledged motion goes
+//! under recovery (below) at its caller's deadline or the motion hold after it was sent,
+//! whichever comes first. On UDP the residual risk is a reply arriving
 //! later than that grace: it would be taken as the reply to the next request of the same id.
 //! On an ordered transport (TCP, serial: [`Pairing::set_ordered`]) a request released with no
 //! reply at all *fences* its id instead ([`Due::Fenced`]): the task sends a loop-back with a
@@ -106,6 +110,13 @@ struct InFlight {
     deadline: Instant,
     /// When an unanswered request gives its id up: deadline + grace.
     release_at: Instant,
+    /// When an unacknowledged request gives its id up whatever its caller's deadline: sent +
+    /// [`Pairing::set_holds`]'s reply hold + grace (1.2.2, 1.3: the device answers a command,
+    /// or acknowledges it with E_CMD_PENDING, at once).
+    unacked_release_at: Instant,
+    /// When an acknowledged motion goes under recovery whatever its caller's deadline: sent +
+    /// the motion hold (recovery releases only on evidence, so starting it early is sound).
+    motion_probe_at: Instant,
     /// An acknowledged motion command under recovery: when the next probe is due (`None`
     /// while one is out).
     probe_at: Option<Instant>,
@@ -120,12 +131,14 @@ struct InFlight {
 }
 
 impl InFlight {
-    fn new(req: &Request, grace: Duration) -> Self {
+    fn new(req: &Request, grace: Duration, holds: (Duration, Duration), now: Instant) -> Self {
         Self {
             token: req.token,
             acknowledged: false,
             deadline: req.deadline,
             release_at: after(req.deadline, grace),
+            unacked_release_at: after(after(now, holds.0), grace),
+            motion_probe_at: after(now, holds.1),
             probe_at: None,
             idle_seen: false,
             ack_doubtful: false,
@@ -152,8 +165,10 @@ impl InFlight {
     fn due(&self, id: u8) -> Option<Instant> {
         if self.acknowledged && is_motion(id) {
             self.probe_at
-        } else {
+        } else if self.acknowledged {
             Some(self.release_at)
+        } else {
+            Some(self.release_at.min(self.unacked_release_at))
         }
     }
 }
@@ -269,6 +284,8 @@ pub(crate) struct Pairing {
     /// The stop and FAST STOP requests sent and not answered yet, by id.
     stops: IntMap<u8, Stops>,
     grace: Duration,
+    /// (reply hold, motion hold): see [`Pairing::set_holds`].
+    holds: (Duration, Duration),
     /// The transport keeps replies in order and loses none (TCP, serial): a released id can
     /// be fenced by a barrier ([`Due::Fenced`]).
     ordered: bool,
@@ -282,8 +299,18 @@ impl Pairing {
             ids: IntMap::default(),
             stops: IntMap::default(),
             grace,
+            holds: (Duration::MAX, Duration::MAX),
             ordered: false,
         }
+    }
+
+    /// Bounds how long a request keeps its id independently of its caller's deadline (which
+    /// may be `Duration::MAX`, and outlives a caller that dropped the call): an unacknowledged
+    /// request is released `reply` + grace after it was sent (its immediate reply or
+    /// E_CMD_PENDING is lost), and an acknowledged motion goes under recovery `motion` after
+    /// it was sent. A caller still waiting then gets the error of the release.
+    pub(crate) fn set_holds(&mut self, reply: Duration, motion: Duration) {
+        self.holds = (reply, motion);
     }
 
     /// Says whether the transport keeps replies in order (TCP, serial, an attached stream):
@@ -317,7 +344,7 @@ impl Pairing {
         }
         let st = self.ids.entry(id).or_default();
         if st.in_flight.is_none() && st.queue.is_empty() && !st.fenced {
-            st.in_flight = Some(InFlight::new(&req, self.grace));
+            st.in_flight = Some(InFlight::new(&req, self.grace, self.holds, now));
             return Submit::Send(req);
         }
         st.queue.push_back(req);
@@ -417,7 +444,7 @@ impl Pairing {
             if !f.acknowledged {
                 f.acknowledged = true;
                 f.ack_doubtful = std::mem::take(&mut st.pending_owed);
-                f.probe_at = Some(f.deadline);
+                f.probe_at = Some(f.deadline.min(f.motion_probe_at));
             }
             return Event::Accepted(f.token);
         }
@@ -461,6 +488,7 @@ impl Pairing {
         &mut self,
         id: u8,
         alive: impl Fn(Token) -> bool,
+        now: Instant,
     ) -> (Option<Request>, Vec<Token>) {
         let mut skipped = Vec::new();
         let Some(st) = self.ids.get_mut(&id) else {
@@ -471,7 +499,7 @@ impl Pairing {
         }
         while let Some(req) = st.queue.pop_front() {
             if alive(req.token) {
-                st.in_flight = Some(InFlight::new(&req, self.grace));
+                st.in_flight = Some(InFlight::new(&req, self.grace, self.holds, now));
                 return (Some(req), skipped);
             }
             skipped.push(req.token);
@@ -648,7 +676,7 @@ mod tests {
             p.on_reply(reply(0x43, Status::Success)),
             Event::Resolved(1, reply(0x43, Status::Success))
         );
-        let (next, skipped) = p.next(0x43, |_| true);
+        let (next, skipped) = p.next(0x43, |_| true, Instant::now());
         assert_eq!(next.map(|r| r.token), Some(2));
         assert!(skipped.is_empty());
         assert!(matches!(
@@ -730,9 +758,50 @@ mod tests {
             p.due(now + Duration::from_millis(500)),
             vec![Due::Released(0x50, 1)]
         );
-        let (next, skipped) = p.next(0x50, |t| t != 2);
+        let (next, skipped) = p.next(0x50, |t| t != 2, Instant::now());
         assert_eq!(next.map(|r| r.token), Some(3));
         assert_eq!(skipped, vec![2]);
+    }
+
+    /// A call without timeout (deadline `Instant` + `Duration::MAX`, saturated) whose reply is
+    /// lost, or whose caller dropped the call, does not keep its id for ever
+    /// (wsg-udp:0x8fdf7f0a06b3bd7e): unacknowledged, it is released the reply hold + grace
+    /// after it was sent; an acknowledged motion goes under recovery the motion hold after it
+    /// was sent (and is released only on evidence, as before).
+    #[test]
+    fn a_request_without_deadline_keeps_its_id_only_for_the_holds() {
+        let now = Instant::now();
+        let never = after(now, Duration::MAX);
+        let grace = Duration::from_millis(100);
+        let (query, motion) = (Duration::from_secs(1), Duration::from_secs(10));
+        let mut p = Pairing::new(grace);
+        p.set_holds(query, motion);
+        assert!(matches!(
+            p.submit(req(1, 0x50, never), now),
+            Submit::Send(_)
+        ));
+        assert!(matches!(p.submit(req(2, 0x50, never), now), Submit::Queued));
+        assert_eq!(p.next_due(), Some(now + query + grace));
+        assert!(p.due(now + query).is_empty());
+        assert_eq!(p.due(now + query + grace), vec![Due::Released(0x50, 1)]);
+        let later = now + query + grace;
+        assert_eq!(p.next(0x50, |_| true, later).0.map(|r| r.token), Some(2));
+        // The next one is bounded from when it was sent.
+        assert_eq!(p.next_due(), Some(later + query + grace));
+        assert!(matches!(
+            p.on_reply(reply(0x50, Status::Success)),
+            Event::Resolved(2, _)
+        ));
+
+        assert!(matches!(
+            p.submit(req(3, 0x21, never), now),
+            Submit::Send(_)
+        ));
+        assert_eq!(
+            p.on_reply(reply(0x21, Status::CmdPending)),
+            Event::Accepted(3)
+        );
+        assert_eq!(p.due(now + motion), vec![Due::Probe(0x21, 3)]);
     }
 
     #[test]
@@ -750,7 +819,10 @@ mod tests {
         assert!(matches!(p.submit(req(2, 0x62, now), now), Submit::Queued));
         assert_eq!(p.next_due(), Some(now + grace));
         assert_eq!(p.due(now + grace), vec![Due::Released(0x62, 1)]);
-        assert_eq!(p.next(0x62, |_| true).0.map(|r| r.token), Some(2));
+        assert_eq!(
+            p.next(0x62, |_| true, Instant::now()).0.map(|r| r.token),
+            Some(2)
+        );
     }
 
     #[test]
@@ -789,7 +861,7 @@ mod tests {
                 p.on_reply(reply(id, Status::Success)),
                 Event::Resolved(1, _)
             ));
-            assert_eq!(p.next(id, |_| true).0.map(|r| r.token), None);
+            assert_eq!(p.next(id, |_| true, now).0.map(|r| r.token), None);
         }
         // A refused first call frees the id for the one queued behind it.
         assert!(matches!(p.submit(req(4, 0x21, t), now), Submit::Send(_)));
@@ -798,7 +870,10 @@ mod tests {
             p.on_reply(reply(0x21, Status::AccessDenied)),
             Event::Resolved(4, _)
         ));
-        assert_eq!(p.next(0x21, |_| true).0.map(|r| r.token), Some(5));
+        assert_eq!(
+            p.next(0x21, |_| true, Instant::now()).0.map(|r| r.token),
+            Some(5)
+        );
     }
 
     /// Issue 20.2 #1: a second call behind an acknowledged move whose final reply is lost is
@@ -827,7 +902,10 @@ mod tests {
             p.on_probe(0x21, 1, Observation::Idle, now + grace, 4),
             Verdict::Abandoned
         );
-        assert_eq!(p.next(0x21, |_| true).0.map(|r| r.token), Some(2));
+        assert_eq!(
+            p.next(0x21, |_| true, Instant::now()).0.map(|r| r.token),
+            Some(2)
+        );
     }
 
     #[test]
@@ -893,7 +971,7 @@ mod tests {
             p.on_probe(0x25, 1, Observation::Idle, t2 + grace, 100),
             Verdict::Undecided
         );
-        let (next, _) = p.next(0x25, |_| true);
+        let (next, _) = p.next(0x25, |_| true, Instant::now());
         let next = next.unwrap();
         assert_eq!(next.token, 3);
         // Two idle observations in a row with no final reply: abandoned, the id is free.
@@ -971,7 +1049,10 @@ mod tests {
             p.on_reply(reply(0x21, Status::Success)),
             Event::Resolved(1, reply(0x21, Status::Success))
         );
-        assert_eq!(p.next(0x21, |_| true).0.map(|r| r.token), None);
+        assert_eq!(
+            p.next(0x21, |_| true, Instant::now()).0.map(|r| r.token),
+            None
+        );
         assert!(matches!(p.submit(req(2, 0x21, t), now), Submit::Send(_)));
         // The first request's late E_CMD_PENDING (or the second's own: they cannot be told
         // apart) ...
@@ -1010,7 +1091,10 @@ mod tests {
         assert!(matches!(p.submit(req(2, 0x43, t), now), Submit::Queued));
         assert_eq!(p.due(t + grace), vec![Due::Fenced(0x43, 1)]);
         // Fenced: nothing goes out, and a new call queues too.
-        assert_eq!(p.next(0x43, |_| true).0.map(|r| r.token), None);
+        assert_eq!(
+            p.next(0x43, |_| true, Instant::now()).0.map(|r| r.token),
+            None
+        );
         assert!(matches!(p.submit(req(3, 0x43, t), now), Submit::Queued));
         // The late reply answers nobody.
         assert!(matches!(
@@ -1019,13 +1103,19 @@ mod tests {
         ));
         p.unfence(0x43);
         for token in [2, 3] {
-            assert_eq!(p.next(0x43, |_| true).0.map(|r| r.token), Some(token));
+            assert_eq!(
+                p.next(0x43, |_| true, Instant::now()).0.map(|r| r.token),
+                Some(token)
+            );
             assert!(matches!(
                 p.on_reply(reply(0x43, Status::Success)),
                 Event::Resolved(t, _) if t == token
             ));
         }
-        assert_eq!(p.next(0x43, |_| true).0.map(|r| r.token), None);
+        assert_eq!(
+            p.next(0x43, |_| true, Instant::now()).0.map(|r| r.token),
+            None
+        );
         // A loop-back needs no barrier: its reply must echo its own payload.
         assert!(matches!(
             p.submit(req(4, id::LOOP, t), now),
@@ -1054,7 +1144,7 @@ mod tests {
             Event::Accepted(6)
         );
         p.unfence(id::GRASP);
-        assert_eq!(p.next(id::GRASP, |_| true).0.map(|r| r.token), None);
+        assert_eq!(p.next(id::GRASP, |_| true, now).0.map(|r| r.token), None);
         assert_eq!(p.due(t + grace), vec![Due::Probe(id::GRASP, 6)]);
         assert!(matches!(
             p.on_reply(reply(id::GRASP, Status::Success)),
@@ -1080,7 +1170,7 @@ mod tests {
             p.on_reply(reply(0x50, Status::Success)),
             Event::Resolved(1, _)
         ));
-        let (next, skipped) = p.next(0x50, |_| true);
+        let (next, skipped) = p.next(0x50, |_| true, Instant::now());
         assert_eq!(next.map(|r| r.token), Some(4));
         assert!(skipped.is_empty());
         assert_eq!(p.drain(), vec![4]);
@@ -1129,7 +1219,7 @@ mod tests {
                         }
                         other => proptest::prop_assert!(false, "{:?}", other),
                     }
-                    let (next, skipped) = p.next(id, |_| true);
+                    let (next, skipped) = p.next(id, |_| true, Instant::now());
                     proptest::prop_assert!(skipped.is_empty());
                     if let Some(r) = next {
                         let asynchronous = is_async[&r.token];

@@ -130,11 +130,14 @@ impl Task {
         rx: mpsc::Receiver<Msg>,
         unsubscribe: mpsc::UnboundedReceiver<(u8, u64)>,
         grace: Duration,
-        query_timeout: Duration,
+        (query_timeout, motion_timeout): (Duration, Duration),
         announce_on_close: bool,
         lost: Arc<OnceLock<String>>,
     ) -> Self {
         let mut pairing = Pairing::new(grace);
+        // No request keeps its id for ever: a caller without timeout (Duration::MAX), or one
+        // that dropped the call, does not hold it past the default timeouts (pairing.rs).
+        pairing.set_holds(query_timeout, motion_timeout);
         // A byte stream (TCP, serial, attached) keeps the device's replies in order.
         pairing.set_ordered(matches!(link, Link::Stream(_)));
         Self {
@@ -447,7 +450,7 @@ impl Task {
                     "no (final) reply within timeout + grace: command id released; \
                     a reply arriving later would be taken for the next request of this id"
                 );
-                self.unanswered(token).await?;
+                self.unanswered(id, token).await?;
                 self.send_next(id);
                 Ok(())
             }
@@ -457,7 +460,7 @@ impl Task {
                     "no reply within timeout + grace: the next request of this id waits for \
                     the echo of a loop-back (a reply before it is the late one)"
                 );
-                self.unanswered(token).await?;
+                self.unanswered(id, token).await?;
                 self.send_barrier(id, 0).await
             }
             Due::Probe(id, token) => self.send_probe(id, token).await,
@@ -478,15 +481,24 @@ impl Task {
 
     /// Request `token` was released with no usable answer: its waiter goes; a probe counts as
     /// "unknown", a barrier is sent again (its id stays fenced until one comes back).
-    async fn unanswered(&mut self, token: Token) -> io::Result<()> {
+    async fn unanswered(&mut self, id: u8, token: Token) -> io::Result<()> {
         match self.waiters.remove(&token) {
             Some(Waiter::Probe {
                 id: motion,
                 token: t,
             }) => self.on_probe(motion, t, Observation::Unknown, token).await,
             Some(Waiter::Barrier { id, refused }) => self.send_barrier(id, refused).await,
-            // A caller (who has given up by now) or an internal request: forgotten.
-            Some(Waiter::Caller(_) | Waiter::Internal) | None => Ok(()),
+            // A caller still waiting (no timeout, released by the hold of `Pairing::set_holds`):
+            // its reply did not come within the query timeout.
+            Some(Waiter::Caller(tx)) => {
+                let _ = tx.send(Err(Error::Timeout {
+                    command: id,
+                    timeout: self.query_timeout,
+                }));
+                Ok(())
+            }
+            // An internal request: forgotten.
+            Some(Waiter::Internal) | None => Ok(()),
         }
     }
 
@@ -609,7 +621,7 @@ impl Task {
     /// Sends the next queued request of `id`, if its id is free.
     async fn send_now(&mut self, id: u8) -> io::Result<()> {
         let waiters = &self.waiters;
-        let (next, skipped) = self.pairing.next(id, |t| alive(waiters, t));
+        let (next, skipped) = self.pairing.next(id, |t| alive(waiters, t), Instant::now());
         for t in skipped {
             self.waiters.remove(&t);
         }

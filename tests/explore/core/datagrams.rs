@@ -3,7 +3,7 @@
 
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
 use bytes::Bytes;
 use tokio::sync::mpsc;
@@ -40,31 +40,61 @@ impl DatagramProfile {
     }
 }
 
-/// A faulty one-way datagram link: returns (sender's end, receiver's end).
+/// The datagrams a link delivered as a duplicate or after a delay, with the instant each was
+/// delivered: the oracle attributes a wrong answer to such a datagram (a documented residual
+/// risk of UDP, which has no sequence numbers) only if one was actually delivered.
+pub type FaultedLog = Arc<Mutex<Vec<(Instant, Bytes)>>>;
+
+/// A faulty one-way datagram link: returns (sender's end, receiver's end). Every copy the link
+/// duplicated or delayed is logged in `faulted` when it is delivered.
 pub fn faulty_datagrams(
     rng: &mut Prng,
     profile: DatagramProfile,
     on: Arc<AtomicBool>,
     trace: SharedTrace,
     label: String,
+    faulted: FaultedLog,
 ) -> (mpsc::UnboundedSender<Bytes>, mpsc::UnboundedReceiver<Bytes>) {
     let (in_tx, in_rx) = mpsc::unbounded_channel();
     let (out_tx, out_rx) = mpsc::unbounded_channel();
-    tokio::spawn(pump(label, rng.fork(), profile, on, trace, in_rx, out_tx));
+    let link = Link {
+        label,
+        rng: rng.fork(),
+        p: profile,
+        on,
+        trace,
+        faulted,
+    };
+    tokio::spawn(pump(link, in_rx, out_tx));
     (in_tx, out_rx)
 }
 
-async fn pump(
+/// What a pump needs besides its channels.
+struct Link {
     label: String,
-    mut rng: Prng,
+    rng: Prng,
     p: DatagramProfile,
     on: Arc<AtomicBool>,
     trace: SharedTrace,
+    faulted: FaultedLog,
+}
+
+async fn pump(
+    link: Link,
     mut input: mpsc::UnboundedReceiver<Bytes>,
     output: mpsc::UnboundedSender<Bytes>,
 ) {
-    // Datagrams in flight, by delivery time (then by arrival, so ties keep their order).
-    let mut flight: BTreeMap<(Instant, u64), Bytes> = BTreeMap::new();
+    let Link {
+        label,
+        mut rng,
+        p,
+        on,
+        trace,
+        faulted,
+    } = link;
+    // Datagrams in flight, by delivery time (then by arrival, so ties keep their order), each
+    // with whether it is a duplicated or delayed copy.
+    let mut flight: BTreeMap<(Instant, u64), (Bytes, bool)> = BTreeMap::new();
     let mut n = 0u64;
     loop {
         let next = flight.keys().next().map(|k| k.0);
@@ -78,7 +108,11 @@ async fn pump(
                     if entry.key().0 > now {
                         break;
                     }
-                    if output.send(entry.remove()).is_err() {
+                    let (d, was_faulted) = entry.remove();
+                    if was_faulted {
+                        faulted.lock().unwrap_or_else(|e| e.into_inner()).push((now, d.clone()));
+                    }
+                    if output.send(d).is_err() {
                         return;
                     }
                 }
@@ -88,7 +122,7 @@ async fn pump(
                 let Some(d) = d else { return };
                 n += 1;
                 if !on.load(Ordering::Relaxed) {
-                    flight.insert((Instant::now(), n * 2), d);
+                    flight.insert((Instant::now(), n * 2), (d, false));
                     continue;
                 }
                 if rng.one_in(p.loss) {
@@ -98,10 +132,11 @@ async fn pump(
                 let copies = if rng.one_in(p.duplicate) { 2 } else { 1 };
                 for copy in 0..copies {
                     let delay = if rng.one_in(p.delay) { rng.millis(1, p.max_delay_ms.max(1)) } else { std::time::Duration::ZERO };
-                    if copies > 1 || !delay.is_zero() {
+                    let was_faulted = copies > 1 || !delay.is_zero();
+                    if was_faulted {
                         note(&trace, format!("fault {label}: datagram {n} copy {copy} delayed {delay:?}"));
                     }
-                    flight.insert((Instant::now() + delay, n * 2 + copy), d.clone());
+                    flight.insert((Instant::now() + delay, n * 2 + copy), (d.clone(), was_faulted));
                 }
             }
         }

@@ -169,6 +169,7 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
                 .collect::<BTreeSet<_>>(),
             reconnect: c.reconnect,
             first_loss: c.first_loss(),
+            faulted: c.faulted.lock().unwrap().clone(),
         })
         .collect();
     let calls = log.calls.lock().unwrap().clone();
@@ -214,6 +215,7 @@ async fn open_client(
         });
     }
     let sessions = Arc::new(Mutex::new(Vec::new()));
+    let faulted: crate::core::datagrams::FaultedLog = Default::default();
     let label = format!("client {index}");
     note(trace, format!("{label}: {transport:?} query {query_timeout:?} motion {motion_timeout:?} grace {grace:?} reconnect {reconnect}"));
     let client = match transport {
@@ -226,6 +228,7 @@ async fn open_client(
                 faults_on.clone(),
                 trace.clone(),
                 format!("{label} c>s"),
+                Default::default(),
             );
             let (down_tx, down_rx) = faulty_datagrams(
                 rng,
@@ -233,6 +236,7 @@ async fn open_client(
                 faults_on.clone(),
                 trace.clone(),
                 format!("{label} s>c"),
+                faulted.clone(),
             );
             sessions
                 .lock()
@@ -275,6 +279,7 @@ async fn open_client(
     ClientCtx {
         index,
         losses,
+        faulted,
         client,
         sessions,
         reconnect,

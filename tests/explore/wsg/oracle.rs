@@ -33,6 +33,42 @@ pub struct ClientView {
     pub reconnect: bool,
     /// When it first reported a lost connection.
     pub first_loss: Option<Instant>,
+    /// The reply datagrams the fault layer delivered to it duplicated or delayed, with the
+    /// instant of delivery (UDP; empty on streams).
+    pub faulted: Vec<(Instant, bytes::Bytes)>,
+}
+
+/// Appended to a promise 2, 3 or 4 violation whose answer fits a reply datagram the fault
+/// layer delivered to the client duplicated or delayed during the call: the documented
+/// residual risk of UDP (no sequence numbers), which `known.txt` may name for `wsg-udp` only.
+pub const FROM_FAULTED: &str = "[fits a duplicated or delayed datagram delivered during the call]";
+
+/// The replies among `faulted` datagrams, decoded as the client decodes them (manual 1.2.2:
+/// the payload starts with the 16-bit status code, little endian).
+fn faulted_replies(faulted: &[(Instant, bytes::Bytes)]) -> Vec<Sent> {
+    let mut out = Vec::new();
+    for (at, d) in faulted {
+        let mut buf = bytes::BytesMut::from(&d[..]);
+        while let Some(decoded) =
+            gripper::wsg::frame::decode(&mut buf, gripper::wsg::frame::DEFAULT_MAX_PAYLOAD_LEN)
+        {
+            let gripper::wsg::frame::Decoded::Frame(f) = decoded else {
+                continue;
+            };
+            if f.payload.len() < 2 {
+                continue;
+            }
+            out.push(Sent {
+                at: *at,
+                id: f.id,
+                status: Status::from_code(u16::from_le_bytes([f.payload[0], f.payload[1]])),
+                data: f.payload[2..].to_vec(),
+                moving: false,
+                used: false,
+            });
+        }
+    }
+    out
 }
 
 fn t(at: Instant, t0: Instant) -> String {
@@ -98,6 +134,7 @@ fn check_client(
         .map(|c| c.start)
         .min();
     let first_lost = view.first_loss;
+    let faulted = faulted_replies(&view.faulted);
 
     for c in calls {
         // 1: bounded.
@@ -165,6 +202,10 @@ fn check_client(
             continue;
         }
         let window = format!("[{}, {}]", t(c.start, t0), t(c.end, t0));
+        let from_faulted = faulted
+            .iter()
+            .any(|s| s.at >= c.start && s.at <= c.end && fits(s));
+        let tag = if from_faulted { FROM_FAULTED } else { "" };
         match &c.res {
             Res::Device(_, Status::AlreadyRunning) => {
                 if !motion_running(record, t0, c.start, c.end) {
@@ -178,16 +219,16 @@ fn check_client(
                 if sent.iter().any(|s| s.id == c.id && s.status == Status::Success && s.at >= c.start && s.at <= c.end) =>
             {
                 v.push(format!(
-                    "4 (a completed motion has stopped): {} {} returned Ok in {window} on a final reply sent while the fingers were moving",
+                    "4 (a completed motion has stopped): {} {} returned Ok in {window} on a final reply sent while the fingers were moving {tag}",
                     c.who, c.op
                 ));
             }
             Res::Ok(Expect::Success) if c.id == id::STOP || c.id == id::FAST_STOP => v.push(format!(
-                "3 (stop Ok only if the device processed a stop sent at or after the call): {} {} returned Ok in {window}, but no {:#04x} reply of this client in that window was left unpaired",
+                "3 (stop Ok only if the device processed a stop sent at or after the call): {} {} returned Ok in {window}, but no {:#04x} reply of this client in that window was left unpaired {tag}",
                 c.who, c.op, c.id
             )),
             _ => v.push(format!(
-                "2 (each answer is the device's answer to that request): {} {} ended {:?} in {window}, but the device sent no such reply (left unpaired) to this client in that window",
+                "2 (each answer is the device's answer to that request): {} {} ended {:?} in {window}, but the device sent no such reply (left unpaired) to this client in that window {tag}",
                 c.who, c.op, c.res
             )),
         }

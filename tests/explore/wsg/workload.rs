@@ -109,6 +109,8 @@ pub struct ClientCtx {
     pub grace: Duration,
     /// When the client reported losing its connection (its `connection_events`).
     pub losses: Arc<Mutex<Vec<Instant>>>,
+    /// The replies (datagrams) the fault layer delivered to it duplicated or delayed (UDP).
+    pub faulted: crate::core::datagrams::FaultedLog,
 }
 
 impl ClientCtx {
