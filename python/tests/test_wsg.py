@@ -139,6 +139,9 @@ def test_corrupted_reply_is_skipped_as_noise(wsg_sim: SimServer) -> None:
 
 def test_connection_lost_and_closed(wsg_sim: SimServer) -> None:
     client = wsg.Client.connect_tcp(wsg_sim.address)
+    # A call first: the simulator serves the connection once it has accepted it, which may be
+    # after `connect_tcp` returned; `unplug` drops the connections it serves.
+    client.width_mm()
     wsg_sim.unplug()
     with pytest.raises(gripper_rs.ConnectionLostError) as caught:
         for _ in range(100):  # until the task has seen the connection end

@@ -352,6 +352,8 @@ impl SimServer {
 
     /// Drops every stream connection (TCP, serial) without warning, like a pulled cable; an
     /// unannounced TCP close puts the gripper into FAST STOP. UDP peers are not affected.
+    /// A connection the simulator has not accepted yet (a client's `connect` can return
+    /// before that) is not affected: a test that unplugs a new client makes a call first.
     pub fn unplug(&self) {
         let _ = self.control.send(Control::Unplug);
     }
