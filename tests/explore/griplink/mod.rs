@@ -246,7 +246,9 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
             );
             continue;
         }
-        let lost = ctx.lost.load(Ordering::SeqCst);
+        // A loss counts if the watcher saw its event, or if close() itself said so: the event
+        // of a loss at the instant of the close may not have reached the watcher yet.
+        let lost = ctx.lost.load(Ordering::SeqCst) || matches!(r, Err(Error::ConnectionLost(_)));
         let fine = match &after {
             Err(Error::Closed) => true,
             Err(Error::ConnectionLost(_)) => lost,

@@ -269,7 +269,10 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
             .await;
         note(&trace, format!("close client {}: {r:?}", ctx.index));
         let after = ctx.client.get_state().await;
-        let lost = ctx.lost.load(Ordering::SeqCst);
+        // A loss counts if the watcher saw its event, or if close() itself said so: the event
+        // of a loss at the instant of the close may not have reached the watcher yet.
+        let lost =
+            ctx.lost.load(Ordering::SeqCst) || matches!(r, Err(Error::ConnectionLost { .. }));
         let fine = match &after {
             Err(Error::Closed) => true,
             Err(Error::ConnectionLost { .. }) => lost,
