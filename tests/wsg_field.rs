@@ -146,13 +146,16 @@ fn state(flags: SystemState) -> [u8; 4] {
 
 #[tokio::test]
 async fn a_stop_is_sent_at_once_even_while_an_earlier_stops_reply_is_lost() {
-    // The first stop and the first FAST STOP get no reply (lost); later ones are answered.
+    // The first stop and the first FAST STOP get no reply (lost); later ones are answered. A
+    // loop-back is echoed (3.1.1): on TCP the client proves a stop lost by a loop-back's echo
+    // before it sends the stop again.
     let mut counts = [0; 256];
     let fake = Fake::start(move |f, wire| {
         if (f.id == id::STOP || f.id == id::FAST_STOP) && nth(&mut counts, f.id) == 1 {
             return;
         }
-        wire.reply(f.id, Status::Success, &[]);
+        let echo: &[u8] = if f.id == id::LOOP { &f.payload } else { &[] };
+        wire.reply(f.id, Status::Success, echo);
     })
     .await;
     // A long query timeout: a stop queued behind the lost one would wait that long.
@@ -172,7 +175,8 @@ async fn a_stop_is_sent_at_once_even_while_an_earlier_stops_reply_is_lost() {
             .await
             .unwrap();
         // ... on a reply that cannot be the first stop's (issue 20.2 #3): the first reply is
-        // taken for the oldest unanswered stop, so the stop is sent again for the second call.
+        // taken for the oldest unanswered stop, so the stop is sent again for the second call
+        // (after a loop-back's echo proved the first stop lost).
         assert!(fake.count(command) >= 3, "{}", fake.count(command));
         // ... and so does the first: it was sent before the reply that came.
         guard("the first stop", first).await.unwrap().unwrap();
