@@ -146,13 +146,16 @@ fn state(flags: SystemState) -> [u8; 4] {
 
 #[tokio::test]
 async fn a_stop_is_sent_at_once_even_while_an_earlier_stops_reply_is_lost() {
-    // The first stop and the first FAST STOP get no reply (lost); later ones are answered.
+    // The first stop and the first FAST STOP get no reply (lost); later ones are answered. A
+    // loop-back is echoed (3.1.1): on TCP the client proves a stop lost by a loop-back's echo
+    // before it sends the stop again.
     let mut counts = [0; 256];
     let fake = Fake::start(move |f, wire| {
         if (f.id == id::STOP || f.id == id::FAST_STOP) && nth(&mut counts, f.id) == 1 {
             return;
         }
-        wire.reply(f.id, Status::Success, &[]);
+        let echo: &[u8] = if f.id == id::LOOP { &f.payload } else { &[] };
+        wire.reply(f.id, Status::Success, echo);
     })
     .await;
     // A long query timeout: a stop queued behind the lost one would wait that long.
@@ -172,11 +175,64 @@ async fn a_stop_is_sent_at_once_even_while_an_earlier_stops_reply_is_lost() {
             .await
             .unwrap();
         // ... on a reply that cannot be the first stop's (issue 20.2 #3): the first reply is
-        // taken for the oldest unanswered stop, so the stop is sent again for the second call.
+        // taken for the oldest unanswered stop, so the stop is sent again for the second call
+        // (after a loop-back's echo proved the first stop lost).
         assert!(fake.count(command) >= 3, "{}", fake.count(command));
         // ... and so does the first: it was sent before the reply that came.
         guard("the first stop", first).await.unwrap().unwrap();
     }
+}
+
+/// The explorer's `wsg-tcp:0x2082b0e305e913c4` over a real socket: the replies stall in transit
+/// past the first stop call's deadline plus the grace, and the second call's stop never reaches
+/// the device (corrupted on its way). The stalled reply of the first stop must not complete
+/// the second call: on TCP a stop is never given up on time, so the second call's `Ok` comes
+/// only from a stop the device received after it (sent again once a loop-back proved the lost
+/// one lost).
+#[tokio::test]
+async fn a_stop_reply_stalled_past_the_grace_does_not_complete_a_later_stop() {
+    let mut counts = [0; 256];
+    let mut held: Option<Vec<Frame>> = Some(Vec::new());
+    let fake = Fake::start(move |f, wire| {
+        let n = if f.id == id::STOP {
+            nth(&mut counts, f.id)
+        } else {
+            0
+        };
+        if n == 2 {
+            // The second call's stop is lost on its way; the stall ends with it.
+            for frame in held.take().unwrap_or_default() {
+                let _ = wire.0.send(frame);
+            }
+            return;
+        }
+        let echo: &[u8] = if f.id == id::LOOP { &f.payload } else { &[] };
+        let reply = Reply::new(f.id, Status::Success, Bytes::copy_from_slice(echo)).to_frame();
+        match held.as_mut() {
+            Some(stalled) => stalled.push(reply),
+            None => {
+                let _ = wire.0.send(reply);
+            }
+        }
+    })
+    .await;
+    let grace = Duration::from_millis(50);
+    let client = connect(
+        builder()
+            .query_timeout(Duration::from_millis(50))
+            .late_reply_grace(grace),
+        &fake,
+    )
+    .await;
+    let err = guard("the first stop", client.stop()).await.unwrap_err();
+    assert!(matches!(err, Error::Timeout { .. }), "{err}");
+    // The fault itself: the stall lasts well past the first call's deadline plus the grace.
+    tokio::time::sleep(grace * 4).await;
+    let patient = client.with_timeouts(Duration::from_secs(5), Duration::from_secs(5));
+    guard("the second stop", patient.stop()).await.unwrap();
+    // Stop 1 was the first call's, stop 2 (the second call's) was lost: the reply that
+    // completed the second call must be one to a stop received after it.
+    assert!(fake.count(id::STOP) >= 3, "{}", fake.count(id::STOP));
 }
 
 // ---- item 2: no id stays busy for good after a lost final reply --------------------------------

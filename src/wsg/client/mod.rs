@@ -10,14 +10,14 @@
 //! |------|--------|----------|---------------|
 //! | One request per id on the wire; the next call of the id queues behind it; other ids run concurrently. | 1.2.2 | all | none by itself |
 //! | A timed-out or dropped call keeps its id until its reply, or its deadline plus [`ClientBuilder::late_reply_grace`]; the late reply is discarded. | 1.2.2 | all | UDP: a reply later than the grace is taken for the next call of the id (datagrams keep no order: no barrier can prove that none is still on its way) |
-//! | TCP, serial, attached streams: a request released with no reply at all *fences* its id: the next request of the id waits for the echo of a loop-back (0x06, unique payload) sent at the release, and a reply of the id before that echo is the late one (dropped). A released motion whose E_CMD_PENDING still comes before the echo goes back under recovery (below). | 1.2.2, 1.3, 3.1.1 | TCP, serial | the manual does not state in so many words that a connection's immediate replies keep the order of its commands (its request-reply scheme implies it); the final reply of an acknowledged non-motion command (finger power on) later than the grace is not fenced; while no echo comes, calls of the fenced id time out; a device that answers three barriers in a row with something other than their echo gets the id released as on UDP |
+//! | TCP, serial, attached streams: a request released with no reply at all *fences* its id: the next request of the id waits for the echo of a loop-back (0x06, unique payload) sent at the release, and a reply of the id before that echo is the late one (dropped). A released motion goes back under recovery (below) at its E_CMD_PENDING, if that still comes before the echo, or at the echo (its E_CMD_PENDING may have been corrupted while the move runs: its final reply must not complete the next request). | 1.2.2, 1.3, 3.1.1 | TCP, serial | the manual does not state in so many words that a connection's immediate replies keep the order of its commands (its request-reply scheme implies it); the final reply of an acknowledged non-motion command (finger power on) later than the grace is not fenced; while no echo comes, calls of the fenced id time out; a device that answers three barriers in a row with something other than their echo gets the id released as on UDP |
 //! | E_CMD_PENDING acknowledges; the final reply follows and ends the call. | 1.3 | all | — |
 //! | No request keeps its id for ever, whatever its caller's deadline (`Duration::MAX`, or a caller that dropped the call): unacknowledged, it is released (fenced on streams) [`ClientBuilder::query_timeout`] + grace after it was sent, and a caller still waiting gets [`Error::Timeout`]; acknowledged, a motion goes under recovery (below) [`ClientBuilder::motion_timeout`] after it was sent. | 1.2.2, 1.3 (the reply or E_CMD_PENDING comes at once) | all | a raw request whose *immediate* reply the device sends later than the query timeout + grace (none in the manual) is released before it; an acknowledged non-motion command keeps its id until its caller's deadline + grace |
 //! | An E_CMD_PENDING after a final reply that had none may be that request's, reordered: it acknowledges the next request only doubtfully, and E_ALREADY_RUNNING still ends it. | 1.3 | all (needed on UDP) | UDP: a duplicated request's refusal, in that situation, ends the call as refused |
 //! | E_ALREADY_RUNNING for an acknowledged request refuses a duplicate of it: dropped. A loop reply that does not echo the payload on the wire is not its reply. | 1.3, 3.1.1 | all | — |
 //! | A second motion call of an id on the wire waits; the device's state is asked at once: SF_MOVING from a query sent after the call refuses it (E_ALREADY_RUNNING, unsent); the first's final reply, or two "not moving" a grace apart, sends it. Never refused on belief. | 3.2.2, Anhang B | all | SF_MOVING is not synchronised with the end of a move (Anhang B): a refusal right at a move's end; a final reply later than a grace after the second "not moving" goes to the next call |
 //! | An acknowledged motion past its caller's deadline keeps its id until its final reply or two "not moving" a grace apart ([`Error::ReplyLost`] for a caller still waiting). | 1.3, Anhang B | all | as above |
-//! | Stop and FAST STOP are never queued; a stop call is `Ok` only on a reply to a stop sent at or after it (each reply is taken for the oldest unanswered stop); a call still waiting [`RESEND_STOP_AFTER`] later gets the stop sent again. | 1.2.2, 3.2.3, 3.2.4 | TCP, serial | UDP: a stop reply later than the grace, or duplicated, is taken for a later stop; a stop sent again may arrive after `stop()` returned and abort a move started right after |
+//! | Stop and FAST STOP are never queued; a stop call is `Ok` only on a reply to a stop sent at or after it (each reply is taken for the oldest unanswered stop); a call still waiting [`RESEND_STOP_AFTER`] later gets the stop sent again. TCP, serial: no stop is given up on time (its reply may be stalled for any time); the waiting call gets a barrier (a loop-back) instead, and the stop is sent again only when its echo proves the earlier stops' replies lost (corrupted). | 1.2.2, 3.1.1, 3.2.3, 3.2.4 | TCP, serial | TCP, serial: after a corrupted stop reply, a call waits [`RESEND_STOP_AFTER`] and a round trip longer; a device that answers three barriers in a row with something other than their echo gets the stops given up unproven. UDP: a stop reply later than the grace, or duplicated, is taken for a later stop; a stop sent again may arrive after `stop()` returned and abort a move started right after |
 //! | A frame must complete within [`ClientBuilder::partial_frame_timeout`] from its first byte; a header longer than any reply of its id is noise at once; while a frame is held, no id is released. | 1.2.1, chapter 3 | TCP, serial (UDP: one frame per datagram) | a plausible corrupted length holds replies for up to the timeout |
 //! | Frames already received are paired before the next request goes out: a request freed by a reply waits until no frame is ready to be read (a copy of that reply, already received, is then dropped as unsolicited). | 1.2.2 | all (needed on UDP) | UDP: a duplicated reply that arrives after the next request of its id went out is taken for it |
 
@@ -64,8 +64,8 @@ pub const DEFAULT_LATE_REPLY_GRACE: Duration = Duration::from_secs(2);
 /// (manual 3.6.3). [`Client::set_finger_power`] waits this long plus the query timeout.
 pub const FINGER_POWER_ON_DURATION: Duration = Duration::from_millis(500);
 /// How long a stop (or FAST STOP) call waits for a reply to a stop sent at or after it before
-/// the stop is sent again (see [`Client`]): far above a stop's round trip, far below a call's
-/// timeout.
+/// the stop is sent again (on TCP and serial: before a loop-back checks whether the stop's reply
+/// was lost, see [`Client`]): far above a stop's round trip, far below a call's timeout.
 pub const RESEND_STOP_AFTER: Duration = stops::RESEND_AFTER;
 /// Default timeout of a TCP connect (see [`ClientBuilder::connect_timeout`]).
 pub const DEFAULT_CONNECT_TIMEOUT: Duration = Duration::from_secs(5);
@@ -425,7 +425,10 @@ impl Shared {
 ///   started afterwards). Their replies carry no data, so each reply is taken for the oldest
 ///   stop still unanswered, and a call still waiting [`RESEND_STOP_AFTER`] later gets the stop
 ///   sent again (a lost UDP datagram) until its reply comes or its timeout ends. Sound on TCP
-///   and serial (ordered); on UDP a stop reply later than the late-reply grace, or a
+///   and serial (ordered): there no stop counts as lost on time, however long its reply is
+///   stalled; a loop-back (0x06) is sent instead, and only its echo, which comes after the
+///   reply to every earlier command, proves an unanswered stop's reply lost (corrupted) and
+///   gets the stop sent again. On UDP a stop reply later than the late-reply grace, or a
 ///   duplicated one, could be taken for a later stop, and a stop sent again may arrive after
 ///   `stop()` returned and stop a move started right after (it then fails with
 ///   E_CMD_ABORTED). A pending move fails with E_CMD_ABORTED.
@@ -498,7 +501,8 @@ impl Shared {
 /// - a lost reply ends its call in a timeout; a lost E_CMD_PENDING changes nothing (the final
 ///   reply ends the call); a lost final reply times its call out, and its id comes back as
 ///   [Lost final replies](Client#lost-final-replies) says; a lost stop reply holds up no later
-///   stop;
+///   stop; a lost (corrupted) E_CMD_PENDING of a motion command whose call timed out before
+///   any reply came keeps the id under recovery (its final reply may still come);
 /// - a duplicated reply is dropped when no request of its id is on the wire. Frames already
 ///   received are paired before the next request goes out, and a loop reply must echo its own
 ///   payload; otherwise, without sequence numbers, a copy arriving after the next request of

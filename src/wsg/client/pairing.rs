@@ -42,8 +42,12 @@
 //! so the immediate reply of the released request, if any, comes before the echo: a reply of
 //! the id before the echo is that late one (unsolicited), and none comes after it. Only an
 //! immediate reply is fenced so: a final reply comes when its command ends. So a released
-//! motion whose E_CMD_PENDING comes before the echo is taken back on the wire under recovery
-//! (below), and an acknowledged non-motion command (finger power on) is released as before.
+//! motion is taken back on the wire under recovery (below) when its E_CMD_PENDING comes before
+//! the echo, and also when none came at all by the echo (a corrupted E_CMD_PENDING is dropped
+//! like a lost one, and the move's final reply would complete the next request of the id), and
+//! an acknowledged non-motion command (finger power on) is released as before. Stops are never
+//! given up on time on an ordered transport: a barrier proves their replies lost
+//! ([`super::stops`], [`Due::StopBarrier`]).
 //!
 //! An acknowledged motion command is not released that way: it may still be moving (a move
 //! can outlast its caller's timeout), and its final reply, E_CMD_ABORTED after a stop included,
@@ -73,7 +77,7 @@ use std::time::Duration;
 use bytes::Bytes;
 use tokio::time::Instant;
 
-use super::stops::Stops;
+use super::stops::{StopDue, Stops};
 use crate::deadline::after;
 use crate::int_map::IntMap;
 use crate::wsg::command::id;
@@ -250,6 +254,10 @@ pub(crate) enum Due {
     /// A stop call of this id (stop or FAST STOP) still waits for a reply to a stop sent at or
     /// after it: send the stop again (it is recorded as sent).
     ResendStop(u8),
+    /// On an ordered transport, stops of this id (stop or FAST STOP) are unanswered too long:
+    /// send a barrier (a loop-back) for the id; its echo ([`Pairing::unfence`]) proves the
+    /// stops sent before it and still unanswered lost (see [`super::stops`]).
+    StopBarrier(u8),
 }
 
 /// What a recovery probe found out about a motion command (see [`Pairing::on_probe`]).
@@ -321,24 +329,42 @@ impl Pairing {
         self.ordered = ordered;
     }
 
-    /// The barrier of fenced id `id` came back: every reply the device sent before it has been
-    /// read, so no reply of the released request can come any more (an immediate reply: the
-    /// final reply of an acknowledged command is not fenced). Call [`Pairing::next`] for it.
-    pub(crate) fn unfence(&mut self, id: u8) {
+    /// The barrier of fenced id `id` came back at `now`: every reply the device sent before it
+    /// has been read, so no immediate reply of the released request can come any more. Call
+    /// [`Pairing::next`] for it. A released motion command got no reply at all, E_CMD_PENDING
+    /// included, yet that may have been lost (a corrupted frame is dropped) while the move
+    /// runs, and its final reply then comes at any time: it goes back on the wire under
+    /// recovery, like a move that outlasts its caller, so that a final reply cannot complete
+    /// the next request of the id (the explorer's `wsg-tcp:0xbd5fd685504fe279`). For stop or
+    /// FAST STOP: the unanswered stops sent before the barrier are lost; returns whether the
+    /// stop is to be sent again now (recorded as sent).
+    pub(crate) fn unfence(&mut self, id: u8, now: Instant) -> bool {
+        if let Some(stops) = self.stops.get_mut(&id) {
+            let again = stops.unfence(now, self.grace);
+            if stops.is_idle() {
+                self.stops.remove(&id);
+            }
+            return again;
+        }
         if let Some(st) = self.ids.get_mut(&id) {
             st.fenced = false;
-            st.released = None;
+            if let Some(mut f) = st.released.take() {
+                f.acknowledged = true;
+                f.probe_at = Some(now);
+                st.in_flight = Some(f);
+            }
         }
+        false
     }
 
     /// Takes `req` in at `now`: send it, queue it, or refuse it.
     pub(crate) fn submit(&mut self, req: Request, now: Instant) -> Submit {
         let id = req.frame.id;
         if is_stop(id) {
-            let grace = self.grace;
+            let (grace, ordered) = (self.grace, self.ordered);
             self.stops
                 .entry(id)
-                .or_default()
+                .or_insert_with(|| Stops::new(ordered))
                 .submit(req.token, req.deadline, now, grace);
             return Submit::Send(req);
         }
@@ -592,8 +618,10 @@ impl Pairing {
         let mut out = Vec::new();
         let grace = self.grace;
         for (id, stops) in &mut self.stops {
-            if stops.due(now, grace) {
-                out.push(Due::ResendStop(*id));
+            match stops.due(now, grace) {
+                Some(StopDue::Resend) => out.push(Due::ResendStop(*id)),
+                Some(StopDue::Barrier) => out.push(Due::StopBarrier(*id)),
+                None => {}
             }
         }
         self.stops.retain(|_, s| !s.is_idle());
@@ -1101,7 +1129,7 @@ mod tests {
             p.on_reply(reply(0x43, Status::Success)),
             Event::Unsolicited(_)
         ));
-        p.unfence(0x43);
+        p.unfence(0x43, now);
         for token in [2, 3] {
             assert_eq!(
                 p.next(0x43, |_| true, Instant::now()).0.map(|r| r.token),
@@ -1143,7 +1171,7 @@ mod tests {
             p.on_reply(reply(id::GRASP, Status::CmdPending)),
             Event::Accepted(6)
         );
-        p.unfence(id::GRASP);
+        p.unfence(id::GRASP, now);
         assert_eq!(p.next(id::GRASP, |_| true, now).0.map(|r| r.token), None);
         assert_eq!(p.due(t + grace), vec![Due::Probe(id::GRASP, 6)]);
         assert!(matches!(
@@ -1154,6 +1182,66 @@ mod tests {
         let mut p = Pairing::new(grace);
         assert!(matches!(p.submit(req(1, 0x43, t), now), Submit::Send(_)));
         assert_eq!(p.due(t + grace), vec![Due::Released(0x43, 1)]);
+    }
+
+    /// The explorer's `wsg-tcp:0xbd5fd685504fe279`, distilled: a home's E_CMD_PENDING is
+    /// corrupted (dropped), so the home is released with no reply at all and fenced; the
+    /// barrier comes back without it. The home runs nevertheless, and its final reply, later,
+    /// must not complete the next home (sent after the barrier, not acknowledged yet).
+    #[test]
+    fn a_released_motion_without_any_reply_stays_under_recovery_after_its_barrier() {
+        let now = Instant::now();
+        let t = now + Duration::from_millis(100);
+        let grace = Duration::from_millis(50);
+        let mut p = Pairing::new(grace);
+        p.set_ordered(true);
+        assert!(matches!(
+            p.submit(req(1, id::HOMING, t), now),
+            Submit::Send(_)
+        ));
+        let echo = t + grace;
+        assert_eq!(p.due(echo), vec![Due::Fenced(id::HOMING, 1)]);
+        assert!(!p.unfence(id::HOMING, echo));
+        // The next home waits: the device is asked whether it moves.
+        assert!(matches!(
+            p.submit(req(2, id::HOMING, echo + grace), echo),
+            Submit::Queued
+        ));
+        assert_eq!(p.next(id::HOMING, |_| true, echo).0.map(|r| r.token), None);
+        assert_eq!(p.due(echo), vec![Due::Probe(id::HOMING, 1)]);
+        // The first home's final reply ends the first home (its caller is gone), not the next.
+        assert_eq!(
+            p.on_reply(reply(id::HOMING, Status::Success)),
+            Event::Resolved(1, reply(id::HOMING, Status::Success))
+        );
+        assert_eq!(
+            p.next(id::HOMING, |_| true, echo).0.map(|r| r.token),
+            Some(2)
+        );
+        assert_eq!(
+            p.on_reply(reply(id::HOMING, Status::CmdPending)),
+            Event::Accepted(2)
+        );
+    }
+
+    /// Stops on an ordered transport: a barrier, not a resend, for a call that waits too long,
+    /// and its echo reaches the stops (see [`super::super::stops`] for the count itself).
+    #[test]
+    fn a_waiting_stop_call_gets_a_barrier_on_an_ordered_transport() {
+        let now = Instant::now();
+        let t = now + Duration::from_secs(1);
+        let mut p = Pairing::new(Duration::from_secs(1));
+        p.set_ordered(true);
+        assert_eq!(sent(p.submit(req(1, id::STOP, t), now)), Some(1));
+        let at = now + super::super::stops::RESEND_AFTER;
+        assert_eq!(p.due(at), vec![Due::StopBarrier(id::STOP)]);
+        // The echo: the stop sent before it, unanswered, is lost; it is sent again.
+        assert!(p.unfence(id::STOP, at));
+        assert_eq!(
+            p.on_reply(reply(id::STOP, Status::Success)),
+            Event::Stopped(vec![1], reply(id::STOP, Status::Success))
+        );
+        assert!(p.drain().is_empty());
     }
 
     #[test]

@@ -469,14 +469,26 @@ impl Task {
                     id,
                     "no reply to a stop sent at or after a waiting stop call: sent again"
                 );
-                send_within(
-                    &mut self.link,
-                    &Frame::new(id, Bytes::new()),
-                    self.write_timeout,
-                )
-                .await
+                self.send_stop(id).await
+            }
+            Due::StopBarrier(id) => {
+                tracing::debug!(
+                    id,
+                    "stops unanswered: a loop-back's echo tells a lost reply from a late one"
+                );
+                self.send_barrier(id, 0).await
             }
         }
+    }
+
+    /// Sends stop or FAST STOP `id` again, at once (the pairing recorded it as sent).
+    async fn send_stop(&mut self, id: u8) -> io::Result<()> {
+        send_within(
+            &mut self.link,
+            &Frame::new(id, Bytes::new()),
+            self.write_timeout,
+        )
+        .await
     }
 
     /// Request `token` was released with no usable answer: its waiter goes; a probe counts as
@@ -534,7 +546,16 @@ impl Task {
             "the device answers no loop-back with its echo: command id released without proof \
             that no late reply is on its way"
         );
-        self.pairing.unfence(id);
+        self.unfence(id).await
+    }
+
+    /// The fence of `id` is over (its barrier's echo came, or the barrier was given up): its
+    /// next request goes out, or, for a stop id, the stop is sent again if a caller still
+    /// waits for one.
+    async fn unfence(&mut self, id: u8) -> io::Result<()> {
+        if self.pairing.unfence(id, Instant::now()) {
+            self.send_stop(id).await?;
+        }
         self.send_next(id);
         Ok(())
     }
@@ -713,8 +734,7 @@ impl Task {
                     // The echo is the barrier's own (a loop reply must echo the payload on
                     // the wire): every reply sent before it has been read.
                     Some(Waiter::Barrier { id: fenced, .. }) if reply.status == Status::Success => {
-                        self.pairing.unfence(fenced);
-                        self.send_next(fenced);
+                        self.unfence(fenced).await?;
                     }
                     Some(Waiter::Barrier {
                         id: fenced,

@@ -194,9 +194,15 @@ fn check_client(
                 _ => false,
             }
         };
+        // A stop reply may serve several stop calls: promise 3 asks for a stop the device
+        // processed during the call (sent at or after it), and one stop sent after two calls
+        // began is that for both (the client completes every call whose first stop is not
+        // later than the one answered: `src/wsg/client/stops.rs`). Only stop calls match
+        // stop replies, so no other call can share one.
+        let shared = c.id == id::STOP || c.id == id::FAST_STOP;
         if let Some(s) = sent
             .iter_mut()
-            .find(|s| !s.used && s.at >= c.start && s.at <= c.end && fits(s))
+            .find(|s| (!s.used || shared) && s.at >= c.start && s.at <= c.end && fits(s))
         {
             s.used = true;
             continue;
