@@ -467,3 +467,45 @@ async fn a_lost_connection_fails_the_calls_in_flight() {
         Err(Error::ConnectionLost(_))
     ));
 }
+
+/// The explorer's setup in small: the client over an in-memory stream (`Client::from_io`), the
+/// simulator's record of a text session (`SimEvent::TextRequest`/`TextReply`, the oracle's
+/// evidence), a paused clock: each command line, then its replies, with the fingers stopped
+/// at `FIN`.
+#[tokio::test(start_paused = true)]
+async fn a_text_session_over_an_in_memory_stream_is_recorded_line_by_line() {
+    use gripper::wsg::sim::{SessionKind, SimEvent};
+    let server = SimServer::in_memory(config().with_time_scale(1.0));
+    server.start_recording(1000);
+    let (near, far) = tokio::io::duplex(4096);
+    let session = server.serve_stream(far, SessionKind::Tcp);
+    let g = Client::from_io(near, Default::default());
+    g.home(HomingDirection::Default).await.unwrap();
+    let width = g.position_mm().await.unwrap();
+    g.close().await.unwrap();
+    let lines: Vec<String> = server
+        .recording()
+        .records
+        .iter()
+        .filter(|r| r.session == session)
+        .filter_map(|r| match &r.event {
+            SimEvent::Connected { .. } => Some("connected".to_owned()),
+            SimEvent::TextRequest { line } => Some(format!("> {}", line.as_deref().unwrap())),
+            SimEvent::TextReply { line, moving } => Some(format!("< {line} {moving}")),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(
+        lines,
+        [
+            "connected".to_owned(),
+            "> HOME()".into(),
+            "< ACK HOME true".into(),
+            "< FIN HOME false".into(),
+            "> POS?".into(),
+            format!("< POS={width:.1} false"),
+            "> BYE()".into(),
+            "< ACK BYE false".into(),
+        ]
+    );
+}

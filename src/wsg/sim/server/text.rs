@@ -18,6 +18,7 @@ use tokio::time::{sleep_until, Instant};
 use tokio_util::codec::FramedRead;
 
 use super::actor::{Actor, Event, Outbox};
+use super::record::SimEvent;
 use crate::griplink::codec::{Line, LineCodec};
 use crate::wsg::sim::device::{Out, SessionId, SessionKind};
 use crate::wsg::sim::text::{Emit, TextSession, MAX_LINE_LEN};
@@ -33,6 +34,12 @@ impl Actor {
     pub(super) fn on_text_connected(&mut self, session: SessionId, outbox: Outbox) {
         self.sessions.insert(session, outbox);
         self.device.connect(session, SessionKind::Tcp);
+        self.record(
+            session,
+            SimEvent::Connected {
+                kind: SessionKind::Tcp,
+            },
+        );
         self.text
             .insert(session, TextSession::new(self.device.config()));
     }
@@ -40,6 +47,10 @@ impl Actor {
     /// One command line of a text connection (`None`: a line too long to read).
     pub(super) fn on_text_line(&mut self, session: SessionId, line: Option<String>) {
         let (now, wall) = (self.clock.now(), self.wall());
+        if !self.text.contains_key(&session) {
+            return;
+        }
+        self.record(session, SimEvent::TextRequest { line: line.clone() });
         let Some(text) = self.text.get_mut(&session) else {
             return;
         };
@@ -54,10 +65,18 @@ impl Actor {
 
     fn send_text(&self, session: SessionId, line: String) {
         if let Some(outbox) = self.sessions.get(&session) {
+            self.record_text(session, &line);
             if !outbox.send(line_bytes(line)) {
                 tracing::debug!(session, "simulator: connection closed; line not sent");
             }
         }
+    }
+
+    /// Records a line queued for a text session, with whether the fingers were moving then.
+    fn record_text(&self, session: SessionId, line: &str) {
+        let moving = self.device.fingers_moving();
+        let line = line.to_owned();
+        self.record(session, SimEvent::TextReply { line, moving });
     }
 
     /// A binary reply for a text session, written as GCL; false if `out` is not for one.
@@ -67,6 +86,7 @@ impl Actor {
         };
         match text.translate(&out.reply) {
             Some(line) => {
+                self.record_text(out.session, &line);
                 outbox.send(line_bytes(line));
             }
             None => tracing::debug!(
