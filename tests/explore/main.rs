@@ -25,6 +25,7 @@ mod core;
 mod griplink;
 mod smartgrasp;
 mod wsg;
+mod wsg_text;
 
 use std::process::ExitCode;
 use std::time::Instant;
@@ -33,7 +34,12 @@ use crate::core::{determinism_check, run_one, Caps, Outcome, Scenario};
 
 /// Every protocol plugged in.
 fn scenarios() -> Vec<&'static dyn Scenario> {
-    vec![&wsg::Wsg, &griplink::Griplink, &smartgrasp::SmartGrasp]
+    vec![
+        &wsg::Wsg,
+        &griplink::Griplink,
+        &smartgrasp::SmartGrasp,
+        &wsg_text::WsgText,
+    ]
 }
 
 struct Opts {
