@@ -80,7 +80,10 @@ struct Net {
 impl Ctx {
     /// Marks the client closing; true if it was already.
     fn start_closing(&self) -> bool {
-        self.closed_at.lock().unwrap().get_or_insert_with(Instant::now);
+        self.closed_at
+            .lock()
+            .unwrap()
+            .get_or_insert_with(Instant::now);
         self.closing.swap(true, Ordering::SeqCst)
     }
 
@@ -102,13 +105,19 @@ impl Ctx {
         );
         let session = n.sim.serve_stream(far, SessionKind::Tcp);
         self.sessions.lock().unwrap().push(session);
-        note(&n.trace, format!("client {}: session {session}", self.index));
+        note(
+            &n.trace,
+            format!("client {}: session {session}", self.index),
+        );
         Client::from_io(near, self.config.clone())
     }
 
     /// Replaces the connection (the old one is dropped without `BYE()` once no call holds it).
     fn reopen(&self, why: &str) {
-        note(&self.net.trace, format!("client {}: reopen: {why}", self.index));
+        note(
+            &self.net.trace,
+            format!("client {}: reopen: {why}", self.index),
+        );
         let fresh = self.open();
         *self.client.lock().unwrap() = fresh;
     }
@@ -199,7 +208,10 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
         note(&trace, "the gripper is not readied");
     } else {
         let c = ctxs[0].client();
-        let ready = (c.ack_fast_stop().await, c.home(HomingDirection::Default).await);
+        let ready = (
+            c.ack_fast_stop().await,
+            c.home(HomingDirection::Default).await,
+        );
         note(&trace, format!("ready: {ready:?}"));
     }
     on.store(true, Ordering::SeqCst);
@@ -276,7 +288,9 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
     let closed_at: Vec<Option<Instant>> =
         ctxs.iter().map(|c| *c.closed_at.lock().unwrap()).collect();
     let exact = !corrupting;
-    let mut all = oracle::check(&calls, &pushes, &record, sim_t0, &sessions, &closed_at, exact);
+    let mut all = oracle::check(
+        &calls, &pushes, &record, sim_t0, &sessions, &closed_at, exact,
+    );
     all.extend(v);
     drop(ctxs);
     drop(sim);
@@ -311,7 +325,10 @@ async fn recovery(ctx: &Ctx, log: &Log, trace: &SharedTrace) -> Vec<String> {
         } else {
             c.position_mm().await.map(Res::Value)
         };
-        note(trace, format!("recovery client {}: {line} {r:?}", ctx.index));
+        note(
+            trace,
+            format!("recovery client {}: {line} {r:?}", ctx.index),
+        );
         let res = r.as_ref().map_or_else(classify, Clone::clone);
         match (&res, lost) {
             (Res::Done | Res::Value(_), false) | (Res::Lost, true) => {}
@@ -389,7 +406,8 @@ async fn stop_is_not_queued(
             "3 (a stop stops): STOP() during a MOVE on a quiet network ended {stopped:?}"
         ));
     }
-    let aborted = matches!(&motion, Ok(Err(Error::Device { line, .. })) if line.starts_with("ERR MOVE"));
+    let aborted =
+        matches!(&motion, Ok(Err(Error::Device { line, .. })) if line.starts_with("ERR MOVE"));
     if !aborted {
         v.push(format!(
             "3 (a stop stops): the MOVE stopped during its run ended {motion:?}, not with its ERR MOVE"

@@ -245,7 +245,9 @@ fn one_per_name(by_session: &BTreeMap<SessionId, Vec<Ev>>) -> Vec<String> {
                 let name = match parse_reply(line) {
                     Ok(ReplyLine::Fin(n) | ReplyLine::Value { name: n, .. }) => n,
                     Ok(ReplyLine::Err { name: Some(n), .. }) => n,
-                    Ok(ReplyLine::Ack(n)) if !matches!(n, "HOME" | "MOVE" | "GRIP" | "RELEASE") => n,
+                    Ok(ReplyLine::Ack(n)) if !matches!(n, "HOME" | "MOVE" | "GRIP" | "RELEASE") => {
+                        n
+                    }
                     _ => continue,
                 };
                 open.remove(&name.to_ascii_uppercase());

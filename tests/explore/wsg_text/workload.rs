@@ -132,9 +132,17 @@ fn op(rng: &mut Prng) -> Op {
             ("HOME", Fin, Call::Home(dir))
         }
         2..=4 => ("MOVE", Fin, Call::Move(half(rng, 0, 110), speed(rng))),
-        5 => ("GRIP", Fin, Call::Grip(rng.one_in(2).then(|| half(rng, 5, 80)))),
+        5 => (
+            "GRIP",
+            Fin,
+            Call::Grip(rng.one_in(2).then(|| half(rng, 5, 80))),
+        ),
         6 | 7 => {
-            let w = if rng.one_in(2) { 40.0 } else { half(rng, 0, 110) };
+            let w = if rng.one_in(2) {
+                40.0
+            } else {
+                half(rng, 0, 110)
+            };
             ("GRIP", Fin, Call::GripPart(half(rng, 5, 80), w, speed(rng)))
         }
         8 => {
@@ -229,7 +237,9 @@ pub fn classify(e: &Error) -> Res {
         Error::Closed => Res::Closed,
         Error::ConnectionLost(_) => Res::Lost,
         Error::Timeout { .. } => Res::Timeout,
-        Error::MalformedReply { .. } | Error::UnexpectedReply { .. } => Res::Malformed(e.to_string()),
+        Error::MalformedReply { .. } | Error::UnexpectedReply { .. } => {
+            Res::Malformed(e.to_string())
+        }
         other => Res::Other(other.to_string()),
     }
 }
@@ -310,7 +320,14 @@ async fn autosend(
     let start = Instant::now();
     let c = c.with_timeout(ctx.config.query_timeout);
     let r = res(c.stop_autosend(q).await, |()| Res::Done);
-    note(trace, format!("client {}: {} -> {r:?}", ctx.index, line_of("AUTOSEND", &off)));
+    note(
+        trace,
+        format!(
+            "client {}: {} -> {r:?}",
+            ctx.index,
+            line_of("AUTOSEND", &off)
+        ),
+    );
     log.calls.lock().unwrap().push(CallRec {
         client: ctx.index,
         line: line_of("AUTOSEND", &off),
@@ -342,7 +359,10 @@ pub async fn caller(
         if rng.one_in(150) {
             ctx.start_closing();
             let r = ctx.client().close().await;
-            note(&trace, format!("client {} caller {k}: close {r:?}", ctx.index));
+            note(
+                &trace,
+                format!("client {} caller {k}: close {r:?}", ctx.index),
+            );
             return;
         }
         if ctx.reconnect && rng.one_in(60) {
