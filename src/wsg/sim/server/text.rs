@@ -50,6 +50,11 @@ impl Actor {
         if !self.text.contains_key(&session) {
             return;
         }
+        // What finished before this line goes out first, recorded with the fingers as they
+        // were then: a `FIN` queued after the command started a new motion would be recorded
+        // as sent while the fingers moved.
+        let finished = self.device.advance(now);
+        self.dispatch(finished);
         self.record(session, SimEvent::TextRequest { line: line.clone() });
         let Some(text) = self.text.get_mut(&session) else {
             return;
@@ -114,7 +119,9 @@ pub(super) async fn serve_text(
     }
     let (rd, mut wr) = tokio::io::split(io);
     // `split`'s halves are `Unpin` whatever `io` is.
-    let mut reader = FramedRead::new(rd, LineCodec::new(MAX_LINE_LEN));
+    // A line cut off by the end of the stream is not a command (its LF ends a command, §2):
+    // `MOVE(10` of a `MOVE(100)` whose connection broke must not move the fingers.
+    let mut reader = FramedRead::new(rd, LineCodec::new(MAX_LINE_LEN).reject_unterminated());
     let mut reading = true;
     let mut writable = true;
     // After an `ACK`: nothing is written before this.
