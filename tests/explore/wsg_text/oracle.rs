@@ -114,12 +114,10 @@ pub fn check(
     if exact {
         out.extend(one_per_name(&by_session));
     }
-    let mut used = BTreeSet::new();
-    let mut order: Vec<usize> = (0..calls.len()).collect();
-    // Earliest end first: a greedy match is then exact for intervals.
-    order.sort_by_key(|&i| (calls[i].end, i));
-    for i in order {
-        let c = &calls[i];
+    // Each answered call: the requests (session, index) that could be its own, with the
+    // device's reply to each.
+    let mut edges: Vec<Vec<Cand>> = vec![Vec::new(); calls.len()];
+    for (i, c) in calls.iter().enumerate() {
         let who = format!("client {} {}", c.client, c.line);
         let bound = c.start.checked_add(c.timeout).map(|t| t + CALL_SLACK);
         if bound.is_some_and(|b| c.end > b) {
@@ -139,10 +137,6 @@ pub fn check(
                 }
                 continue;
             }
-            Res::Other(e) => {
-                out.push(format!("5 (documented errors): {who} ended {e}"));
-                continue;
-            }
             Res::Malformed(e) => {
                 if exact {
                     out.push(format!(
@@ -151,52 +145,36 @@ pub fn check(
                 }
                 continue;
             }
+            Res::Other(e) => {
+                out.push(format!("5 (documented errors): {who} ended {e}"));
+                continue;
+            }
             Res::Lost | Res::Timeout => continue,
         }
-        let mut seen = Vec::new();
-        let mut found = None;
-        'search: for &s in &sessions[c.client] {
-            let evs = by_session.get(&s).map_or(&[][..], Vec::as_slice);
-            for (j, e) in evs.iter().enumerate() {
-                let Some(line) = e.request else { continue };
-                let mine = if exact {
-                    line == c.line
-                } else {
-                    request_name(line) == c.name
-                };
-                if !mine || e.at < c.start || e.at > c.end || used.contains(&(s, j)) {
-                    continue;
-                }
-                let reply = evs.iter().enumerate().skip(j + 1).find_map(|(k, r)| {
-                    let (l, moving) = r.reply?;
-                    final_of(l, c.name, c.expect).map(|got| (k, r.at, l, moving, got))
-                });
-                let Some((k, at, l, moving, got)) = reply else {
-                    continue;
-                };
-                seen.push(format!("{line} -> {l}"));
-                if at <= c.end && same(&got, &c.res, exact) && !used.contains(&(s, k)) {
-                    found = Some((s, j, k, moving, l));
-                    break 'search;
-                }
-            }
+        edges[i] = candidates(c, &sessions[c.client], &by_session, exact);
+    }
+    let owner = match_calls(&edges);
+    for (i, c) in calls.iter().enumerate() {
+        if !matches!(c.res, Res::Value(_) | Res::Done | Res::Device(_)) {
+            continue;
         }
-        let Some((s, j, k, moving, l)) = found else {
+        let who = format!("client {} {}", c.client, c.line);
+        let Some(cand) = edges[i].iter().find(|e| owner.get(&e.request) == Some(&i)) else {
             let promise = match (c.name, &c.res) {
                 ("STOP" | "FASTSTOP", Res::Done) => "3 (a stop's Ok is its own ACK)",
                 _ => "2 (the device's answer to that request)",
             };
+            let seen: Vec<&str> = edges[i].iter().map(|e| e.reply.as_str()).collect();
             out.push(format!(
-                "{promise}: {who} returned {:?}, which is not the device's reply to a request of that call (its requests during the call, and the device's replies: {seen:?})",
+                "{promise}: {who} returned {:?}, which is not the device's reply to a request of that call, or that reply answered another call (the device's fitting replies during the call: {seen:?})",
                 c.res
             ));
             continue;
         };
-        used.insert((s, j));
-        used.insert((s, k));
-        if c.expect == Expect::Fin && c.res == Res::Done && moving {
+        if c.expect == Expect::Fin && c.res == Res::Done && cand.moving {
             out.push(format!(
-                "4 (FIN means stopped): {who} returned Ok on {l:?}, which the device sent while the fingers still moved"
+                "4 (FIN means stopped): {who} returned Ok on {:?}, which the device sent while the fingers still moved",
+                cand.reply
             ));
         }
     }
@@ -224,6 +202,82 @@ pub fn check(
         }
     }
     out
+}
+
+/// A request that could be a call's own, and the device's reply to it.
+#[derive(Clone)]
+struct Cand {
+    /// (session, index of the request in the session's lines).
+    request: (SessionId, usize),
+    reply: String,
+    moving: bool,
+}
+
+/// The requests of a call's client that could be its own: received during the call, with its
+/// very line (in a corrupting run: its name), whose reply (the first final reply of the
+/// call's name after it) the device sent before the call ended and equals the call's result.
+fn candidates(
+    c: &CallRec,
+    sessions: &[SessionId],
+    by_session: &BTreeMap<SessionId, Vec<Ev>>,
+    exact: bool,
+) -> Vec<Cand> {
+    let mut out = Vec::new();
+    for &s in sessions {
+        let evs = by_session.get(&s).map_or(&[][..], Vec::as_slice);
+        for (j, e) in evs.iter().enumerate() {
+            let Some(line) = e.request else { continue };
+            let mine = line == c.line || !exact && request_name(line) == c.name;
+            if !mine || e.at < c.start || e.at > c.end {
+                continue;
+            }
+            let reply = evs.iter().skip(j + 1).find_map(|r| {
+                let (l, moving) = r.reply?;
+                final_of(l, c.name, c.expect).map(|got| (r.at, l, moving, got))
+            });
+            if let Some((at, l, moving, got)) = reply {
+                if at <= c.end && same(&got, &c.res, exact) {
+                    out.push(Cand {
+                        request: (s, j),
+                        reply: l.to_owned(),
+                        moving,
+                    });
+                }
+            }
+        }
+    }
+    out
+}
+
+/// A maximum matching of calls to requests (augmenting paths): one request answers one call.
+/// Returns each matched request's call.
+fn match_calls(edges: &[Vec<Cand>]) -> BTreeMap<(SessionId, usize), usize> {
+    fn augment(
+        i: usize,
+        edges: &[Vec<Cand>],
+        owner: &mut BTreeMap<(SessionId, usize), usize>,
+        seen: &mut BTreeSet<(SessionId, usize)>,
+    ) -> bool {
+        for e in &edges[i] {
+            if !seen.insert(e.request) {
+                continue;
+            }
+            let free = match owner.get(&e.request) {
+                None => true,
+                Some(&other) => augment(other, edges, owner, seen),
+            };
+            if free {
+                owner.insert(e.request, i);
+                return true;
+            }
+        }
+        false
+    }
+    let mut owner = BTreeMap::new();
+    for i in 0..edges.len() {
+        augment(i, edges, &mut owner, &mut BTreeSet::new());
+    }
+    owner
 }
 
 /// On each session, the requests and final replies of one name alternate: the client never
