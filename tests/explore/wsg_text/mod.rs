@@ -26,7 +26,7 @@ use tokio::time::Instant;
 
 use self::workload::{classify, CallRec, Expect, Log, Res};
 use crate::core::streams::{faulty_pipe, StreamProfile};
-use crate::core::{note, Caps, Prng, Scenario, SharedTrace};
+use crate::core::{end_fault_phase, note, restart_at, Caps, Prng, Scenario, SharedTrace};
 
 /// The GCL scenario.
 pub struct WsgText;
@@ -228,20 +228,10 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
         }
     }
     if level >= 2 && rng.one_in(4) {
-        let at = rng.millis(0, 5000);
-        let (sim, trace) = (sim.clone(), trace.clone());
-        tokio::spawn(async move {
-            tokio::time::sleep(at).await;
-            note(&trace, "fault: the device restarts");
-            sim.restart();
-        });
+        let sim = sim.clone();
+        restart_at(rng.millis(0, 5000), &trace, move || sim.restart());
     }
-    for c in callers {
-        // A caller that panicked is counted by the panic hook.
-        let _ = c.await;
-    }
-    on.store(false, Ordering::SeqCst);
-    note(&trace, "faults off");
+    end_fault_phase(callers, &on, &trace).await;
 
     let mut v = Vec::new();
     for ctx in &ctxs {

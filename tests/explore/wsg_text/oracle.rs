@@ -130,7 +130,7 @@ pub fn check(
         match &c.res {
             Res::Value(_) | Res::Done | Res::Device(_) => {}
             Res::Closed => {
-                if !closed_at[c.client].is_some_and(|t| t <= c.end) {
+                if closed_at[c.client].is_none_or(|t| t > c.end) {
                     out.push(format!(
                         "5 (documented errors): {who} ended Closed without close()"
                     ));
