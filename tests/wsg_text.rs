@@ -467,3 +467,124 @@ async fn a_lost_connection_fails_the_calls_in_flight() {
         Err(Error::ConnectionLost(_))
     ));
 }
+
+/// The explorer's setup in small: the client over an in-memory stream (`Client::from_io`), the
+/// simulator's record of a text session (`SimEvent::TextRequest`/`TextReply`, the oracle's
+/// evidence), a paused clock: each command line, then its replies, with the fingers stopped
+/// at `FIN`.
+#[tokio::test(start_paused = true)]
+async fn a_text_session_over_an_in_memory_stream_is_recorded_line_by_line() {
+    use gripper::wsg::sim::{SessionKind, SimEvent};
+    let server = SimServer::in_memory(config().with_time_scale(1.0));
+    server.start_recording(1000);
+    let (near, far) = tokio::io::duplex(4096);
+    let session = server.serve_stream(far, SessionKind::Tcp);
+    let g = Client::from_io(near, Default::default());
+    g.home(HomingDirection::Default).await.unwrap();
+    let width = g.position_mm().await.unwrap();
+    g.close().await.unwrap();
+    let lines: Vec<String> = server
+        .recording()
+        .records
+        .iter()
+        .filter(|r| r.session == session)
+        .filter_map(|r| match &r.event {
+            SimEvent::Connected { .. } => Some("connected".to_owned()),
+            SimEvent::TextRequest { line } => Some(format!("> {}", line.as_deref().unwrap())),
+            SimEvent::TextReply { line, moving } => Some(format!("< {line} {moving}")),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(
+        lines,
+        [
+            "connected".to_owned(),
+            "> HOME()".into(),
+            "< ACK HOME true".into(),
+            "< FIN HOME false".into(),
+            "> POS?".into(),
+            format!("< POS={width:.1} false"),
+            "> BYE()".into(),
+            "< ACK BYE false".into(),
+        ]
+    );
+}
+
+/// A `FIN` is recorded with the fingers as they were when its motion ended, even when a
+/// command that starts the next motion is read at that very instant (the simulator's timer
+/// for the `FIN` is due a microsecond later): the explorer's promise 4 (`FIN` means stopped)
+/// reads that flag. Found by the explorer, `wsg-text:0xf2f74ad188308e29`: the `FIN HOME` was
+/// queued after the `MOVE` it raced had started, and recorded "moving".
+#[tokio::test(start_paused = true)]
+async fn a_fin_is_recorded_with_the_fingers_stopped_when_a_motion_starts_at_its_instant() {
+    use gripper::wsg::sim::{SessionKind, SimEvent};
+    let mut config = config().with_time_scale(1.0);
+    config.final_reply_lag = Duration::from_millis(20);
+    let server = SimServer::in_memory(config);
+    server.start_recording(1000);
+    let (near, far) = tokio::io::duplex(4096);
+    server.serve_stream(far, SessionKind::Tcp);
+    let g = Client::from_io(near, Default::default());
+    g.ack_fast_stop().await.unwrap();
+    g.home(HomingDirection::Positive).await.unwrap();
+    // Homed at the positive end: a second HOME(1) has no travel and ends after the lag.
+    let start = tokio::time::Instant::now();
+    let homing = tokio::spawn({
+        let g = g.clone();
+        async move { g.home(HomingDirection::Positive).await }
+    });
+    tokio::time::sleep_until(start + Duration::from_millis(20)).await;
+    g.move_to(50.0, None).await.unwrap();
+    homing.await.unwrap().unwrap();
+    let fins: Vec<(String, bool)> = server
+        .recording()
+        .records
+        .iter()
+        .filter_map(|r| match &r.event {
+            SimEvent::TextReply { line, moving } if line.starts_with("FIN") => {
+                Some((line.clone(), *moving))
+            }
+            _ => None,
+        })
+        .collect();
+    assert_eq!(
+        fins,
+        [
+            ("FIN HOME".to_owned(), false),
+            ("FIN HOME".into(), false),
+            ("FIN MOVE".into(), false)
+        ]
+    );
+}
+
+/// A command line cut off by the end of the stream is not run: its LF ends a command (shared
+/// note §2), and `MOVE(10` of a `MOVE(100)` whose connection broke must not move the
+/// fingers. Found by the explorer (`wsg-text:0x2a27284c85458b17`: a half-closed connection
+/// ended inside `AUTOSEND("SPEED",0)`, and the simulator answered the fragment).
+#[tokio::test]
+async fn a_command_cut_off_by_the_end_of_the_stream_is_not_run() {
+    let server = sim().await;
+    server.start_recording(1000);
+    let mut s = Strict::connect(&server).await;
+    s.expect("FSACK()", &["ACK FSACK"]).await;
+    s.stream.write_all(b"MOVE(10").await.unwrap();
+    s.stream.shutdown().await.unwrap();
+    let mut rest = String::new();
+    within("the simulator closes", s.stream.read_to_string(&mut rest))
+        .await
+        .unwrap();
+    assert!(
+        !rest.contains("MOVE"),
+        "the fragment was answered: {rest:?}"
+    );
+    let read: Vec<_> = server
+        .recording()
+        .records
+        .into_iter()
+        .filter_map(|r| match r.event {
+            gripper::wsg::sim::SimEvent::TextRequest { line } => Some(line),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(read, [Some("FSACK()".to_owned())]);
+}

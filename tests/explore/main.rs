@@ -10,7 +10,8 @@
 //! - `--budget-secs S` — fresh seeds, round robin over the variants, for `S` seconds of wall
 //!   time (instead of `--seeds`);
 //! - `--start HEX` — the first fresh seed (default: from the system clock, printed);
-//! - `--only NAME` — only variants whose name starts with `NAME`;
+//! - `--only NAME[,NAME…]` — only variants whose name starts with one of the `NAME`s (`wsg`
+//!   includes `wsg-text`: `--only wsg-tcp,wsg-serial,wsg-udp` is the binary protocol alone);
 //! - `--determinism N` — seeds per variant run twice and compared (default 1);
 //! - `--until-fail N` — fresh seeds until one fails, at most `N` runs per variant; exits 0 and
 //!   says after how many runs if one did (for the planted-bug table), 1 if none did;
@@ -25,6 +26,7 @@ mod core;
 mod griplink;
 mod smartgrasp;
 mod wsg;
+mod wsg_text;
 
 use std::process::ExitCode;
 use std::time::Instant;
@@ -33,7 +35,12 @@ use crate::core::{determinism_check, run_one, Caps, Outcome, Scenario};
 
 /// Every protocol plugged in.
 fn scenarios() -> Vec<&'static dyn Scenario> {
-    vec![&wsg::Wsg, &griplink::Griplink, &smartgrasp::SmartGrasp]
+    vec![
+        &wsg::Wsg,
+        &griplink::Griplink,
+        &smartgrasp::SmartGrasp,
+        &wsg_text::WsgText,
+    ]
 }
 
 struct Opts {
@@ -311,7 +318,11 @@ fn main() -> ExitCode {
     let variants: Vec<(&'static dyn Scenario, &'static str)> = scenarios()
         .into_iter()
         .flat_map(|s| s.variants().iter().map(move |v| (s, *v)))
-        .filter(|(_, v)| o.only.as_ref().is_none_or(|p| v.starts_with(p.as_str())))
+        .filter(|(_, v)| {
+            o.only
+                .as_ref()
+                .is_none_or(|p| p.split(',').any(|p| v.starts_with(p)))
+        })
         .collect();
     let mut failed = false;
     let base = fresh_base(&o);

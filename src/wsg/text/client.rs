@@ -3,6 +3,7 @@
 use std::sync::Arc;
 use std::time::Duration;
 
+use tokio::io::{AsyncRead, AsyncWrite};
 use tokio::net::{TcpStream, ToSocketAddrs};
 use tokio::sync::{mpsc, oneshot};
 use tokio::time::Instant;
@@ -96,15 +97,35 @@ impl Client {
             .await
             .map_err(|_| timed_out())??;
         stream.set_nodelay(true)?;
-        Ok(Client::spawn(stream, config))
+        Ok(Client::from_stream(stream, config))
     }
 
     /// Runs the client over an already connected stream. Must be called inside a tokio runtime.
     pub fn from_stream(stream: TcpStream, config: ClientConfig) -> Client {
-        Client::spawn(stream, config)
+        let (read, write) = stream.into_split();
+        Client::spawn(read, write, config)
     }
 
-    fn spawn(stream: TcpStream, config: ClientConfig) -> Client {
+    /// Runs the client over any connected byte stream: one end of `tokio::io::duplex` (a
+    /// simulator served in memory with [`SimServer::serve_stream`], as the explorer does), a
+    /// TLS stream, a tunnel. The stream is the whole session: this client does not reconnect,
+    /// so a lost stream fails every later call with [`Error::ConnectionLost`]. Must be called
+    /// inside a tokio runtime.
+    ///
+    /// [`SimServer::serve_stream`]: crate::wsg::sim::SimServer::serve_stream
+    pub fn from_io<S>(io: S, config: ClientConfig) -> Client
+    where
+        S: AsyncRead + AsyncWrite + Send + 'static,
+    {
+        let (read, write) = tokio::io::split(io);
+        Client::spawn(read, write, config)
+    }
+
+    fn spawn<R, W>(read: R, write: W, config: ClientConfig) -> Client
+    where
+        R: AsyncRead + Unpin + Send + 'static,
+        W: AsyncWrite + Unpin + Send + 'static,
+    {
         let (requests, rx) = mpsc::channel(config.queue_len.max(1));
         let shared = Arc::new(Shared::default());
         let task_config = TaskConfig {
@@ -113,7 +134,7 @@ impl Client {
             waiting_len: config.queue_len.max(1),
         };
         Client {
-            connection: Connection::spawn(task::run(stream, rx, task_config, shared.clone())),
+            connection: Connection::spawn(task::run(read, write, rx, task_config, shared.clone())),
             requests,
             shared,
             config: Arc::new(config),

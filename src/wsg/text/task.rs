@@ -16,9 +16,7 @@ use std::time::Duration;
 
 use bytes::BytesMut;
 use futures_core::Stream;
-use tokio::io::AsyncWriteExt;
-use tokio::net::tcp::{OwnedReadHalf, OwnedWriteHalf};
-use tokio::net::TcpStream;
+use tokio::io::{AsyncRead, AsyncWrite, AsyncWriteExt};
 use tokio::sync::{mpsc, oneshot};
 use tokio::time::Instant;
 use tokio_util::codec::FramedRead;
@@ -121,13 +119,13 @@ pub(crate) fn after(from: Instant, d: Duration) -> Instant {
         .unwrap_or(from)
 }
 
-struct Conn {
-    reader: FramedRead<OwnedReadHalf, RawLineCodec>,
-    writer: OwnedWriteHalf,
+struct Conn<R, W> {
+    reader: FramedRead<R, RawLineCodec>,
+    writer: W,
     out: BytesMut,
 }
 
-impl Conn {
+impl<R, W: AsyncWrite + Unpin> Conn<R, W> {
     async fn send(&mut self, line: &str, limit: Instant) -> Result<(), Error> {
         self.out.clear();
         self.out.extend_from_slice(line.as_bytes());
@@ -152,8 +150,8 @@ fn io_error(e: std::io::Error) -> Error {
     }
 }
 
-async fn next_line(
-    reader: &mut FramedRead<OwnedReadHalf, RawLineCodec>,
+async fn next_line<R: AsyncRead + Unpin>(
+    reader: &mut FramedRead<R, RawLineCodec>,
 ) -> Option<std::io::Result<RawLine>> {
     poll_fn(|cx| Pin::new(&mut *reader).poll_next(cx)).await
 }
@@ -280,14 +278,18 @@ fn usable(request: Request) -> Option<Request> {
     Some(request)
 }
 
-/// Runs one connection until every handle is dropped, `BYE()` is acknowledged, or it is lost.
-pub(crate) async fn run(
-    stream: TcpStream,
+/// Runs one connection (its read and write halves) until every handle is dropped, `BYE()` is
+/// acknowledged, or it is lost.
+pub(crate) async fn run<R, W>(
+    read: R,
+    write: W,
     mut requests: mpsc::Receiver<Request>,
     config: TaskConfig,
     shared: Arc<Shared>,
-) {
-    let (read, write) = stream.into_split();
+) where
+    R: AsyncRead + Unpin,
+    W: AsyncWrite + Unpin,
+{
     let codec = RawLineCodec(LineCodec::new(config.max_line_len).reject_unterminated());
     let mut conn = Conn {
         reader: FramedRead::new(read, codec),

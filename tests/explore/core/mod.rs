@@ -135,6 +135,30 @@ pub fn note(trace: &SharedTrace, line: impl Into<String>) {
         .add(line.into());
 }
 
+/// The end of a fault phase: waits for every caller (one that panicked is counted by the panic
+/// hook), then turns the faults off (`on`) and notes it.
+pub async fn end_fault_phase(
+    callers: Vec<tokio::task::JoinHandle<()>>,
+    on: &std::sync::atomic::AtomicBool,
+    trace: &SharedTrace,
+) {
+    for c in callers {
+        let _ = c.await;
+    }
+    on.store(false, Ordering::SeqCst);
+    note(trace, "faults off");
+}
+
+/// After `at`, notes that the device restarts and calls `restart` (e.g. `SimServer::restart`).
+pub fn restart_at(at: Duration, trace: &SharedTrace, restart: impl FnOnce() + Send + 'static) {
+    let trace = trace.clone();
+    tokio::spawn(async move {
+        tokio::time::sleep(at).await;
+        note(&trace, "fault: the device restarts");
+        restart();
+    });
+}
+
 /// How much a run is allowed to do: the seed's draws are capped by these (for shrinking).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Caps {

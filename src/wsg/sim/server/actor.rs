@@ -259,7 +259,7 @@ impl Actor {
     }
 
     /// Adds to the record, if recording was started.
-    fn record(&self, session: SessionId, event: SimEvent) {
+    pub(super) fn record(&self, session: SessionId, event: SimEvent) {
         let mut shared = lock(&self.shared);
         if let Some(r) = shared.recorder.as_mut() {
             r.push(SimRecord {

@@ -61,6 +61,22 @@ pub enum SimEvent {
         /// final reply must be sent with the fingers stopped.
         moving: bool,
     },
+    /// A command line a text (GCL) session sent, as the simulator read it, before it was
+    /// handled (`None`: a line longer than the simulator reads, answered `ERR ? 27`). The text
+    /// mode's counterpart of [`SimEvent::Request`].
+    TextRequest {
+        /// The line, without its LF.
+        line: Option<String>,
+    },
+    /// A line was queued for a text (GCL) session: a reply, an `ACK`/`FIN`/`ERR`, or an
+    /// `@NAME=value` push. The text mode's counterpart of [`SimEvent::Reply`].
+    TextReply {
+        /// The line, without its LF.
+        line: String,
+        /// Whether a finger motion was still running when the line was queued: a `FIN` must
+        /// be sent with the fingers stopped.
+        moving: bool,
+    },
     /// The device restarted ([`SimServer::restart`](super::SimServer::restart)): every session
     /// was let go and the state is the configuration's again.
     Restarted,

@@ -18,6 +18,7 @@ use tokio::time::{sleep_until, Instant};
 use tokio_util::codec::FramedRead;
 
 use super::actor::{Actor, Event, Outbox};
+use super::record::SimEvent;
 use crate::griplink::codec::{Line, LineCodec};
 use crate::wsg::sim::device::{Out, SessionId, SessionKind};
 use crate::wsg::sim::text::{Emit, TextSession, MAX_LINE_LEN};
@@ -33,6 +34,12 @@ impl Actor {
     pub(super) fn on_text_connected(&mut self, session: SessionId, outbox: Outbox) {
         self.sessions.insert(session, outbox);
         self.device.connect(session, SessionKind::Tcp);
+        self.record(
+            session,
+            SimEvent::Connected {
+                kind: SessionKind::Tcp,
+            },
+        );
         self.text
             .insert(session, TextSession::new(self.device.config()));
     }
@@ -40,6 +47,15 @@ impl Actor {
     /// One command line of a text connection (`None`: a line too long to read).
     pub(super) fn on_text_line(&mut self, session: SessionId, line: Option<String>) {
         let (now, wall) = (self.clock.now(), self.wall());
+        if !self.text.contains_key(&session) {
+            return;
+        }
+        // What finished before this line goes out first, recorded with the fingers as they
+        // were then: a `FIN` queued after the command started a new motion would be recorded
+        // as sent while the fingers moved.
+        let finished = self.device.advance(now);
+        self.dispatch(finished);
+        self.record(session, SimEvent::TextRequest { line: line.clone() });
         let Some(text) = self.text.get_mut(&session) else {
             return;
         };
@@ -54,10 +70,18 @@ impl Actor {
 
     fn send_text(&self, session: SessionId, line: String) {
         if let Some(outbox) = self.sessions.get(&session) {
+            self.record_text(session, &line);
             if !outbox.send(line_bytes(line)) {
                 tracing::debug!(session, "simulator: connection closed; line not sent");
             }
         }
+    }
+
+    /// Records a line queued for a text session, with whether the fingers were moving then.
+    fn record_text(&self, session: SessionId, line: &str) {
+        let moving = self.device.fingers_moving();
+        let line = line.to_owned();
+        self.record(session, SimEvent::TextReply { line, moving });
     }
 
     /// A binary reply for a text session, written as GCL; false if `out` is not for one.
@@ -67,6 +91,7 @@ impl Actor {
         };
         match text.translate(&out.reply) {
             Some(line) => {
+                self.record_text(out.session, &line);
                 outbox.send(line_bytes(line));
             }
             None => tracing::debug!(
@@ -94,7 +119,9 @@ pub(super) async fn serve_text(
     }
     let (rd, mut wr) = tokio::io::split(io);
     // `split`'s halves are `Unpin` whatever `io` is.
-    let mut reader = FramedRead::new(rd, LineCodec::new(MAX_LINE_LEN));
+    // A line cut off by the end of the stream is not a command (its LF ends a command, §2):
+    // `MOVE(10` of a `MOVE(100)` whose connection broke must not move the fingers.
+    let mut reader = FramedRead::new(rd, LineCodec::new(MAX_LINE_LEN).reject_unterminated());
     let mut reading = true;
     let mut writable = true;
     // After an `ACK`: nothing is written before this.

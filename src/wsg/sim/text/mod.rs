@@ -18,7 +18,12 @@
 //! PWT = twice the simulated part's tolerance (10 mm without a part) and CLT = twice
 //! [`SimConfig::clamping_travel_mm`]; AUTOSEND names POS, SPEED, FORCE
 //! and GRIPSTATE (TEMP is constant in the simulator and is refused with `ERR AUTOSEND 5`),
-//! interval 0 stops, below 10 ms runs at 10 ms.
+//! interval 0 stops, below 10 ms runs at 10 ms; a line cut off by the end of the stream (no LF)
+//! is not a command and is not run (`MOVE(10` of a `MOVE(100)` whose connection broke).
+//!
+//! With [`SimServer::start_recording`](super::SimServer::start_recording) every line a text
+//! session sends and gets is recorded ([`SimEvent::TextRequest`](super::SimEvent::TextRequest),
+//! [`SimEvent::TextReply`](super::SimEvent::TextReply)), for a test's oracle.
 //!
 //! Not modelled: E_AXIS_BLOCKED (a contact before the tolerance zone) is never reported. The
 //! injected

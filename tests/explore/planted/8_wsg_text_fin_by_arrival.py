@@ -1,0 +1,21 @@
+"""Planted bug (WSG text, GCL): pair a FIN by arrival, not by command name. A `FIN` line
+completes whichever motion waits for one (the first the map yields), so with a HOME still on the
+wire after its caller timed out, a later MOVE can return Ok on `FIN HOME`."""
+from _plant import plant
+
+KIND = "2 (the device's answer to that request)"
+
+plant(
+    "src/wsg/text/task.rs",
+    """        let Some((&key, slot)) = self
+            .on_wire
+            .iter()
+            .find(|(k, _)| k.eq_ignore_ascii_case(name))""",
+    """        let by_arrival = matches!(reply, ReplyLine::Fin(_))
+            .then(|| self.on_wire.iter().find(|(_, s)| s.expect == Expect::Fin))
+            .flatten();
+        let Some((&key, slot)) = by_arrival.or_else(|| self
+            .on_wire
+            .iter()
+            .find(|(k, _)| k.eq_ignore_ascii_case(name)))""",
+)

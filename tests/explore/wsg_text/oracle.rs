@@ -1,0 +1,312 @@
+//! The promises of issue 20 as they apply to GCL, checked against the simulator's record of
+//! every line each text session sent and got (`SimEvent::TextRequest`/`TextReply`):
+//!
+//! 1. **Bounded**: every call ends within its timeout plus `CALL_SLACK` (panics, leaks and
+//!    hangs: `core`).
+//! 2. **The device's answer to that request**: a value, an `ACK`/`FIN`, or an `ERR` a call
+//!    returned is the first reply *of the call's command name* the device sent, on that
+//!    client's session, after a request line of that call received during the call; one request
+//!    answers one call. Replies carry no id, only the name (manual chapter 2), so this is the
+//!    pairing the client must get right, with queries answered while a motion waits for its
+//!    `FIN`. On a session, requests and replies of one name alternate (the client keeps one
+//!    command of each name on the wire). Pushes a stream hands out are `@NAME=value` lines the
+//!    device sent to that client.
+//! 3. **A stop is not held back**: `STOP()`/`FASTSTOP()` Ok is its own `ACK` (2, named 3 for
+//!    stops); live in the quiet phase (`mod.rs`).
+//! 4. **FIN means stopped**: a motion reported complete was answered by a `FIN` the device
+//!    sent with its fingers stopped.
+//! 5. **Recovery and documented errors**: `Closed` only after `close()`; the quiet phase.
+//!
+//! In a run with corruption (GCL has no checksum: a flipped bit makes another well-formed
+//! line), a request is known by its name only and a reply is held to its form (a value, an
+//! `ACK`/`FIN`, an `ERR`), not its content; the alternation check is off.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::time::Duration;
+
+use gripper::wsg::sim::{SessionId, SimEvent, SimRecording};
+use gripper::wsg::text::line::{parse_number, parse_reply, ReplyLine};
+use tokio::time::Instant;
+
+use super::workload::{CallRec, Expect, PushRec, Res};
+
+/// How late a call may end after its timeout (the task's own bookkeeping; simulated time).
+const CALL_SLACK: Duration = Duration::from_millis(10);
+
+/// One line of a session, as recorded.
+struct Ev<'a> {
+    at: Instant,
+    /// A command line the device read.
+    request: Option<&'a str>,
+    /// A line the device sent, and whether the fingers moved then.
+    reply: Option<(&'a str, bool)>,
+}
+
+/// The bare name of a command line: `MOVE(20)` → `MOVE`, `POS?` → `POS`.
+fn request_name(line: &str) -> String {
+    line.chars()
+        .take_while(|c| c.is_ascii_alphanumeric() || *c == '_')
+        .collect::<String>()
+        .to_ascii_uppercase()
+}
+
+/// What a reply line answers a command `name` expecting `expect` with, if it is that
+/// command's final reply (a motion's `ACK` is not; pushes are not replies).
+fn final_of(line: &str, name: &str, expect: Expect) -> Option<Res> {
+    let is = |n: &str| n.eq_ignore_ascii_case(name);
+    match parse_reply(line).ok()? {
+        ReplyLine::Err { name: Some(n), .. } if is(n) => Some(Res::Device(line.to_owned())),
+        ReplyLine::Ack(n) if is(n) && expect == Expect::Fin => None,
+        ReplyLine::Ack(n) | ReplyLine::Fin(n) if is(n) => Some(Res::Done),
+        ReplyLine::Value { name: n, value } if is(n) => {
+            Some(Res::Value(parse_number(value).unwrap_or(f64::NAN)))
+        }
+        _ => None,
+    }
+}
+
+/// Whether the device's reply `got` is the call's result `res` (in a corrupting run: of the
+/// same form).
+fn same(got: &Res, res: &Res, exact: bool) -> bool {
+    match (got, res) {
+        (Res::Done, Res::Done) => true,
+        (Res::Value(a), Res::Value(b)) => !exact || a == b,
+        (Res::Device(a), Res::Device(b)) => !exact || a == b,
+        _ => false,
+    }
+}
+
+/// Every promise the record can decide; `closed_at[i]`: when client `i` began `close()`.
+pub fn check(
+    calls: &[CallRec],
+    pushes: &[PushRec],
+    record: &SimRecording,
+    sim_t0: Instant,
+    sessions: &[Vec<SessionId>],
+    closed_at: &[Option<Instant>],
+    exact: bool,
+) -> Vec<String> {
+    let mut out = Vec::new();
+    if record.dropped > 0 {
+        out.push(format!(
+            "0 (oracle): the simulator's record lost {} entries",
+            record.dropped
+        ));
+    }
+    let mut by_session: BTreeMap<SessionId, Vec<Ev>> = BTreeMap::new();
+    for r in &record.records {
+        let at = sim_t0 + r.at;
+        let ev = match &r.event {
+            SimEvent::TextRequest { line } => Ev {
+                at,
+                request: Some(line.as_deref().unwrap_or("")),
+                reply: None,
+            },
+            SimEvent::TextReply { line, moving } => Ev {
+                at,
+                request: None,
+                reply: Some((line, *moving)),
+            },
+            _ => continue,
+        };
+        by_session.entry(r.session).or_default().push(ev);
+    }
+    if exact {
+        out.extend(one_per_name(&by_session));
+    }
+    // Each answered call: the requests (session, index) that could be its own, with the
+    // device's reply to each.
+    let mut edges: Vec<Vec<Cand>> = vec![Vec::new(); calls.len()];
+    for (i, c) in calls.iter().enumerate() {
+        let who = format!("client {} {}", c.client, c.line);
+        let bound = c.start.checked_add(c.timeout).map(|t| t + CALL_SLACK);
+        if bound.is_some_and(|b| c.end > b) {
+            out.push(format!(
+                "1 (bounded): {who} with timeout {:?} took {:?}",
+                c.timeout,
+                c.end - c.start
+            ));
+        }
+        match &c.res {
+            Res::Value(_) | Res::Done | Res::Device(_) => {}
+            Res::Closed => {
+                if closed_at[c.client].is_none_or(|t| t > c.end) {
+                    out.push(format!(
+                        "5 (documented errors): {who} ended Closed without close()"
+                    ));
+                }
+                continue;
+            }
+            Res::Malformed(e) => {
+                if exact {
+                    out.push(format!(
+                        "2 (the device's answer to that request): {who} ended {e}, in a run where no byte was corrupted"
+                    ));
+                }
+                continue;
+            }
+            Res::Other(e) => {
+                out.push(format!("5 (documented errors): {who} ended {e}"));
+                continue;
+            }
+            Res::Lost | Res::Timeout => continue,
+        }
+        edges[i] = candidates(c, &sessions[c.client], &by_session, exact);
+    }
+    let owner = match_calls(&edges);
+    for (i, c) in calls.iter().enumerate() {
+        if !matches!(c.res, Res::Value(_) | Res::Done | Res::Device(_)) {
+            continue;
+        }
+        let who = format!("client {} {}", c.client, c.line);
+        let Some(cand) = edges[i].iter().find(|e| owner.get(&e.request) == Some(&i)) else {
+            let promise = match (c.name, &c.res) {
+                ("STOP" | "FASTSTOP", Res::Done) => "3 (a stop's Ok is its own ACK)",
+                _ => "2 (the device's answer to that request)",
+            };
+            let seen: Vec<&str> = edges[i].iter().map(|e| e.reply.as_str()).collect();
+            out.push(format!(
+                "{promise}: {who} returned {:?}, which is not the device's reply to a request of that call, or that reply answered another call (the device's fitting replies during the call: {seen:?})",
+                c.res
+            ));
+            continue;
+        };
+        if c.expect == Expect::Fin && c.res == Res::Done && cand.moving {
+            out.push(format!(
+                "4 (FIN means stopped): {who} returned Ok on {:?}, which the device sent while the fingers still moved",
+                cand.reply
+            ));
+        }
+    }
+    for p in pushes {
+        let sent = sessions[p.client].iter().any(|s| {
+            by_session.get(s).is_some_and(|evs| {
+                evs.iter().any(|e| {
+                    let Some((line, _)) = e.reply else {
+                        return false;
+                    };
+                    let Ok(ReplyLine::Push { name, value }) = parse_reply(line) else {
+                        return false;
+                    };
+                    e.at <= p.at
+                        && name.eq_ignore_ascii_case(p.name)
+                        && (!exact || parse_number(value) == Some(p.value))
+                })
+            })
+        });
+        if !sent {
+            out.push(format!(
+                "2 (the device's answer: pushes): client {} received @{}={}, which the device did not send it",
+                p.client, p.name, p.value
+            ));
+        }
+    }
+    out
+}
+
+/// A request that could be a call's own, and the device's reply to it.
+#[derive(Clone)]
+struct Cand {
+    /// (session, index of the request in the session's lines).
+    request: (SessionId, usize),
+    reply: String,
+    moving: bool,
+}
+
+/// The requests of a call's client that could be its own: received during the call, with its
+/// very line (in a corrupting run: its name), whose reply (the first final reply of the
+/// call's name after it) the device sent before the call ended and equals the call's result.
+fn candidates(
+    c: &CallRec,
+    sessions: &[SessionId],
+    by_session: &BTreeMap<SessionId, Vec<Ev>>,
+    exact: bool,
+) -> Vec<Cand> {
+    let mut out = Vec::new();
+    for &s in sessions {
+        let evs = by_session.get(&s).map_or(&[][..], Vec::as_slice);
+        for (j, e) in evs.iter().enumerate() {
+            let Some(line) = e.request else { continue };
+            let mine = line == c.line || !exact && request_name(line) == c.name;
+            if !mine || e.at < c.start || e.at > c.end {
+                continue;
+            }
+            let reply = evs.iter().skip(j + 1).find_map(|r| {
+                let (l, moving) = r.reply?;
+                final_of(l, c.name, c.expect).map(|got| (r.at, l, moving, got))
+            });
+            if let Some((at, l, moving, got)) = reply {
+                if at <= c.end && same(&got, &c.res, exact) {
+                    out.push(Cand {
+                        request: (s, j),
+                        reply: l.to_owned(),
+                        moving,
+                    });
+                }
+            }
+        }
+    }
+    out
+}
+
+/// A maximum matching of calls to requests (augmenting paths): one request answers one call.
+/// Returns each matched request's call.
+fn match_calls(edges: &[Vec<Cand>]) -> BTreeMap<(SessionId, usize), usize> {
+    fn augment(
+        i: usize,
+        edges: &[Vec<Cand>],
+        owner: &mut BTreeMap<(SessionId, usize), usize>,
+        seen: &mut BTreeSet<(SessionId, usize)>,
+    ) -> bool {
+        for e in &edges[i] {
+            if !seen.insert(e.request) {
+                continue;
+            }
+            let free = match owner.get(&e.request) {
+                None => true,
+                Some(&other) => augment(other, edges, owner, seen),
+            };
+            if free {
+                owner.insert(e.request, i);
+                return true;
+            }
+        }
+        false
+    }
+    let mut owner = BTreeMap::new();
+    for i in 0..edges.len() {
+        augment(i, edges, &mut owner, &mut BTreeSet::new());
+    }
+    owner
+}
+
+/// On each session, the requests and final replies of one name alternate: the client never
+/// has two commands of a name on the wire (a reply names only its command, so two could not be
+/// told apart), and the device answers each (no line is lost without corruption).
+fn one_per_name(by_session: &BTreeMap<SessionId, Vec<Ev>>) -> Vec<String> {
+    let mut out = Vec::new();
+    for (s, evs) in by_session {
+        let mut open: BTreeMap<String, &str> = BTreeMap::new();
+        for e in evs {
+            if let Some(line) = e.request {
+                let name = request_name(line);
+                if let Some(first) = open.insert(name, line) {
+                    out.push(format!(
+                        "2 (one command per name on the wire): session {s}: {line} was sent while {first} was not answered yet"
+                    ));
+                }
+            } else if let Some((line, _)) = e.reply {
+                let name = match parse_reply(line) {
+                    Ok(ReplyLine::Fin(n) | ReplyLine::Value { name: n, .. }) => n,
+                    Ok(ReplyLine::Err { name: Some(n), .. }) => n,
+                    Ok(ReplyLine::Ack(n)) if !matches!(n, "HOME" | "MOVE" | "GRIP" | "RELEASE") => {
+                        n
+                    }
+                    _ => continue,
+                };
+                open.remove(&name.to_ascii_uppercase());
+            }
+        }
+    }
+    out
+}
