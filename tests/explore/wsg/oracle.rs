@@ -118,8 +118,9 @@ fn check_client(
     let mut sent: Vec<Sent> = record
         .records
         .iter()
-        .filter(|r| ours(r.session))
-        .filter_map(|r| match &r.event {
+        .enumerate()
+        .filter(|(_, r)| ours(r.session))
+        .filter_map(|(i, r)| match &r.event {
             SimEvent::Reply {
                 id,
                 status,
@@ -130,7 +131,7 @@ fn check_client(
                 id: *id,
                 status: *status,
                 data: data.to_vec(),
-                moving: *moving,
+                moving: *moving && !moving_is_the_next_motion(record, i),
                 used: false,
             }),
             _ => None,
@@ -320,6 +321,29 @@ fn motion_running(record: &SimRecording, t0: Instant, start: Instant, end: Insta
         }
     }
     !running.is_empty()
+}
+
+/// Whether the `moving` of reply `i` may be a motion the device started after producing it:
+/// the simulator samples its fingers when it queues the replies of one step, and in one step it
+/// may first end a motion (its final reply, due then) and then start the motion of a request
+/// received at that instant (recorded before the reply, acknowledged after it). That reply was
+/// produced with the fingers stopped; what they did afterwards is the next motion's.
+fn moving_is_the_next_motion(record: &SimRecording, i: usize) -> bool {
+    let at = record.records[i].at;
+    let same_step = |r: &&gripper::wsg::sim::SimRecord| r.at == at;
+    let requested: BTreeSet<u8> = record.records[..i]
+        .iter()
+        .rev()
+        .take_while(same_step)
+        .filter_map(|r| match r.event {
+            SimEvent::Request { id, .. } if is_motion(id) => Some(id),
+            _ => None,
+        })
+        .collect();
+    record.records[i + 1..]
+        .iter()
+        .take_while(same_step)
+        .any(|r| matches!(r.event, SimEvent::Reply { id, status: Status::CmdPending, .. } if requested.contains(&id)))
 }
 
 fn is_motion(id: u8) -> bool {
