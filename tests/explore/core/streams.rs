@@ -8,16 +8,42 @@
 //! is the scenario's business (`SimServer::restart`).
 
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use tokio::io::{AsyncReadExt, AsyncWriteExt, DuplexStream, ReadHalf, WriteHalf};
 use tokio::sync::watch;
+use tokio::time::Instant;
 
 use super::{note, Prng, SharedTrace};
 
 /// Bytes each pipe buffers.
 const PIPE_BUFFER: usize = 64 * 1024;
+
+/// Input bytes a [`Carried`] log keeps at most (a run's replies stay far below); beyond it
+/// the bytes are counted, not kept, and the oracle cannot vouch for them.
+const CARRIED_CAPACITY: usize = 4 << 20;
+
+/// What one direction of a link did with the bytes it carried: the oracle's evidence that a
+/// reply reached its reader intact (an ordered stream loses a reply only with its connection,
+/// or by a fault that damaged it). Offsets count the bytes the writer wrote, before any fault.
+#[derive(Clone, Debug, Default)]
+pub struct Carried {
+    /// The bytes the writer wrote, in order (the first [`CARRIED_CAPACITY`]).
+    pub input: Vec<u8>,
+    /// Offsets of damaged bytes: a flipped bit, or noise inserted before that byte (for noise
+    /// after the last byte read: the offset of the next one).
+    pub damaged: Vec<u64>,
+    /// `(when, end)`: by `when`, every byte before offset `end` had been written to the
+    /// reader's end of the pipe (which hands buffered bytes over even after a cut).
+    pub delivered: Vec<(Instant, u64)>,
+}
+
+/// A [`Carried`] log shared with the pump that fills it.
+pub type CarriedLog = Arc<Mutex<Carried>>;
+
+/// Marks an inserted noise byte among the offsets of the bytes a pump holds.
+const NOISE: u64 = u64::MAX;
 
 /// How often each fault hits a chunk: one in `n` (0: never).
 #[derive(Clone, Copy, Debug, Default)]
@@ -69,6 +95,19 @@ pub fn faulty_pipe(
     trace: SharedTrace,
     label: String,
 ) -> (DuplexStream, DuplexStream) {
+    faulty_pipe_logged(rng, profile, on, trace, label, None)
+}
+
+/// [`faulty_pipe`], logging what the server-to-client direction did with its bytes in `down`
+/// (the generator's draws are the same with or without a log: a seed keeps its path).
+pub fn faulty_pipe_logged(
+    rng: &mut Prng,
+    profile: StreamProfile,
+    on: Arc<AtomicBool>,
+    trace: SharedTrace,
+    label: String,
+    down: Option<CarriedLog>,
+) -> (DuplexStream, DuplexStream) {
     let (client, client_net) = tokio::io::duplex(PIPE_BUFFER);
     let (server, server_net) = tokio::io::duplex(PIPE_BUFFER);
     let (c_rd, c_wr) = tokio::io::split(client_net);
@@ -83,6 +122,7 @@ pub fn faulty_pipe(
         cut_tx: cut_tx.clone(),
         cut: cut_rx.clone(),
         trace: trace.clone(),
+        carried: None,
     };
     let down = Pump {
         dir: format!("{label} s>c"),
@@ -92,6 +132,7 @@ pub fn faulty_pipe(
         cut_tx,
         cut: cut_rx,
         trace,
+        carried: down,
     };
     tokio::spawn(up.run(c_rd, s_wr));
     tokio::spawn(down.run(s_rd, c_wr));
@@ -106,12 +147,17 @@ struct Pump {
     cut_tx: Arc<watch::Sender<bool>>,
     cut: watch::Receiver<bool>,
     trace: SharedTrace,
+    carried: Option<CarriedLog>,
 }
 
 impl Pump {
     async fn run(mut self, mut rd: ReadHalf<DuplexStream>, mut wr: WriteHalf<DuplexStream>) {
         let mut buf = vec![0u8; 512];
         let mut held: Vec<u8> = Vec::new();
+        // The input offset of each held byte (`NOISE` for inserted noise), and of the next
+        // byte to be read: the log's evidence (`Carried`).
+        let mut held_from: Vec<u64> = Vec::new();
+        let mut read_total = 0u64;
         loop {
             let chunk = self.rng.between(1, 512) as usize;
             let mut cut = self.cut.clone();
@@ -125,26 +171,33 @@ impl Pump {
             };
             let data = match read {
                 None => {
-                    let out = std::mem::take(&mut held);
-                    if !self.write(&mut wr, &out).await {
+                    let (out, from) = (std::mem::take(&mut held), std::mem::take(&mut held_from));
+                    if !self.write(&mut wr, &out, &from).await {
                         return;
                     }
                     continue;
                 }
                 Some(Ok(0)) | Some(Err(_)) => {
                     // The writer ended its side: pass the half-close on.
-                    let out = std::mem::take(&mut held);
-                    if self.write(&mut wr, &out).await {
+                    let (out, from) = (std::mem::take(&mut held), std::mem::take(&mut held_from));
+                    if self.write(&mut wr, &out, &from).await {
                         let _ = wr.shutdown().await;
                     }
                     return;
                 }
                 Some(Ok(n)) => buf[..n].to_vec(),
             };
+            log(&self.carried, |c| {
+                let room = CARRIED_CAPACITY.saturating_sub(c.input.len());
+                c.input.extend_from_slice(&data[..data.len().min(room)]);
+            });
             let mut out = std::mem::take(&mut held);
+            let mut from = std::mem::take(&mut held_from);
             out.extend_from_slice(&data);
+            from.extend(read_total..read_total + data.len() as u64);
+            read_total += data.len() as u64;
             if !self.on.load(Ordering::Relaxed) {
-                if !self.write(&mut wr, &out).await {
+                if !self.write(&mut wr, &out, &from).await {
                     return;
                 }
                 continue;
@@ -173,6 +226,9 @@ impl Pump {
                 let i = r.below(out.len() as u64) as usize;
                 let bit = 1u8 << r.below(8);
                 out[i] ^= bit;
+                if from[i] != NOISE {
+                    log(&self.carried, |c| c.damaged.push(from[i]));
+                }
                 note(
                     &self.trace,
                     format!("fault {}: byte {i} of {} ^ {bit:#04x}", self.dir, out.len()),
@@ -186,7 +242,14 @@ impl Pump {
                     &self.trace,
                     format!("fault {}: noise {noise:02x?} at {at}", self.dir),
                 );
+                let before = from[at..]
+                    .iter()
+                    .copied()
+                    .find(|&o| o != NOISE)
+                    .unwrap_or(read_total);
+                log(&self.carried, |c| c.damaged.push(before));
                 out.splice(at..at, noise);
+                from.splice(at..at, std::iter::repeat_n(NOISE, n));
             }
             let hold = if r.one_in(p.stall) {
                 Some(r.millis(300, 3000))
@@ -206,6 +269,7 @@ impl Pump {
             if merge {
                 note(&self.trace, format!("fault {}: merge", self.dir));
                 held = out;
+                held_from = from;
                 continue;
             }
             if split && out.len() > 1 {
@@ -215,12 +279,13 @@ impl Pump {
                     &self.trace,
                     format!("fault {}: split at {at}, {gap:?}", self.dir),
                 );
-                if !self.write(&mut wr, &out[..at]).await || !self.pause(gap).await {
+                if !self.write(&mut wr, &out[..at], &from[..at]).await || !self.pause(gap).await {
                     return;
                 }
                 out.drain(..at);
+                from.drain(..at);
             }
-            if !self.write(&mut wr, &out).await {
+            if !self.write(&mut wr, &out, &from).await {
                 return;
             }
         }
@@ -236,16 +301,30 @@ impl Pump {
         }
     }
 
-    /// Writes `bytes`; false if the link was cut or the reader is gone.
-    async fn write(&self, wr: &mut WriteHalf<DuplexStream>, bytes: &[u8]) -> bool {
+    /// Writes `bytes` (whose input offsets are `from`) and logs them delivered; false if the
+    /// link was cut or the reader is gone.
+    async fn write(&self, wr: &mut WriteHalf<DuplexStream>, bytes: &[u8], from: &[u64]) -> bool {
         if bytes.is_empty() {
             return true;
         }
         let mut cut = self.cut.clone();
-        tokio::select! {
+        let written = tokio::select! {
             biased;
             _ = cut.wait_for(|c| *c) => false,
             r = wr.write_all(bytes) => r.is_ok(),
+        };
+        if let (true, Some(&last)) = (written, from.iter().rev().find(|&&o| o != NOISE)) {
+            log(&self.carried, |c| {
+                c.delivered.push((Instant::now(), last + 1))
+            });
         }
+        written
+    }
+}
+
+/// Adds to a direction's log, if it keeps one.
+fn log(carried: &Option<CarriedLog>, f: impl FnOnce(&mut Carried)) {
+    if let Some(c) = carried {
+        f(&mut c.lock().unwrap_or_else(|e| e.into_inner()));
     }
 }

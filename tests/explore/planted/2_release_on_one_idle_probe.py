@@ -1,7 +1,8 @@
 """Planted bug: release a motion on one "not moving" probe (the pairing needs two, a grace
-apart: SF_MOVING is not synchronised with the end of the move, Anhang B)."""
+apart: SF_MOVING is not synchronised with the end of the move, Anhang B). Its caller gets
+ReplyLost while the final reply is still coming: promise 4's ReplyLost check (TCP, serial)."""
 from _plant import plant
 
-KIND = "2 (each answer is the device"
+KIND = "4 (ReplyLost only for a final reply that was lost"
 
 plant("src/wsg/client/pairing.rs", "Observation::Idle if f.idle_seen => {", "Observation::Idle => {")

@@ -21,7 +21,7 @@ use tokio::time::Instant;
 use self::oracle::ClientView;
 use self::workload::{CallRec, ClientCtx, Log, Res};
 use crate::core::datagrams::{faulty_datagrams, DatagramProfile};
-use crate::core::streams::{faulty_pipe, StreamProfile};
+use crate::core::streams::{faulty_pipe_logged, StreamProfile};
 use crate::core::{note, Caps, Prng, Scenario, SharedTrace};
 
 /// The WSG scenario.
@@ -169,7 +169,16 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
                 .collect::<BTreeSet<_>>(),
             reconnect: c.reconnect,
             first_loss: c.first_loss(),
+            losses: c.losses.lock().unwrap().clone(),
+            grace: c.grace,
             faulted: c.faulted.lock().unwrap().clone(),
+            carried: c
+                .carried
+                .lock()
+                .unwrap()
+                .iter()
+                .map(|(s, log)| (*s, log.lock().unwrap().clone()))
+                .collect(),
         })
         .collect();
     let calls = log.calls.lock().unwrap().clone();
@@ -215,6 +224,7 @@ async fn open_client(
         });
     }
     let sessions = Arc::new(Mutex::new(Vec::new()));
+    let carried = Arc::new(Mutex::new(Vec::new()));
     let faulted: crate::core::datagrams::FaultedLog = Default::default();
     let label = format!("client {index}");
     note(trace, format!("{label}: {transport:?} query {query_timeout:?} motion {motion_timeout:?} grace {grace:?} reconnect {reconnect}"));
@@ -254,19 +264,28 @@ async fn open_client(
             let profile = StreamProfile::random(rng, level, serial);
             note(trace, format!("{label}: {profile:?}"));
             let net = Arc::new(Mutex::new(rng.fork()));
-            let (sim, on, trace, sessions) = (
+            let (sim, on, trace, sessions, carried) = (
                 sim.clone(),
                 faults_on.clone(),
                 trace.clone(),
                 sessions.clone(),
+                carried.clone(),
             );
             let connect = move || {
                 let mut rng = net.lock().unwrap();
-                let (c, s) =
-                    faulty_pipe(&mut rng, profile, on.clone(), trace.clone(), label.clone());
+                let down = crate::core::streams::CarriedLog::default();
+                let (c, s) = faulty_pipe_logged(
+                    &mut rng,
+                    profile,
+                    on.clone(),
+                    trace.clone(),
+                    label.clone(),
+                    Some(down.clone()),
+                );
                 let session = sim.serve_stream(s, kind);
                 note(&trace, format!("{label}: connected as session {session}"));
                 sessions.lock().unwrap().push(session);
+                carried.lock().unwrap().push((session, down));
                 async move { Ok(c) }
             };
             b.connect_with(connect)
@@ -280,6 +299,7 @@ async fn open_client(
         index,
         losses,
         faulted,
+        carried,
         client,
         sessions,
         reconnect,

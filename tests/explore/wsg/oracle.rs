@@ -6,10 +6,11 @@ use std::time::Duration;
 
 use gripper::wsg::command::id;
 use gripper::wsg::sim::{SessionId, SimEvent, SimRecording};
-use gripper::wsg::Status;
+use gripper::wsg::{Status, SystemState};
 use tokio::time::Instant;
 
 use super::workload::{CallRec, Expect, Res, Update};
+use crate::core::streams::Carried;
 
 /// How far past its timeout a call may end (promise 1): the client fails a call at its
 /// deadline, so this only absorbs the hand-over from the connection task to the caller.
@@ -33,9 +34,16 @@ pub struct ClientView {
     pub reconnect: bool,
     /// When it first reported a lost connection.
     pub first_loss: Option<Instant>,
+    /// Every instant it reported a lost connection.
+    pub losses: Vec<Instant>,
+    /// Its late-reply grace.
+    pub grace: Duration,
     /// The reply datagrams the fault layer delivered to it duplicated or delayed, with the
     /// instant of delivery (UDP; empty on streams).
     pub faulted: Vec<(Instant, bytes::Bytes)>,
+    /// Per stream session (TCP, serial), what the link did with the bytes the device sent it
+    /// (empty on UDP).
+    pub carried: Vec<(SessionId, Carried)>,
 }
 
 /// Appended to a promise 2, 3 or 4 violation whose answer fits a reply datagram the fault
@@ -110,8 +118,9 @@ fn check_client(
     let mut sent: Vec<Sent> = record
         .records
         .iter()
-        .filter(|r| ours(r.session))
-        .filter_map(|r| match &r.event {
+        .enumerate()
+        .filter(|(_, r)| ours(r.session))
+        .filter_map(|(i, r)| match &r.event {
             SimEvent::Reply {
                 id,
                 status,
@@ -122,7 +131,7 @@ fn check_client(
                 id: *id,
                 status: *status,
                 data: data.to_vec(),
-                moving: *moving,
+                moving: *moving && !moving_is_the_next_motion(record, i),
                 used: false,
             }),
             _ => None,
@@ -213,10 +222,22 @@ fn check_client(
             .any(|s| s.at >= c.start && s.at <= c.end && fits(s));
         let tag = if from_faulted { FROM_FAULTED } else { "" };
         match &c.res {
-            Res::Device(_, Status::AlreadyRunning) => {
+            Res::Device(cmd, Status::AlreadyRunning) => {
                 if !motion_running(record, t0, c.start, c.end) {
+                    // The client refuses on a probe's SF_MOVING (or passes the device's own
+                    // refusal on): a stale copy of either is what it may have taken.
+                    let stale = faulted.iter().any(|s| {
+                        s.at >= c.start
+                            && s.at <= c.end
+                            && (s.id == *cmd && s.status == Status::AlreadyRunning
+                                || s.id == id::SYSTEM_STATE
+                                    && s.status == Status::Success
+                                    && SystemState::decode(&s.data)
+                                        .is_ok_and(|f| f.contains(SystemState::MOVING)))
+                    });
+                    let tag = if stale { FROM_FAULTED } else { "" };
                     v.push(format!(
-                        "4 (a status is the device's): {} {} got E_ALREADY_RUNNING in {window}, but the device sent none and was executing no motion at the call",
+                        "4 (a status is the device's): {} {} got E_ALREADY_RUNNING in {window}, but the device sent none and was executing no motion at the call {tag}",
                         c.who, c.op
                     ));
                 }
@@ -247,12 +268,19 @@ fn check_client(
             s.id == cmd && s.status == Status::CmdPending && s.at >= c.start && s.at <= c.end
         });
         if !acked {
+            // A stale copy of an earlier E_CMD_PENDING of that id may have been taken for the
+            // acknowledgement (UDP).
+            let stale = faulted.iter().any(|s| {
+                s.id == cmd && s.status == Status::CmdPending && s.at >= c.start && s.at <= c.end
+            });
+            let tag = if stale { FROM_FAULTED } else { "" };
             v.push(format!(
-                "4 (a status is the device's): {} {} ended ReplyLost, but the device acknowledged no {cmd:#04x} of this client during the call",
+                "4 (a status is the device's): {} {} ended ReplyLost, but the device acknowledged no {cmd:#04x} of this client during the call {tag}",
                 c.who, c.op
             ));
         }
     }
+    v.extend(reply_lost_on_streams(calls, record, t0, view, close_start));
     // An update may be any value of that id the device sent this client before it was
     // received: a stream shared by several subscribers (3.4.1: one stream per value) may hand a
     // new one a value sent just before it subscribed, which is still the device's.
@@ -301,6 +329,235 @@ fn motion_running(record: &SimRecording, t0: Instant, start: Instant, end: Insta
     !running.is_empty()
 }
 
+/// Whether the `moving` of reply `i` may be a motion the device started after producing it:
+/// the simulator samples its fingers when it queues the replies of one step, and in one step it
+/// may first end a motion (its final reply, due then) and then start the motion of a request
+/// received at that instant (recorded before the reply, acknowledged after it). That reply was
+/// produced with the fingers stopped; what they did afterwards is the next motion's.
+fn moving_is_the_next_motion(record: &SimRecording, i: usize) -> bool {
+    let at = record.records[i].at;
+    let same_step = |r: &&gripper::wsg::sim::SimRecord| r.at == at;
+    let requested: BTreeSet<u8> = record.records[..i]
+        .iter()
+        .rev()
+        .take_while(same_step)
+        .filter_map(|r| match r.event {
+            SimEvent::Request { id, .. } if is_motion(id) => Some(id),
+            _ => None,
+        })
+        .collect();
+    record.records[i + 1..]
+        .iter()
+        .take_while(same_step)
+        .any(|r| matches!(r.event, SimEvent::Reply { id, status: Status::CmdPending, .. } if requested.contains(&id)))
+}
+
 fn is_motion(id: u8) -> bool {
     matches!(id, id::HOMING | id::PRE_POSITION | id::GRASP | id::RELEASE)
+}
+
+/// How far before a reply a damaged byte can still cost it: a damaged length field (or noise
+/// that looks like a header) makes the client's decoder take up to one frame of the longest
+/// payload it accepts as one bogus frame, whose checksum then fails (manual 1.2.1: preamble,
+/// id, 16-bit length, payload, CRC).
+const DAMAGE_REACH: u64 = (gripper::wsg::frame::HEADER_LEN
+    + gripper::wsg::frame::DEFAULT_MAX_PAYLOAD_LEN
+    + gripper::wsg::frame::CHECKSUM_LEN) as u64;
+
+/// Promise 4 on TCP and serial: [`Res::ReplyLost`] says the motion's final reply was lost
+/// (`Error::ReplyLost`). An ordered, reliable stream loses a reply only with its connection or
+/// by a fault that damages it, so the claim is false when the device sent the motion's final
+/// reply on the session that acknowledged it, no later than the call's end plus the client's
+/// grace (the documented bound: only a final reply later than a grace after the second "not
+/// moving" is the residual risk, `client/mod.rs` "Lost final replies", manual Anhang B), and
+/// the link delivered that reply's bytes with no damage that could reach them, while the
+/// client still held that connection and had not begun to close. (UDP loses datagrams: not
+/// checked there.)
+fn reply_lost_on_streams(
+    calls: &[&CallRec],
+    record: &SimRecording,
+    t0: Instant,
+    view: &ClientView,
+    close_start: Option<Instant>,
+) -> Vec<String> {
+    let mut v = Vec::new();
+    if view.carried.is_empty() {
+        return v;
+    }
+    let wire = on_wire(record, view);
+    for c in calls {
+        let Res::ReplyLost(cmd) = c.res else { continue };
+        // The call's own acknowledgement: on an ordered stream no other request of its id is
+        // on the wire after it until the call ends, so it is the last one before the end (at
+        // the very instant of the end it may be the next request's).
+        let Some((i, ack)) = record.records.iter().enumerate().rev().find(|(_, r)| {
+            let at = t0 + r.at;
+            at >= c.start
+                && at < c.end
+                && view.sessions.contains(&r.session)
+                && matches!(r.event, SimEvent::Reply { id, status: Status::CmdPending, .. } if id == cmd)
+        }) else {
+            continue;
+        };
+        let Some(fin) = final_reply(record, i, cmd) else {
+            continue;
+        };
+        let sent_at = t0 + record.records[fin].at;
+        let (Some(w), Some((_, carried))) = (
+            &wire[fin],
+            view.carried.iter().find(|(s, _)| *s == ack.session),
+        ) else {
+            continue;
+        };
+        if sent_at > c.end + view.grace {
+            continue;
+        }
+        let Some(kept) = carried.input.get(w.start as usize..w.end() as usize) else {
+            continue; // Beyond what the log kept.
+        };
+        if kept != w.bytes.as_slice() {
+            v.push(format!(
+                "explorer: session {}'s stream at byte {} is not the reply the simulator recorded there ({kept:02x?}, not {:02x?})",
+                ack.session, w.start, w.bytes
+            ));
+            continue;
+        }
+        // A damaged byte may cost every frame up to DAMAGE_REACH after it. A frame torn across
+        // two writes apart in time may lose its head to the client's partial-frame timeout
+        // (`transport.rs`, resync): itself, and the frames after it only if its tail holds a
+        // preamble (manual 1.2.1: AA AA AA) that a decoder could take for a header.
+        let reach = |d: u64| d < w.end() && d + DAMAGE_REACH >= w.start;
+        let torn = wire.iter().flatten().any(|o| {
+            o.session == ack.session
+                && delivered(carried, o.start + 1) != delivered(carried, o.end())
+                && (o.start == w.start
+                    || reach(o.start) && o.bytes[1..].windows(3).any(|p| p == [0xAA; 3]))
+        });
+        if torn || carried.damaged.iter().any(|&d| reach(d)) {
+            continue;
+        }
+        let Some(at) = delivered(carried, w.end()) else {
+            continue;
+        };
+        let acked_at = t0 + ack.at;
+        let held = !view.losses.iter().any(|&l| l >= acked_at && l <= at)
+            && close_start.is_none_or(|s| s > at);
+        if !held {
+            continue;
+        }
+        let SimEvent::Reply { status, .. } = &record.records[fin].event else {
+            continue;
+        };
+        // The client's rule is two "not moving" a grace apart (`client/mod.rs`): say when the
+        // device's last two were closer (how the rule was broken, not just that it was).
+        let idle: Vec<Instant> = record.records[i..]
+            .iter()
+            .filter(|r| r.session == ack.session && t0 + r.at <= c.end)
+            .filter(|r| matches!(&r.event, SimEvent::Reply { id: id::SYSTEM_STATE, status: Status::Success, data, .. }
+                if SystemState::decode(data).is_ok_and(|f| !f.contains(SystemState::MOVING))))
+            .map(|r| t0 + r.at)
+            .collect();
+        let close = match idle[..] {
+            [.., a, b] if b.saturating_duration_since(a) < view.grace => CLOSE_IDLES,
+            _ => "",
+        };
+        v.push(format!(
+            "4 (ReplyLost only for a final reply that was lost): {} {} ended ReplyLost at {}, but the device's final reply ({status:?}, sent at {} on session {}, the one that acknowledged it at {}) reached the client intact at {} while it held that connection {close}",
+            c.who,
+            c.op,
+            t(c.end, t0),
+            t(sent_at, t0),
+            ack.session,
+            t(acked_at, t0),
+            t(at, t0)
+        ));
+    }
+    v
+}
+
+/// Appended to a promise 4 ReplyLost violation when the device's last two "not moving" answers
+/// to the client's probes after the acknowledgement came less than a grace apart (the client's
+/// rule wants two a grace apart; `known.txt` names this open finding by it).
+pub const CLOSE_IDLES: &str = "[its last two \"not moving\" came less than a grace apart]";
+
+/// Where one reply the device sent on a stream session lies in that session's byte stream.
+struct OnWire {
+    /// The session.
+    session: SessionId,
+    /// Its first byte's offset.
+    start: u64,
+    /// Its frame, as the device encoded it.
+    bytes: Vec<u8>,
+}
+
+impl OnWire {
+    /// The offset just past its last byte.
+    fn end(&self) -> u64 {
+        self.start + self.bytes.len() as u64
+    }
+}
+
+/// For each record, where its reply lies in its session's stream (`None`: not a reply, or
+/// not on a stream of this client). The device writes the replies of a session in the order
+/// it records them (`SimEvent::Reply`), one frame each.
+fn on_wire(record: &SimRecording, view: &ClientView) -> Vec<Option<OnWire>> {
+    let mut offsets: std::collections::BTreeMap<SessionId, u64> = Default::default();
+    record
+        .records
+        .iter()
+        .map(|r| {
+            let SimEvent::Reply {
+                id, status, data, ..
+            } = &r.event
+            else {
+                return None;
+            };
+            if !view.carried.iter().any(|(s, _)| *s == r.session) {
+                return None;
+            }
+            let offset = offsets.entry(r.session).or_insert(0);
+            let mut b = bytes::BytesMut::new();
+            let reply = gripper::wsg::Reply::new(*id, *status, data.clone());
+            gripper::wsg::frame::encode(&reply.to_frame(), &mut b).ok()?;
+            let start = *offset;
+            *offset += b.len() as u64;
+            Some(OnWire {
+                session: r.session,
+                start,
+                bytes: b.to_vec(),
+            })
+        })
+        .collect()
+}
+
+/// When the link had written every byte before offset `end` to the client's end.
+fn delivered(carried: &Carried, end: u64) -> Option<Instant> {
+    carried
+        .delivered
+        .iter()
+        .find(|(_, e)| *e >= end)
+        .map(|(at, _)| *at)
+}
+
+/// The index of the final reply to the motion command `cmd` acknowledged by record `ack`: the
+/// next reply of that id on its session, E_ALREADY_RUNNING aside (it refuses a duplicate and
+/// does not end the motion, 1.3). None if the session ended, the device restarted or a new
+/// acknowledgement came first.
+fn final_reply(record: &SimRecording, ack: usize, cmd: u8) -> Option<usize> {
+    let session = record.records[ack].session;
+    for (i, r) in record.records.iter().enumerate().skip(ack + 1) {
+        match &r.event {
+            SimEvent::Restarted => return None,
+            SimEvent::Disconnected if r.session == session => return None,
+            SimEvent::Reply { id, status, .. } if r.session == session && *id == cmd => {
+                match status {
+                    Status::AlreadyRunning => {}
+                    Status::CmdPending => return None,
+                    _ => return Some(i),
+                }
+            }
+            _ => {}
+        }
+    }
+    None
 }
