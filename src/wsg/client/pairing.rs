@@ -448,14 +448,16 @@ impl Pairing {
         if st.in_flight.is_none() && reply.status == Status::CmdPending {
             if let Some(mut f) = st.released.take() {
                 // The released motion was received after all and runs: its final reply will
-                // come at any time, before or after the barrier. Back on the wire, acknowledged
-                // and past its deadline: probed at once, like any move that outlasts its caller.
+                // come at any time, before or after the barrier. Back on the wire, acknowledged,
+                // probed on the schedule of any acknowledged motion: at its caller's deadline or
+                // the motion hold after it was sent, whichever comes first (usually passed: at
+                // once). The deadline alone is never for a caller without timeout (saturated).
                 tracing::warn!(
                     id = reply.id,
                     "WSG motion released without a reply was accepted after all: under recovery"
                 );
                 f.acknowledged = true;
-                f.probe_at = Some(f.deadline);
+                f.probe_at = Some(f.deadline.min(f.motion_probe_at));
                 let token = f.token;
                 st.in_flight = Some(f);
                 return Event::Accepted(token);
@@ -1290,6 +1292,30 @@ mod tests {
             p.on_reply(reply(id::HOMING, Status::CmdPending)),
             Event::Accepted(2)
         );
+    }
+
+    /// A released motion whose E_CMD_PENDING comes before its barrier's echo goes under
+    /// recovery on the normal schedule (the motion hold after it was sent), also for a caller
+    /// without timeout: its saturated deadline must not leave it unprobed for good.
+    #[test]
+    fn a_released_motion_accepted_before_its_barrier_is_probed_within_the_motion_hold() {
+        let now = Instant::now();
+        let ms = Duration::from_millis;
+        let mut p = Pairing::new(ms(50));
+        p.set_ordered(true);
+        p.set_holds(ms(50), ms(300));
+        let no_timeout = after(now, Duration::MAX);
+        assert!(matches!(
+            p.submit(req(1, id::HOMING, no_timeout), now),
+            Submit::Send(_)
+        ));
+        assert_eq!(p.due(now + ms(100)), vec![Due::Fenced(id::HOMING, 1)]);
+        assert_eq!(
+            p.on_reply(reply(id::HOMING, Status::CmdPending)),
+            Event::Accepted(1)
+        );
+        assert_eq!(p.next_due(), Some(now + ms(300)));
+        assert_eq!(p.due(now + ms(300)), vec![Due::Probe(id::HOMING, 1)]);
     }
 
     /// Stops on an ordered transport: a barrier, not a resend, for a call that waits too long,
