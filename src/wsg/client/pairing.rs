@@ -124,8 +124,9 @@ struct InFlight {
     /// An acknowledged motion command under recovery: when the next probe is due (`None`
     /// while one is out).
     probe_at: Option<Instant>,
-    /// The last probe said "not moving" (the first of the two observations needed).
-    idle_seen: bool,
+    /// When the answer of the last probe, "not moving", arrived (the first of the two
+    /// observations needed; the second probe goes out a grace period after it).
+    idle_seen: Option<Instant>,
     /// Acknowledged by an E_CMD_PENDING that may have been the late one of the previous
     /// request of this id (see [`IdState::pending_owed`]): an E_ALREADY_RUNNING may then be
     /// this request's own refusal, and is not dropped.
@@ -144,7 +145,7 @@ impl InFlight {
             unacked_release_at: after(after(now, holds.0), grace),
             motion_probe_at: after(now, holds.1),
             probe_at: None,
-            idle_seen: false,
+            idle_seen: None,
             ack_doubtful: false,
             payload: req.frame.payload.clone(),
         }
@@ -201,13 +202,21 @@ impl IdState {
     /// at once whether it moves (a probe), unless a probe is out already. The calls are sent
     /// when the motion's final reply comes (or it is found lost), or refused when the device
     /// says it moves: never refused on the belief that it still runs.
-    fn verify_soon(&mut self, id: u8, now: Instant) {
+    ///
+    /// Only the first probe is pulled forward to `now`. After a first "not moving", the next
+    /// probe is pulled forward no further than a `grace` after that answer: the release rule
+    /// needs its two observations a grace apart whatever queues, since the final
+    /// reply may follow the end of the move by that much (Anhang B). Pulling it to "now"
+    /// abandoned a move whose final reply was still coming, and that reply then completed
+    /// the next call of the id (the explorer's `wsg-tcp:0x8f85c166eeff961d`).
+    fn verify_soon(&mut self, id: u8, now: Instant, grace: Duration) {
         if self.queue.is_empty() || !is_motion(id) {
             return;
         }
         if let Some(f) = self.in_flight.as_mut().filter(|f| f.acknowledged) {
             if let Some(at) = f.probe_at {
-                f.probe_at = Some(at.min(now));
+                let soonest = f.idle_seen.map_or(now, |seen| after(seen, grace).max(now));
+                f.probe_at = Some(at.min(soonest));
             }
         }
     }
@@ -374,7 +383,7 @@ impl Pairing {
             return Submit::Send(req);
         }
         st.queue.push_back(req);
-        st.verify_soon(id, now);
+        st.verify_soon(id, now, self.grace);
         Submit::Queued
     }
 
@@ -419,7 +428,7 @@ impl Pairing {
     /// request (called when it is acknowledged).
     pub(crate) fn verify_queued(&mut self, id: u8, now: Instant) {
         if let Some(st) = self.ids.get_mut(&id) {
-            st.verify_soon(id, now);
+            st.verify_soon(id, now, self.grace);
         }
     }
 
@@ -439,14 +448,16 @@ impl Pairing {
         if st.in_flight.is_none() && reply.status == Status::CmdPending {
             if let Some(mut f) = st.released.take() {
                 // The released motion was received after all and runs: its final reply will
-                // come at any time, before or after the barrier. Back on the wire, acknowledged
-                // and past its deadline: probed at once, like any move that outlasts its caller.
+                // come at any time, before or after the barrier. Back on the wire, acknowledged,
+                // probed on the schedule of any acknowledged motion: at its caller's deadline or
+                // the motion hold after it was sent, whichever comes first (usually passed: at
+                // once). The deadline alone is never for a caller without timeout (saturated).
                 tracing::warn!(
                     id = reply.id,
                     "WSG motion released without a reply was accepted after all: under recovery"
                 );
                 f.acknowledged = true;
-                f.probe_at = Some(f.deadline);
+                f.probe_at = Some(f.deadline.min(f.motion_probe_at));
                 let token = f.token;
                 st.in_flight = Some(f);
                 return Event::Accepted(token);
@@ -560,13 +571,16 @@ impl Pairing {
         let Some(f) = st.in_flight.as_mut().filter(|f| f.token == token) else {
             return Verdict::Undecided;
         };
-        match seen {
-            Observation::Idle if f.idle_seen => {
+        match (seen, f.idle_seen) {
+            (Observation::Idle, Some(first)) if now >= after(first, grace) => {
                 st.in_flight = None;
                 return Verdict::Abandoned;
             }
-            Observation::Idle => f.idle_seen = true,
-            Observation::Moving | Observation::Unknown => f.idle_seen = false,
+            // A second "not moving" less than a grace after the first proves nothing yet (the
+            // final reply may still come, Anhang B): the first stands, another probe follows.
+            (Observation::Idle, Some(_)) => {}
+            (Observation::Idle, None) => f.idle_seen = Some(now),
+            (Observation::Moving | Observation::Unknown, _) => f.idle_seen = None,
         }
         let mut refused = Vec::new();
         if seen == Observation::Moving {
@@ -1024,6 +1038,62 @@ mod tests {
         ));
     }
 
+    /// The explorer's `wsg-tcp:0x8f85c166eeff961d`, distilled: a home under recovery gets a
+    /// first "not moving"; a call of the id queued then must not pull the second probe forward
+    /// (two "not moving" a few ms apart abandoned the home while its final reply, due up to
+    /// the Anhang B lag after the fingers stop, was still coming; it then completed the next
+    /// home). A second "not moving" less than a grace after the first does not abandon either.
+    #[test]
+    fn a_queued_call_pulls_only_the_first_recovery_probe_forward() {
+        let now = Instant::now();
+        let grace = Duration::from_millis(1000);
+        let ms = Duration::from_millis;
+        for deadline in [now + ms(100), after(now, Duration::MAX)] {
+            let mut p = Pairing::new(grace);
+            p.set_ordered(true);
+            p.set_holds(ms(500), ms(100));
+            assert!(matches!(
+                p.submit(req(1, id::HOMING, deadline), now),
+                Submit::Send(_)
+            ));
+            assert_eq!(
+                p.on_reply(reply(id::HOMING, Status::CmdPending)),
+                Event::Accepted(1)
+            );
+            assert_eq!(p.due(now + ms(100)), vec![Due::Probe(id::HOMING, 1)]);
+            let t1 = now + ms(110);
+            assert_eq!(
+                p.on_probe(id::HOMING, 1, Observation::Idle, t1, 2),
+                Verdict::Undecided
+            );
+            // Another home queues 20 ms later: the next probe stays a grace after the first
+            // "not moving" (and is due then even for a caller without a deadline).
+            assert!(matches!(
+                p.submit(req(3, id::HOMING, deadline), t1 + ms(20)),
+                Submit::Queued
+            ));
+            p.verify_queued(id::HOMING, t1 + ms(20));
+            assert_eq!(p.next_due(), Some(t1 + grace));
+            assert!(p.due(t1 + ms(20)).is_empty());
+            // Even a "not moving" that came sooner (a probe already out) does not abandon.
+            assert_eq!(
+                p.on_probe(id::HOMING, 1, Observation::Idle, t1 + ms(40), 4),
+                Verdict::Undecided
+            );
+            // The home's final reply, 300 ms after the first "not moving", is its own.
+            assert_eq!(
+                p.on_reply(reply(id::HOMING, Status::Success)),
+                Event::Resolved(1, reply(id::HOMING, Status::Success))
+            );
+            assert_eq!(
+                p.next(id::HOMING, |_| true, t1 + ms(300))
+                    .0
+                    .map(|r| r.token),
+                Some(3)
+            );
+        }
+    }
+
     #[test]
     fn replies_that_cannot_answer_the_request_on_the_wire_are_unsolicited() {
         let now = Instant::now();
@@ -1222,6 +1292,30 @@ mod tests {
             p.on_reply(reply(id::HOMING, Status::CmdPending)),
             Event::Accepted(2)
         );
+    }
+
+    /// A released motion whose E_CMD_PENDING comes before its barrier's echo goes under
+    /// recovery on the normal schedule (the motion hold after it was sent), also for a caller
+    /// without timeout: its saturated deadline must not leave it unprobed for good.
+    #[test]
+    fn a_released_motion_accepted_before_its_barrier_is_probed_within_the_motion_hold() {
+        let now = Instant::now();
+        let ms = Duration::from_millis;
+        let mut p = Pairing::new(ms(50));
+        p.set_ordered(true);
+        p.set_holds(ms(50), ms(300));
+        let no_timeout = after(now, Duration::MAX);
+        assert!(matches!(
+            p.submit(req(1, id::HOMING, no_timeout), now),
+            Submit::Send(_)
+        ));
+        assert_eq!(p.due(now + ms(100)), vec![Due::Fenced(id::HOMING, 1)]);
+        assert_eq!(
+            p.on_reply(reply(id::HOMING, Status::CmdPending)),
+            Event::Accepted(1)
+        );
+        assert_eq!(p.next_due(), Some(now + ms(300)));
+        assert_eq!(p.due(now + ms(300)), vec![Due::Probe(id::HOMING, 1)]);
     }
 
     /// Stops on an ordered transport: a barrier, not a resend, for a call that waits too long,
