@@ -514,7 +514,14 @@ impl Task {
         let req = Request {
             token,
             frame: Frame::new(id::LOOP, payload),
-            deadline: after(Instant::now(), self.query_timeout),
+            // No caller waits, so no deadline: the pairing's reply hold releases it the query
+            // timeout plus the grace after it is *sent*. A deadline from now would run while
+            // it waits behind other loop-backs (one per fenced id): it would be released as
+            // soon as sent, before its echo could come, and sent again at once, keeping the
+            // line busy without a pause. A device whose decoder holds a frame with a corrupted
+            // length until the line falls silent never got that pause: every fenced id stayed
+            // fenced (explorer, promise 5, wsg-serial:0xa5e34824226a756b).
+            deadline: after(Instant::now(), Duration::MAX),
         };
         self.submit(req).await
     }
