@@ -62,6 +62,14 @@ enum Waiter {
         id: u8,
         refused: u8,
     },
+    /// A loop-back sent after request `query` of command `id`, whose updates the device may be
+    /// streaming: its echo says which frame answers the query (see [`Task::transmit`]);
+    /// `ends_stream`: the query turns the device's updates of `id` off.
+    Settle {
+        id: u8,
+        query: Token,
+        ends_stream: bool,
+    },
 }
 
 struct StreamState {
@@ -104,6 +112,12 @@ pub(crate) struct Task {
     /// received has been paired (see [`Task::send_next`]): a frame received before a request
     /// went out cannot answer it, but would be taken for its answer (a duplicated UDP reply).
     ready: Vec<u8>,
+    /// The transport keeps the device's replies in order (a byte stream).
+    ordered: bool,
+    /// Ids whose auto-updates the device may be sending on this connection: from the request
+    /// that switched them on until a request that switches them off is answered through its
+    /// barrier (see [`Task::transmit`]).
+    device_streams: Vec<u8>,
 }
 
 /// Barriers of one fence answered with something other than their echo before the fenced id is
@@ -139,7 +153,8 @@ impl Task {
         // that dropped the call, does not hold it past the default timeouts (pairing.rs).
         pairing.set_holds(query_timeout, motion_timeout);
         // A byte stream (TCP, serial, attached) keeps the device's replies in order.
-        pairing.set_ordered(matches!(link, Link::Stream(_)));
+        let ordered = matches!(link, Link::Stream(_));
+        pairing.set_ordered(ordered);
         Self {
             partial_frame_timeout: super::DEFAULT_PARTIAL_FRAME_TIMEOUT,
             partial_since: None,
@@ -159,6 +174,8 @@ impl Task {
             streams: IntMap::default(),
             next_token: 0,
             ready: Vec::new(),
+            ordered,
+            device_streams: Vec::new(),
         }
     }
 
@@ -266,6 +283,8 @@ impl Task {
         };
         self.link = link;
         self.partial_since = None;
+        // A new connection streams only what was asked again on it.
+        self.device_streams = self.streams.keys().copied().collect();
         // Their replies (the current values) go to the subscribers like any update.
         let deadline = after(Instant::now(), self.query_timeout);
         for frame in restore {
@@ -488,6 +507,10 @@ impl Task {
                 token: t,
             }) => self.on_probe(motion, t, Observation::Unknown, token).await,
             Some(Waiter::Barrier { id, refused }) => self.send_barrier(id, refused).await,
+            Some(Waiter::Settle { id, query, .. }) => {
+                self.pairing.settle_failed(id, query);
+                Ok(())
+            }
             // A caller still waiting (no timeout, released by the hold of `Pairing::set_holds`):
             // its reply did not come within the query timeout.
             Some(Waiter::Caller(tx)) => {
@@ -603,8 +626,63 @@ impl Task {
                 frame = stream_command(frame.id, st.mode);
             }
         }
+        // While the device may stream updates of this id, the next frame of the id may be an
+        // update it sent before it received this request (an update and the reply share id
+        // and form, manual 1.4, 3.4.1-3.4.6). On a byte stream a loop-back sent after the
+        // request settles it: the last frame of the id before its echo (Pairing::settle).
+        // Only then: a query of a value nobody streams costs no barrier.
+        let settle = self.ordered && self.device_streams.contains(&frame.id);
+        let streaming = frame.payload.first().map(|flags| flags & 1 == 1);
+        if streaming == Some(true)
+            && is_streamable(frame.id)
+            && !self.device_streams.contains(&frame.id)
+        {
+            self.device_streams.push(frame.id);
+        }
         tracing::trace!(id = frame.id, len = frame.payload.len(), "WSG send");
-        send_within(&mut self.link, &frame, self.write_timeout).await
+        send_within(&mut self.link, &frame, self.write_timeout).await?;
+        if !settle {
+            return Ok(());
+        }
+        self.pairing.settle_by_barrier(frame.id, req.token);
+        let token = self.waiter(Waiter::Settle {
+            id: frame.id,
+            query: req.token,
+            ends_stream: streaming == Some(false),
+        });
+        let mut payload = b"gripper barrier ".to_vec();
+        payload.extend_from_slice(&token.to_le_bytes());
+        let barrier = Request {
+            token,
+            frame: Frame::new(id::LOOP, payload),
+            // Released by the pairing's reply hold, from when it is sent (see `send_barrier`).
+            deadline: after(Instant::now(), Duration::MAX),
+        };
+        // Queued behind another loop-back, it goes out later: still after the request.
+        match self.pairing.submit(barrier, Instant::now()) {
+            Submit::Send(barrier) => {
+                send_within(&mut self.link, &barrier.frame, self.write_timeout).await
+            }
+            Submit::Queued => Ok(()),
+        }
+    }
+
+    /// The echo of the barrier sent after query `query` of streamed command `id` came: the
+    /// query is answered by the last frame of `id` before it, if there was one.
+    fn settled(&mut self, id: u8, query: Token, ends_stream: bool) {
+        let Some(reply) = self.pairing.settle(id, query) else {
+            return;
+        };
+        if ends_stream {
+            // The device received the request that switched the updates off, and everything
+            // it sent before the echo has been read: no update of `id` follows.
+            self.device_streams.retain(|streamed| *streamed != id);
+        }
+        // An E_SUCCESS frame: it went to the subscribers when it came.
+        if let Some(Waiter::Caller(tx)) = self.waiters.remove(&query) {
+            let _ = tx.send(Ok(reply));
+        }
+        self.send_next(id);
     }
 
     /// The request on the wire of `id` is done: its next queued request (if any) goes out once
@@ -665,6 +743,9 @@ impl Task {
                             refused,
                         }) => {
                             self.barrier_refused(fenced, refused).await?;
+                        }
+                        Some(Waiter::Settle { id, query, .. }) => {
+                            self.pairing.settle_failed(id, query);
                         }
                         Some(Waiter::Internal) | None => {}
                     }
@@ -729,6 +810,18 @@ impl Task {
                     }) => {
                         self.barrier_refused(fenced, refused).await?;
                     }
+                    Some(Waiter::Settle {
+                        id: streamed,
+                        query,
+                        ends_stream,
+                    }) if reply.status == Status::Success => {
+                        self.settled(streamed, query, ends_stream);
+                    }
+                    Some(Waiter::Settle {
+                        id: streamed,
+                        query,
+                        ..
+                    }) => self.pairing.settle_failed(streamed, query),
                     Some(Waiter::Internal) | None => {}
                 }
                 self.send_next(id);
@@ -860,9 +953,23 @@ async fn send_within(link: &mut Link, frame: &Frame, limit: Duration) -> io::Res
 fn alive(waiters: &IntMap<Token, Waiter>, token: Token) -> bool {
     match waiters.get(&token) {
         Some(Waiter::Caller(tx)) => !tx.is_closed(),
-        Some(Waiter::Internal | Waiter::Probe { .. } | Waiter::Barrier { .. }) => true,
+        Some(
+            Waiter::Internal
+            | Waiter::Probe { .. }
+            | Waiter::Barrier { .. }
+            | Waiter::Settle { .. },
+        ) => true,
         None => false,
     }
+}
+
+/// Whether the device can stream updates of command `id` (auto-update flags, manual 3.4.1,
+/// 3.4.2, 3.4.4-3.4.6).
+fn is_streamable(id: u8) -> bool {
+    matches!(
+        id,
+        id::SYSTEM_STATE | id::GRIP_STATE | id::WIDTH | id::SPEED | id::FORCE
+    )
 }
 
 fn io_reason(e: io::Error) -> String {

@@ -194,9 +194,19 @@ fn check_client(
                 _ => false,
             }
         };
+        // A streamed id's auto-updates share the reply's id and form (manual 1.4): its answer
+        // must have been sent once the device had received a request of it during the call
+        // (the client answers with a frame sent after its request, reply or later update), not
+        // an update sent before. The earliest such request bounds it (this call's or earlier).
+        let not_before = if is_streamed(c.id) {
+            first_request(record, t0, c.id, c.start, &ours)
+                .unwrap_or(c.end + Duration::from_nanos(1))
+        } else {
+            c.start
+        };
         if let Some(s) = sent
             .iter_mut()
-            .find(|s| !s.used && s.at >= c.start && s.at <= c.end && fits(s))
+            .find(|s| !s.used && s.at >= not_before && s.at <= c.end && fits(s))
         {
             s.used = true;
             continue;
@@ -293,6 +303,33 @@ fn motion_running(record: &SimRecording, t0: Instant, start: Instant, end: Insta
         }
     }
     !running.is_empty()
+}
+
+/// When the device first received an intact request of `id` from this client at or after
+/// `start`.
+fn first_request(
+    record: &SimRecording,
+    t0: Instant,
+    id: u8,
+    start: Instant,
+    ours: &impl Fn(SessionId) -> bool,
+) -> Option<Instant> {
+    record.records.iter().find_map(|r| match &r.event {
+        SimEvent::Request {
+            id: rid,
+            corrupt: false,
+            ..
+        } if *rid == id && ours(r.session) && t0 + r.at >= start => Some(t0 + r.at),
+        _ => None,
+    })
+}
+
+/// Ids with auto-updates (manual 3.4.1, 3.4.2, 3.4.4–3.4.6).
+fn is_streamed(id: u8) -> bool {
+    matches!(
+        id,
+        id::SYSTEM_STATE | id::GRIP_STATE | id::WIDTH | id::SPEED | id::FORCE
+    )
 }
 
 fn is_motion(id: u8) -> bool {
