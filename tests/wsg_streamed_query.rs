@@ -90,9 +90,9 @@ async fn a_width_query_during_a_stream_is_answered_by_a_frame_sent_after_it() {
         .await
         .unwrap();
     assert_eq!(loops.load(Ordering::SeqCst), 2);
-    // Both gone: request 5 switches the stream off, crossed by an update (5.5 mm); once its
-    // loop-back is back, no update can follow, and the next query (6) is answered by the
-    // next frame without a loop-back.
+    // Both gone: request 5 switches the stream off (crossed by an update of 5.5 mm). No answer
+    // proves that the device received it (it drops a corrupted request unanswered, and its
+    // updates look like the reply), so the next query (6) still gets a loop-back.
     drop(sub);
     drop(second);
     tokio::time::timeout(Duration::from_secs(5), async {
@@ -103,19 +103,10 @@ async fn a_width_query_during_a_stream_is_answered_by_a_frame_sent_after_it() {
     })
     .await
     .expect("the stream is switched off");
-    // The turn-off's loop-back echo is read before this one's.
-    assert_eq!(
-        &client.loop_back(&b"after"[..]).await.unwrap()[..],
-        b"after"
-    );
     assert_eq!(
         client.width_mm().await.unwrap(),
         6.0,
         "after the stream ended"
     );
-    assert_eq!(
-        loops.load(Ordering::SeqCst),
-        4,
-        "no loop-back once the stream is off"
-    );
+    assert_eq!(loops.load(Ordering::SeqCst), 4);
 }

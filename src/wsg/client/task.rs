@@ -63,12 +63,10 @@ enum Waiter {
         refused: u8,
     },
     /// A loop-back sent after request `query` of command `id`, whose updates the device may be
-    /// streaming: its echo says which frame answers the query (see [`Task::transmit`]);
-    /// `ends_stream`: the query turns the device's updates of `id` off.
+    /// streaming: its echo says which frame answers the query (see [`Task::transmit`]).
     Settle {
         id: u8,
         query: Token,
-        ends_stream: bool,
     },
 }
 
@@ -115,8 +113,9 @@ pub(crate) struct Task {
     /// The transport keeps the device's replies in order (a byte stream).
     ordered: bool,
     /// Ids whose auto-updates the device may be sending on this connection: from the request
-    /// that switched them on until a request that switches them off is answered through its
-    /// barrier (see [`Task::transmit`]).
+    /// that switched them on until the connection ends (see [`Task::transmit`]). Not before:
+    /// the device drops a corrupted request unanswered (its updates then look like the reply),
+    /// so no answer proves that a request switching them off was received.
     device_streams: Vec<u8>,
 }
 
@@ -507,7 +506,7 @@ impl Task {
                 token: t,
             }) => self.on_probe(motion, t, Observation::Unknown, token).await,
             Some(Waiter::Barrier { id, refused }) => self.send_barrier(id, refused).await,
-            Some(Waiter::Settle { id, query, .. }) => {
+            Some(Waiter::Settle { id, query }) => {
                 self.pairing.settle_failed(id, query);
                 Ok(())
             }
@@ -648,7 +647,6 @@ impl Task {
         let token = self.waiter(Waiter::Settle {
             id: frame.id,
             query: req.token,
-            ends_stream: streaming == Some(false),
         });
         let mut payload = b"gripper barrier ".to_vec();
         payload.extend_from_slice(&token.to_le_bytes());
@@ -669,15 +667,10 @@ impl Task {
 
     /// The echo of the barrier sent after query `query` of streamed command `id` came: the
     /// query is answered by the last frame of `id` before it, if there was one.
-    fn settled(&mut self, id: u8, query: Token, ends_stream: bool) {
+    fn settled(&mut self, id: u8, query: Token) {
         let Some(reply) = self.pairing.settle(id, query) else {
             return;
         };
-        if ends_stream {
-            // The device received the request that switched the updates off, and everything
-            // it sent before the echo has been read: no update of `id` follows.
-            self.device_streams.retain(|streamed| *streamed != id);
-        }
         // An E_SUCCESS frame: it went to the subscribers when it came.
         if let Some(Waiter::Caller(tx)) = self.waiters.remove(&query) {
             let _ = tx.send(Ok(reply));
@@ -744,7 +737,7 @@ impl Task {
                         }) => {
                             self.barrier_refused(fenced, refused).await?;
                         }
-                        Some(Waiter::Settle { id, query, .. }) => {
+                        Some(Waiter::Settle { id, query }) => {
                             self.pairing.settle_failed(id, query);
                         }
                         Some(Waiter::Internal) | None => {}
@@ -813,14 +806,10 @@ impl Task {
                     Some(Waiter::Settle {
                         id: streamed,
                         query,
-                        ends_stream,
-                    }) if reply.status == Status::Success => {
-                        self.settled(streamed, query, ends_stream);
-                    }
+                    }) if reply.status == Status::Success => self.settled(streamed, query),
                     Some(Waiter::Settle {
                         id: streamed,
                         query,
-                        ..
                     }) => self.pairing.settle_failed(streamed, query),
                     Some(Waiter::Internal) | None => {}
                 }

@@ -43,6 +43,14 @@ pub struct ClientView {
 /// residual risk of UDP (no sequence numbers), which `known.txt` may name for `wsg-udp` only.
 pub const FROM_FAULTED: &str = "[fits a duplicated or delayed datagram delivered during the call]";
 
+/// Appended to a promise 2 violation of a streamed id's call none of whose requests reached the
+/// device intact before the call ended (a corrupted or cut request; the client answers only
+/// after the echo of a loop-back sent after the request, so a request that was not lost was
+/// received before): its answer was a frame of the device's stream, which cannot be told from
+/// a reply (manual 1.4). The residual risk of the
+/// client's barrier rule for streamed ids, which `known.txt` may name for TCP and serial.
+pub const NO_REQUEST: &str = "[no request of this streamed id reached the device during the call]";
+
 /// The replies among `faulted` datagrams, decoded as the client decodes them (manual 1.2.2:
 /// the payload starts with the 16-bit status code, little endian).
 fn faulted_replies(faulted: &[(Instant, bytes::Bytes)]) -> Vec<Sent> {
@@ -198,11 +206,13 @@ fn check_client(
         // must have been sent once the device had received a request of it during the call
         // (the client answers with a frame sent after its request, reply or later update), not
         // an update sent before. The earliest such request bounds it (this call's or earlier).
-        let not_before = if is_streamed(c.id) {
-            first_request(record, t0, c.id, c.start, &ours)
-                .unwrap_or(c.end + Duration::from_nanos(1))
-        } else {
-            c.start
+        let received = is_streamed(c.id)
+            .then(|| first_request(record, t0, c.id, c.start, &ours))
+            .flatten();
+        let not_before = match received {
+            Some(at) => at,
+            None if is_streamed(c.id) => c.end + Duration::from_nanos(1),
+            None => c.start,
         };
         if let Some(s) = sent
             .iter_mut()
@@ -215,7 +225,13 @@ fn check_client(
         let from_faulted = faulted
             .iter()
             .any(|s| s.at >= c.start && s.at <= c.end && fits(s));
-        let tag = if from_faulted { FROM_FAULTED } else { "" };
+        let tag = if from_faulted {
+            FROM_FAULTED
+        } else if is_streamed(c.id) && received.is_none_or(|at| at >= c.end) {
+            NO_REQUEST
+        } else {
+            ""
+        };
         match &c.res {
             Res::Device(_, Status::AlreadyRunning) => {
                 if !motion_running(record, t0, c.start, c.end) {
