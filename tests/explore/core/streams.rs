@@ -19,6 +19,10 @@ use super::{note, Prng, SharedTrace};
 /// Bytes each pipe buffers.
 const PIPE_BUFFER: usize = 64 * 1024;
 
+/// The longest stall of a byte stream: a stall that began before the faults were turned off
+/// still runs its course afterwards (the quiet phase's recovery bound allows for it).
+pub const MAX_STALL: Duration = Duration::from_millis(3000);
+
 /// How often each fault hits a chunk: one in `n` (0: never).
 #[derive(Clone, Copy, Debug, Default)]
 pub struct StreamProfile {
@@ -189,7 +193,7 @@ impl Pump {
                 out.splice(at..at, noise);
             }
             let hold = if r.one_in(p.stall) {
-                Some(r.millis(300, 3000))
+                Some(r.millis(300, MAX_STALL.as_millis() as u64))
             } else if r.one_in(p.delay) {
                 Some(r.millis(1, 100))
             } else {

@@ -5,7 +5,7 @@ use std::collections::BTreeSet;
 use std::time::Duration;
 
 use gripper::wsg::command::id;
-use gripper::wsg::sim::{SessionId, SimEvent, SimRecording};
+use gripper::wsg::sim::{SessionId, SessionKind, SimEvent, SimRecording};
 use gripper::wsg::Status;
 use tokio::time::Instant;
 
@@ -136,6 +136,15 @@ fn check_client(
             _ => None,
         })
         .collect();
+    let udp = record.records.iter().any(|r| {
+        ours(r.session)
+            && matches!(
+                r.event,
+                SimEvent::Connected {
+                    kind: SessionKind::Udp
+                }
+            )
+    });
     let close_start = calls
         .iter()
         .filter(|c| c.op == "close")
@@ -202,16 +211,18 @@ fn check_client(
                 _ => false,
             }
         };
-        // A streamed id's auto-updates share the reply's id and form (manual 1.4): its answer
-        // must have been sent once the device had received a request of it during the call
-        // (the client answers with a frame sent after its request, reply or later update), not
-        // an update sent before. The earliest such request bounds it (this call's or earlier).
-        let received = is_streamed(c.id)
+        // A streamed id's auto-updates share the reply's id and form (manual 1.4): on a byte
+        // stream its answer must have been sent once the device had received a request of it
+        // during the call (the client answers with a frame sent after its request, reply or
+        // later update), not an update sent before. The earliest such request bounds it (this
+        // call's or earlier). UDP keeps the next frame (documented residual risk).
+        let strict = is_streamed(c.id) && !udp;
+        let received = strict
             .then(|| first_request(record, t0, c.id, c.start, &ours))
             .flatten();
         let not_before = match received {
             Some(at) => at,
-            None if is_streamed(c.id) => c.end + Duration::from_nanos(1),
+            None if strict => c.end + Duration::from_nanos(1),
             None => c.start,
         };
         if let Some(s) = sent
@@ -227,7 +238,7 @@ fn check_client(
             .any(|s| s.at >= c.start && s.at <= c.end && fits(s));
         let tag = if from_faulted {
             FROM_FAULTED
-        } else if is_streamed(c.id) && received.is_none_or(|at| at >= c.end) {
+        } else if strict && received.is_none_or(|at| at >= c.end) {
             NO_REQUEST
         } else {
             ""
