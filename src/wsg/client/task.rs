@@ -530,10 +530,16 @@ impl Task {
     /// the other, and the stream keeps the order. (The manual does not promise this in so many
     /// words; it is what its request-reply scheme (1.2.2) implies for immediate replies.)
     async fn send_barrier(&mut self, id: u8, refused: u8) -> io::Result<()> {
-        let token = self.waiter(Waiter::Barrier { id, refused });
+        let req = self.barrier(Waiter::Barrier { id, refused });
+        self.submit(req).await
+    }
+
+    /// A loop-back request (0x06) with a payload no other request carries, for `waiter`.
+    fn barrier(&mut self, waiter: Waiter) -> Request {
+        let token = self.waiter(waiter);
         let mut payload = b"gripper barrier ".to_vec();
         payload.extend_from_slice(&token.to_le_bytes());
-        let req = Request {
+        Request {
             token,
             frame: Frame::new(id::LOOP, payload),
             // No caller waits, so no deadline: the pairing's reply hold releases it the query
@@ -544,8 +550,7 @@ impl Task {
             // length until the line falls silent never got that pause: every fenced id stayed
             // fenced (explorer, promise 5, wsg-serial:0xa5e34824226a756b).
             deadline: after(Instant::now(), Duration::MAX),
-        };
-        self.submit(req).await
+        }
     }
 
     /// A barrier of fenced id `id` got an answer other than its echo (a refusal, a malformed
@@ -644,18 +649,10 @@ impl Task {
             return Ok(());
         }
         self.pairing.settle_by_barrier(frame.id, req.token);
-        let token = self.waiter(Waiter::Settle {
+        let barrier = self.barrier(Waiter::Settle {
             id: frame.id,
             query: req.token,
         });
-        let mut payload = b"gripper barrier ".to_vec();
-        payload.extend_from_slice(&token.to_le_bytes());
-        let barrier = Request {
-            token,
-            frame: Frame::new(id::LOOP, payload),
-            // Released by the pairing's reply hold, from when it is sent (see `send_barrier`).
-            deadline: after(Instant::now(), Duration::MAX),
-        };
         // Queued behind another loop-back, it goes out later: still after the request.
         match self.pairing.submit(barrier, Instant::now()) {
             Submit::Send(barrier) => {
