@@ -234,7 +234,9 @@ fn check_client(
         let strict = is_streamed(c.id) && !udp;
         let received = strict
             .then(|| first_request(record, t0, c.id, c.start, &ours))
-            .flatten();
+            .flatten()
+            .filter(|&(i, at)| at < c.end || !next_calls_request(calls, c, record, t0, i, &ours))
+            .map(|(_, at)| at);
         let not_before = match received {
             Some(at) => at,
             None if strict => c.end + Duration::from_nanos(1),
@@ -389,22 +391,72 @@ fn moving_is_the_next_motion(record: &SimRecording, i: usize) -> bool {
         .any(|r| matches!(r.event, SimEvent::Reply { id, status: Status::CmdPending, .. } if requested.contains(&id)))
 }
 
-/// When the device first received an intact request of `id` from this client at or after
-/// `start`.
+/// The first intact request of `id` the device received from this client at or after
+/// `start`, from record `from` on: its record index and when.
 fn first_request(
     record: &SimRecording,
     t0: Instant,
     id: u8,
     start: Instant,
     ours: &impl Fn(SessionId) -> bool,
-) -> Option<Instant> {
-    record.records.iter().find_map(|r| match &r.event {
-        SimEvent::Request {
-            id: rid,
-            corrupt: false,
-            ..
-        } if *rid == id && ours(r.session) && t0 + r.at >= start => Some(t0 + r.at),
-        _ => None,
+) -> Option<(usize, Instant)> {
+    request_from(record, t0, id, start, 0, ours)
+}
+
+fn request_from(
+    record: &SimRecording,
+    t0: Instant,
+    id: u8,
+    start: Instant,
+    from: usize,
+    ours: &impl Fn(SessionId) -> bool,
+) -> Option<(usize, Instant)> {
+    record
+        .records
+        .iter()
+        .enumerate()
+        .skip(from)
+        .find_map(|(i, r)| match &r.event {
+            SimEvent::Request {
+                id: rid,
+                corrupt: false,
+                ..
+            } if *rid == id && ours(r.session) && t0 + r.at >= start => Some((i, t0 + r.at)),
+            _ => None,
+        })
+}
+
+/// Whether request `i` of `c`'s id, received at the very instant `c` ended, is the request of a
+/// later call `b` of the id on this client rather than `c`'s own: `b` had begun by then, ended
+/// on an answer of the device, and the device received no other intact request of the id from
+/// this client by `b`'s end (one request per call; a call of a streamed id sends its request
+/// only once the previous one of the id is off the wire, `c` ending at that instant included).
+/// The record's instants do not order the client's steps within one instant, so at that
+/// instant the request may be either's; it goes to the answered call that would otherwise have
+/// none. (`c` then counts as a call
+/// whose request did not reach the device: its request was corrupted, the stream's frame it
+/// got is the documented residual, tagged [`NO_REQUEST`]; `wsg-tcp:0x8f85c166eeff961d`: a
+/// width query whose request was corrupted ended on its barrier's echo at the instant the next
+/// width query's request, rewritten to the stream's flags, reached the device, and took that
+/// query's reply in the matching.)
+fn next_calls_request(
+    calls: &[&CallRec],
+    c: &CallRec,
+    record: &SimRecording,
+    t0: Instant,
+    i: usize,
+    ours: &impl Fn(SessionId) -> bool,
+) -> bool {
+    let at = t0 + record.records[i].at;
+    calls.iter().any(|b| {
+        !std::ptr::eq(*b, c)
+            && b.id == c.id
+            && b.start >= c.start
+            && b.start <= at
+            && b.end >= at
+            && (matches!(b.res, Res::Device(..))
+                || matches!(&b.res, Res::Ok(e) if *e != Expect::Nothing))
+            && request_from(record, t0, c.id, at, i + 1, ours).is_none_or(|(_, next)| next > b.end)
     })
 }
 
