@@ -118,20 +118,29 @@ async fn stuck_device(io: tokio::io::DuplexStream) {
 /// grace, never left the line silent long enough: the device stayed stuck and the id fenced,
 /// and every later call of it timed out. An unanswered loop-back now keeps its id the partial
 /// frame timeout longer (`Pairing::set_resync`): the line rests, the device resynchronises,
-/// the barrier's echo comes and the id works again.
+/// the barrier's echo comes and the id works again. Also for a client whose own partial
+/// frame timeout is shorter than the device's resync silence (the rest is at least the
+/// default: `wsg-serial:0xcacf521c96086ae6`).
 #[tokio::test(start_paused = true)]
 async fn a_device_stuck_on_a_corrupted_length_gets_the_silence_it_needs() {
-    let (ours, theirs) = tokio::io::duplex(1 << 16);
-    let device = tokio::spawn(stuck_device(theirs));
-    let client = Client::builder()
-        .query_timeout(QUERY)
-        .late_reply_grace(GRACE)
-        .attach(ours);
     assert!(QUERY + GRACE < RESYNC);
-    // Swallowed: times out, and its id is fenced.
-    assert!(client.width_mm().await.is_err());
-    tokio::time::sleep(Duration::from_secs(3)).await;
-    assert_eq!(client.width_mm().await.unwrap(), 12.5);
-    drop(client);
-    device.abort();
+    for partial_frame_timeout in [RESYNC, Duration::from_millis(50)] {
+        let (ours, theirs) = tokio::io::duplex(1 << 16);
+        let device = tokio::spawn(stuck_device(theirs));
+        let client = Client::builder()
+            .query_timeout(QUERY)
+            .late_reply_grace(GRACE)
+            .partial_frame_timeout(partial_frame_timeout)
+            .attach(ours);
+        // Swallowed: times out, and its id is fenced.
+        assert!(client.width_mm().await.is_err());
+        tokio::time::sleep(Duration::from_secs(3)).await;
+        assert_eq!(
+            client.width_mm().await.unwrap(),
+            12.5,
+            "partial frame timeout {partial_frame_timeout:?}"
+        );
+        drop(client);
+        device.abort();
+    }
 }
