@@ -199,13 +199,7 @@ fn check_client(
     // 2, 3, 4: each answer is one reply the device sent to this client during the call; one
     // reply answers one call. Earliest end first, earliest reply first: for intervals this
     // greedy finds a matching whenever one exists.
-    let mut answered: Vec<&&CallRec> = calls
-        .iter()
-        .filter(|c| {
-            matches!(c.res, Res::Device(..))
-                || matches!(&c.res, Res::Ok(e) if *e != Expect::Nothing)
-        })
-        .collect();
+    let mut answered: Vec<&&CallRec> = calls.iter().filter(|c| answered(c)).collect();
     answered.sort_by_key(|c| c.end);
     for c in answered {
         let fits = |s: &Sent| -> bool {
@@ -392,7 +386,7 @@ fn moving_is_the_next_motion(record: &SimRecording, i: usize) -> bool {
 }
 
 /// The first intact request of `id` the device received from this client at or after
-/// `start`, from record `from` on: its record index and when.
+/// `start`: its record index and when.
 fn first_request(
     record: &SimRecording,
     t0: Instant,
@@ -400,22 +394,10 @@ fn first_request(
     start: Instant,
     ours: &impl Fn(SessionId) -> bool,
 ) -> Option<(usize, Instant)> {
-    request_from(record, t0, id, start, 0, ours)
-}
-
-fn request_from(
-    record: &SimRecording,
-    t0: Instant,
-    id: u8,
-    start: Instant,
-    from: usize,
-    ours: &impl Fn(SessionId) -> bool,
-) -> Option<(usize, Instant)> {
     record
         .records
         .iter()
         .enumerate()
-        .skip(from)
         .find_map(|(i, r)| match &r.event {
             SimEvent::Request {
                 id: rid,
@@ -426,19 +408,26 @@ fn request_from(
         })
 }
 
-/// Whether request `i` of `c`'s id, received at the very instant `c` ended, is the request of a
-/// later call `b` of the id on this client rather than `c`'s own: `b` had begun by then, ended
-/// on an answer of the device, and the device received no other intact request of the id from
-/// this client by `b`'s end (one request per call; a call of a streamed id sends its request
-/// only once the previous one of the id is off the wire, `c` ending at that instant included).
-/// The record's instants do not order the client's steps within one instant, so at that
-/// instant the request may be either's; it goes to the answered call that would otherwise have
-/// none. (`c` then counts as a call
-/// whose request did not reach the device: its request was corrupted, the stream's frame it
-/// got is the documented residual, tagged [`NO_REQUEST`]; `wsg-tcp:0x8f85c166eeff961d`: a
-/// width query whose request was corrupted ended on its barrier's echo at the instant the next
-/// width query's request, rewritten to the stream's flags, reached the device, and took that
-/// query's reply in the matching.)
+/// Whether call `c` ended on an answer of the device (a value, a status): one reply of the
+/// device must account for it.
+fn answered(c: &CallRec) -> bool {
+    matches!(c.res, Res::Device(..)) || matches!(&c.res, Res::Ok(e) if *e != Expect::Nothing)
+}
+
+/// Whether request `i` of `c`'s id, received at the very instant `c` ended, may be the request
+/// of a later call of the id on this client rather than `c`'s own: the calls of the id that had
+/// begun by then (not before `c`), were still going and ended on an answer of the device cannot
+/// each have another intact request of the id within their time (one request per call; a
+/// call of a streamed id sends its request only once the previous one of the id is off the
+/// wire, `c` ending at that instant included). The record's instants do not order the client's
+/// steps within one instant, so at that instant the request may be either's; it goes to the
+/// later calls if they need it. (`c` then counts as a call whose request did not reach the
+/// device: its request was corrupted, and the stream's frame it got is the documented
+/// residual, tagged [`NO_REQUEST`]. `wsg-tcp:0x8f85c166eeff961d`: a width query whose request
+/// was corrupted ended on its barrier's echo at the instant the next width query's request,
+/// rewritten to the stream's flags, reached the device, and took that query's reply in the
+/// matching; `wsg-serial:0x7cf70070d2357529`: the same with a subscription and a width query
+/// after it, two calls and one request after that instant.)
 fn next_calls_request(
     calls: &[&CallRec],
     c: &CallRec,
@@ -448,16 +437,41 @@ fn next_calls_request(
     ours: &impl Fn(SessionId) -> bool,
 ) -> bool {
     let at = t0 + record.records[i].at;
-    calls.iter().any(|b| {
-        !std::ptr::eq(*b, c)
-            && b.id == c.id
-            && b.start >= c.start
-            && b.start <= at
-            && b.end >= at
-            && (matches!(b.res, Res::Device(..))
-                || matches!(&b.res, Res::Ok(e) if *e != Expect::Nothing))
-            && request_from(record, t0, c.id, at, i + 1, ours).is_none_or(|(_, next)| next > b.end)
-    })
+    let mut later: Vec<&CallRec> = calls
+        .iter()
+        .copied()
+        .filter(|b| {
+            !std::ptr::eq(*b, c)
+                && b.id == c.id
+                && b.start >= c.start
+                && b.start <= at
+                && b.end >= at
+                && answered(b)
+        })
+        .collect();
+    later.sort_by_key(|b| b.end);
+    // The other intact requests of the id from this client: earliest end first, each takes the
+    // earliest one within its time (for intervals this finds an assignment if one exists).
+    let mut others: Vec<Instant> = record
+        .records
+        .iter()
+        .enumerate()
+        .filter(|(k, r)| {
+            *k != i
+                && ours(r.session)
+                && matches!(r.event, SimEvent::Request { id, corrupt: false, .. } if id == c.id)
+        })
+        .map(|(_, r)| t0 + r.at)
+        .collect();
+    later.iter().any(
+        |b| match others.iter().position(|&t| t >= b.start && t <= b.end) {
+            Some(k) => {
+                others.remove(k);
+                false
+            }
+            None => true,
+        },
+    )
 }
 
 /// Ids with auto-updates (manual 3.4.1, 3.4.2, 3.4.4–3.4.6).
