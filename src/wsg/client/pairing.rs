@@ -356,8 +356,12 @@ impl Pairing {
     /// grace the line would never be silent that long, and the fenced ids would stay fenced.
     /// So the line rests for `resync` after each barrier, and the barrier still gets its
     /// round trip after the device resynchronised (the explorer's
-    /// `wsg-serial:0xae89110881bc3727`). Only loop-backs: stops are never held, and a caller's
-    /// own loop-back with a timeout is released at its deadline + grace as before.
+    /// `wsg-serial:0xae89110881bc3727`). Only loop-backs: a stop is never held, and a caller's
+    /// own loop-back with a timeout is released at its deadline + grace as before. A stop's
+    /// barrier (its echo proves the stop's reply lost, [`super::stops`]) is a loop-back too:
+    /// when that echo is lost as well, the stop goes out again up to `resync` later than
+    /// without the rest; and a device stuck so would swallow a re-sent stop anyway, which only
+    /// the rest lets through.
     pub(crate) fn set_resync(&mut self, resync: Duration) {
         self.resync = resync;
     }
