@@ -19,6 +19,7 @@
 //! | An acknowledged motion past its caller's deadline keeps its id until its final reply or two "not moving" a grace apart ([`Error::ReplyLost`] for a caller still waiting). | 1.3, Anhang B | all | as above |
 //! | Stop and FAST STOP are never queued; a stop call is `Ok` only on a reply to a stop sent at or after it (each reply is taken for the oldest unanswered stop); a call still waiting [`RESEND_STOP_AFTER`] later gets the stop sent again. TCP, serial: no stop is given up on time (its reply may be stalled for any time); the waiting call gets a barrier (a loop-back) instead, and the stop is sent again only when its echo proves the earlier stops' replies lost (corrupted). | 1.2.2, 3.1.1, 3.2.3, 3.2.4 | TCP, serial | TCP, serial: after a corrupted stop reply, a call waits [`RESEND_STOP_AFTER`] and a round trip longer; a device that answers three barriers in a row with something other than their echo gets the stops given up unproven. UDP: a stop reply later than the grace, or duplicated, is taken for a later stop; a stop sent again may arrive after `stop()` returned and abort a move started right after |
 //! | A frame must complete within [`ClientBuilder::partial_frame_timeout`] from its first byte; a header longer than any reply of its id is noise at once; while a frame is held, no id is released. | 1.2.1, chapter 3 | TCP, serial (UDP: one frame per datagram) | a plausible corrupted length holds replies for up to the timeout |
+//! | Once a value's updates were switched on over a connection, every later request of that id on it (TCP, serial) is followed by a loop-back (0x06, unique payload) and answered by the last E_SUCCESS frame of the id received before its echo: the reply, or an update sent after it; a frame that is not E_SUCCESS is no update and answers at once. An echo with no frame of the id before it: the request got no reply, and no later frame answers it. Ids never streamed on the connection get no loop-back. | 1.4, 3.4.1–3.4.6 (an update and the reply share id and form), 3.1.1 | TCP, serial | a request the device drops as corrupt (no reply, manual 1.2.1) is answered by an update received before the echo: a value the device sent during the call, not its answer (nothing on the wire tells them apart); for the same reason no answer proves that updates were switched off, so the loop-back stays until the connection ends. UDP: the request takes the next frame of its id, which may be an update sent before the device received it (at most one period older); the subscribe call's own reply cannot be told from an update either (same status, same data) |
 //! | Frames already received are paired before the next request goes out: a request freed by a reply waits until no frame is ready to be read (a copy of that reply, already received, is then dropped as unsolicited). | 1.2.2 | all (needed on UDP) | UDP: a duplicated reply that arrives after the next request of its id went out is taken for it |
 
 mod connector;
@@ -517,8 +518,11 @@ impl Shared {
 ///
 /// While a value is streamed ([`Client::subscribe_width_mm`] and friends), a one-off query of
 /// it is sent with the stream's flags, so it does not switch the device's updates off (FLAGS bit0
-/// clear would); it is answered by the next frame of that value, the reply or an update, which
-/// is at most one period older than the query.
+/// clear would). An update and the reply share id and form (manual 1.4), so on TCP and serial
+/// a query of a value that was streamed on the connection is followed by a loop-back and
+/// answered by the last frame of that value received before its echo: the reply, or an update
+/// sent after the device received the query (one round trip more). On UDP it is answered by the next frame of that value, which may be an
+/// update sent before the device received the query (at most one period older).
 ///
 /// # Cancellation
 /// Every method is cancel-safe for the connection: dropping its future at any await point (a

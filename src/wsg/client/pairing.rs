@@ -133,6 +133,25 @@ struct InFlight {
     ack_doubtful: bool,
     /// The payload sent: a loop reply (0x06) must echo it.
     payload: Bytes,
+    /// How its reply is told from the auto-updates of its id (see
+    /// [`Pairing::settle_by_barrier`]).
+    settle: Settle,
+}
+
+/// How the request on the wire of an id is answered.
+#[derive(Debug, Default)]
+enum Settle {
+    /// By the next reply of its id.
+    #[default]
+    First,
+    /// The device may stream updates of this id, which share the reply's id and form (manual
+    /// 1.4, 3.4.1–3.4.6): by the last E_SUCCESS frame of the id received before the echo of a
+    /// loop-back sent after the request. A frame that is not E_SUCCESS is no update: the reply.
+    Barrier(Option<Reply>),
+    /// The loop-back's echo came with no frame of the id before it (the request got no reply:
+    /// the device answers in order), or the loop-back got none: no later frame of the id is
+    /// taken for its reply; the request waits for its release.
+    Lost,
 }
 
 impl InFlight {
@@ -148,6 +167,7 @@ impl InFlight {
             idle_seen: None,
             ack_doubtful: false,
             payload: req.frame.payload.clone(),
+            settle: Settle::First,
         }
     }
 
@@ -163,7 +183,8 @@ impl InFlight {
         // Unless the acknowledgement itself may have been another request's (UDP reorders).
         let refused_duplicate =
             self.acknowledged && !self.ack_doubtful && reply.status == Status::AlreadyRunning;
-        foreign_echo || refused_duplicate
+        let lost = matches!(self.settle, Settle::Lost);
+        foreign_echo || refused_duplicate || lost
     }
 
     /// When this request needs the task next: its release, or its next recovery probe.
@@ -477,6 +498,11 @@ impl Pairing {
                 "WSG reply that cannot answer the request on the wire: dropped");
             return Event::Unsolicited(reply);
         }
+        if let (Settle::Barrier(last), Status::Success) = (&mut f.settle, reply.status) {
+            // An update or the reply: the loop-back's echo decides (`Pairing::settle`).
+            *last = Some(reply.clone());
+            return Event::Unsolicited(reply);
+        }
         if reply.status == Status::CmdPending {
             if !f.acknowledged {
                 f.acknowledged = true;
@@ -490,6 +516,54 @@ impl Pairing {
         st.pending_owed = !f.acknowledged && reply.status != Status::AlreadyRunning;
         st.in_flight = None;
         Event::Resolved(token, reply)
+    }
+
+    /// The request `token` of `id` just sent is answered through a loop-back barrier sent after
+    /// it ([`Pairing::settle`]): the device may stream updates of `id` (manual 1.4), which
+    /// carry the reply's id and form, so the next frame of `id` may be an update sent before
+    /// the device received the request. Sound on ordered transports only (the device answers
+    /// in order, and the stream keeps it).
+    pub(crate) fn settle_by_barrier(&mut self, id: u8, token: Token) {
+        if let Some(f) = self.in_flight_mut(id, token) {
+            f.settle = Settle::Barrier(None);
+        }
+    }
+
+    /// The echo of the barrier sent after request `token` of `id` came: every frame the device
+    /// sent before it has been read, the reply to the request among them, so the last
+    /// E_SUCCESS frame of `id` is the reply or an update sent after it (a value measured after
+    /// the device received the request). Returns that frame, and the id is free; `None` when
+    /// the request is no longer on the wire, or got no frame at all (then it is lost: it waits
+    /// for its release, and no later frame answers it).
+    pub(crate) fn settle(&mut self, id: u8, token: Token) -> Option<Reply> {
+        let f = self.in_flight_mut(id, token)?;
+        if !matches!(f.settle, Settle::Barrier(_)) {
+            return None;
+        }
+        let Settle::Barrier(last) = std::mem::replace(&mut f.settle, Settle::Lost) else {
+            return None;
+        };
+        let reply = last?;
+        let st = self.ids.get_mut(&id)?;
+        st.in_flight = None;
+        st.pending_owed = false;
+        Some(reply)
+    }
+
+    /// The barrier sent after request `token` of `id` got no echo: the frames of `id` cannot
+    /// be told apart, so none answers it (it waits for its release).
+    pub(crate) fn settle_failed(&mut self, id: u8, token: Token) {
+        if let Some(f) = self.in_flight_mut(id, token) {
+            f.settle = Settle::Lost;
+        }
+    }
+
+    fn in_flight_mut(&mut self, id: u8, token: Token) -> Option<&mut InFlight> {
+        self.ids
+            .get_mut(&id)?
+            .in_flight
+            .as_mut()
+            .filter(|f| f.token == token)
     }
 
     /// A reply (usable or not) of stop id `id` arrived: the stop calls it completes.
@@ -729,6 +803,36 @@ mod tests {
             p.on_reply(reply(0x43, Status::Success)),
             Event::Unsolicited(_)
         ));
+    }
+
+    /// A query of a streamed id settled by a barrier: the last E_SUCCESS frame before the echo
+    /// answers it (earlier ones may be updates sent before the device received it); an echo
+    /// with no frame before it leaves no later frame to answer it.
+    #[test]
+    fn a_streamed_query_is_answered_by_the_last_frame_before_its_barrier() {
+        let now = Instant::now();
+        let t = now + Duration::from_secs(1);
+        let mut p = Pairing::new(Duration::from_secs(1));
+        p.set_ordered(true);
+        let width = |mm: u8| Reply::new(0x43, Status::Success, Bytes::from(vec![mm]));
+        assert_eq!(sent(p.submit(req(1, 0x43, t), now)), Some(1));
+        p.settle_by_barrier(0x43, 1);
+        assert_eq!(p.on_reply(width(1)), Event::Unsolicited(width(1)));
+        assert_eq!(p.on_reply(width(2)), Event::Unsolicited(width(2)));
+        assert_eq!(p.settle(0x43, 1), Some(width(2)));
+        assert!(!p.done(0x43));
+        // No frame before the echo: lost, and a later frame does not answer it.
+        assert_eq!(sent(p.submit(req(2, 0x43, t), now)), Some(2));
+        p.settle_by_barrier(0x43, 2);
+        assert_eq!(p.settle(0x43, 2), None);
+        assert_eq!(p.on_reply(width(3)), Event::Unsolicited(width(3)));
+        // A refusal is no update: it answers at once.
+        let mut q = Pairing::new(Duration::from_secs(1));
+        assert_eq!(sent(q.submit(req(3, 0x43, t), now)), Some(3));
+        q.settle_by_barrier(0x43, 3);
+        let refused = reply(0x43, Status::CmdFormatError);
+        assert_eq!(q.on_reply(refused.clone()), Event::Resolved(3, refused));
+        assert_eq!(q.settle(0x43, 3), None);
     }
 
     #[test]

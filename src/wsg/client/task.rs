@@ -62,6 +62,12 @@ enum Waiter {
         id: u8,
         refused: u8,
     },
+    /// A loop-back sent after request `query` of command `id`, whose updates the device may be
+    /// streaming: its echo says which frame answers the query (see [`Task::transmit`]).
+    Settle {
+        id: u8,
+        query: Token,
+    },
 }
 
 struct StreamState {
@@ -104,6 +110,13 @@ pub(crate) struct Task {
     /// received has been paired (see [`Task::send_next`]): a frame received before a request
     /// went out cannot answer it, but would be taken for its answer (a duplicated UDP reply).
     ready: Vec<u8>,
+    /// The transport keeps the device's replies in order (a byte stream).
+    ordered: bool,
+    /// Ids whose auto-updates the device may be sending on this connection: from the request
+    /// that switched them on until the connection ends (see [`Task::transmit`]). Not before:
+    /// the device drops a corrupted request unanswered (its updates then look like the reply),
+    /// so no answer proves that a request switching them off was received.
+    device_streams: Vec<u8>,
 }
 
 /// Barriers of one fence answered with something other than their echo before the fenced id is
@@ -139,7 +152,8 @@ impl Task {
         // that dropped the call, does not hold it past the default timeouts (pairing.rs).
         pairing.set_holds(query_timeout, motion_timeout);
         // A byte stream (TCP, serial, attached) keeps the device's replies in order.
-        pairing.set_ordered(matches!(link, Link::Stream(_)));
+        let ordered = matches!(link, Link::Stream(_));
+        pairing.set_ordered(ordered);
         Self {
             partial_frame_timeout: super::DEFAULT_PARTIAL_FRAME_TIMEOUT,
             partial_since: None,
@@ -159,6 +173,8 @@ impl Task {
             streams: IntMap::default(),
             next_token: 0,
             ready: Vec::new(),
+            ordered,
+            device_streams: Vec::new(),
         }
     }
 
@@ -266,6 +282,8 @@ impl Task {
         };
         self.link = link;
         self.partial_since = None;
+        // A new connection streams only what was asked again on it.
+        self.device_streams = self.streams.keys().copied().collect();
         // Their replies (the current values) go to the subscribers like any update.
         let deadline = after(Instant::now(), self.query_timeout);
         for frame in restore {
@@ -500,6 +518,10 @@ impl Task {
                 token: t,
             }) => self.on_probe(motion, t, Observation::Unknown, token).await,
             Some(Waiter::Barrier { id, refused }) => self.send_barrier(id, refused).await,
+            Some(Waiter::Settle { id, query }) => {
+                self.pairing.settle_failed(id, query);
+                Ok(())
+            }
             // A caller still waiting (no timeout, released by the hold of `Pairing::set_holds`):
             // its reply did not come within the query timeout.
             Some(Waiter::Caller(tx)) => {
@@ -520,15 +542,27 @@ impl Task {
     /// the other, and the stream keeps the order. (The manual does not promise this in so many
     /// words; it is what its request-reply scheme (1.2.2) implies for immediate replies.)
     async fn send_barrier(&mut self, id: u8, refused: u8) -> io::Result<()> {
-        let token = self.waiter(Waiter::Barrier { id, refused });
+        let req = self.barrier(Waiter::Barrier { id, refused });
+        self.submit(req).await
+    }
+
+    /// A loop-back request (0x06) with a payload no other request carries, for `waiter`.
+    fn barrier(&mut self, waiter: Waiter) -> Request {
+        let token = self.waiter(waiter);
         let mut payload = b"gripper barrier ".to_vec();
         payload.extend_from_slice(&token.to_le_bytes());
-        let req = Request {
+        Request {
             token,
             frame: Frame::new(id::LOOP, payload),
-            deadline: after(Instant::now(), self.query_timeout),
-        };
-        self.submit(req).await
+            // No caller waits, so no deadline: the pairing's reply hold releases it the query
+            // timeout plus the grace after it is *sent*. A deadline from now would run while
+            // it waits behind other loop-backs (one per fenced id): it would be released as
+            // soon as sent, before its echo could come, and sent again at once, keeping the
+            // line busy without a pause. A device whose decoder holds a frame with a corrupted
+            // length until the line falls silent never got that pause: every fenced id stayed
+            // fenced (explorer, promise 5, wsg-serial:0xa5e34824226a756b).
+            deadline: after(Instant::now(), Duration::MAX),
+        }
     }
 
     /// A barrier of fenced id `id` got an answer other than its echo (a refusal, a malformed
@@ -617,8 +651,49 @@ impl Task {
                 frame = stream_command(frame.id, st.mode);
             }
         }
+        // While the device may stream updates of this id, the next frame of the id may be an
+        // update it sent before it received this request (an update and the reply share id
+        // and form, manual 1.4, 3.4.1-3.4.6). On a byte stream a loop-back sent after the
+        // request settles it: the last frame of the id before its echo (Pairing::settle).
+        // Only then: a query of a value nobody streams costs no barrier.
+        let settle = self.ordered && self.device_streams.contains(&frame.id);
+        let streaming = frame.payload.first().map(|flags| flags & 1 == 1);
+        if streaming == Some(true)
+            && is_streamable(frame.id)
+            && !self.device_streams.contains(&frame.id)
+        {
+            self.device_streams.push(frame.id);
+        }
         tracing::trace!(id = frame.id, len = frame.payload.len(), "WSG send");
-        send_within(&mut self.link, &frame, self.write_timeout).await
+        send_within(&mut self.link, &frame, self.write_timeout).await?;
+        if !settle {
+            return Ok(());
+        }
+        self.pairing.settle_by_barrier(frame.id, req.token);
+        let barrier = self.barrier(Waiter::Settle {
+            id: frame.id,
+            query: req.token,
+        });
+        // Queued behind another loop-back, it goes out later: still after the request.
+        match self.pairing.submit(barrier, Instant::now()) {
+            Submit::Send(barrier) => {
+                send_within(&mut self.link, &barrier.frame, self.write_timeout).await
+            }
+            Submit::Queued => Ok(()),
+        }
+    }
+
+    /// The echo of the barrier sent after query `query` of streamed command `id` came: the
+    /// query is answered by the last frame of `id` before it, if there was one.
+    fn settled(&mut self, id: u8, query: Token) {
+        let Some(reply) = self.pairing.settle(id, query) else {
+            return;
+        };
+        // An E_SUCCESS frame: it went to the subscribers when it came.
+        if let Some(Waiter::Caller(tx)) = self.waiters.remove(&query) {
+            let _ = tx.send(Ok(reply));
+        }
+        self.send_next(id);
     }
 
     /// The request on the wire of `id` is done: its next queued request (if any) goes out once
@@ -679,6 +754,9 @@ impl Task {
                             refused,
                         }) => {
                             self.barrier_refused(fenced, refused).await?;
+                        }
+                        Some(Waiter::Settle { id, query }) => {
+                            self.pairing.settle_failed(id, query);
                         }
                         Some(Waiter::Internal) | None => {}
                     }
@@ -742,6 +820,14 @@ impl Task {
                     }) => {
                         self.barrier_refused(fenced, refused).await?;
                     }
+                    Some(Waiter::Settle {
+                        id: streamed,
+                        query,
+                    }) if reply.status == Status::Success => self.settled(streamed, query),
+                    Some(Waiter::Settle {
+                        id: streamed,
+                        query,
+                    }) => self.pairing.settle_failed(streamed, query),
                     Some(Waiter::Internal) | None => {}
                 }
                 self.send_next(id);
@@ -873,9 +959,23 @@ async fn send_within(link: &mut Link, frame: &Frame, limit: Duration) -> io::Res
 fn alive(waiters: &IntMap<Token, Waiter>, token: Token) -> bool {
     match waiters.get(&token) {
         Some(Waiter::Caller(tx)) => !tx.is_closed(),
-        Some(Waiter::Internal | Waiter::Probe { .. } | Waiter::Barrier { .. }) => true,
+        Some(
+            Waiter::Internal
+            | Waiter::Probe { .. }
+            | Waiter::Barrier { .. }
+            | Waiter::Settle { .. },
+        ) => true,
         None => false,
     }
+}
+
+/// Whether the device can stream updates of command `id` (auto-update flags, manual 3.4.1,
+/// 3.4.2, 3.4.4-3.4.6).
+fn is_streamable(id: u8) -> bool {
+    matches!(
+        id,
+        id::SYSTEM_STATE | id::GRIP_STATE | id::WIDTH | id::SPEED | id::FORCE
+    )
 }
 
 fn io_reason(e: io::Error) -> String {

@@ -53,6 +53,10 @@ pub type CarriedLog = Arc<Mutex<Carried>>;
 /// Marks an inserted noise byte among the offsets of the bytes a pump holds.
 const NOISE: u64 = u64::MAX;
 
+/// The longest stall of a byte stream: a stall that began before the faults were turned off
+/// still runs its course afterwards (the quiet phase's recovery bound allows for it).
+pub const MAX_STALL: Duration = Duration::from_millis(3000);
+
 /// How often each fault hits a chunk: one in `n` (0: never).
 #[derive(Clone, Copy, Debug, Default)]
 pub struct StreamProfile {
@@ -260,7 +264,7 @@ impl Pump {
                 from.splice(at..at, std::iter::repeat_n(NOISE, n));
             }
             let hold = if r.one_in(p.stall) {
-                Some(r.millis(300, 3000))
+                Some(r.millis(300, MAX_STALL.as_millis() as u64))
             } else if r.one_in(p.delay) {
                 Some(r.millis(1, 100))
             } else {

@@ -5,7 +5,7 @@ use std::collections::BTreeSet;
 use std::time::Duration;
 
 use gripper::wsg::command::id;
-use gripper::wsg::sim::{SessionId, SimEvent, SimRecording};
+use gripper::wsg::sim::{SessionId, SessionKind, SimEvent, SimRecording};
 use gripper::wsg::{Status, SystemState};
 use tokio::time::Instant;
 
@@ -50,6 +50,14 @@ pub struct ClientView {
 /// layer delivered to the client duplicated or delayed during the call: the documented
 /// residual risk of UDP (no sequence numbers), which `known.txt` may name for `wsg-udp` only.
 pub const FROM_FAULTED: &str = "[fits a duplicated or delayed datagram delivered during the call]";
+
+/// Appended to a promise 2 violation of a streamed id's call none of whose requests reached the
+/// device intact before the call ended (a corrupted or cut request; the client answers only
+/// after the echo of a loop-back sent after the request, so a request that was not lost was
+/// received before): its answer was a frame of the device's stream, which cannot be told from
+/// a reply (manual 1.4). The residual risk of the
+/// client's barrier rule for streamed ids, which `known.txt` may name for TCP and serial.
+pub const NO_REQUEST: &str = "[no request of this streamed id reached the device during the call]";
 
 /// The replies among `faulted` datagrams, decoded as the client decodes them (manual 1.2.2:
 /// the payload starts with the 16-bit status code, little endian).
@@ -137,6 +145,15 @@ fn check_client(
             _ => None,
         })
         .collect();
+    let udp = record.records.iter().any(|r| {
+        ours(r.session)
+            && matches!(
+                r.event,
+                SimEvent::Connected {
+                    kind: SessionKind::Udp
+                }
+            )
+    });
     let close_start = calls
         .iter()
         .filter(|c| c.op == "close")
@@ -209,9 +226,23 @@ fn check_client(
         // later than the one answered: `src/wsg/client/stops.rs`). Only stop calls match
         // stop replies, so no other call can share one.
         let shared = c.id == id::STOP || c.id == id::FAST_STOP;
+        // A streamed id's auto-updates share the reply's id and form (manual 1.4): on a byte
+        // stream its answer must have been sent once the device had received a request of it
+        // during the call (the client answers with a frame sent after its request, reply or
+        // later update), not an update sent before. The earliest such request bounds it (this
+        // call's or earlier). UDP keeps the next frame (documented residual risk).
+        let strict = is_streamed(c.id) && !udp;
+        let received = strict
+            .then(|| first_request(record, t0, c.id, c.start, &ours))
+            .flatten();
+        let not_before = match received {
+            Some(at) => at,
+            None if strict => c.end + Duration::from_nanos(1),
+            None => c.start,
+        };
         if let Some(s) = sent
             .iter_mut()
-            .find(|s| (!s.used || shared) && s.at >= c.start && s.at <= c.end && fits(s))
+            .find(|s| (!s.used || shared) && s.at >= not_before && s.at <= c.end && fits(s))
         {
             s.used = true;
             continue;
@@ -220,7 +251,13 @@ fn check_client(
         let from_faulted = faulted
             .iter()
             .any(|s| s.at >= c.start && s.at <= c.end && fits(s));
-        let tag = if from_faulted { FROM_FAULTED } else { "" };
+        let tag = if from_faulted {
+            FROM_FAULTED
+        } else if strict && received.is_none_or(|at| at >= c.end) {
+            NO_REQUEST
+        } else {
+            ""
+        };
         match &c.res {
             Res::Device(cmd, Status::AlreadyRunning) => {
                 if !motion_running(record, t0, c.start, c.end) {
@@ -355,6 +392,33 @@ fn moving_is_the_next_motion(record: &SimRecording, i: usize) -> bool {
         .iter()
         .take_while(same_step)
         .any(|r| matches!(r.event, SimEvent::Reply { id, status: Status::CmdPending, .. } if requested.contains(&id)))
+}
+
+/// When the device first received an intact request of `id` from this client at or after
+/// `start`.
+fn first_request(
+    record: &SimRecording,
+    t0: Instant,
+    id: u8,
+    start: Instant,
+    ours: &impl Fn(SessionId) -> bool,
+) -> Option<Instant> {
+    record.records.iter().find_map(|r| match &r.event {
+        SimEvent::Request {
+            id: rid,
+            corrupt: false,
+            ..
+        } if *rid == id && ours(r.session) && t0 + r.at >= start => Some(t0 + r.at),
+        _ => None,
+    })
+}
+
+/// Ids with auto-updates (manual 3.4.1, 3.4.2, 3.4.4–3.4.6).
+fn is_streamed(id: u8) -> bool {
+    matches!(
+        id,
+        id::SYSTEM_STATE | id::GRIP_STATE | id::WIDTH | id::SPEED | id::FORCE
+    )
 }
 
 fn is_motion(id: u8) -> bool {
