@@ -49,14 +49,15 @@ impl<S: Send + Sync + 'static, R: Send + 'static> Servers<S, R> {
     }
 
     /// After `at`, replaces the server by `fresh()`, keeping the old one's `record`; the old
-    /// one is dropped, which ends its connections.
+    /// one is dropped, which ends its connections. `end_fault_phase` calls it off if it is not
+    /// due by then.
     pub fn restart_at(
         &self,
         at: Duration,
         fresh: impl FnOnce() -> Arc<S> + Send + 'static,
         record: impl FnOnce(&S) -> R + Send + 'static,
         trace: SharedTrace,
-    ) {
+    ) -> super::Restart {
         let this = self.clone();
         tokio::spawn(async move {
             tokio::time::sleep(at).await;
@@ -66,7 +67,7 @@ impl<S: Send + Sync + 'static, R: Send + 'static> Servers<S, R> {
             r.push(record(&old));
             this.generation.store(r.len() as u64, Ordering::SeqCst);
             drop(old);
-        });
+        })
     }
 
     /// Every server's record, by generation (the one of the moment last).

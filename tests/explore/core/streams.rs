@@ -37,6 +37,14 @@ pub struct Carried {
     /// `(when, end)`: by `when`, every byte before offset `end` had been written to the
     /// reader's end of the pipe (which hands buffered bytes over even after a cut).
     pub delivered: Vec<(Instant, u64)>,
+    /// What the reader's end received, faults included, in order (the first
+    /// [`CARRIED_CAPACITY`] bytes): the frames the client's decoder saw.
+    pub output: Vec<u8>,
+    /// Positions in `output` of damaged bytes: inserted noise, or a byte that differs from the
+    /// input byte it carries (a flipped bit).
+    pub output_damaged: Vec<u64>,
+    /// `(when, end)`: by `when`, the first `end` bytes of `output` had been written.
+    pub output_delivered: Vec<(Instant, u64)>,
 }
 
 /// A [`Carried`] log shared with the pump that fills it.
@@ -322,6 +330,9 @@ impl Pump {
                 c.delivered.push((Instant::now(), last + 1))
             });
         }
+        if written {
+            log(&self.carried, |c| log_output(c, bytes, from));
+        }
         written
     }
 }
@@ -331,4 +342,20 @@ fn log(carried: &Option<CarriedLog>, f: impl FnOnce(&mut Carried)) {
     if let Some(c) = carried {
         f(&mut c.lock().unwrap_or_else(|e| e.into_inner()));
     }
+}
+
+/// Logs `bytes` (input offsets `from`) as written to the reader's end: what the decoder saw, and
+/// which of those bytes the faults made (noise) or changed (a flipped bit). A byte beyond what
+/// the log kept of the input counts as intact (the oracle then vouches for nothing more).
+fn log_output(c: &mut Carried, bytes: &[u8], from: &[u64]) {
+    let room = CARRIED_CAPACITY.saturating_sub(c.output.len());
+    for (&b, &o) in bytes.iter().zip(from).take(room) {
+        let damaged = o == NOISE || c.input.get(o as usize).is_some_and(|&i| i != b);
+        if damaged {
+            c.output_damaged.push(c.output.len() as u64);
+        }
+        c.output.push(b);
+    }
+    let end = c.output.len() as u64;
+    c.output_delivered.push((Instant::now(), end));
 }

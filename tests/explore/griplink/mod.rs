@@ -20,7 +20,7 @@ use tokio::time::Instant;
 
 use crate::core::servers::{watch_losses, Servers};
 use crate::core::streams::StreamProfile;
-use crate::core::{note, Caps, Prng, Scenario, SharedTrace};
+use crate::core::{end_fault_phase, note, Caps, Prng, Scenario, SharedTrace};
 
 /// The GRIPLINK scenario.
 pub struct Griplink;
@@ -188,10 +188,10 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
             )));
         }
     }
-    if level >= 2 && rng.one_in(4) {
+    let restart = (level >= 2 && rng.one_in(4)).then(|| {
         let at = rng.millis(0, 5000);
-        sims.restart_at(at, new_sim, SimServer::recording, trace.clone());
-    }
+        sims.restart_at(at, new_sim, SimServer::recording, trace.clone())
+    });
     for _ in 0..drops {
         let at = rng.millis(0, 5000);
         let (sims, trace) = (sims.clone(), trace.clone());
@@ -201,11 +201,7 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
             sims.current().0.inject(Fault::DropReply);
         });
     }
-    for c in callers {
-        let _ = c.await;
-    }
-    faults_on.store(false, Ordering::SeqCst);
-    note(&trace, "faults off");
+    end_fault_phase(callers, restart, &faults_on, &trace).await;
 
     // Quiet phase: after the recovery bound, a client that reconnects must answer; one that
     // does not must answer or (after a loss) fail with ConnectionLost. Not after a dropped

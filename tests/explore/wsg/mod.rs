@@ -22,7 +22,7 @@ use self::oracle::ClientView;
 use self::workload::{CallRec, ClientCtx, Log, Res};
 use crate::core::datagrams::{faulty_datagrams, DatagramProfile};
 use crate::core::streams::{faulty_pipe_logged, StreamProfile, MAX_STALL};
-use crate::core::{note, Caps, Prng, Scenario, SharedTrace};
+use crate::core::{end_fault_phase, note, restart_at, Caps, Prng, Scenario, SharedTrace};
 
 /// The WSG scenario.
 pub struct Wsg;
@@ -105,28 +105,11 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
             callers.push(tokio::spawn(task));
         }
     }
-    let restart = (level >= 2 && rng.one_in(4)).then(|| rng.millis(0, 5000));
-    let restart = restart.map(|at| {
-        let (sim, trace) = (sim.clone(), trace.clone());
-        tokio::spawn(async move {
-            tokio::time::sleep(at).await;
-            note(&trace, "fault: the device restarts");
-            sim.restart();
-        })
+    let restart = (level >= 2 && rng.one_in(4)).then(|| {
+        let sim = sim.clone();
+        restart_at(rng.millis(0, 5000), &trace, move || sim.restart())
     });
-    for c in callers {
-        // A caller that panicked is counted by the panic hook.
-        let _ = c.await;
-    }
-    // A restart is a fault: one not due by the end of the fault phase is called off, so the
-    // quiet phase (promise 5) sees none. It once came in the middle of the recovery check,
-    // whose call then failed with ConnectionLost on a client without reconnect
-    // (wsg-tcp:0xe3c42e54efcedf17).
-    if let Some(restart) = restart {
-        restart.abort();
-    }
-    faults_on.store(false, Ordering::SeqCst);
-    note(&trace, "faults off");
+    end_fault_phase(callers, restart, &faults_on, &trace).await;
 
     // The quiet phase.
     let mut quiet = Vec::new();

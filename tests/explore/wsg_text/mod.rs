@@ -227,11 +227,11 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
             callers.push(tokio::spawn(task));
         }
     }
-    if level >= 2 && rng.one_in(4) {
+    let restart = (level >= 2 && rng.one_in(4)).then(|| {
         let sim = sim.clone();
-        restart_at(rng.millis(0, 5000), &trace, move || sim.restart());
-    }
-    end_fault_phase(callers, &on, &trace).await;
+        restart_at(rng.millis(0, 5000), &trace, move || sim.restart())
+    });
+    end_fault_phase(callers, restart, &on, &trace).await;
 
     let mut v = Vec::new();
     for ctx in &ctxs {
