@@ -62,3 +62,85 @@ async fn barriers_of_several_fenced_ids_leave_the_line_silent_between_them() {
     }
     drop(client);
 }
+
+/// How long the device below needs the line silent to drop a frame it is stuck on: the
+/// simulator's rule, and the client's default partial frame timeout.
+const RESYNC: Duration = gripper::wsg::client::DEFAULT_PARTIAL_FRAME_TIMEOUT;
+
+/// A device whose decoder is stuck on a request with a corrupted length field (a header
+/// announcing 2072 bytes): it swallows every byte until the line has been silent for
+/// [`RESYNC`], then drops the stuck header and decodes what it swallowed, as the crate's
+/// simulator does. From then on it echoes loop-backs and answers width queries (12.5 mm).
+async fn stuck_device(io: tokio::io::DuplexStream) {
+    use gripper::wsg::frame::{self, Decoded, DEFAULT_MAX_PAYLOAD_LEN};
+    use gripper::wsg::{Reply, Status};
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let (mut rd, mut wr) = tokio::io::split(io);
+    let mut buf = bytes::BytesMut::from(&[0xAA, 0xAA, 0xAA, id::WIDTH, 0x18, 0x08][..]);
+    let mut stuck = true;
+    let mut chunk = [0u8; 512];
+    loop {
+        let read = if stuck {
+            tokio::time::timeout(RESYNC, rd.read(&mut chunk)).await
+        } else {
+            Ok(rd.read(&mut chunk).await)
+        };
+        match read {
+            Err(_) => {
+                // Silent for RESYNC: the stuck header goes, what came after it is decoded.
+                stuck = false;
+                bytes::Buf::advance(&mut buf, 6);
+            }
+            Ok(Ok(0) | Err(_)) => return,
+            Ok(Ok(n)) => buf.extend_from_slice(&chunk[..n]),
+        }
+        if stuck {
+            continue;
+        }
+        while let Some(decoded) = frame::decode(&mut buf, DEFAULT_MAX_PAYLOAD_LEN) {
+            let Decoded::Frame(f) = decoded else { continue };
+            let reply = match f.id {
+                id::LOOP => Reply::new(id::LOOP, Status::Success, f.payload),
+                id::WIDTH => Reply::new(id::WIDTH, Status::Success, 12.5f32.to_le_bytes().to_vec()),
+                _ => continue,
+            };
+            let mut out = bytes::BytesMut::new();
+            frame::encode(&reply.to_frame(), &mut out).unwrap();
+            if wr.write_all(&out).await.is_err() {
+                return;
+            }
+        }
+    }
+}
+
+/// Promise 5 of issue 20 (`wsg-serial:0xae89110881bc3727`): with a query timeout + grace
+/// below the device's resync silence, the barriers of a fenced id, one per query timeout +
+/// grace, never left the line silent long enough: the device stayed stuck and the id fenced,
+/// and every later call of it timed out. An unanswered loop-back now keeps its id the partial
+/// frame timeout longer (`Pairing::set_resync`): the line rests, the device resynchronises,
+/// the barrier's echo comes and the id works again. Also for a client whose own partial
+/// frame timeout is shorter than the device's resync silence (the rest is at least the
+/// default: `wsg-serial:0xcacf521c96086ae6`).
+#[tokio::test(start_paused = true)]
+async fn a_device_stuck_on_a_corrupted_length_gets_the_silence_it_needs() {
+    assert!(QUERY + GRACE < RESYNC);
+    for partial_frame_timeout in [RESYNC, Duration::from_millis(50)] {
+        let (ours, theirs) = tokio::io::duplex(1 << 16);
+        let device = tokio::spawn(stuck_device(theirs));
+        let client = Client::builder()
+            .query_timeout(QUERY)
+            .late_reply_grace(GRACE)
+            .partial_frame_timeout(partial_frame_timeout)
+            .attach(ours);
+        // Swallowed: times out, and its id is fenced.
+        assert!(client.width_mm().await.is_err());
+        tokio::time::sleep(Duration::from_secs(3)).await;
+        assert_eq!(
+            client.width_mm().await.unwrap(),
+            12.5,
+            "partial frame timeout {partial_frame_timeout:?}"
+        );
+        drop(client);
+        device.abort();
+    }
+}

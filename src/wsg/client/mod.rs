@@ -10,7 +10,7 @@
 //! |------|--------|----------|---------------|
 //! | One request per id on the wire; the next call of the id queues behind it; other ids run concurrently. | 1.2.2 | all | none by itself |
 //! | A timed-out or dropped call keeps its id until its reply, or its deadline plus [`ClientBuilder::late_reply_grace`]; the late reply is discarded. | 1.2.2 | all | UDP: a reply later than the grace is taken for the next call of the id (datagrams keep no order: no barrier can prove that none is still on its way) |
-//! | TCP, serial, attached streams: a request released with no reply at all *fences* its id: the next request of the id waits for the echo of a loop-back (0x06, unique payload) sent at the release, and a reply of the id before that echo is the late one (dropped). A released motion goes back under recovery (below) at its E_CMD_PENDING, if that still comes before the echo, or at the echo (its E_CMD_PENDING may have been corrupted while the move runs: its final reply must not complete the next request). | 1.2.2, 1.3, 3.1.1 | TCP, serial | the manual does not state in so many words that a connection's immediate replies keep the order of its commands (its request-reply scheme implies it); the final reply of an acknowledged non-motion command (finger power on) later than the grace is not fenced; while no echo comes, calls of the fenced id time out; a device that answers three barriers in a row with something other than their echo gets the id released as on UDP |
+//! | TCP, serial, attached streams: a request released with no reply at all *fences* its id: the next request of the id waits for the echo of a loop-back (0x06, unique payload) sent at the release, and a reply of the id before that echo is the late one (dropped). A released motion goes back under recovery (below) at its E_CMD_PENDING, if that still comes before the echo, or at the echo (its E_CMD_PENDING may have been corrupted while the move runs: its final reply must not complete the next request). | 1.2.2, 1.3, 3.1.1 | TCP, serial | the manual does not state in so many words that a connection's immediate replies keep the order of its commands (its request-reply scheme implies it); the final reply of an acknowledged non-motion command (finger power on) later than the grace is not fenced; while no echo comes, calls of the fenced id time out (on TCP and serial an unanswered loop-back keeps its id [`ClientBuilder::partial_frame_timeout`] (at least [`DEFAULT_PARTIAL_FRAME_TIMEOUT`]) longer than other requests, so the line rests that long between barriers: a device whose decoder waits for silence to drop a frame with a corrupted length, as the simulator's does, gets it; the manual does not say how the device recovers: one that needs longer silence than a barrier's query timeout + partial frame timeout + grace may keep the id fenced); a device that answers three barriers in a row with something other than their echo gets the id released as on UDP |
 //! | E_CMD_PENDING acknowledges; the final reply follows and ends the call. | 1.3 | all | — |
 //! | No request keeps its id for ever, whatever its caller's deadline (`Duration::MAX`, or a caller that dropped the call): unacknowledged, it is released (fenced on streams) [`ClientBuilder::query_timeout`] + grace after it was sent, and a caller still waiting gets [`Error::Timeout`]; acknowledged, a motion goes under recovery (below) [`ClientBuilder::motion_timeout`] after it was sent. | 1.2.2, 1.3 (the reply or E_CMD_PENDING comes at once) | all | a raw request whose *immediate* reply the device sends later than the query timeout + grace (none in the manual) is released before it; an acknowledged non-motion command keeps its id until its caller's deadline + grace |
 //! | An E_CMD_PENDING after a final reply that had none may be that request's, reordered: it acknowledges the next request only doubtfully, and E_ALREADY_RUNNING still ends it. | 1.3 | all (needed on UDP) | UDP: a duplicated request's refusal, in that situation, ends the call as refused |
@@ -169,6 +169,11 @@ impl ClientBuilder {
     /// id is released and no probe is sent, so a reply held behind it never reaches a newer
     /// request. Keep it above the longest time a sound link takes for one frame (a TCP
     /// retransmission takes 200 ms or more; at 9600 baud a 4 KiB frame takes over 4 s).
+    ///
+    /// On TCP and serial it (or [`DEFAULT_PARTIAL_FRAME_TIMEOUT`], if longer) is also the rest
+    /// the line gets after a loop-back barrier that went unanswered (see the
+    /// [pairing rules](crate::wsg::client#pairing-rules)): the device's decoder is taken to drop
+    /// a frame with a corrupted length after no longer silence than that.
     pub fn partial_frame_timeout(mut self, t: Duration) -> Self {
         self.partial_frame_timeout = t;
         self
@@ -349,6 +354,13 @@ impl ClientBuilder {
             lost.clone(),
         );
         task.partial_frame_timeout = self.partial_frame_timeout;
+        // A device's decoder is taken to need no longer silence to drop a frame with a
+        // corrupted length than the default partial frame timeout, or ours if longer (the
+        // manual does not say; the simulator needs the default).
+        task.pairing.set_resync(
+            self.partial_frame_timeout
+                .max(DEFAULT_PARTIAL_FRAME_TIMEOUT),
+        );
         task.tcp = kind == TransportKind::Tcp;
         task.reconnect = self
             .reconnect

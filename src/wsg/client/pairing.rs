@@ -327,6 +327,9 @@ pub(crate) struct Pairing {
     /// The transport keeps replies in order and loses none (TCP, serial): a released id can
     /// be fenced by a barrier ([`Due::Fenced`]).
     ordered: bool,
+    /// On an ordered transport, how much longer than other requests an unanswered loop-back
+    /// keeps its id: see [`Pairing::set_resync`].
+    resync: Duration,
 }
 
 impl Pairing {
@@ -339,6 +342,38 @@ impl Pairing {
             grace,
             holds: (Duration::MAX, Duration::MAX),
             ordered: false,
+            resync: Duration::ZERO,
+        }
+    }
+
+    /// On an ordered transport, an unanswered loop-back (0x06: every barrier is one) keeps its
+    /// id `resync` longer than other requests: the reply hold + `resync` + grace from its
+    /// send. A request whose length field was corrupted on the way may leave the device's
+    /// decoder waiting for thousands of bytes, every later frame swallowed, until the line
+    /// falls silent (the manual says nothing about how the device recovers, 1.2.1; the
+    /// crate's simulator drops such a frame after the partial frame timeout of silence). The
+    /// barriers of fenced ids follow each other as each is released: at one per reply hold +
+    /// grace the line would never be silent that long, and the fenced ids would stay fenced.
+    /// So the line rests for `resync` after each barrier, and the barrier still gets its
+    /// round trip after the device resynchronised (the explorer's
+    /// `wsg-serial:0xae89110881bc3727`). Only loop-backs: a stop is never held, and a caller's
+    /// own loop-back with a timeout is released at its deadline + grace as before. A stop's
+    /// barrier (its echo proves the stop's reply lost, [`super::stops`]) is a loop-back too:
+    /// when that echo is lost as well, the stop goes out again up to `resync` later than
+    /// without the rest; and a device stuck so would swallow a re-sent stop anyway, which only
+    /// the rest lets through.
+    pub(crate) fn set_resync(&mut self, resync: Duration) {
+        self.resync = resync;
+    }
+
+    /// The (reply hold, motion hold) of a request of `id` ([`Pairing::set_holds`],
+    /// [`Pairing::set_resync`]).
+    fn holds_of(&self, id: u8) -> (Duration, Duration) {
+        let (reply, motion) = self.holds;
+        if self.ordered && id == id::LOOP {
+            (reply.saturating_add(self.resync), motion)
+        } else {
+            (reply, motion)
         }
     }
 
@@ -398,9 +433,10 @@ impl Pairing {
                 .submit(req.token, req.deadline, now, grace);
             return Submit::Send(req);
         }
+        let holds = self.holds_of(id);
         let st = self.ids.entry(id).or_default();
         if st.in_flight.is_none() && st.queue.is_empty() && !st.fenced {
-            st.in_flight = Some(InFlight::new(&req, self.grace, self.holds, now));
+            st.in_flight = Some(InFlight::new(&req, self.grace, holds, now));
             return Submit::Send(req);
         }
         st.queue.push_back(req);
@@ -602,6 +638,7 @@ impl Pairing {
         now: Instant,
     ) -> (Option<Request>, Vec<Token>) {
         let mut skipped = Vec::new();
+        let holds = self.holds_of(id);
         let Some(st) = self.ids.get_mut(&id) else {
             return (None, skipped);
         };
@@ -610,7 +647,7 @@ impl Pairing {
         }
         while let Some(req) = st.queue.pop_front() {
             if alive(req.token) {
-                st.in_flight = Some(InFlight::new(&req, self.grace, self.holds, now));
+                st.in_flight = Some(InFlight::new(&req, self.grace, holds, now));
                 return (Some(req), skipped);
             }
             skipped.push(req.token);
@@ -1420,6 +1457,39 @@ mod tests {
         );
         assert_eq!(p.next_due(), Some(now + ms(300)));
         assert_eq!(p.due(now + ms(300)), vec![Due::Probe(id::HOMING, 1)]);
+    }
+
+    /// On an ordered transport an unanswered loop-back keeps its id the resync pause longer
+    /// than other requests (the line rests so that a device stuck on a corrupted length field
+    /// can drop it, `wsg-serial:0xae89110881bc3727`); a caller's loop-back with a timeout is
+    /// still released at its deadline + grace; UDP needs no pause.
+    #[test]
+    fn an_unanswered_loop_back_keeps_its_id_for_the_resync_pause_on_an_ordered_transport() {
+        let now = Instant::now();
+        let ms = Duration::from_millis;
+        let never = after(now, Duration::MAX);
+        for ordered in [true, false] {
+            let mut p = Pairing::new(ms(100));
+            p.set_ordered(ordered);
+            p.set_holds(ms(100), ms(1000));
+            p.set_resync(ms(500));
+            assert_eq!(sent(p.submit(req(1, id::LOOP, never), now)), Some(1));
+            assert_eq!(sent(p.submit(req(2, 0x50, never), now)), Some(2));
+            let due = p.due(now + ms(200));
+            assert_eq!(
+                due.contains(&Due::Released(id::LOOP, 1)),
+                !ordered,
+                "{due:?}"
+            );
+            if ordered {
+                assert_eq!(due, vec![Due::Fenced(0x50, 2)]);
+                assert!(p.due(now + ms(699)).is_empty());
+                assert_eq!(p.due(now + ms(700)), vec![Due::Released(id::LOOP, 1)]);
+            }
+            // A caller's loop-back with a timeout: its deadline + grace.
+            assert_eq!(sent(p.submit(req(3, id::LOOP, now + ms(50)), now)), Some(3));
+            assert_eq!(p.due(now + ms(150)), vec![Due::Released(id::LOOP, 3)]);
+        }
     }
 
     /// Stops on an ordered transport: a barrier, not a resend, for a call that waits too long,

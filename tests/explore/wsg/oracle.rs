@@ -199,13 +199,7 @@ fn check_client(
     // 2, 3, 4: each answer is one reply the device sent to this client during the call; one
     // reply answers one call. Earliest end first, earliest reply first: for intervals this
     // greedy finds a matching whenever one exists.
-    let mut answered: Vec<&&CallRec> = calls
-        .iter()
-        .filter(|c| {
-            matches!(c.res, Res::Device(..))
-                || matches!(&c.res, Res::Ok(e) if *e != Expect::Nothing)
-        })
-        .collect();
+    let mut answered: Vec<&&CallRec> = calls.iter().filter(|c| answered(c)).collect();
     answered.sort_by_key(|c| c.end);
     for c in answered {
         let fits = |s: &Sent| -> bool {
@@ -234,7 +228,9 @@ fn check_client(
         let strict = is_streamed(c.id) && !udp;
         let received = strict
             .then(|| first_request(record, t0, c.id, c.start, &ours))
-            .flatten();
+            .flatten()
+            .filter(|&(i, at)| at < c.end || !next_calls_request(calls, c, record, t0, i, &ours))
+            .map(|(_, at)| at);
         let not_before = match received {
             Some(at) => at,
             None if strict => c.end + Duration::from_nanos(1),
@@ -394,23 +390,93 @@ fn moving_is_the_next_motion(record: &SimRecording, i: usize) -> bool {
         .any(|r| matches!(r.event, SimEvent::Reply { id, status: Status::CmdPending, .. } if requested.contains(&id)))
 }
 
-/// When the device first received an intact request of `id` from this client at or after
-/// `start`.
+/// The first intact request of `id` the device received from this client at or after
+/// `start`: its record index and when.
 fn first_request(
     record: &SimRecording,
     t0: Instant,
     id: u8,
     start: Instant,
     ours: &impl Fn(SessionId) -> bool,
-) -> Option<Instant> {
-    record.records.iter().find_map(|r| match &r.event {
-        SimEvent::Request {
-            id: rid,
-            corrupt: false,
-            ..
-        } if *rid == id && ours(r.session) && t0 + r.at >= start => Some(t0 + r.at),
-        _ => None,
-    })
+) -> Option<(usize, Instant)> {
+    record
+        .records
+        .iter()
+        .enumerate()
+        .find_map(|(i, r)| match &r.event {
+            SimEvent::Request {
+                id: rid,
+                corrupt: false,
+                ..
+            } if *rid == id && ours(r.session) && t0 + r.at >= start => Some((i, t0 + r.at)),
+            _ => None,
+        })
+}
+
+/// Whether call `c` ended on an answer of the device (a value, a status): one reply of the
+/// device must account for it.
+fn answered(c: &CallRec) -> bool {
+    matches!(c.res, Res::Device(..)) || matches!(&c.res, Res::Ok(e) if *e != Expect::Nothing)
+}
+
+/// Whether request `i` of `c`'s id, received at the very instant `c` ended, may be the request
+/// of a later call of the id on this client rather than `c`'s own: the calls of the id that had
+/// begun by then (not before `c`), were still going and ended on an answer of the device cannot
+/// each have another intact request of the id within their time (one request per call; a
+/// call of a streamed id sends its request only once the previous one of the id is off the
+/// wire, `c` ending at that instant included). The record's instants do not order the client's
+/// steps within one instant, so at that instant the request may be either's; it goes to the
+/// later calls if they need it. (`c` then counts as a call whose request did not reach the
+/// device: its request was corrupted, and the stream's frame it got is the documented
+/// residual, tagged [`NO_REQUEST`]. `wsg-tcp:0x8f85c166eeff961d`: a width query whose request
+/// was corrupted ended on its barrier's echo at the instant the next width query's request,
+/// rewritten to the stream's flags, reached the device, and took that query's reply in the
+/// matching; `wsg-serial:0x7cf70070d2357529`: the same with a subscription and a width query
+/// after it, two calls and one request after that instant.)
+fn next_calls_request(
+    calls: &[&CallRec],
+    c: &CallRec,
+    record: &SimRecording,
+    t0: Instant,
+    i: usize,
+    ours: &impl Fn(SessionId) -> bool,
+) -> bool {
+    let at = t0 + record.records[i].at;
+    let mut later: Vec<&CallRec> = calls
+        .iter()
+        .copied()
+        .filter(|b| {
+            !std::ptr::eq(*b, c)
+                && b.id == c.id
+                && b.start >= c.start
+                && b.start <= at
+                && b.end >= at
+                && answered(b)
+        })
+        .collect();
+    later.sort_by_key(|b| b.end);
+    // The other intact requests of the id from this client: earliest end first, each takes the
+    // earliest one within its time (for intervals this finds an assignment if one exists).
+    let mut others: Vec<Instant> = record
+        .records
+        .iter()
+        .enumerate()
+        .filter(|(k, r)| {
+            *k != i
+                && ours(r.session)
+                && matches!(r.event, SimEvent::Request { id, corrupt: false, .. } if id == c.id)
+        })
+        .map(|(_, r)| t0 + r.at)
+        .collect();
+    later.iter().any(
+        |b| match others.iter().position(|&t| t >= b.start && t <= b.end) {
+            Some(k) => {
+                others.remove(k);
+                false
+            }
+            None => true,
+        },
+    )
 }
 
 /// Ids with auto-updates (manual 3.4.1, 3.4.2, 3.4.4–3.4.6).
