@@ -84,7 +84,7 @@ impl Connector {
                 .await
                 .map_err(|_| timed_out())??,
         };
-        Ok(super::stream_link(io, self.max_payload_len))
+        Ok(super::builder::stream_link(io, self.max_payload_len))
     }
 }
 

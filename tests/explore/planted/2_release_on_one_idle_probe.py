@@ -5,4 +5,8 @@ from _plant import plant
 
 KIND = "4 (ReplyLost only for a final reply that was lost"
 
-plant("src/wsg/client/pairing.rs", "Observation::Idle if f.idle_seen => {", "Observation::Idle => {")
+plant(
+    "src/wsg/client/pairing.rs",
+    "(Observation::Idle, Some(first)) if now >= after(first, grace) => {",
+    "(Observation::Idle, _) => {",
+)

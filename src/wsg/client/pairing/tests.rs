@@ -1,0 +1,803 @@
+//! The pairing rules as a pure state machine: each test drives `Pairing` by hand, with no I/O
+//! and no clock but the instants it passes.
+
+use super::*;
+
+fn req(token: Token, id: u8, deadline: Instant) -> Request {
+    Request {
+        token,
+        frame: Frame::new(id, Bytes::new()),
+        deadline,
+    }
+}
+
+fn reply(id: u8, status: Status) -> Reply {
+    Reply::new(id, status, Bytes::new())
+}
+
+fn sent(s: Submit) -> Option<Token> {
+    match s {
+        Submit::Send(r) => Some(r.token),
+        _ => None,
+    }
+}
+
+#[test]
+fn same_id_queues_different_ids_run() {
+    let now = Instant::now();
+    let t = now + Duration::from_secs(1);
+    let mut p = Pairing::new(Duration::from_secs(1));
+    assert_eq!(sent(p.submit(req(1, 0x43, t), now)), Some(1));
+    assert!(matches!(p.submit(req(2, 0x43, t), now), Submit::Queued));
+    assert_eq!(sent(p.submit(req(3, 0x40, t), now)), Some(3));
+    assert_eq!(
+        p.on_reply(reply(0x40, Status::Success)),
+        Event::Resolved(3, reply(0x40, Status::Success))
+    );
+    assert_eq!(
+        p.on_reply(reply(0x43, Status::Success)),
+        Event::Resolved(1, reply(0x43, Status::Success))
+    );
+    let (next, skipped) = p.next(0x43, |_| true, Instant::now());
+    assert_eq!(next.map(|r| r.token), Some(2));
+    assert!(skipped.is_empty());
+    assert!(matches!(
+        p.on_reply(reply(0x43, Status::Success)),
+        Event::Resolved(2, _)
+    ));
+    assert!(matches!(
+        p.on_reply(reply(0x43, Status::Success)),
+        Event::Unsolicited(_)
+    ));
+}
+
+/// A query of a streamed id settled by a barrier: the last E_SUCCESS frame before the echo
+/// answers it (earlier ones may be updates sent before the device received it); an echo
+/// with no frame before it leaves no later frame to answer it.
+#[test]
+fn a_streamed_query_is_answered_by_the_last_frame_before_its_barrier() {
+    let now = Instant::now();
+    let t = now + Duration::from_secs(1);
+    let mut p = Pairing::new(Duration::from_secs(1));
+    p.set_ordered(true);
+    let width = |mm: u8| Reply::new(0x43, Status::Success, Bytes::from(vec![mm]));
+    assert_eq!(sent(p.submit(req(1, 0x43, t), now)), Some(1));
+    p.settle_by_barrier(0x43, 1);
+    assert_eq!(p.on_reply(width(1)), Event::Unsolicited(width(1)));
+    assert_eq!(p.on_reply(width(2)), Event::Unsolicited(width(2)));
+    assert_eq!(p.settle(0x43, 1), Some(width(2)));
+    assert!(!p.done(0x43));
+    // No frame before the echo: lost, and a later frame does not answer it.
+    assert_eq!(sent(p.submit(req(2, 0x43, t), now)), Some(2));
+    p.settle_by_barrier(0x43, 2);
+    assert_eq!(p.settle(0x43, 2), None);
+    assert_eq!(p.on_reply(width(3)), Event::Unsolicited(width(3)));
+    // A refusal is no update: it answers at once.
+    let mut q = Pairing::new(Duration::from_secs(1));
+    assert_eq!(sent(q.submit(req(3, 0x43, t), now)), Some(3));
+    q.settle_by_barrier(0x43, 3);
+    let refused = reply(0x43, Status::CmdFormatError);
+    assert_eq!(q.on_reply(refused.clone()), Event::Resolved(3, refused));
+    assert_eq!(q.settle(0x43, 3), None);
+}
+
+#[test]
+fn pending_then_final_and_stop_is_not_blocked() {
+    let now = Instant::now();
+    let t = now + Duration::from_secs(1);
+    let mut p = Pairing::new(Duration::from_secs(1));
+    assert_eq!(sent(p.submit(req(1, 0x21, t), now)), Some(1));
+    assert_eq!(
+        p.on_reply(reply(0x21, Status::CmdPending)),
+        Event::Accepted(1)
+    );
+    assert_eq!(
+        sent(p.submit(req(2, 0x22, t), now)),
+        Some(2),
+        "stop must not wait for the move"
+    );
+    assert!(matches!(
+        p.on_reply(reply(0x22, Status::Success)),
+        Event::Stopped(ref t, _) if t == &[2]
+    ));
+    assert!(
+        matches!(p.on_reply(reply(0x21, Status::CmdAborted)), Event::Resolved(1, r) if r.status == Status::CmdAborted)
+    );
+}
+
+#[test]
+fn stops_are_never_queued_and_a_reply_completes_only_the_calls_it_can_answer() {
+    let now = Instant::now();
+    let t = now + Duration::from_secs(1);
+    let mut p = Pairing::new(Duration::from_secs(1));
+    for id in [id::STOP, id::FAST_STOP] {
+        // The first stop's reply is outstanding: the second still goes out at once.
+        assert_eq!(sent(p.submit(req(1, id, t), now)), Some(1));
+        assert_eq!(sent(p.submit(req(2, id, t), now)), Some(2));
+        // Only a resend is ever due for a stop (it holds no id).
+        assert_eq!(p.next_due(), Some(now + super::super::stops::RESEND_AFTER));
+        // The first reply may answer the first stop, sent before the second call: it
+        // completes the first call only (issue 20.2 #3).
+        assert_eq!(
+            p.on_reply(reply(id, Status::Success)),
+            Event::Stopped(vec![1], reply(id, Status::Success))
+        );
+        assert_eq!(
+            p.on_reply(reply(id, Status::Success)),
+            Event::Stopped(vec![2], reply(id, Status::Success))
+        );
+        // A caller that went away is forgotten before the next stop goes out.
+        assert_eq!(sent(p.submit(req(3, id, t), now)), Some(3));
+        assert_eq!(p.prune(id, |t| t != 3), vec![3]);
+        assert!(matches!(
+            p.on_reply(reply(id, Status::Success)),
+            Event::Unsolicited(_)
+        ));
+    }
+    assert!(p.drain().is_empty());
+}
+
+#[test]
+fn dead_queued_callers_are_skipped_and_unanswered_ids_released_after_grace() {
+    let now = Instant::now();
+    let mut p = Pairing::new(Duration::from_millis(500));
+    assert!(matches!(p.submit(req(1, 0x50, now), now), Submit::Send(_)));
+    assert!(matches!(p.submit(req(2, 0x50, now), now), Submit::Queued));
+    assert!(matches!(p.submit(req(3, 0x50, now), now), Submit::Queued));
+    assert_eq!(p.next_due(), Some(now + Duration::from_millis(500)));
+    assert!(p.due(now).is_empty());
+    assert_eq!(
+        p.due(now + Duration::from_millis(500)),
+        vec![Due::Released(0x50, 1)]
+    );
+    let (next, skipped) = p.next(0x50, |t| t != 2, Instant::now());
+    assert_eq!(next.map(|r| r.token), Some(3));
+    assert_eq!(skipped, vec![2]);
+}
+
+/// A call without timeout (deadline `Instant` + `Duration::MAX`, saturated) whose reply is
+/// lost, or whose caller dropped the call, does not keep its id for ever
+/// (wsg-udp:0x8fdf7f0a06b3bd7e): unacknowledged, it is released the reply hold + grace
+/// after it was sent; an acknowledged motion goes under recovery the motion hold after it
+/// was sent (and is released only on evidence, as before).
+#[test]
+fn a_request_without_deadline_keeps_its_id_only_for_the_holds() {
+    let now = Instant::now();
+    let never = after(now, Duration::MAX);
+    let grace = Duration::from_millis(100);
+    let (query, motion) = (Duration::from_secs(1), Duration::from_secs(10));
+    let mut p = Pairing::new(grace);
+    p.set_holds(query, motion);
+    assert!(matches!(
+        p.submit(req(1, 0x50, never), now),
+        Submit::Send(_)
+    ));
+    assert!(matches!(p.submit(req(2, 0x50, never), now), Submit::Queued));
+    assert_eq!(p.next_due(), Some(now + query + grace));
+    assert!(p.due(now + query).is_empty());
+    assert_eq!(p.due(now + query + grace), vec![Due::Released(0x50, 1)]);
+    let later = now + query + grace;
+    assert_eq!(p.next(0x50, |_| true, later).0.map(|r| r.token), Some(2));
+    // The next one is bounded from when it was sent.
+    assert_eq!(p.next_due(), Some(later + query + grace));
+    assert!(matches!(
+        p.on_reply(reply(0x50, Status::Success)),
+        Event::Resolved(2, _)
+    ));
+
+    assert!(matches!(
+        p.submit(req(3, 0x21, never), now),
+        Submit::Send(_)
+    ));
+    assert_eq!(
+        p.on_reply(reply(0x21, Status::CmdPending)),
+        Event::Accepted(3)
+    );
+    assert_eq!(p.due(now + motion), vec![Due::Probe(0x21, 3)]);
+}
+
+#[test]
+fn an_acknowledged_non_motion_request_is_released_after_its_deadline_and_grace() {
+    // Finger power (0x62) answers E_CMD_PENDING and its final reply "nach etwa 500 ms"
+    // (3.6.3): a lost final reply must not hold the id for good.
+    let now = Instant::now();
+    let grace = Duration::from_millis(500);
+    let mut p = Pairing::new(grace);
+    assert!(matches!(p.submit(req(1, 0x62, now), now), Submit::Send(_)));
+    assert_eq!(
+        p.on_reply(reply(0x62, Status::CmdPending)),
+        Event::Accepted(1)
+    );
+    assert!(matches!(p.submit(req(2, 0x62, now), now), Submit::Queued));
+    assert_eq!(p.next_due(), Some(now + grace));
+    assert_eq!(p.due(now + grace), vec![Due::Released(0x62, 1)]);
+    assert_eq!(
+        p.next(0x62, |_| true, Instant::now()).0.map(|r| r.token),
+        Some(2)
+    );
+}
+
+#[test]
+fn a_second_motion_call_is_refused_only_when_a_probe_after_it_sees_the_device_move() {
+    let now = Instant::now();
+    let t = now + Duration::from_secs(10);
+    let mut p = Pairing::new(Duration::from_secs(1));
+    for id in [id::HOMING, id::PRE_POSITION, id::GRASP, id::RELEASE] {
+        assert!(matches!(p.submit(req(1, id, t), now), Submit::Send(_)));
+        // Not acknowledged yet: the second waits to see whether the first runs ...
+        assert!(matches!(p.submit(req(2, id, t), now), Submit::Queued));
+        assert_eq!(p.next_due(), Some(t + Duration::from_secs(1)));
+        assert_eq!(
+            p.on_reply(reply(id, Status::CmdPending)),
+            Event::Accepted(1)
+        );
+        // ... and once it does, the device is asked at once (no refusal on a belief).
+        p.verify_queued(id, now);
+        assert_eq!(p.next_due(), Some(now));
+        assert_eq!(p.due(now), vec![Due::Probe(id, 1)]);
+        // A call made after the probe went out (probe token 10) is not refused on it ...
+        assert!(matches!(p.submit(req(11, id, t), now), Submit::Queued));
+        assert_eq!(
+            p.on_probe(id, 1, Observation::Moving, now, 10),
+            Verdict::Running(vec![2])
+        );
+        // ... it gets a probe of its own, at once.
+        assert_eq!(p.due(now), vec![Due::Probe(id, 1)]);
+        assert_eq!(
+            p.on_probe(id, 1, Observation::Moving, now, 12),
+            Verdict::Running(vec![11])
+        );
+        // Nobody waits: no probe before the first call's deadline.
+        assert_eq!(p.next_due(), Some(t));
+        assert!(matches!(
+            p.on_reply(reply(id, Status::Success)),
+            Event::Resolved(1, _)
+        ));
+        assert_eq!(p.next(id, |_| true, now).0.map(|r| r.token), None);
+    }
+    // A refused first call frees the id for the one queued behind it.
+    assert!(matches!(p.submit(req(4, 0x21, t), now), Submit::Send(_)));
+    assert!(matches!(p.submit(req(5, 0x21, t), now), Submit::Queued));
+    assert!(matches!(
+        p.on_reply(reply(0x21, Status::AccessDenied)),
+        Event::Resolved(4, _)
+    ));
+    assert_eq!(
+        p.next(0x21, |_| true, Instant::now()).0.map(|r| r.token),
+        Some(5)
+    );
+}
+
+/// Issue 20.2 #1: a second call behind an acknowledged move whose final reply is lost is
+/// sent once the device said twice, a grace apart, that it does not move, before the first
+/// call's deadline: never refused on the belief that the move still runs.
+#[test]
+fn a_lost_final_reply_frees_the_id_for_a_waiting_call_before_the_deadline() {
+    let now = Instant::now();
+    let grace = Duration::from_millis(100);
+    let t = now + Duration::from_secs(30);
+    let mut p = Pairing::new(grace);
+    assert!(matches!(p.submit(req(1, 0x21, t), now), Submit::Send(_)));
+    assert_eq!(
+        p.on_reply(reply(0x21, Status::CmdPending)),
+        Event::Accepted(1)
+    );
+    assert!(matches!(p.submit(req(2, 0x21, t), now), Submit::Queued));
+    assert_eq!(p.due(now), vec![Due::Probe(0x21, 1)]);
+    assert_eq!(
+        p.on_probe(0x21, 1, Observation::Idle, now, 3),
+        Verdict::Undecided
+    );
+    assert_eq!(p.next_due(), Some(now + grace));
+    assert_eq!(p.due(now + grace), vec![Due::Probe(0x21, 1)]);
+    assert_eq!(
+        p.on_probe(0x21, 1, Observation::Idle, now + grace, 4),
+        Verdict::Abandoned
+    );
+    assert_eq!(
+        p.next(0x21, |_| true, Instant::now()).0.map(|r| r.token),
+        Some(2)
+    );
+}
+
+#[test]
+fn recovery_needs_two_idle_observations_a_grace_apart() {
+    let now = Instant::now();
+    let grace = Duration::from_millis(200);
+    let deadline = now + Duration::from_secs(1);
+    let mut p = Pairing::new(grace);
+    assert!(matches!(
+        p.submit(req(1, 0x25, deadline), now),
+        Submit::Send(_)
+    ));
+    assert_eq!(
+        p.on_reply(reply(0x25, Status::CmdPending)),
+        Event::Accepted(1)
+    );
+    // Nothing is due before the caller's deadline, and then a probe, never a release.
+    assert_eq!(p.next_due(), Some(deadline));
+    assert!(p.due(deadline - Duration::from_millis(1)).is_empty());
+    assert_eq!(p.due(deadline), vec![Due::Probe(0x25, 1)]);
+    assert_eq!(p.next_due(), None, "one probe at a time");
+    // Past the deadline a new call waits for the verdict instead of being refused.
+    let later = deadline + Duration::from_millis(1);
+    assert!(matches!(
+        p.submit(req(2, 0x25, later + grace), later),
+        Submit::Queued
+    ));
+    // Moving: the waiting call is refused, the next probe comes a grace later.
+    assert_eq!(
+        p.on_probe(0x25, 1, Observation::Moving, later, 100),
+        Verdict::Running(vec![2])
+    );
+    assert_eq!(p.next_due(), Some(later + grace));
+    // One "idle" is not enough ...
+    let t1 = later + grace;
+    assert_eq!(p.due(t1), vec![Due::Probe(0x25, 1)]);
+    assert_eq!(
+        p.on_probe(0x25, 1, Observation::Idle, t1, 100),
+        Verdict::Undecided
+    );
+    // ... a failed probe starts over ...
+    assert_eq!(p.due(t1 + grace), vec![Due::Probe(0x25, 1)]);
+    assert_eq!(
+        p.on_probe(0x25, 1, Observation::Unknown, t1 + grace, 100),
+        Verdict::Undecided
+    );
+    let t2 = t1 + grace * 2;
+    assert_eq!(p.due(t2), vec![Due::Probe(0x25, 1)]);
+    assert_eq!(
+        p.on_probe(0x25, 1, Observation::Idle, t2, 100),
+        Verdict::Undecided
+    );
+    // ... and a final reply in between ends the recovery: it answers its own request.
+    assert!(matches!(
+        p.submit(req(3, 0x25, t2 + grace), t2),
+        Submit::Queued
+    ));
+    assert!(matches!(
+        p.on_reply(reply(0x25, Status::AxisBlocked)),
+        Event::Resolved(1, r) if r.status == Status::AxisBlocked
+    ));
+    assert_eq!(
+        p.on_probe(0x25, 1, Observation::Idle, t2 + grace, 100),
+        Verdict::Undecided
+    );
+    let (next, _) = p.next(0x25, |_| true, Instant::now());
+    let next = next.unwrap();
+    assert_eq!(next.token, 3);
+    // Two idle observations in a row with no final reply: abandoned, the id is free.
+    assert_eq!(
+        p.on_reply(reply(0x25, Status::CmdPending)),
+        Event::Accepted(3)
+    );
+    let d = next.deadline;
+    assert_eq!(p.due(d), vec![Due::Probe(0x25, 3)]);
+    assert_eq!(
+        p.on_probe(0x25, 3, Observation::Idle, d, 100),
+        Verdict::Undecided
+    );
+    assert_eq!(p.due(d + grace), vec![Due::Probe(0x25, 3)]);
+    assert_eq!(
+        p.on_probe(0x25, 3, Observation::Idle, d + grace, 100),
+        Verdict::Abandoned
+    );
+    assert!(matches!(
+        p.on_reply(reply(0x25, Status::Success)),
+        Event::Unsolicited(_)
+    ));
+}
+
+/// The explorer's `wsg-tcp:0x8f85c166eeff961d`, distilled: a home under recovery gets a
+/// first "not moving"; a call of the id queued then must not pull the second probe forward
+/// (two "not moving" a few ms apart abandoned the home while its final reply, due up to
+/// the Anhang B lag after the fingers stop, was still coming; it then completed the next
+/// home). A second "not moving" less than a grace after the first does not abandon either.
+#[test]
+fn a_queued_call_pulls_only_the_first_recovery_probe_forward() {
+    let now = Instant::now();
+    let grace = Duration::from_millis(1000);
+    let ms = Duration::from_millis;
+    for deadline in [now + ms(100), after(now, Duration::MAX)] {
+        let mut p = Pairing::new(grace);
+        p.set_ordered(true);
+        p.set_holds(ms(500), ms(100));
+        assert!(matches!(
+            p.submit(req(1, id::HOMING, deadline), now),
+            Submit::Send(_)
+        ));
+        assert_eq!(
+            p.on_reply(reply(id::HOMING, Status::CmdPending)),
+            Event::Accepted(1)
+        );
+        assert_eq!(p.due(now + ms(100)), vec![Due::Probe(id::HOMING, 1)]);
+        let t1 = now + ms(110);
+        assert_eq!(
+            p.on_probe(id::HOMING, 1, Observation::Idle, t1, 2),
+            Verdict::Undecided
+        );
+        // Another home queues 20 ms later: the next probe stays a grace after the first
+        // "not moving" (and is due then even for a caller without a deadline).
+        assert!(matches!(
+            p.submit(req(3, id::HOMING, deadline), t1 + ms(20)),
+            Submit::Queued
+        ));
+        p.verify_queued(id::HOMING, t1 + ms(20));
+        assert_eq!(p.next_due(), Some(t1 + grace));
+        assert!(p.due(t1 + ms(20)).is_empty());
+        // Even a "not moving" that came sooner (a probe already out) does not abandon.
+        assert_eq!(
+            p.on_probe(id::HOMING, 1, Observation::Idle, t1 + ms(40), 4),
+            Verdict::Undecided
+        );
+        // The home's final reply, 300 ms after the first "not moving", is its own.
+        assert_eq!(
+            p.on_reply(reply(id::HOMING, Status::Success)),
+            Event::Resolved(1, reply(id::HOMING, Status::Success))
+        );
+        assert_eq!(
+            p.next(id::HOMING, |_| true, t1 + ms(300))
+                .0
+                .map(|r| r.token),
+            Some(3)
+        );
+    }
+}
+
+#[test]
+fn replies_that_cannot_answer_the_request_on_the_wire_are_unsolicited() {
+    let now = Instant::now();
+    let t = now + Duration::from_secs(1);
+    let mut p = Pairing::new(Duration::from_secs(1));
+    let looped = |data: &'static [u8]| Reply::new(id::LOOP, Status::Success, data);
+    let mut echo = req(1, id::LOOP, t);
+    echo.frame.payload = Bytes::from_static(b"mine");
+    assert!(matches!(p.submit(echo, now), Submit::Send(_)));
+    // A copy of an earlier loop reply: another payload.
+    assert_eq!(
+        p.on_reply(looped(b"old")),
+        Event::Unsolicited(looped(b"old"))
+    );
+    assert_eq!(
+        p.on_reply(looped(b"mine")),
+        Event::Resolved(1, looped(b"mine"))
+    );
+    // An acknowledged move refuses a duplicate of itself; its final reply still ends it.
+    assert!(matches!(p.submit(req(2, 0x21, t), now), Submit::Send(_)));
+    assert_eq!(
+        p.on_reply(reply(0x21, Status::CmdPending)),
+        Event::Accepted(2)
+    );
+    assert!(matches!(
+        p.on_reply(reply(0x21, Status::AlreadyRunning)),
+        Event::Unsolicited(_)
+    ));
+    assert_eq!(
+        p.on_reply(reply(0x21, Status::Success)),
+        Event::Resolved(2, reply(0x21, Status::Success))
+    );
+    // Not acknowledged: E_ALREADY_RUNNING is this request's own refusal.
+    assert!(matches!(p.submit(req(3, 0x21, t), now), Submit::Send(_)));
+    assert!(matches!(
+        p.on_reply(reply(0x21, Status::AlreadyRunning)),
+        Event::Resolved(3, _)
+    ));
+}
+
+/// Issue 20.2 #4: an E_CMD_PENDING reordered after its own final reply (UDP) must not make
+/// the next request of the id count as surely acknowledged: its own E_ALREADY_RUNNING
+/// would then be dropped as a duplicate's, and the call would wait until its deadline.
+#[test]
+fn a_pending_reordered_after_its_final_reply_does_not_swallow_the_next_refusal() {
+    let now = Instant::now();
+    let t = now + Duration::from_secs(30);
+    let mut p = Pairing::new(Duration::from_secs(1));
+    assert!(matches!(p.submit(req(1, 0x21, t), now), Submit::Send(_)));
+    assert_eq!(
+        p.on_reply(reply(0x21, Status::Success)),
+        Event::Resolved(1, reply(0x21, Status::Success))
+    );
+    assert_eq!(
+        p.next(0x21, |_| true, Instant::now()).0.map(|r| r.token),
+        None
+    );
+    assert!(matches!(p.submit(req(2, 0x21, t), now), Submit::Send(_)));
+    // The first request's late E_CMD_PENDING (or the second's own: they cannot be told
+    // apart) ...
+    assert_eq!(
+        p.on_reply(reply(0x21, Status::CmdPending)),
+        Event::Accepted(2)
+    );
+    // ... so the device's refusal of the second still ends it.
+    assert_eq!(
+        p.on_reply(reply(0x21, Status::AlreadyRunning)),
+        Event::Resolved(2, reply(0x21, Status::AlreadyRunning))
+    );
+    // A request acknowledged with nothing owed still drops a duplicate's refusal.
+    assert!(matches!(p.submit(req(3, 0x21, t), now), Submit::Send(_)));
+    assert_eq!(
+        p.on_reply(reply(0x21, Status::CmdPending)),
+        Event::Accepted(3)
+    );
+    assert!(matches!(
+        p.on_reply(reply(0x21, Status::AlreadyRunning)),
+        Event::Unsolicited(_)
+    ));
+}
+
+/// On an ordered transport an id released with no reply is fenced: its next request waits
+/// for the barrier, and a reply of the id before it answers nothing. On UDP, or once the
+/// request was acknowledged, it is released as before.
+#[test]
+fn an_id_released_without_a_reply_waits_for_its_barrier_on_an_ordered_transport() {
+    let now = Instant::now();
+    let t = now + Duration::from_millis(100);
+    let grace = Duration::from_millis(50);
+    let mut p = Pairing::new(grace);
+    p.set_ordered(true);
+    assert!(matches!(p.submit(req(1, 0x43, t), now), Submit::Send(_)));
+    assert!(matches!(p.submit(req(2, 0x43, t), now), Submit::Queued));
+    assert_eq!(p.due(t + grace), vec![Due::Fenced(0x43, 1)]);
+    // Fenced: nothing goes out, and a new call queues too.
+    assert_eq!(
+        p.next(0x43, |_| true, Instant::now()).0.map(|r| r.token),
+        None
+    );
+    assert!(matches!(p.submit(req(3, 0x43, t), now), Submit::Queued));
+    // The late reply answers nobody.
+    assert!(matches!(
+        p.on_reply(reply(0x43, Status::Success)),
+        Event::Unsolicited(_)
+    ));
+    p.unfence(0x43, now);
+    for token in [2, 3] {
+        assert_eq!(
+            p.next(0x43, |_| true, Instant::now()).0.map(|r| r.token),
+            Some(token)
+        );
+        assert!(matches!(
+            p.on_reply(reply(0x43, Status::Success)),
+            Event::Resolved(t, _) if t == token
+        ));
+    }
+    assert_eq!(
+        p.next(0x43, |_| true, Instant::now()).0.map(|r| r.token),
+        None
+    );
+    // A loop-back needs no barrier: its reply must echo its own payload.
+    assert!(matches!(
+        p.submit(req(4, id::LOOP, t), now),
+        Submit::Send(_)
+    ));
+    assert_eq!(p.due(t + grace), vec![Due::Released(id::LOOP, 4)]);
+    // Nor does an acknowledged command (its final reply may come at any time).
+    assert!(matches!(
+        p.submit(req(5, id::FINGER2_POWER, t), now),
+        Submit::Send(_)
+    ));
+    assert_eq!(
+        p.on_reply(reply(id::FINGER2_POWER, Status::CmdPending)),
+        Event::Accepted(5)
+    );
+    assert_eq!(p.due(t + grace), vec![Due::Released(id::FINGER2_POWER, 5)]);
+    // A released motion whose E_CMD_PENDING comes before the barrier runs after all: it is
+    // back on the wire under recovery (probed at once), its final reply ends it.
+    assert!(matches!(
+        p.submit(req(6, id::GRASP, t), now),
+        Submit::Send(_)
+    ));
+    assert_eq!(p.due(t + grace), vec![Due::Fenced(id::GRASP, 6)]);
+    assert_eq!(
+        p.on_reply(reply(id::GRASP, Status::CmdPending)),
+        Event::Accepted(6)
+    );
+    p.unfence(id::GRASP, now);
+    assert_eq!(p.next(id::GRASP, |_| true, now).0.map(|r| r.token), None);
+    assert_eq!(p.due(t + grace), vec![Due::Probe(id::GRASP, 6)]);
+    assert!(matches!(
+        p.on_reply(reply(id::GRASP, Status::Success)),
+        Event::Resolved(6, _)
+    ));
+    // Unordered (UDP): released as before.
+    let mut p = Pairing::new(grace);
+    assert!(matches!(p.submit(req(1, 0x43, t), now), Submit::Send(_)));
+    assert_eq!(p.due(t + grace), vec![Due::Released(0x43, 1)]);
+}
+
+/// The explorer's `wsg-tcp:0xbd5fd685504fe279`, distilled: a home's E_CMD_PENDING is
+/// corrupted (dropped), so the home is released with no reply at all and fenced; the
+/// barrier comes back without it. The home runs nevertheless, and its final reply, later,
+/// must not complete the next home (sent after the barrier, not acknowledged yet).
+#[test]
+fn a_released_motion_without_any_reply_stays_under_recovery_after_its_barrier() {
+    let now = Instant::now();
+    let t = now + Duration::from_millis(100);
+    let grace = Duration::from_millis(50);
+    let mut p = Pairing::new(grace);
+    p.set_ordered(true);
+    assert!(matches!(
+        p.submit(req(1, id::HOMING, t), now),
+        Submit::Send(_)
+    ));
+    let echo = t + grace;
+    assert_eq!(p.due(echo), vec![Due::Fenced(id::HOMING, 1)]);
+    assert!(!p.unfence(id::HOMING, echo));
+    // The next home waits: the device is asked whether it moves.
+    assert!(matches!(
+        p.submit(req(2, id::HOMING, echo + grace), echo),
+        Submit::Queued
+    ));
+    assert_eq!(p.next(id::HOMING, |_| true, echo).0.map(|r| r.token), None);
+    assert_eq!(p.due(echo), vec![Due::Probe(id::HOMING, 1)]);
+    // The first home's final reply ends the first home (its caller is gone), not the next.
+    assert_eq!(
+        p.on_reply(reply(id::HOMING, Status::Success)),
+        Event::Resolved(1, reply(id::HOMING, Status::Success))
+    );
+    assert_eq!(
+        p.next(id::HOMING, |_| true, echo).0.map(|r| r.token),
+        Some(2)
+    );
+    assert_eq!(
+        p.on_reply(reply(id::HOMING, Status::CmdPending)),
+        Event::Accepted(2)
+    );
+}
+
+/// A released motion whose E_CMD_PENDING comes before its barrier's echo goes under
+/// recovery on the normal schedule (the motion hold after it was sent), also for a caller
+/// without timeout: its saturated deadline must not leave it unprobed for good.
+#[test]
+fn a_released_motion_accepted_before_its_barrier_is_probed_within_the_motion_hold() {
+    let now = Instant::now();
+    let ms = Duration::from_millis;
+    let mut p = Pairing::new(ms(50));
+    p.set_ordered(true);
+    p.set_holds(ms(50), ms(300));
+    let no_timeout = after(now, Duration::MAX);
+    assert!(matches!(
+        p.submit(req(1, id::HOMING, no_timeout), now),
+        Submit::Send(_)
+    ));
+    assert_eq!(p.due(now + ms(100)), vec![Due::Fenced(id::HOMING, 1)]);
+    assert_eq!(
+        p.on_reply(reply(id::HOMING, Status::CmdPending)),
+        Event::Accepted(1)
+    );
+    assert_eq!(p.next_due(), Some(now + ms(300)));
+    assert_eq!(p.due(now + ms(300)), vec![Due::Probe(id::HOMING, 1)]);
+}
+
+/// On an ordered transport an unanswered loop-back keeps its id the resync pause longer
+/// than other requests (the line rests so that a device stuck on a corrupted length field
+/// can drop it, `wsg-serial:0xae89110881bc3727`); a caller's loop-back with a timeout is
+/// still released at its deadline + grace; UDP needs no pause.
+#[test]
+fn an_unanswered_loop_back_keeps_its_id_for_the_resync_pause_on_an_ordered_transport() {
+    let now = Instant::now();
+    let ms = Duration::from_millis;
+    let never = after(now, Duration::MAX);
+    for ordered in [true, false] {
+        let mut p = Pairing::new(ms(100));
+        p.set_ordered(ordered);
+        p.set_holds(ms(100), ms(1000));
+        p.set_resync(ms(500));
+        assert_eq!(sent(p.submit(req(1, id::LOOP, never), now)), Some(1));
+        assert_eq!(sent(p.submit(req(2, 0x50, never), now)), Some(2));
+        let due = p.due(now + ms(200));
+        assert_eq!(
+            due.contains(&Due::Released(id::LOOP, 1)),
+            !ordered,
+            "{due:?}"
+        );
+        if ordered {
+            assert_eq!(due, vec![Due::Fenced(0x50, 2)]);
+            assert!(p.due(now + ms(699)).is_empty());
+            assert_eq!(p.due(now + ms(700)), vec![Due::Released(id::LOOP, 1)]);
+        }
+        // A caller's loop-back with a timeout: its deadline + grace.
+        assert_eq!(sent(p.submit(req(3, id::LOOP, now + ms(50)), now)), Some(3));
+        assert_eq!(p.due(now + ms(150)), vec![Due::Released(id::LOOP, 3)]);
+    }
+}
+
+/// Stops on an ordered transport: a barrier, not a resend, for a call that waits too long,
+/// and its echo reaches the stops (see [`super::super::stops`] for the count itself).
+#[test]
+fn a_waiting_stop_call_gets_a_barrier_on_an_ordered_transport() {
+    let now = Instant::now();
+    let t = now + Duration::from_secs(1);
+    let mut p = Pairing::new(Duration::from_secs(1));
+    p.set_ordered(true);
+    assert_eq!(sent(p.submit(req(1, id::STOP, t), now)), Some(1));
+    let at = now + super::super::stops::RESEND_AFTER;
+    assert_eq!(p.due(at), vec![Due::StopBarrier(id::STOP)]);
+    // The echo: the stop sent before it, unanswered, is lost; it is sent again.
+    assert!(p.unfence(id::STOP, at));
+    assert_eq!(
+        p.on_reply(reply(id::STOP, Status::Success)),
+        Event::Stopped(vec![1], reply(id::STOP, Status::Success))
+    );
+    assert!(p.drain().is_empty());
+}
+
+#[test]
+fn prune_drops_only_queued_dead_callers() {
+    let now = Instant::now();
+    let t = now + Duration::from_secs(1);
+    let mut p = Pairing::new(Duration::from_secs(1));
+    assert!(matches!(p.submit(req(1, 0x50, t), now), Submit::Send(_)));
+    for token in 2..=5 {
+        assert!(matches!(p.submit(req(token, 0x50, t), now), Submit::Queued));
+    }
+    assert_eq!(p.prune(0x50, |t| t == 1 || t == 4), vec![2, 3, 5]);
+    assert!(matches!(
+        p.on_reply(reply(0x50, Status::Success)),
+        Event::Resolved(1, _)
+    ));
+    let (next, skipped) = p.next(0x50, |_| true, Instant::now());
+    assert_eq!(next.map(|r| r.token), Some(4));
+    assert!(skipped.is_empty());
+    assert_eq!(p.drain(), vec![4]);
+}
+
+proptest::proptest! {
+    /// Any interleaving of calls (three ids, some asynchronous) and device replies: every
+    /// final reply reaches the request it answers, one request per id is on the wire, and
+    /// every call is sent once.
+    #[test]
+    fn replies_always_reach_their_own_request(
+        ops in proptest::collection::vec((0u8..3, proptest::bool::ANY, proptest::bool::ANY), 1..200)
+    ) {
+        use std::collections::{HashMap, VecDeque};
+        let deadline = Instant::now() + Duration::from_secs(60);
+        let mut p = Pairing::new(Duration::from_secs(1));
+        // What the device has received and not finally answered, per id: (token, async, acked).
+        let mut wire: HashMap<u8, VecDeque<(Token, bool, bool)>> = HashMap::new();
+        let mut is_async: HashMap<Token, bool> = HashMap::new();
+        let mut sent = 0u64;
+        let mut resolved = 0u64;
+        let mut next_token = 0;
+        for (id, submit, asynchronous) in ops {
+            if submit {
+                next_token += 1;
+                is_async.insert(next_token, asynchronous);
+                let r = Request { token: next_token, frame: Frame::new(id, Bytes::new()), deadline };
+                if let Submit::Send(r) = p.submit(r, Instant::now()) {
+                    wire.entry(id).or_default().push_back((r.token, asynchronous, false));
+                    sent += 1;
+                }
+            } else if let Some(front) = wire.get_mut(&id).and_then(|q| q.front_mut()) {
+                let (token, asynchronous, acked) = *front;
+                if asynchronous && !acked {
+                    front.2 = true;
+                    proptest::prop_assert_eq!(p.on_reply(reply(id, Status::CmdPending)), Event::Accepted(token));
+                    continue;
+                }
+                wire.get_mut(&id).map(VecDeque::pop_front);
+                // The reply carries the token it answers, so a mix-up shows.
+                let r = Reply::new(id, Status::Success, Bytes::copy_from_slice(&token.to_le_bytes()));
+                match p.on_reply(r) {
+                    Event::Resolved(t, r) => {
+                        proptest::prop_assert_eq!(&t.to_le_bytes()[..], &r.data[..]);
+                        resolved += 1;
+                    }
+                    other => proptest::prop_assert!(false, "{:?}", other),
+                }
+                let (next, skipped) = p.next(id, |_| true, Instant::now());
+                proptest::prop_assert!(skipped.is_empty());
+                if let Some(r) = next {
+                    let asynchronous = is_async[&r.token];
+                    wire.entry(id).or_default().push_back((r.token, asynchronous, false));
+                    sent += 1;
+                }
+            }
+            for q in wire.values() {
+                proptest::prop_assert!(q.len() <= 1, "two requests of one id on the wire");
+            }
+        }
+        let waiting = p.drain().len() as u64;
+        proptest::prop_assert_eq!(resolved + waiting, next_token);
+        proptest::prop_assert!(sent >= resolved);
+    }
+}
