@@ -10,7 +10,7 @@ runs=${1:-3000}
 shift || true
 tree=$(mktemp -d /tmp/gripper-plant.XXXXXX)
 git -C "$root" worktree add --quiet --detach "$tree" HEAD
-trap 'git -C "$root" worktree remove --force "$tree"' EXIT
+trap 'git -C "$root" worktree remove --force "$tree"; rm -f "$tree.baseline"' EXIT
 # The dependencies are shared with this tree's build; the planted crate builds on its own.
 export CARGO_TARGET_DIR="$root/target/planted"
 explorer() {
@@ -20,7 +20,10 @@ explorer() {
 }
 # Each bug names the violation that catches it (KIND = "..." in its file); the unplanted tree
 # runs the same seeds first, so the table can say how often that violation occurs without it.
-baseline=$(explorer)
+# The planted builds reuse the same target path, so the unplanted binary is kept aside: without
+# the copy, each bug's "without" row would run the previous bug's build.
+cp "$(explorer)" "$tree.baseline"
+baseline="$tree.baseline"
 for bug in "$root"/tests/explore/planted/${BUGS:-[0-9]}*.py; do
   name=$(basename "$bug" .py)
   kind=$(sed -n 's/^KIND = "\(.*\)"$/\1/p' "$bug")
