@@ -133,6 +133,12 @@ pub struct SimServer {
     addr: SocketAddr,
     shared: Arc<Shared>,
     shutdown: watch::Sender<bool>,
+    /// Ends the in-memory connections ([`SimServer::serve_stream`]). Not the watch channel:
+    /// its waiters are spread over shards picked at random, so two connections ended at one
+    /// instant woke in a different order from run to run, and a seeded explorer run did not
+    /// replay (`griplink-tcp:0x8db5896e0e3c67e2`). A cancellation token wakes its waiters in
+    /// the order they came.
+    stop: tokio_util::sync::CancellationToken,
     /// Numbers the connections (the record's `session`).
     next_session: Arc<std::sync::atomic::AtomicU64>,
 }
@@ -179,6 +185,7 @@ impl SimServer {
             addr: SocketAddr::from(([0, 0, 0, 0], 0)),
             shared,
             shutdown,
+            stop: tokio_util::sync::CancellationToken::new(),
             next_session: Arc::new(std::sync::atomic::AtomicU64::new(1)),
         }
     }
@@ -190,12 +197,12 @@ impl SimServer {
             .next_session
             .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         let shared = Arc::clone(&self.shared);
-        let mut stop = self.shutdown.subscribe();
+        let stop = self.stop.clone();
         tokio::spawn(async move {
             tokio::select! {
                 // The shutdown first: a dropped server ends its connections whatever they do.
                 biased;
-                _ = stop.wait_for(|s| *s) => {}
+                () = stop.cancelled() => {}
                 () = serve(io, &shared, session) => {}
             }
         });
@@ -275,6 +282,7 @@ impl SimServer {
 impl Drop for SimServer {
     fn drop(&mut self) {
         let _ = self.shutdown.send(true);
+        self.stop.cancel();
     }
 }
 
