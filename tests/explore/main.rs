@@ -281,6 +281,30 @@ fn fresh_base(o: &Opts) -> u64 {
     })
 }
 
+/// With `RUST_LOG` set (`RUST_LOG=gripper=trace`), a replay also prints the library's own
+/// tracing to stderr, stamped with the simulated clock so that it lines up with the trace.
+fn log_library_on_replay() {
+    struct Simulated;
+    impl tracing_subscriber::fmt::time::FormatTime for Simulated {
+        fn format_time(
+            &self,
+            w: &mut tracing_subscriber::fmt::format::Writer<'_>,
+        ) -> std::fmt::Result {
+            static T0: std::sync::OnceLock<tokio::time::Instant> = std::sync::OnceLock::new();
+            let now = tokio::time::Instant::now();
+            let t0 = *T0.get_or_init(|| now);
+            write!(w, "{:>11}us", (now - t0).as_micros())
+        }
+    }
+    if std::env::var_os("RUST_LOG").is_some() {
+        let _ = tracing_subscriber::fmt()
+            .with_env_filter(tracing_subscriber::EnvFilter::from_default_env())
+            .with_timer(Simulated)
+            .with_writer(std::io::stderr)
+            .try_init();
+    }
+}
+
 fn main() -> ExitCode {
     let o = match parse() {
         Ok(o) => o,
@@ -290,6 +314,7 @@ fn main() -> ExitCode {
         }
     };
     if let Some(k) = &o.replay {
+        log_library_on_replay();
         return match parse_key(k) {
             Ok((s, v, seed, caps)) => {
                 let out = run_one(s, v, seed, caps);
