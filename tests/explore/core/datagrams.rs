@@ -40,10 +40,25 @@ impl DatagramProfile {
     }
 }
 
-/// The datagrams a link delivered as a duplicate or after a delay, with the instant each was
-/// delivered: the oracle attributes a wrong answer to such a datagram (a documented residual
-/// risk of UDP, which has no sequence numbers) only if one was actually delivered.
-pub type FaultedLog = Arc<Mutex<Vec<(Instant, Bytes)>>>;
+/// One copy of a datagram that a link duplicated or delayed, as it was delivered.
+#[derive(Clone, Debug)]
+pub struct Faulted {
+    /// When it was delivered.
+    pub at: Instant,
+    /// When it was sent into the link.
+    pub sent: Instant,
+    /// The link delivered the datagram twice (this is one of the two copies).
+    pub duplicated: bool,
+    /// The datagram.
+    pub bytes: Bytes,
+}
+
+/// The datagrams a link delivered as a duplicate or after a delay: the oracle attributes a wrong
+/// answer to such a datagram (a documented residual risk of UDP, which has no sequence numbers)
+/// only if one was actually delivered, and only where the client's pairing rule could not have
+/// kept it from the call (when it was sent tells which request it answers and how long that
+/// request held its id). Every other datagram was delivered at the instant it was sent.
+pub type FaultedLog = Arc<Mutex<Vec<Faulted>>>;
 
 /// A faulty one-way datagram link: returns (sender's end, receiver's end). Every copy the link
 /// duplicated or delayed is logged in `faulted` when it is delivered.
@@ -69,6 +84,9 @@ pub fn faulty_datagrams(
     (in_tx, out_rx)
 }
 
+/// For a duplicated or delayed copy in flight: when it was sent, and whether it was duplicated.
+type Origin = (Instant, bool);
+
 /// What a pump needs besides its channels.
 struct Link {
     label: String,
@@ -93,8 +111,8 @@ async fn pump(
         faulted,
     } = link;
     // Datagrams in flight, by delivery time (then by arrival, so ties keep their order), each
-    // with whether it is a duplicated or delayed copy.
-    let mut flight: BTreeMap<(Instant, u64), (Bytes, bool)> = BTreeMap::new();
+    // with, for a duplicated or delayed copy, when it was sent and whether it was duplicated.
+    let mut flight: BTreeMap<(Instant, u64), (Bytes, Option<Origin>)> = BTreeMap::new();
     let mut n = 0u64;
     loop {
         let next = flight.keys().next().map(|k| k.0);
@@ -108,9 +126,14 @@ async fn pump(
                     if entry.key().0 > now {
                         break;
                     }
-                    let (d, was_faulted) = entry.remove();
-                    if was_faulted {
-                        faulted.lock().unwrap_or_else(|e| e.into_inner()).push((now, d.clone()));
+                    let (d, origin) = entry.remove();
+                    if let Some((sent, duplicated)) = origin {
+                        faulted.lock().unwrap_or_else(|e| e.into_inner()).push(Faulted {
+                            at: now,
+                            sent,
+                            duplicated,
+                            bytes: d.clone(),
+                        });
                     }
                     if output.send(d).is_err() {
                         return;
@@ -122,7 +145,7 @@ async fn pump(
                 let Some(d) = d else { return };
                 n += 1;
                 if !on.load(Ordering::Relaxed) {
-                    flight.insert((Instant::now(), n * 2), (d, false));
+                    flight.insert((Instant::now(), n * 2), (d, None));
                     continue;
                 }
                 if rng.one_in(p.loss) {
@@ -136,7 +159,8 @@ async fn pump(
                     if was_faulted {
                         note(&trace, format!("fault {label}: datagram {n} copy {copy} delayed {delay:?}"));
                     }
-                    flight.insert((Instant::now() + delay, n * 2 + copy), (d.clone(), was_faulted));
+                    let origin = was_faulted.then(|| (Instant::now(), copies > 1));
+                    flight.insert((Instant::now() + delay, n * 2 + copy), (d.clone(), origin));
                 }
             }
         }

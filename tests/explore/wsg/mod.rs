@@ -3,6 +3,7 @@
 //! phase (recovery, promise 5; a stop during a motion, promise 3), closing, then the oracle.
 
 mod oracle;
+mod stale;
 mod workload;
 
 use std::collections::BTreeSet;
@@ -161,7 +162,9 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
             first_loss: c.first_loss(),
             losses: c.losses.lock().unwrap().clone(),
             grace: c.grace,
+            query_timeout: c.query_timeout,
             faulted: c.faulted.lock().unwrap().clone(),
+            faulted_requests: c.faulted_requests.lock().unwrap().clone(),
             carried: c
                 .carried
                 .lock()
@@ -216,6 +219,7 @@ async fn open_client(
     let sessions = Arc::new(Mutex::new(Vec::new()));
     let carried = Arc::new(Mutex::new(Vec::new()));
     let faulted: crate::core::datagrams::FaultedLog = Default::default();
+    let faulted_requests: crate::core::datagrams::FaultedLog = Default::default();
     let label = format!("client {index}");
     note(trace, format!("{label}: {transport:?} query {query_timeout:?} motion {motion_timeout:?} grace {grace:?} reconnect {reconnect}"));
     let client = match transport {
@@ -228,7 +232,7 @@ async fn open_client(
                 faults_on.clone(),
                 trace.clone(),
                 format!("{label} c>s"),
-                Default::default(),
+                faulted_requests.clone(),
             );
             let (down_tx, down_rx) = faulty_datagrams(
                 rng,
@@ -289,6 +293,7 @@ async fn open_client(
         index,
         losses,
         faulted,
+        faulted_requests,
         carried,
         client,
         sessions,

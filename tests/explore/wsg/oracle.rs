@@ -9,21 +9,38 @@ use gripper::wsg::sim::{SessionId, SessionKind, SimEvent, SimRecording};
 use gripper::wsg::{Status, SystemState};
 use tokio::time::Instant;
 
+use super::stale;
 use super::workload::{CallRec, Expect, Res, Update};
+use crate::core::datagrams::Faulted;
 use crate::core::streams::Carried;
 
 /// How far past its timeout a call may end (promise 1): the client fails a call at its
 /// deadline, so this only absorbs the hand-over from the connection task to the caller.
 pub const CALL_SLACK: Duration = Duration::from_millis(10);
 
-/// One reply the device sent to one client.
-struct Sent {
-    at: Instant,
-    id: u8,
-    status: Status,
-    data: Vec<u8>,
+/// One reply the device sent to one client (or a copy the fault layer delivered).
+pub struct Sent {
+    /// When the device sent it (a faulted copy: when it was delivered).
+    pub at: Instant,
+    /// For a faulted copy: when the device sent it.
+    pub origin: Option<Origin>,
+    /// The command id.
+    pub id: u8,
+    /// Its status.
+    pub status: Status,
+    /// Its data after the status.
+    pub data: Vec<u8>,
     moving: bool,
     used: bool,
+}
+
+/// Where a faulted copy came from.
+#[derive(Clone, Copy)]
+pub struct Origin {
+    /// When the device sent it.
+    pub sent: Instant,
+    /// The link delivered it twice (this is one of the two copies).
+    pub duplicated: bool,
 }
 
 /// What one client is, for the oracle.
@@ -38,9 +55,13 @@ pub struct ClientView {
     pub losses: Vec<Instant>,
     /// Its late-reply grace.
     pub grace: Duration,
-    /// The reply datagrams the fault layer delivered to it duplicated or delayed, with the
-    /// instant of delivery (UDP; empty on streams).
-    pub faulted: Vec<(Instant, bytes::Bytes)>,
+    /// Its query timeout (the reply hold of `Pairing::set_holds`).
+    pub query_timeout: Duration,
+    /// The reply datagrams the fault layer delivered to it duplicated or delayed (UDP; empty
+    /// on streams).
+    pub faulted: Vec<Faulted>,
+    /// The request datagrams the fault layer delivered from it duplicated or delayed.
+    pub faulted_requests: Vec<Faulted>,
     /// Per stream session (TCP, serial), what the link did with the bytes the device sent it
     /// (empty on UDP).
     pub carried: Vec<(SessionId, Carried)>,
@@ -61,10 +82,10 @@ pub const NO_REQUEST: &str = "[no request of this streamed id reached the device
 
 /// The replies among `faulted` datagrams, decoded as the client decodes them (manual 1.2.2:
 /// the payload starts with the 16-bit status code, little endian).
-fn faulted_replies(faulted: &[(Instant, bytes::Bytes)]) -> Vec<Sent> {
+fn faulted_replies(faulted: &[Faulted]) -> Vec<Sent> {
     let mut out = Vec::new();
-    for (at, d) in faulted {
-        let mut buf = bytes::BytesMut::from(&d[..]);
+    for copy in faulted {
+        let mut buf = bytes::BytesMut::from(&copy.bytes[..]);
         while let Some(decoded) =
             gripper::wsg::frame::decode(&mut buf, gripper::wsg::frame::DEFAULT_MAX_PAYLOAD_LEN)
         {
@@ -75,7 +96,11 @@ fn faulted_replies(faulted: &[(Instant, bytes::Bytes)]) -> Vec<Sent> {
                 continue;
             }
             out.push(Sent {
-                at: *at,
+                at: copy.at,
+                origin: Some(Origin {
+                    sent: copy.sent,
+                    duplicated: copy.duplicated,
+                }),
                 id: f.id,
                 status: Status::from_code(u16::from_le_bytes([f.payload[0], f.payload[1]])),
                 data: f.payload[2..].to_vec(),
@@ -136,6 +161,7 @@ fn check_client(
                 moving,
             } => Some(Sent {
                 at: t0 + r.at,
+                origin: None,
                 id: *id,
                 status: *status,
                 data: data.to_vec(),
@@ -161,6 +187,13 @@ fn check_client(
         .min();
     let first_lost = view.first_loss;
     let faulted = faulted_replies(&view.faulted);
+    let stale = stale::Context {
+        calls,
+        record,
+        t0,
+        view,
+        faulted: &faulted,
+    };
 
     for c in calls {
         // 1: bounded.
@@ -244,9 +277,10 @@ fn check_client(
             continue;
         }
         let window = format!("[{}, {}]", t(c.start, t0), t(c.end, t0));
-        let from_faulted = faulted
-            .iter()
-            .any(|s| s.at >= c.start && s.at <= c.end && fits(s));
+        let from_faulted = (0..faulted.len()).any(|k| {
+            let s = &faulted[k];
+            s.at >= c.start && s.at <= c.end && fits(s) && stale::beyond_the_rule(&stale, k, c)
+        });
         let tag = if from_faulted {
             FROM_FAULTED
         } else if strict && received.is_none_or(|at| at >= c.end) {

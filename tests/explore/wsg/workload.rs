@@ -111,6 +111,9 @@ pub struct ClientCtx {
     pub losses: Arc<Mutex<Vec<Instant>>>,
     /// The replies (datagrams) the fault layer delivered to it duplicated or delayed (UDP).
     pub faulted: crate::core::datagrams::FaultedLog,
+    /// The requests (datagrams) the fault layer delivered to the device duplicated or delayed
+    /// (UDP).
+    pub faulted_requests: crate::core::datagrams::FaultedLog,
     /// Per stream session (TCP, serial), what the link did with the bytes the device sent.
     pub carried: Arc<Mutex<Vec<(SessionId, crate::core::streams::CarriedLog)>>>,
 }
