@@ -15,8 +15,9 @@
 //! - `--determinism N` — seeds per variant run twice and compared (default 1);
 //! - `--until-fail N` — fresh seeds until one fails, at most `N` runs per variant; exits 0 and
 //!   says after how many runs if one did (for the planted-bug table), 1 if none did;
-//! - `--kind TEXT` — only a violation containing `TEXT` counts (with `--until-fail`), or
-//!   count the fresh runs with such a violation (with `--seeds`/`--budget-secs`);
+//! - `--kind TEXT` — only a violation containing `TEXT` and not a known finding (unless
+//!   `--strict`) counts (with `--until-fail`), or count the fresh runs with such a violation
+//!   (with `--seeds`/`--budget-secs`);
 //! - `--no-regressions` — skip the regression seeds;
 //! - `--strict` — known open findings (`tests/explore/known.txt`) fail a run too;
 //! - `--no-shrink` — do not shrink failures (long runs); failures are summarised by kind, with
@@ -362,6 +363,16 @@ fn main() -> ExitCode {
             }
         }
     };
+    // With `--kind`, the violations that count: of that kind and, unless `--strict`, not a
+    // known finding (a planted bug is caught only by a violation the explorer fails on).
+    let of_kind = |variant: &str, out: &Outcome| match &o.kind {
+        Some(k) => out
+            .violations
+            .iter()
+            .find(|v| v.contains(k.as_str()) && !known.iter().any(|kn| kn.covers(variant, v)))
+            .cloned(),
+        None => None,
+    };
     let is_known = |variant: &str, out: &Outcome| {
         !out.violations.is_empty()
             && out
@@ -378,7 +389,7 @@ fn main() -> ExitCode {
                 let seed = core::Prng::new(base ^ i).next_u64();
                 let out = run_one(*s, v, seed, Caps::FULL);
                 let hit = match &o.kind {
-                    Some(k) => out.violations.iter().any(|v| v.contains(k.as_str())),
+                    Some(_) => of_kind(v, &out).is_some(),
                     None => !out.violations.is_empty() && !is_known(v, &out),
                 };
                 hit.then(|| (i + 1, seed, out))
@@ -392,10 +403,10 @@ fn main() -> ExitCode {
                         wall.elapsed().as_secs_f64()
                     );
                     let first = match &o.kind {
-                        Some(k) => out.violations.iter().find(|v| v.contains(k.as_str())),
-                        None => out.violations.first(),
+                        Some(_) => of_kind(v, &out),
+                        None => out.violations.first().cloned(),
                     };
-                    println!("  violation: {}", first.map_or("", String::as_str));
+                    println!("  violation: {}", first.unwrap_or_default());
                 }
                 None => println!(
                     "{v}: nothing found in {max} runs ({:.1} s wall)",
@@ -463,7 +474,7 @@ fn main() -> ExitCode {
 
     let wall = Instant::now();
     let (mut runs, mut simulated, mut failures, mut known_runs) = (0u64, 0f64, 0u64, 0u64);
-    let mut of_kind = 0u64;
+    let mut runs_of_kind = 0u64;
     let mut kinds: std::collections::BTreeMap<String, (u64, Vec<String>)> = Default::default();
     println!("fresh seeds from {base:#018x}");
     let mut i = 0u64;
@@ -481,9 +492,7 @@ fn main() -> ExitCode {
         let out = run_one(s, v, seed, Caps::FULL);
         runs += 1;
         simulated += out.simulated.as_secs_f64();
-        if let Some(k) = &o.kind {
-            of_kind += u64::from(out.violations.iter().any(|v| v.contains(k.as_str())));
-        }
+        runs_of_kind += u64::from(of_kind(v, &out).is_some());
         if !out.violations.is_empty() {
             if is_known(v, &out) {
                 known_runs += 1;
@@ -526,7 +535,7 @@ fn main() -> ExitCode {
     }
     let secs = wall.elapsed().as_secs_f64();
     if let Some(k) = &o.kind {
-        println!("kind {k:?}: in {of_kind} of {runs} runs");
+        println!("kind {k:?}: in {runs_of_kind} of {runs} runs");
     }
     println!(
         "explore: {runs} runs in {secs:.1} s ({:.1} seeds/s), {:.3} simulated hours, {failures} failed, {known_runs} failed only on known open findings",

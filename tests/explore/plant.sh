@@ -2,7 +2,8 @@
 # Shows that the explorer can fail (issue 20): applies each planted bug (tests/explore/planted/*.py)
 # in a throwaway worktree of HEAD, never in this tree, builds the explorer there and runs fresh
 # seeds, the same ones with and without the bug: the runs needed to catch it (`--until-fail`),
-# and how many of RUNS fresh runs per variant show the bug's violation (`--kind`).
+# and how many of RUNS fresh runs per variant show the bug's violation (`--kind`; a known,
+# tagged finding does not count: a residual risk is no catch).
 # Usage: [BUGS=N] tests/explore/plant.sh [RUNS] [--only VARIANT]   (BUGS=1: only bug 1)
 set -euo pipefail
 root=$(git rev-parse --show-toplevel)
@@ -31,7 +32,7 @@ for bug in "$root"/tests/explore/planted/${BUGS:-[0-9]}*.py; do
   echo "-- without the bug:"
   "$baseline" --until-fail "$runs" --kind "$kind" --start 0x91a7 "$@" || true
   "$baseline" --seeds "$runs" --kind "$kind" --start 0x91a7 --no-regressions --determinism 0 \
-    --no-shrink --strict "$@" 2>/dev/null | grep -E '^(kind|explore)' || true
+    --no-shrink "$@" 2>/dev/null | grep -E '^(kind|explore)' || true
   git -C "$tree" checkout --quiet -- .
   if ! (cd "$root/tests/explore/planted" && python3 "$bug" "$tree"); then
     echo "-- not applied"
@@ -41,5 +42,5 @@ for bug in "$root"/tests/explore/planted/${BUGS:-[0-9]}*.py; do
   planted=$(explorer)
   "$planted" --until-fail "$runs" --kind "$kind" --start 0x91a7 "$@" || true
   "$planted" --seeds "$runs" --kind "$kind" --start 0x91a7 --no-regressions --determinism 0 \
-    --no-shrink --strict "$@" 2>/dev/null | grep -E '^(kind|explore)' || true
+    --no-shrink "$@" 2>/dev/null | grep -E '^(kind|explore)' || true
 done
