@@ -29,6 +29,7 @@
 //! simulator's whole record), checked in `cargo test` and CI on a number of seeds.
 
 pub mod datagrams;
+pub mod matching;
 pub mod prng;
 pub mod servers;
 pub mod streams;

@@ -31,7 +31,6 @@ pub struct Sent {
     /// Its data after the status.
     pub data: Vec<u8>,
     moving: bool,
-    used: bool,
 }
 
 /// Where a faulted copy came from.
@@ -105,7 +104,6 @@ fn faulted_replies(faulted: &[Faulted]) -> Vec<Sent> {
                 status: Status::from_code(u16::from_le_bytes([f.payload[0], f.payload[1]])),
                 data: f.payload[2..].to_vec(),
                 moving: false,
-                used: false,
             });
         }
     }
@@ -148,7 +146,7 @@ fn check_client(
 ) -> Vec<String> {
     let mut v = Vec::new();
     let ours = |s: SessionId| view.sessions.contains(&s);
-    let mut sent: Vec<Sent> = record
+    let sent: Vec<Sent> = record
         .records
         .iter()
         .enumerate()
@@ -166,7 +164,6 @@ fn check_client(
                 status: *status,
                 data: data.to_vec(),
                 moving: *moving && !moving_is_the_next_motion(record, i),
-                used: false,
             }),
             _ => None,
         })
@@ -230,29 +227,11 @@ fn check_client(
     }
 
     // 2, 3, 4: each answer is one reply the device sent to this client during the call; one
-    // reply answers one call. Earliest end first, earliest reply first: for intervals this
-    // greedy finds a matching whenever one exists.
-    let mut answered: Vec<&&CallRec> = calls.iter().filter(|c| answered(c)).collect();
-    answered.sort_by_key(|c| c.end);
-    for c in answered {
-        let fits = |s: &Sent| -> bool {
-            match &c.res {
-                Res::Ok(Expect::Success) => s.id == c.id && s.status == Status::Success,
-                Res::Ok(Expect::Data(d)) => {
-                    s.id == c.id && s.status == Status::Success && s.data == *d
-                }
-                Res::Ok(Expect::Motion) => s.id == c.id && s.status == Status::Success && !s.moving,
-                Res::Ok(Expect::Exact(st, d)) => s.id == c.id && s.status == *st && s.data == *d,
-                Res::Device(cmd, st) => s.id == *cmd && s.status == *st,
-                _ => false,
-            }
-        };
-        // A stop reply may serve several stop calls: promise 3 asks for a stop the device
-        // processed during the call (sent at or after it), and one stop sent after two calls
-        // began is that for both (the client completes every call whose first stop is not
-        // later than the one answered: `src/wsg/client/stops.rs`). Only stop calls match
-        // stop replies, so no other call can share one.
-        let shared = c.id == id::STOP || c.id == id::FAST_STOP;
+    // reply answers one call (a maximum matching: a greedy pass may give a call the only reply
+    // another call fits).
+    let answered: Vec<&CallRec> = calls.iter().copied().filter(|c| answered(c)).collect();
+    let mut windows = Vec::with_capacity(answered.len());
+    for c in &answered {
         // A streamed id's auto-updates share the reply's id and form (manual 1.4): on a byte
         // stream its answer must have been sent once the device had received a request of it
         // during the call (the client answers with a frame sent after its request, reply or
@@ -269,13 +248,42 @@ fn check_client(
             None if strict => c.end + Duration::from_nanos(1),
             None => c.start,
         };
-        if let Some(s) = sent
-            .iter_mut()
-            .find(|s| (!s.used || shared) && s.at >= not_before && s.at <= c.end && fits(s))
-        {
-            s.used = true;
+        windows.push((strict, received, not_before));
+    }
+    let candidates = |i: usize| -> Vec<usize> {
+        let (c, (_, _, not_before)) = (answered[i], windows[i]);
+        (0..sent.len())
+            .filter(|&k| sent[k].at >= not_before && sent[k].at <= c.end && fits(c, &sent[k]))
+            .collect()
+    };
+    // A stop reply may serve several stop calls: promise 3 asks for a stop the device
+    // processed during the call (sent at or after it), and one stop sent after two calls began
+    // is that for both (the client completes every call whose first stop is not later than the
+    // one answered: `src/wsg/client/stops.rs`). Only stop calls match stop replies, so no other
+    // call can share one: they stay out of the matching.
+    let shared = |c: &CallRec| c.id == id::STOP || c.id == id::FAST_STOP;
+    let edges: Vec<Vec<usize>> = (0..answered.len())
+        .map(|i| {
+            if shared(answered[i]) {
+                Vec::new()
+            } else {
+                candidates(i)
+            }
+        })
+        .collect();
+    let owner = crate::core::matching::maximum(&edges);
+    let matched: BTreeSet<usize> = owner.values().copied().collect();
+    for (i, c) in answered.iter().copied().enumerate() {
+        let ok = if shared(c) {
+            !candidates(i).is_empty()
+        } else {
+            matched.contains(&i)
+        };
+        if ok {
             continue;
         }
+        let (strict, received, _) = windows[i];
+        let fits = |s: &Sent| fits(c, s);
         let window = format!("[{}, {}]", t(c.start, t0), t(c.end, t0));
         let from_faulted = (0..faulted.len()).any(|k| {
             let s = &faulted[k];
@@ -368,6 +376,18 @@ fn check_client(
         }
     }
     v
+}
+
+/// Whether reply `s` carries what call `c` returned.
+fn fits(c: &CallRec, s: &Sent) -> bool {
+    match &c.res {
+        Res::Ok(Expect::Success) => s.id == c.id && s.status == Status::Success,
+        Res::Ok(Expect::Data(d)) => s.id == c.id && s.status == Status::Success && s.data == *d,
+        Res::Ok(Expect::Motion) => s.id == c.id && s.status == Status::Success && !s.moving,
+        Res::Ok(Expect::Exact(st, d)) => s.id == c.id && s.status == *st && s.data == *d,
+        Res::Device(cmd, st) => s.id == *cmd && s.status == *st,
+        _ => false,
+    }
 }
 
 /// Whether the device may have been executing a motion during `[start, end]` (manual 3.2.2:

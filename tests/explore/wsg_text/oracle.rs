@@ -21,7 +21,7 @@
 //! line), a request is known by its name only and a reply is held to its form (a value, an
 //! `ACK`/`FIN`, an `ERR`), not its content; the alternation check is off.
 
-use std::collections::{BTreeMap, BTreeSet};
+use std::collections::BTreeMap;
 use std::time::Duration;
 
 use gripper::wsg::sim::{SessionId, SimEvent, SimRecording};
@@ -153,7 +153,11 @@ pub fn check(
         }
         edges[i] = candidates(c, &sessions[c.client], &by_session, exact);
     }
-    let owner = match_calls(&edges);
+    let requests: Vec<Vec<(SessionId, usize)>> = edges
+        .iter()
+        .map(|e| e.iter().map(|c| c.request).collect())
+        .collect();
+    let owner = crate::core::matching::maximum(&requests);
     for (i, c) in calls.iter().enumerate() {
         if !matches!(c.res, Res::Value(_) | Res::Done | Res::Device(_)) {
             continue;
@@ -247,37 +251,6 @@ fn candidates(
         }
     }
     out
-}
-
-/// A maximum matching of calls to requests (augmenting paths): one request answers one call.
-/// Returns each matched request's call.
-fn match_calls(edges: &[Vec<Cand>]) -> BTreeMap<(SessionId, usize), usize> {
-    fn augment(
-        i: usize,
-        edges: &[Vec<Cand>],
-        owner: &mut BTreeMap<(SessionId, usize), usize>,
-        seen: &mut BTreeSet<(SessionId, usize)>,
-    ) -> bool {
-        for e in &edges[i] {
-            if !seen.insert(e.request) {
-                continue;
-            }
-            let free = match owner.get(&e.request) {
-                None => true,
-                Some(&other) => augment(other, edges, owner, seen),
-            };
-            if free {
-                owner.insert(e.request, i);
-                return true;
-            }
-        }
-        false
-    }
-    let mut owner = BTreeMap::new();
-    for i in 0..edges.len() {
-        augment(i, edges, &mut owner, &mut BTreeSet::new());
-    }
-    owner
 }
 
 /// On each session, the requests and final replies of one name alternate: the client never
