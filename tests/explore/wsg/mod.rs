@@ -2,6 +2,7 @@
 //! UDP (in memory, through the fault layers), several callers each, a fault phase, a quiet
 //! phase (recovery, promise 5; a stop during a motion, promise 3), closing, then the oracle.
 
+mod byte_stream;
 mod oracle;
 mod stale;
 mod workload;
