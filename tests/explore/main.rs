@@ -205,6 +205,9 @@ fn kind(violation: &str) -> String {
     out.chars().take(160).collect()
 }
 
+/// How many failed fresh runs a long run reports in full (all of them while shrinking).
+const REPORT_FAILURES: u64 = 50;
+
 fn report_failure(k: &str, o: &Outcome) {
     report(k, o, "FAILED");
 }
@@ -514,7 +517,9 @@ fn main() -> ExitCode {
                 if first_of_kind {
                     report(&k, &out, "KNOWN (open finding)");
                 }
-            } else if o.shrink || first_of_kind {
+            } else if o.shrink || first_of_kind || failures <= REPORT_FAILURES {
+                // Every failure up to a bound, whatever its kind: the summary by kind names only
+                // the first three runs of each kind, known or not.
                 report_failure(&k, &out);
             }
             if o.shrink && !is_known(v, &out) {
