@@ -2,8 +2,9 @@
 //! faulty in-memory networks, each run a pure function of its seed, and checks an oracle on
 //! every run. See `docs/EXPLORER.md`.
 //!
-//! `cargo test --test explore` runs the regression seeds (`tests/explore/regressions.txt`), a
-//! few fresh seeds per variant and the determinism check. Options (after `--`):
+//! `cargo test --test explore` runs the regression seeds (`tests/explore/regressions.txt`), the
+//! determinism seeds (`tests/explore/determinism.txt`, each replayed several times), a few fresh
+//! seeds per variant and the determinism check. Options (after `--`):
 //!
 //! - `--replay KEY` — run one seed (e.g. `wsg-udp:0x1f2e3d4c5b6a7988`) and print its trace;
 //! - `--seeds N` — fresh seeds per variant (default 4);
@@ -17,7 +18,7 @@
 //!   says after how many runs if one did (for the planted-bug table), 1 if none did;
 //! - `--kind TEXT` — only a violation containing `TEXT` counts (with `--until-fail`), or
 //!   count the fresh runs with such a violation (with `--seeds`/`--budget-secs`);
-//! - `--no-regressions` — skip the regression seeds;
+//! - `--no-regressions` — skip the regression seeds and the determinism seeds;
 //! - `--strict` — known open findings (`tests/explore/known.txt`) fail a run too;
 //! - `--no-shrink` — do not shrink failures (long runs); failures are summarised by kind, with
 //!   the first three keys of each kind.
@@ -272,6 +273,43 @@ fn known_findings() -> Result<Vec<Known>, String> {
     Ok(out)
 }
 
+/// The seeds that once did not replay (`tests/explore/determinism.txt`, `KEY RUNS # why`): each
+/// is run `RUNS` times in this process and every run must give the same digest. CI's
+/// determinism check draws fresh seeds, so a source of nondeterminism it caught once would
+/// otherwise go untested after its fix. Returns false if one differed (or a line is bad).
+fn replay_determinism_seeds(variants: &[(&'static dyn Scenario, &'static str)]) -> bool {
+    let file = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/explore/determinism.txt");
+    let text = std::fs::read_to_string(file).unwrap_or_default();
+    let (mut ok, mut n, mut total) = (true, 0, 0);
+    for line in text.lines() {
+        let line = line.split('#').next().unwrap_or_default().trim();
+        if line.is_empty() {
+            continue;
+        }
+        let mut words = line.split_whitespace();
+        let k = words.next().unwrap_or_default();
+        let (Ok((s, v, seed, caps)), Some(Ok(runs))) =
+            (parse_key(k), words.next().map(str::parse::<u64>))
+        else {
+            eprintln!("determinism.txt: bad line {line}");
+            ok = false;
+            continue;
+        };
+        if !variants.iter().any(|(_, x)| *x == v) {
+            continue;
+        }
+        n += 1;
+        total += runs.max(2);
+        if let Err(e) = determinism_check(s, v, seed, caps, runs) {
+            eprintln!("{e}");
+            eprintln!("  (a seed of tests/explore/determinism.txt)");
+            ok = false;
+        }
+    }
+    println!("determinism seeds: {n} seeds, {total} runs");
+    ok
+}
+
 fn fresh_base(o: &Opts) -> u64 {
     o.start.unwrap_or_else(|| {
         let t = std::time::SystemTime::now()
@@ -443,6 +481,7 @@ fn main() -> ExitCode {
             }
         }
         println!("regressions: {n} seeds, {open} still failing on known open findings");
+        failed |= !replay_determinism_seeds(&variants);
     }
 
     for (s, v) in variants
@@ -451,7 +490,7 @@ fn main() -> ExitCode {
     {
         for i in 0..o.determinism {
             let seed = core::Prng::new(base ^ 0xD5 ^ i).next_u64();
-            match determinism_check(*s, v, seed) {
+            match determinism_check(*s, v, seed, Caps::FULL, 2) {
                 Ok(d) => println!("determinism {v}:{seed:#018x}: digest {d:#018x} twice"),
                 Err(e) => {
                     eprintln!("{e}");
