@@ -21,8 +21,12 @@
 //!   (tokio's thread-local generator, seeded per process): every `select!` a run reaches (client
 //!   task, connection keeper, simulator actor and connections, these fault layers) is `biased;`
 //!   with a comment saying why its order is fair.
-//! - **No hash order.** Maps that are iterated (the simulator's sessions, its UDP peers) are
-//!   ordered maps; the client's `IntMap` hashes with a fixed function.
+//! - **No hash order.** Maps that are iterated (the simulator's sessions, its UDP peers, the
+//!   text client's commands on the wire) are ordered maps; the client's `IntMap` hashes with a
+//!   fixed function.
+//! - **No random waiter order.** A `watch` channel wakes its waiters in an order the runtime's
+//!   generator (seeded afresh per runtime) picks: what ends several connections at one instant
+//!   in a run is a `CancellationToken`, which wakes them in the order they came.
 //!
 //! The proof is [`determinism_check`]: a seed run twice (or more) must give the same trace digest (the
 //! trace holds every call with its simulated times and outcome, every fault, and the
