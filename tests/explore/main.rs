@@ -278,29 +278,17 @@ fn known_findings() -> Result<Vec<Known>, String> {
 /// determinism check draws fresh seeds, so a source of nondeterminism it caught once would
 /// otherwise go untested after its fix. Returns false if one differed (or a line is bad).
 fn replay_determinism_seeds(variants: &[(&'static dyn Scenario, &'static str)]) -> bool {
-    let file = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/explore/determinism.txt");
-    let text = std::fs::read_to_string(file).unwrap_or_default();
-    let (mut ok, mut n, mut total) = (true, 0, 0);
-    for line in text.lines() {
-        let line = line.split('#').next().unwrap_or_default().trim();
-        if line.is_empty() {
-            continue;
-        }
-        let mut words = line.split_whitespace();
-        let k = words.next().unwrap_or_default();
-        let (Ok((s, v, seed, caps)), Some(Ok(runs))) =
-            (parse_key(k), words.next().map(str::parse::<u64>))
-        else {
-            eprintln!("determinism.txt: bad line {line}");
+    let mut ok = true;
+    let (mut n, mut total) = (0, 0);
+    for l in seed_file("determinism.txt", variants, &mut ok) {
+        let Some(Ok(runs)) = l.word.as_deref().map(str::parse::<u64>) else {
+            eprintln!("determinism.txt: no number of runs after {}", l.key);
             ok = false;
             continue;
         };
-        if !variants.iter().any(|(_, x)| *x == v) {
-            continue;
-        }
         n += 1;
         total += runs.max(2);
-        if let Err(e) = determinism_check(s, v, seed, caps, runs) {
+        if let Err(e) = determinism_check(l.scenario, l.variant, l.seed, l.caps, runs) {
             eprintln!("{e}");
             eprintln!("  (a seed of tests/explore/determinism.txt)");
             ok = false;
@@ -308,6 +296,54 @@ fn replay_determinism_seeds(variants: &[(&'static dyn Scenario, &'static str)]) 
     }
     println!("determinism seeds: {n} seeds, {total} runs");
     ok
+}
+
+/// A line of a seed file: `KEY WORD # why`.
+struct SeedLine {
+    key: String,
+    scenario: &'static dyn Scenario,
+    variant: &'static str,
+    seed: u64,
+    caps: Caps,
+    /// The word after the key, if any.
+    word: Option<String>,
+}
+
+/// The seeds of `tests/explore/NAME` whose variant is one of `variants` (comments and blank
+/// lines left out); a line whose key does not parse is reported and clears `ok`.
+fn seed_file(
+    name: &str,
+    variants: &[(&'static dyn Scenario, &'static str)],
+    ok: &mut bool,
+) -> Vec<SeedLine> {
+    let file = format!("{}/tests/explore/{name}", env!("CARGO_MANIFEST_DIR"));
+    let text = std::fs::read_to_string(file).unwrap_or_default();
+    let mut out = Vec::new();
+    for line in text.lines() {
+        let line = line.split('#').next().unwrap_or_default().trim();
+        if line.is_empty() {
+            continue;
+        }
+        let mut words = line.split_whitespace();
+        let key = words.next().unwrap_or_default();
+        let Ok((scenario, variant, seed, caps)) = parse_key(key) else {
+            eprintln!("{name}: bad line {line}");
+            *ok = false;
+            continue;
+        };
+        if variants.iter().any(|(_, x)| *x == variant) {
+            let word = words.next().map(str::to_owned);
+            out.push(SeedLine {
+                key: key.to_owned(),
+                scenario,
+                variant,
+                seed,
+                caps,
+                word,
+            });
+        }
+    }
+    out
 }
 
 fn fresh_base(o: &Opts) -> u64 {
@@ -449,27 +485,11 @@ fn main() -> ExitCode {
     }
 
     if o.regressions {
-        let file = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/explore/regressions.txt");
-        let text = std::fs::read_to_string(file).unwrap_or_default();
-        let (mut n, mut open) = (0, 0);
-        for line in text.lines() {
-            let line = line.split('#').next().unwrap_or_default().trim();
-            if line.is_empty() {
-                continue;
-            }
-            let mut words = line.split_whitespace();
-            let k = words.next().unwrap_or_default();
-            let state = words.next().unwrap_or("fixed");
-            let Ok((s, v, seed, caps)) = parse_key(k) else {
-                eprintln!("regressions.txt: bad line {line}");
-                failed = true;
-                continue;
-            };
-            if !variants.iter().any(|(_, x)| *x == v) {
-                continue;
-            }
+        let (mut n, mut open, mut ok) = (0, 0, true);
+        for l in seed_file("regressions.txt", &variants, &mut ok) {
+            let (k, state) = (l.key.as_str(), l.word.as_deref().unwrap_or("fixed"));
             n += 1;
-            let out = run_one(s, v, seed, caps);
+            let out = run_one(l.scenario, l.variant, l.seed, l.caps);
             match (state, out.violations.is_empty()) {
                 ("fixed", false) => {
                     report_failure(k, &out);
@@ -481,7 +501,7 @@ fn main() -> ExitCode {
             }
         }
         println!("regressions: {n} seeds, {open} still failing on known open findings");
-        failed |= !replay_determinism_seeds(&variants);
+        failed |= !ok || !replay_determinism_seeds(&variants);
     }
 
     for (s, v) in variants

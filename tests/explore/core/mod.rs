@@ -33,6 +33,7 @@
 //! simulator's whole record), checked in `cargo test` and CI on a number of seeds.
 
 pub mod datagrams;
+pub mod phases;
 pub mod prng;
 pub mod servers;
 pub mod streams;
