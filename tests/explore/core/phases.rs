@@ -40,30 +40,34 @@ pub fn reconnect_policy() -> ReconnectPolicy {
 /// run (short timeouts under heavy faults can fail it every time).
 const OPEN_ATTEMPTS_UNDER_FAULTS: u32 = 20;
 
-/// Opens client `index` (`open`) as a program would: a failed opening is documented (returned
-/// whatever the reconnect policy) and retried. After [`OPEN_ATTEMPTS_UNDER_FAULTS`] failures the
-/// faults stop for this run (`faults_on`): opening must then work, and `None` (it did not)
-/// breaks promise 5.
+/// Opens client `index` (`open`, with `config`, which is noted first) as a program would: a
+/// failed opening is documented (returned whatever the reconnect policy) and retried. After
+/// [`OPEN_ATTEMPTS_UNDER_FAULTS`] failures the faults stop for this run (`faults_on`): opening
+/// must then work; `Err` with the violation of promise 5 if it did not.
 pub async fn open_retrying<C, E: Display, F: Future<Output = Result<C, E>>>(
     index: usize,
+    config: &impl Debug,
     faults_on: &AtomicBool,
     trace: &SharedTrace,
     mut open: impl FnMut() -> F,
-) -> Option<C> {
+) -> Result<C, String> {
+    note(trace, format!("client {index}: {config:?}"));
     for attempt in 0..=OPEN_ATTEMPTS_UNDER_FAULTS {
         if attempt == OPEN_ATTEMPTS_UNDER_FAULTS {
             note(trace, "faults off: the opening sequence failed 20 times");
             faults_on.store(false, Ordering::SeqCst);
         }
         match open().await {
-            Ok(c) => return Some(c),
+            Ok(c) => return Ok(c),
             Err(e) => note(
                 trace,
                 format!("client {index}: open attempt {attempt}: {e}"),
             ),
         }
     }
-    None
+    Err(format!(
+        "5 (recovery): client {index} did not open with the faults off"
+    ))
 }
 
 /// The fault phase: spawns the callers, for each client in turn 1 to `caps.callers` of them,

@@ -130,16 +130,12 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
             reconnect: reconnects.then(reconnect_policy),
             ..ClientConfig::default()
         };
-        note(&trace, format!("client {index}: {config:?}"));
-        let client = open_retrying(index, &faults_on, &trace, || {
+        let opened = open_retrying(index, &config, &faults_on, &trace, || {
             Client::open_with(open.clone(), config.clone())
-        })
-        .await;
-        let Some(client) = client else {
-            violations.push(format!(
-                "5 (recovery): client {index} did not open with the faults off"
-            ));
-            return violations;
+        });
+        let client = match opened.await {
+            Ok(client) => client,
+            Err(violation) => return vec![violation],
         };
         let lost = watch_losses(client.connection_events(), index, trace.clone());
         ctxs.push(Arc::new(Ctx {
