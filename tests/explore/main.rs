@@ -2,8 +2,9 @@
 //! faulty in-memory networks, each run a pure function of its seed, and checks an oracle on
 //! every run. See `docs/EXPLORER.md`.
 //!
-//! `cargo test --test explore` runs the regression seeds (`tests/explore/regressions.txt`), a
-//! few fresh seeds per variant and the determinism check. Options (after `--`):
+//! `cargo test --test explore` runs the regression seeds (`tests/explore/regressions.txt`), the
+//! determinism seeds (`tests/explore/determinism.txt`, each replayed several times), a few fresh
+//! seeds per variant and the determinism check. Options (after `--`):
 //!
 //! - `--replay KEY` — run one seed (e.g. `wsg-udp:0x1f2e3d4c5b6a7988`) and print its trace;
 //! - `--seeds N` — fresh seeds per variant (default 4);
@@ -18,7 +19,7 @@
 //! - `--kind TEXT` — only a violation containing `TEXT` and not a known finding (unless
 //!   `--strict`) counts (with `--until-fail`), or count the fresh runs with such a violation
 //!   (with `--seeds`/`--budget-secs`);
-//! - `--no-regressions` — skip the regression seeds;
+//! - `--no-regressions` — skip the regression seeds and the determinism seeds;
 //! - `--strict` — known open findings (`tests/explore/known.txt`) fail a run too;
 //! - `--no-shrink` — do not shrink failures (long runs); failures are summarised by kind, with
 //!   the first three keys of each kind.
@@ -276,6 +277,79 @@ fn known_findings() -> Result<Vec<Known>, String> {
     Ok(out)
 }
 
+/// The seeds that once did not replay (`tests/explore/determinism.txt`, `KEY RUNS # why`): each
+/// is run `RUNS` times in this process and every run must give the same digest. CI's
+/// determinism check draws fresh seeds, so a source of nondeterminism it caught once would
+/// otherwise go untested after its fix. Returns false if one differed (or a line is bad).
+fn replay_determinism_seeds(variants: &[(&'static dyn Scenario, &'static str)]) -> bool {
+    let mut ok = true;
+    let (mut n, mut total) = (0, 0);
+    for l in seed_file("determinism.txt", variants, &mut ok) {
+        let Some(Ok(runs)) = l.word.as_deref().map(str::parse::<u64>) else {
+            eprintln!("determinism.txt: no number of runs after {}", l.key);
+            ok = false;
+            continue;
+        };
+        n += 1;
+        total += runs.max(2);
+        if let Err(e) = determinism_check(l.scenario, l.variant, l.seed, l.caps, runs) {
+            eprintln!("{e}");
+            eprintln!("  (a seed of tests/explore/determinism.txt)");
+            ok = false;
+        }
+    }
+    println!("determinism seeds: {n} seeds, {total} runs");
+    ok
+}
+
+/// A line of a seed file: `KEY WORD # why`.
+struct SeedLine {
+    key: String,
+    scenario: &'static dyn Scenario,
+    variant: &'static str,
+    seed: u64,
+    caps: Caps,
+    /// The word after the key, if any.
+    word: Option<String>,
+}
+
+/// The seeds of `tests/explore/NAME` whose variant is one of `variants` (comments and blank
+/// lines left out); a line whose key does not parse is reported and clears `ok`.
+fn seed_file(
+    name: &str,
+    variants: &[(&'static dyn Scenario, &'static str)],
+    ok: &mut bool,
+) -> Vec<SeedLine> {
+    let file = format!("{}/tests/explore/{name}", env!("CARGO_MANIFEST_DIR"));
+    let text = std::fs::read_to_string(file).unwrap_or_default();
+    let mut out = Vec::new();
+    for line in text.lines() {
+        let line = line.split('#').next().unwrap_or_default().trim();
+        if line.is_empty() {
+            continue;
+        }
+        let mut words = line.split_whitespace();
+        let key = words.next().unwrap_or_default();
+        let Ok((scenario, variant, seed, caps)) = parse_key(key) else {
+            eprintln!("{name}: bad line {line}");
+            *ok = false;
+            continue;
+        };
+        if variants.iter().any(|(_, x)| *x == variant) {
+            let word = words.next().map(str::to_owned);
+            out.push(SeedLine {
+                key: key.to_owned(),
+                scenario,
+                variant,
+                seed,
+                caps,
+                word,
+            });
+        }
+    }
+    out
+}
+
 fn fresh_base(o: &Opts) -> u64 {
     o.start.unwrap_or_else(|| {
         let t = std::time::SystemTime::now()
@@ -425,27 +499,11 @@ fn main() -> ExitCode {
     }
 
     if o.regressions {
-        let file = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/explore/regressions.txt");
-        let text = std::fs::read_to_string(file).unwrap_or_default();
-        let (mut n, mut open) = (0, 0);
-        for line in text.lines() {
-            let line = line.split('#').next().unwrap_or_default().trim();
-            if line.is_empty() {
-                continue;
-            }
-            let mut words = line.split_whitespace();
-            let k = words.next().unwrap_or_default();
-            let state = words.next().unwrap_or("fixed");
-            let Ok((s, v, seed, caps)) = parse_key(k) else {
-                eprintln!("regressions.txt: bad line {line}");
-                failed = true;
-                continue;
-            };
-            if !variants.iter().any(|(_, x)| *x == v) {
-                continue;
-            }
+        let (mut n, mut open, mut ok) = (0, 0, true);
+        for l in seed_file("regressions.txt", &variants, &mut ok) {
+            let (k, state) = (l.key.as_str(), l.word.as_deref().unwrap_or("fixed"));
             n += 1;
-            let out = run_one(s, v, seed, caps);
+            let out = run_one(l.scenario, l.variant, l.seed, l.caps);
             match (state, out.violations.is_empty()) {
                 ("fixed", false) => {
                     report_failure(k, &out);
@@ -457,6 +515,7 @@ fn main() -> ExitCode {
             }
         }
         println!("regressions: {n} seeds, {open} still failing on known open findings");
+        failed |= !ok || !replay_determinism_seeds(&variants);
     }
 
     for (s, v) in variants
@@ -465,7 +524,7 @@ fn main() -> ExitCode {
     {
         for i in 0..o.determinism {
             let seed = core::Prng::new(base ^ 0xD5 ^ i).next_u64();
-            match determinism_check(*s, v, seed) {
+            match determinism_check(*s, v, seed, Caps::FULL, 2) {
                 Ok(d) => println!("determinism {v}:{seed:#018x}: digest {d:#018x} twice"),
                 Err(e) => {
                     eprintln!("{e}");

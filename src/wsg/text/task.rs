@@ -8,7 +8,7 @@
 //! be told apart: the `ERR MOVE 4` refusing the second (binary E_ALREADY_RUNNING, our reading
 //! §6.2) would end whichever call came first.
 
-use std::collections::{HashMap, VecDeque};
+use std::collections::{BTreeMap, VecDeque};
 use std::future::poll_fn;
 use std::pin::Pin;
 use std::sync::{Arc, Mutex};
@@ -158,7 +158,12 @@ async fn next_line<R: AsyncRead + Unpin>(
 
 /// The commands on the wire (one per name) and the requests waiting for their name.
 struct Book {
-    on_wire: HashMap<&'static str, Slot>,
+    /// Ordered by name, not a `HashMap`: its order is random per map, and it is iterated
+    /// when the connection ends (each caller is told, and so woken, in that order) and for
+    /// the overdue command named in the error (the earliest give-up time, ties in map
+    /// order). With a hash order the same schedule woke the callers in another order from
+    /// run to run (`wsg-text:0x5a7dcaabb2430033`, tests/explore/determinism.txt).
+    on_wire: BTreeMap<&'static str, Slot>,
     waiting: VecDeque<Request>,
 }
 
@@ -297,7 +302,7 @@ pub(crate) async fn run<R, W>(
         out: BytesMut::new(),
     };
     let mut book = Book {
-        on_wire: HashMap::new(),
+        on_wire: BTreeMap::new(),
         waiting: VecDeque::new(),
     };
     let timer = tokio::time::sleep_until(Instant::now());
@@ -377,7 +382,7 @@ pub(crate) async fn run<R, W>(
     if let Some(waiter) = unsent {
         let _ = waiter.send(Err(end.clone()));
     }
-    for (_, slot) in book.on_wire.drain() {
+    while let Some((_, slot)) = book.on_wire.pop_first() {
         let _ = slot.waiter.send(Err(end.clone()));
     }
     for request in book.waiting.drain(..) {

@@ -1,7 +1,9 @@
 //! What the stream scenarios (GRIPLINK, SmartGrasp) share around their simulator: the server of
-//! the moment, which a restart replaces, with the records of the ones it replaced; and each
-//! client's own account of a loss.
+//! the moment, which a restart replaces, with the records of the ones it replaced; the replies
+//! it drops; each client's own account of a loss; and their quiet phase's call.
 
+use std::fmt::{Debug, Display};
+use std::future::Future;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
@@ -11,6 +13,7 @@ use gripper::reconnect::{ConnectionEvent, ConnectionEvents};
 
 use tokio::io::DuplexStream;
 
+use super::phases::{after_close, DocumentedErrors};
 use super::streams::{faulty_pipe, StreamProfile};
 use super::{note, Prng, SharedTrace};
 
@@ -76,6 +79,26 @@ impl<S: Send + Sync + 'static, R: Send + 'static> Servers<S, R> {
         records.push(record(&self.slot.lock().unwrap()));
         records
     }
+
+    /// [`Servers::all_records`], each entry also noted in the trace (the digest covers it) as
+    /// `sim GENERATION/` and what `describe` says of it.
+    pub fn all_records_noted<E>(
+        &self,
+        record: impl FnOnce(&S) -> R,
+        trace: &SharedTrace,
+        describe: impl Fn(&E) -> String,
+    ) -> Vec<R>
+    where
+        for<'a> &'a R: IntoIterator<Item = &'a E>,
+    {
+        let records = self.all_records(record);
+        for (g, rec) in records.iter().enumerate() {
+            for e in rec {
+                note(trace, format!("sim {g}/{}", describe(e)));
+            }
+        }
+        records
+    }
 }
 
 /// Follows a client's connection events into the trace; the flag turns true at its first
@@ -138,4 +161,93 @@ impl<S: Send + Sync + 'static, R: Send + 'static> Servers<S, R> {
             std::future::ready(Ok(client_end))
         }
     }
+}
+
+/// How many replies the server drops in a run (a real server's bug, or a test's): in one run of
+/// two from fault level 1, 1 to 3. A call without timeout is then left out (a dropped reply
+/// would hold it for ever), and so is the quiet phase (the pairing may be out of step).
+pub fn draw_drops(rng: &mut Prng, level: u32) -> u64 {
+    if level >= 1 && rng.one_in(2) {
+        rng.between(1, 3)
+    } else {
+        0
+    }
+}
+
+impl<S: Send + Sync + 'static, R: Send + 'static> Servers<S, R> {
+    /// Schedules `drops` dropped replies at 0–5 s each: then notes `what` and calls `inject`
+    /// (its `inject(Fault::DropReply)`) on the server of the moment.
+    pub fn drop_replies(
+        &self,
+        rng: &mut Prng,
+        drops: u64,
+        trace: &SharedTrace,
+        what: &'static str,
+        inject: fn(&S),
+    ) {
+        for _ in 0..drops {
+            let at = rng.millis(0, 5000);
+            let (sims, trace) = (self.clone(), trace.clone());
+            tokio::spawn(async move {
+                tokio::time::sleep(at).await;
+                note(&trace, what);
+                inject(&sims.current().0);
+            });
+        }
+    }
+}
+
+/// Promise 5 in the quiet phase of a stream scenario: 5 s after the faults stop, a call
+/// (`what`, made by `call`) of client `index` succeeds, or fails with `ConnectionLost` if the
+/// client does not reconnect and reported a loss (`lost`); the violation otherwise.
+pub async fn quiet_call<T: Debug, E: DocumentedErrors + Debug + Display, F>(
+    index: usize,
+    reconnects: bool,
+    lost: &AtomicBool,
+    what: &str,
+    trace: &SharedTrace,
+    call: impl FnOnce() -> F,
+) -> Option<String>
+where
+    F: Future<Output = Result<T, E>>,
+{
+    tokio::time::sleep(Duration::from_secs(5)).await;
+    let r = call().await;
+    note(trace, format!("quiet client {index}: {what} {r:?}"));
+    match &r {
+        Ok(_) => None,
+        Err(e) if e.is_connection_lost() && !reconnects && lost.load(Ordering::SeqCst) => None,
+        Err(e) => Some(format!(
+            "5 (recovery): client {index} (reconnect {reconnects}) failed a call in the quiet phase: {e}"
+        )),
+    }
+}
+
+/// Closes client `index` at the end of a stream scenario's run (`close`, a `close()` with a
+/// timeout), then makes a call (`after`, named `what`) that must fail as documented (promise 5,
+/// [`after_close`]); a loss counts if the client reported one (`lost`) or if `close()` itself
+/// said so (the event of a loss at the instant of the close may not have reached its watcher
+/// yet). With `check` false the call's result is only noted.
+pub async fn close_and_check<T: Debug, E: DocumentedErrors + Debug, FC, FA>(
+    index: usize,
+    what: &str,
+    lost: &AtomicBool,
+    check: bool,
+    trace: &SharedTrace,
+    close: FC,
+    after: impl FnOnce() -> FA,
+) -> Option<String>
+where
+    FC: Future<Output = Result<(), E>>,
+    FA: Future<Output = Result<T, E>>,
+{
+    let r = close.await;
+    note(trace, format!("close client {index}: {r:?}"));
+    let after = after().await;
+    if !check {
+        note(trace, format!("client {index} after close(): {after:?}"));
+        return None;
+    }
+    let lost = lost.load(Ordering::SeqCst) || r.as_ref().is_err_and(|e| e.is_connection_lost());
+    after_close(index, what, &after, lost)
 }

@@ -15,12 +15,15 @@ use gripper::griplink::command::{Blocking, Command, Expect};
 use gripper::griplink::reply::interpret;
 use gripper::griplink::sim::{Fault, SimConfig, SimExchange, SimServer};
 use gripper::griplink::{Answer, Client, ClientConfig, Error};
-use gripper::reconnect::ReconnectPolicy;
 use tokio::time::Instant;
 
-use crate::core::servers::{watch_losses, Servers};
+use crate::core::phases::{
+    draw_restart, draw_shape, fault_phase, open_retrying, reconnect_policy, run_line,
+    unless_given_up, DocumentedErrors,
+};
+use crate::core::servers::{close_and_check, draw_drops, quiet_call, watch_losses, Servers};
 use crate::core::streams::StreamProfile;
-use crate::core::{end_fault_phase, note, Caps, Prng, Scenario, SharedTrace};
+use crate::core::{note, Caps, Prng, Scenario, SharedTrace};
 
 /// The GRIPLINK scenario.
 pub struct Griplink;
@@ -93,15 +96,8 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
     let mut rng = Prng::new(seed);
     let sims: Sims = Servers::new(new_sim());
     let faults_on = Arc::new(AtomicBool::new(true));
-    let level = rng.between(0, u64::from(caps.faults)) as u32;
-    let n_clients = rng.between(1, 2) as usize;
-    note(
-        &trace,
-        format!(
-            "run {variant}:{seed:#018x}{} level {level}, {n_clients} clients",
-            caps.suffix()
-        ),
-    );
+    let (level, n_clients) = draw_shape(&mut rng, caps);
+    note(&trace, run_line(variant, seed, caps, level, n_clients));
     let mut violations = Vec::new();
     let mut ctxs = Vec::new();
     for index in 0..n_clients {
@@ -131,21 +127,15 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
             give_up_after: crng.millis(10, 1000),
             connect_timeout: Duration::from_secs(1),
             pipeline_depth: crng.between(1, 4) as usize,
-            reconnect: reconnects.then_some(ReconnectPolicy {
-                initial_delay: Duration::from_millis(50),
-                max_delay: Duration::from_millis(500),
-                factor: 2.0,
-                max_attempts: None,
-            }),
+            reconnect: reconnects.then(reconnect_policy),
             ..ClientConfig::default()
         };
-        note(&trace, format!("client {index}: {config:?}"));
-        let client = match Client::open_with(open, config).await {
-            Ok(c) => c,
-            Err(e) => {
-                violations.push(format!("5 (recovery): client {index} did not open: {e}"));
-                return violations;
-            }
+        let opened = open_retrying(index, &config, &faults_on, &trace, || {
+            Client::open_with(open.clone(), config.clone())
+        });
+        let client = match opened.await {
+            Ok(client) => client,
+            Err(violation) => return vec![violation],
         };
         let lost = watch_losses(client.connection_events(), index, trace.clone());
         ctxs.push(Arc::new(Ctx {
@@ -162,46 +152,25 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
     // pairing by order is then out of step, which the client must notice by the reply's shape
     // and repair with a probe (client/pipeline.rs), never pass on as another command's answer.
     // (A call without timeout is then left out: a dropped reply would hold it forever.)
-    let drops = if level >= 1 && rng.one_in(2) {
-        rng.between(1, 3)
-    } else {
-        0
-    };
+    let drops = draw_drops(&mut rng, level);
     let log = Arc::new(Mutex::new(Vec::<CallRec>::new()));
     let run_wide = Arc::new(RunWide {
         labels: AtomicU64::new(0),
         forever: drops == 0,
     });
-    let mut callers = Vec::new();
-    for ctx in &ctxs {
-        let n = rng.between(1, u64::from(caps.callers)) as usize;
-        for k in 0..n {
-            let ops = rng.between(1, u64::from(caps.ops)) as u32;
-            callers.push(tokio::spawn(caller(
-                ctx.clone(),
-                k,
-                rng.fork(),
-                ops,
-                log.clone(),
-                run_wide.clone(),
-                trace.clone(),
-            )));
-        }
-    }
-    let restart = (level >= 2 && rng.one_in(4)).then(|| {
-        let at = rng.millis(0, 5000);
-        sims.restart_at(at, new_sim, SimServer::recording, trace.clone())
-    });
-    for _ in 0..drops {
-        let at = rng.millis(0, 5000);
-        let (sims, trace) = (sims.clone(), trace.clone());
-        tokio::spawn(async move {
-            tokio::time::sleep(at).await;
-            note(&trace, "fault: the controller will drop its next reply");
-            sims.current().0.inject(Fault::DropReply);
+    let caller = |ctx: &Arc<Ctx>, k, rng, ops| {
+        let (log, run_wide, trace) = (log.clone(), run_wide.clone(), trace.clone());
+        caller(ctx.clone(), k, rng, ops, log, run_wide, trace)
+    };
+    let faults = |rng: &mut Prng| {
+        let restart = draw_restart(rng, level, |at| {
+            sims.restart_at(at, new_sim, SimServer::recording, trace.clone())
         });
-    }
-    end_fault_phase(callers, restart, &faults_on, &trace).await;
+        let what = "fault: the controller will drop its next reply";
+        sims.drop_replies(rng, drops, &trace, what, |sim| sim.inject(Fault::DropReply));
+        restart
+    };
+    fault_phase(&mut rng, caps, &ctxs, caller, faults, &faults_on, &trace).await;
 
     // Quiet phase: after the recovery bound, a client that reconnects must answer; one that
     // does not must answer or (after a loss) fail with ConnectionLost. Not after a dropped
@@ -211,62 +180,33 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
         if ctx.closing.load(Ordering::SeqCst) || drops > 0 {
             continue;
         }
-        tokio::time::sleep(Duration::from_secs(5)).await;
-        let r = ctx.client.with_timeout(Duration::from_secs(5)).id().await;
-        note(&trace, format!("quiet client {}: ID? {r:?}", ctx.index));
-        match &r {
-            Ok(_) => {}
-            Err(Error::ConnectionLost(_)) if !ctx.reconnects && ctx.lost.load(Ordering::SeqCst) => {
-            }
-            Err(e) => violations.push(format!(
-                "5 (recovery): client {} (reconnect {}) failed a call in the quiet phase: {e}",
-                ctx.index, ctx.reconnects
-            )),
-        }
+        let quiet = quiet_call(
+            ctx.index,
+            ctx.reconnects,
+            &ctx.lost,
+            "ID?",
+            &trace,
+            || async { ctx.client.with_timeout(Duration::from_secs(5)).id().await },
+        );
+        violations.extend(quiet.await);
     }
     for ctx in &ctxs {
         // Closed again even if a caller closed it: its close() may have timed out before
         // BYE() was sent (then the connection stays open, as documented).
+        // (Not checked after a dropped reply: then only noted.)
         ctx.closing.store(true, Ordering::SeqCst);
-        let r = ctx
-            .client
-            .with_timeout(Duration::from_secs(10))
-            .close()
-            .await;
-        note(&trace, format!("close client {}: {r:?}", ctx.index));
-        let after = ctx.client.id().await;
-        if drops > 0 {
-            note(
-                &trace,
-                format!("client {} after close(): {after:?}", ctx.index),
-            );
-            continue;
-        }
-        // A loss counts if the watcher saw its event, or if close() itself said so: the event
-        // of a loss at the instant of the close may not have reached the watcher yet.
-        let lost = ctx.lost.load(Ordering::SeqCst) || matches!(r, Err(Error::ConnectionLost(_)));
-        let fine = match &after {
-            Err(Error::Closed) => true,
-            Err(Error::ConnectionLost(_)) => lost,
-            _ => false,
-        };
-        if !fine {
-            violations.push(format!(
-                "5 (documented errors): client {} after close(): ID? ended {after:?}, not Error::Closed",
-                ctx.index
-            ));
-        }
+        let within = ctx.client.with_timeout(Duration::from_secs(10));
+        let close = within.close();
+        let (index, lost, check) = (ctx.index, &ctx.lost, drops == 0);
+        let closed = close_and_check(index, "ID?", lost, check, &trace, close, || async {
+            ctx.client.id().await
+        });
+        violations.extend(closed.await);
     }
     // The oracle needs every controller's record; then everything ends.
-    let records = sims.all_records(SimServer::recording);
-    for (g, rec) in records.iter().enumerate() {
-        for e in rec {
-            note(
-                &trace,
-                format!("sim {g}/{}: {:?} -> {:?}", e.session, e.request, e.reply),
-            );
-        }
-    }
+    let records = sims.all_records_noted(SimServer::recording, &trace, |e: &SimExchange| {
+        format!("{}: {:?} -> {:?}", e.session, e.request, e.reply)
+    });
     let calls = std::mem::take(&mut *log.lock().unwrap());
     violations.extend(oracle(&ctxs, &calls, &records, drops > 0));
     drop(ctxs);
@@ -340,15 +280,7 @@ async fn caller(
         let start = Instant::now();
         // Now and then the caller gives up on the call (its future dropped).
         let cancel = rng.one_in(8).then(|| rng.millis(1, 500));
-        let result = match cancel {
-            Some(after) => tokio::select! {
-                // Fixed order (replay); either way the call's future is dropped or done.
-                biased;
-                r = client.execute(&command) => Some(r),
-                () = tokio::time::sleep(after) => None,
-            },
-            None => Some(client.execute(&command).await),
-        };
+        let result = unless_given_up(cancel, client.execute(&command)).await;
         let end = Instant::now();
         note(
             &trace,
@@ -452,5 +384,15 @@ fn same(a: &Result<Answer, Error>, b: &Result<Answer, Error>) -> bool {
         (Ok(x), Ok(y)) => x == y,
         (Err(x), Err(y)) => x.status().is_some() && x.status() == y.status(),
         _ => false,
+    }
+}
+
+impl DocumentedErrors for Error {
+    fn is_closed(&self) -> bool {
+        matches!(self, Error::Closed)
+    }
+
+    fn is_connection_lost(&self) -> bool {
+        matches!(self, Error::ConnectionLost(_))
     }
 }

@@ -14,7 +14,6 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use gripper::reconnect::ReconnectPolicy;
 use gripper::smartgrasp::frame::{AnyResponseFrame, FRAME_LEN};
 use gripper::smartgrasp::sim::{Fault, SimConfig, SimExchange, SimServer};
 use gripper::smartgrasp::types::SelectionCriterion;
@@ -24,9 +23,13 @@ use gripper::smartgrasp::{
 };
 use tokio::time::Instant;
 
-use crate::core::servers::{watch_losses, Servers};
+use crate::core::phases::{
+    draw_restart, draw_shape, fault_phase, open_retrying, reconnect_policy, run_line,
+    unless_given_up, DocumentedErrors,
+};
+use crate::core::servers::{close_and_check, draw_drops, quiet_call, watch_losses, Servers};
 use crate::core::streams::StreamProfile;
-use crate::core::{end_fault_phase, note, Caps, Prng, Scenario, SharedTrace};
+use crate::core::{note, Caps, Prng, Scenario, SharedTrace};
 
 /// The SmartGrasp scenario.
 pub struct SmartGrasp;
@@ -96,15 +99,8 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
     let mut rng = Prng::new(seed);
     let sims: Sims = Servers::new(new_sim(version));
     let faults_on = Arc::new(AtomicBool::new(true));
-    let level = rng.between(0, u64::from(caps.faults)) as u32;
-    let n_clients = rng.between(1, 2) as usize;
-    note(
-        &trace,
-        format!(
-            "run {variant}:{seed:#018x}{} level {level}, {n_clients} clients",
-            caps.suffix()
-        ),
-    );
+    let (level, n_clients) = draw_shape(&mut rng, caps);
+    note(&trace, run_line(variant, seed, caps, level, n_clients));
     let mut violations = Vec::new();
     let mut ctxs = Vec::new();
     for index in 0..n_clients {
@@ -137,41 +133,16 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
             connect_timeout: Duration::from_secs(1),
             strict_response_counter: strict,
             project_index: crng.one_in(2).then_some(0),
-            reconnect: reconnects.then_some(ReconnectPolicy {
-                initial_delay: Duration::from_millis(50),
-                max_delay: Duration::from_millis(500),
-                factor: 2.0,
-                max_attempts: None,
-            }),
+            reconnect: reconnects.then(reconnect_policy),
             ..ClientConfig::default()
         };
-        note(&trace, format!("client {index}: {config:?}"));
-        // The opening sequence runs through the faults too: a failure there is documented
-        // (returned whatever the reconnect policy), and retried like a program would.
-        // After 20 failures (short timeouts under heavy faults) the faults stop for this run:
-        // opening must then work, and only that failure breaks promise 5.
-        let mut client = None;
-        for attempt in 0..21 {
-            if attempt == 20 {
-                note(&trace, "faults off: the opening sequence failed 20 times");
-                faults_on.store(false, Ordering::SeqCst);
-            }
-            match Client::open_with(open.clone(), config.clone()).await {
-                Ok(c) => {
-                    client = Some(c);
-                    break;
-                }
-                Err(e) => note(
-                    &trace,
-                    format!("client {index}: open attempt {attempt}: {e}"),
-                ),
-            }
-        }
-        let Some(client) = client else {
-            violations.push(format!(
-                "5 (recovery): client {index} did not open with the faults off"
-            ));
-            return violations;
+        // The opening sequence runs through the faults too (SET_PROJECT, GET_PROTOCOL_VERSION).
+        let opened = open_retrying(index, &config, &faults_on, &trace, || {
+            Client::open_with(open.clone(), config.clone())
+        });
+        let client = match opened.await {
+            Ok(client) => client,
+            Err(violation) => return vec![violation],
         };
         let lost = watch_losses(client.connection_events(), index, trace.clone());
         ctxs.push(Arc::new(Ctx {
@@ -190,49 +161,23 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
     // which the client must notice (message type, echoed fields, in strict mode the counter),
     // never pass on as another request's answer. (A call without timeout is then left out: a
     // dropped response would hold it for ever.)
-    let drops = if level >= 1 && rng.one_in(2) {
-        rng.between(1, 3)
-    } else {
-        0
-    };
+    let drops = draw_drops(&mut rng, level);
     let log = Arc::new(Mutex::new(Vec::<CallRec>::new()));
     let forever = drops == 0;
-    let mut callers = Vec::new();
-    for ctx in &ctxs {
-        let n = rng.between(1, u64::from(caps.callers)) as usize;
-        for k in 0..n {
-            let ops = rng.between(1, u64::from(caps.ops)) as u32;
-            callers.push(tokio::spawn(caller(
-                ctx.clone(),
-                k,
-                rng.fork(),
-                ops,
-                version,
-                forever,
-                log.clone(),
-                trace.clone(),
-            )));
-        }
-    }
-    let restart = (level >= 2 && rng.one_in(4)).then(|| {
-        let at = rng.millis(0, 5000);
-        sims.restart_at(
-            at,
-            move || new_sim(version),
-            SimServer::recording,
-            trace.clone(),
-        )
-    });
-    for _ in 0..drops {
-        let at = rng.millis(0, 5000);
-        let (sims, trace) = (sims.clone(), trace.clone());
-        tokio::spawn(async move {
-            tokio::time::sleep(at).await;
-            note(&trace, "fault: the server will drop its next response");
-            sims.current().0.inject(Fault::DropReply);
+    let caller = |ctx: &Arc<Ctx>, k, rng, ops| {
+        let (log, trace) = (log.clone(), trace.clone());
+        caller(ctx.clone(), k, rng, ops, version, forever, log, trace)
+    };
+    let faults = |rng: &mut Prng| {
+        let fresh = move || new_sim(version);
+        let restart = draw_restart(rng, level, |at| {
+            sims.restart_at(at, fresh, SimServer::recording, trace.clone())
         });
-    }
-    end_fault_phase(callers, restart, &faults_on, &trace).await;
+        let what = "fault: the server will drop its next response";
+        sims.drop_replies(rng, drops, &trace, what, |sim| sim.inject(Fault::DropReply));
+        restart
+    };
+    fault_phase(&mut rng, caps, &ctxs, caller, faults, &faults_on, &trace).await;
 
     // Quiet phase: after the recovery bound, a client that reconnects must answer; one that
     // does not must answer or (after a loss) fail with ConnectionLost. Not after a dropped
@@ -242,66 +187,36 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
         if ctx.closing.load(Ordering::SeqCst) || drops > 0 {
             continue;
         }
-        tokio::time::sleep(Duration::from_secs(5)).await;
-        let r = ctx
-            .client
-            .with_timeout(Duration::from_secs(5))
-            .get_state()
-            .await;
-        note(
+        let quiet = quiet_call(
+            ctx.index,
+            ctx.reconnects,
+            &ctx.lost,
+            "GET_STATE",
             &trace,
-            format!("quiet client {}: GET_STATE {r:?}", ctx.index),
+            || async {
+                ctx.client
+                    .with_timeout(Duration::from_secs(5))
+                    .get_state()
+                    .await
+            },
         );
-        match &r {
-            Ok(_) => {}
-            Err(Error::ConnectionLost { .. })
-                if !ctx.reconnects && ctx.lost.load(Ordering::SeqCst) => {}
-            Err(e) => violations.push(format!(
-                "5 (recovery): client {} (reconnect {}) failed a call in the quiet phase: {e}",
-                ctx.index, ctx.reconnects
-            )),
-        }
+        violations.extend(quiet.await);
     }
     for ctx in &ctxs {
         ctx.closing.store(true, Ordering::SeqCst);
-        let r = ctx
-            .client
-            .with_timeout(Duration::from_secs(10))
-            .close()
-            .await;
-        note(&trace, format!("close client {}: {r:?}", ctx.index));
-        let after = ctx.client.get_state().await;
-        // A loss counts if the watcher saw its event, or if close() itself said so: the event
-        // of a loss at the instant of the close may not have reached the watcher yet.
-        let lost =
-            ctx.lost.load(Ordering::SeqCst) || matches!(r, Err(Error::ConnectionLost { .. }));
-        let fine = match &after {
-            Err(Error::Closed) => true,
-            Err(Error::ConnectionLost { .. }) => lost,
-            _ => false,
-        };
-        if !fine {
-            violations.push(format!(
-                "5 (documented errors): client {} after close(): GET_STATE ended {after:?}, not Error::Closed",
-                ctx.index
-            ));
-        }
+        let within = ctx.client.with_timeout(Duration::from_secs(10));
+        let close = within.close();
+        let (index, lost) = (ctx.index, &ctx.lost);
+        let closed = close_and_check(index, "GET_STATE", lost, true, &trace, close, || async {
+            ctx.client.get_state().await
+        });
+        violations.extend(closed.await);
     }
     // The oracle needs every server's record; then everything ends.
-    let records = sims.all_records(SimServer::recording);
-    for (g, rec) in records.iter().enumerate() {
-        for e in rec {
-            note(
-                &trace,
-                format!(
-                    "sim {g}/{}: {:?} -> {:?}",
-                    e.session,
-                    e.request,
-                    decode(&e.response)
-                ),
-            );
-        }
-    }
+    let records = sims.all_records_noted(SimServer::recording, &trace, |e: &SimExchange| {
+        let response = decode(&e.response);
+        format!("{}: {:?} -> {response:?}", e.session, e.request)
+    });
     let calls = std::mem::take(&mut *log.lock().unwrap());
     violations.extend(oracle(&ctxs, &calls, &records, drops > 0));
     drop(ctxs);
@@ -391,15 +306,7 @@ async fn caller(
         let start = Instant::now();
         // Now and then the caller gives up on the call (its future dropped).
         let cancel = rng.one_in(8).then(|| rng.millis(1, 500));
-        let result = match cancel {
-            Some(after) => tokio::select! {
-                // Fixed order (replay); either way the call's future is dropped or done.
-                biased;
-                r = client.call(request) => Some(r),
-                () = tokio::time::sleep(after) => None,
-            },
-            None => Some(client.call(request).await),
-        };
+        let result = unless_given_up(cancel, client.call(request)).await;
         let end = Instant::now();
         note(
             &trace,
@@ -541,4 +448,14 @@ fn oracle(
         }
     }
     out
+}
+
+impl DocumentedErrors for Error {
+    fn is_closed(&self) -> bool {
+        matches!(self, Error::Closed)
+    }
+
+    fn is_connection_lost(&self) -> bool {
+        matches!(self, Error::ConnectionLost { .. })
+    }
 }

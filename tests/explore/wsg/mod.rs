@@ -14,7 +14,6 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use gripper::reconnect::ReconnectPolicy;
 use gripper::wsg::command::id;
 use gripper::wsg::sim::{Model, SessionKind, SimConfig, SimEvent, SimServer};
 use gripper::wsg::{Client, Status};
@@ -23,8 +22,12 @@ use tokio::time::Instant;
 use self::oracle::ClientView;
 use self::workload::{CallRec, ClientCtx, Log, Res};
 use crate::core::datagrams::{faulty_datagrams, DatagramProfile};
+use crate::core::phases::{
+    after_close, draw_restart, draw_shape, fault_phase, reconnect_policy, run_line,
+    DocumentedErrors,
+};
 use crate::core::streams::{faulty_pipe_logged, StreamProfile, MAX_STALL};
-use crate::core::{end_fault_phase, note, restart_at, Caps, Prng, Scenario, SharedTrace};
+use crate::core::{note, restart_at, Caps, Prng, Scenario, SharedTrace};
 
 /// The WSG scenario.
 pub struct Wsg;
@@ -74,15 +77,8 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
     let sim = Arc::new(SimServer::in_memory(config));
     sim.start_recording(RECORD_CAPACITY);
     let faults_on = Arc::new(AtomicBool::new(true));
-    let level = rng.between(0, u64::from(caps.faults)) as u32;
-    let n_clients = rng.between(1, 2) as usize;
-    note(
-        &trace,
-        format!(
-            "run {variant}:{seed:#018x}{} level {level}, {n_clients} clients",
-            caps.suffix()
-        ),
-    );
+    let (level, n_clients) = draw_shape(&mut rng, caps);
+    note(&trace, run_line(variant, seed, caps, level, n_clients));
 
     let mut ctxs = Vec::new();
     for index in 0..n_clients {
@@ -97,21 +93,16 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
 
     // The fault phase: every caller runs its calls; a device restart now and then.
     let log = Arc::new(Log::default());
-    let mut callers = Vec::new();
-    for ctx in &ctxs {
-        let n = rng.between(1, u64::from(caps.callers)) as usize;
-        for k in 0..n {
-            let ops = rng.between(1, u64::from(caps.ops)) as u32;
-            let task =
-                workload::caller(ctx.clone(), k, rng.fork(), ops, log.clone(), trace.clone());
-            callers.push(tokio::spawn(task));
-        }
-    }
-    let restart = (level >= 2 && rng.one_in(4)).then(|| {
-        let sim = sim.clone();
-        restart_at(rng.millis(0, 5000), &trace, move || sim.restart())
-    });
-    end_fault_phase(callers, restart, &faults_on, &trace).await;
+    let caller = |ctx: &Arc<ClientCtx>, k, rng, ops| {
+        workload::caller(ctx.clone(), k, rng, ops, log.clone(), trace.clone())
+    };
+    let restart = |rng: &mut Prng| {
+        draw_restart(rng, level, |at| {
+            let sim = sim.clone();
+            restart_at(at, &trace, move || sim.restart())
+        })
+    };
+    fault_phase(&mut rng, caps, &ctxs, caller, restart, &faults_on, &trace).await;
 
     // The quiet phase.
     let mut quiet = Vec::new();
@@ -128,27 +119,11 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
             note(&trace, format!("close client {}: {r:?}", ctx.index));
             let after = ctx.client.width_mm().await;
             // After a loss, ConnectionLost stays a fair answer (the connection is gone either way).
-            let fine = match &after {
-                Err(gripper::wsg::Error::Closed) => true,
-                Err(gripper::wsg::Error::ConnectionLost(_)) => lost,
-                _ => false,
-            };
-            if !fine {
-                quiet.push(format!(
-                    "5 (documented errors): client {} after close(): width_mm() ended {after:?}, not Error::Closed",
-                    ctx.index
-                ));
-            }
+            quiet.extend(after_close(ctx.index, "width_mm()", &after, lost));
         }
     }
 
-    let record = sim.recording();
-    for r in &record.records {
-        note(
-            &trace,
-            format!("sim {}us {} {:?}", r.at.as_micros(), r.session, r.event),
-        );
-    }
+    let record = note_record(&sim, &trace);
     let views: Vec<ClientView> = ctxs
         .iter()
         .map(|c| ClientView {
@@ -210,12 +185,7 @@ async fn open_client(
         b = b.partial_frame_timeout(rng.millis(20, 500));
     }
     if reconnect {
-        b = b.reconnect(ReconnectPolicy {
-            initial_delay: Duration::from_millis(50),
-            max_delay: Duration::from_millis(500),
-            factor: 2.0,
-            max_attempts: None,
-        });
+        b = b.reconnect(reconnect_policy());
     }
     let sessions = Arc::new(Mutex::new(Vec::new()));
     let carried = Arc::new(Mutex::new(Vec::new()));
@@ -429,4 +399,27 @@ async fn stop_is_not_queued(
         ));
     }
     v
+}
+
+impl DocumentedErrors for gripper::wsg::Error {
+    fn is_closed(&self) -> bool {
+        matches!(self, gripper::wsg::Error::Closed)
+    }
+
+    fn is_connection_lost(&self) -> bool {
+        matches!(self, gripper::wsg::Error::ConnectionLost(_))
+    }
+}
+
+/// The simulator's whole record, into the trace (the digest covers it) and for the oracle; the
+/// text interface's scenario (`wsg_text`) records the same simulator.
+pub fn note_record(sim: &SimServer, trace: &SharedTrace) -> gripper::wsg::sim::SimRecording {
+    let record = sim.recording();
+    for r in &record.records {
+        note(
+            trace,
+            format!("sim {}us {} {:?}", r.at.as_micros(), r.session, r.event),
+        );
+    }
+    record
 }

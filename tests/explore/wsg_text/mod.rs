@@ -25,8 +25,11 @@ use gripper::wsg::HomingDirection;
 use tokio::time::Instant;
 
 use self::workload::{classify, CallRec, Expect, Log, Res};
+use crate::core::phases::{
+    after_close, draw_restart, draw_shape, fault_phase, run_line, DocumentedErrors,
+};
 use crate::core::streams::{faulty_pipe, StreamProfile};
-use crate::core::{end_fault_phase, note, restart_at, Caps, Prng, Scenario, SharedTrace};
+use crate::core::{note, restart_at, Caps, Prng, Scenario, SharedTrace};
 
 /// The GCL scenario.
 pub struct WsgText;
@@ -144,19 +147,13 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
     sim.start_recording(RECORD_CAPACITY);
     // Off while the gripper is readied (below).
     let on = Arc::new(AtomicBool::new(false));
-    let level = rng.between(0, u64::from(caps.faults)) as u32;
-    let n_clients = rng.between(1, 2) as usize;
+    let (level, n_clients) = draw_shape(&mut rng, caps);
     // GCL has no checksum: a flipped bit is another well-formed line no client could tell from
     // the device's (`MOVE(20)` read as `MOVE(22)`, `POS=20.0` as `POS=22.0`). Runs with
     // corruption (a third) hold answers to their form and name only (`oracle.rs`).
     let corrupting = level > 0 && rng.one_in(3);
-    note(
-        &trace,
-        format!(
-            "run {variant}:{seed:#018x}{} level {level}, {n_clients} clients, corrupting {corrupting}",
-            caps.suffix()
-        ),
-    );
+    let run = run_line(variant, seed, caps, level, n_clients);
+    note(&trace, format!("{run}, corrupting {corrupting}"));
     let mut ctxs = Vec::new();
     for index in 0..n_clients {
         let mut crng = rng.fork();
@@ -218,20 +215,16 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
 
     // The fault phase.
     let log = Arc::new(Log::default());
-    let mut callers = Vec::new();
-    for ctx in &ctxs {
-        for k in 0..rng.between(1, u64::from(caps.callers)) as usize {
-            let ops = rng.between(1, u64::from(caps.ops)) as u32;
-            let task =
-                workload::caller(ctx.clone(), k, rng.fork(), ops, log.clone(), trace.clone());
-            callers.push(tokio::spawn(task));
-        }
-    }
-    let restart = (level >= 2 && rng.one_in(4)).then(|| {
-        let sim = sim.clone();
-        restart_at(rng.millis(0, 5000), &trace, move || sim.restart())
-    });
-    end_fault_phase(callers, restart, &on, &trace).await;
+    let caller = |ctx: &Arc<Ctx>, k, rng, ops| {
+        workload::caller(ctx.clone(), k, rng, ops, log.clone(), trace.clone())
+    };
+    let restart = |rng: &mut Prng| {
+        draw_restart(rng, level, |at| {
+            let sim = sim.clone();
+            restart_at(at, &trace, move || sim.restart())
+        })
+    };
+    fault_phase(&mut rng, caps, &ctxs, caller, restart, &on, &trace).await;
 
     let mut v = Vec::new();
     for ctx in &ctxs {
@@ -249,26 +242,11 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
         let r = c.close().await;
         note(&trace, format!("close client {}: {r:?}", ctx.index));
         let after = c.position_mm().await;
-        let fine = match &after {
-            Err(Error::Closed) => true,
-            Err(Error::ConnectionLost(_)) => lost || matches!(r, Err(Error::ConnectionLost(_))),
-            _ => false,
-        };
-        if !fine {
-            v.push(format!(
-                "5 (documented errors): client {} after close(): POS? ended {after:?}, not Error::Closed",
-                ctx.index
-            ));
-        }
+        let lost = lost || matches!(r, Err(Error::ConnectionLost(_)));
+        v.extend(after_close(ctx.index, "POS?", &after, lost));
     }
 
-    let record = sim.recording();
-    for r in &record.records {
-        note(
-            &trace,
-            format!("sim {}us {} {:?}", r.at.as_micros(), r.session, r.event),
-        );
-    }
+    let record = crate::wsg::note_record(&sim, &trace);
     let sessions: Vec<Vec<SessionId>> = ctxs
         .iter()
         .map(|c| c.sessions.lock().unwrap().clone())
@@ -422,4 +400,14 @@ async fn stop_is_not_queued(
         ));
     }
     v
+}
+
+impl DocumentedErrors for Error {
+    fn is_closed(&self) -> bool {
+        matches!(self, Error::Closed)
+    }
+
+    fn is_connection_lost(&self) -> bool {
+        matches!(self, Error::ConnectionLost(_))
+    }
 }

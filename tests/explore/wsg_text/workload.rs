@@ -12,6 +12,7 @@ use gripper::wsg::HomingDirection;
 use tokio::time::Instant;
 
 use super::Ctx;
+use crate::core::phases::unless_given_up;
 use crate::core::{note, Prng, SharedTrace};
 
 /// What a command's reply is, on the wire (the client's pairing by name: `task.rs`).
@@ -383,15 +384,7 @@ pub async fn caller(
         let cancel = rng.one_in(8).then(|| rng.millis(1, 500));
         let mut prng = rng.fork();
         let call = perform(&client, &op.call, &ctx, &mut prng, &log, &trace);
-        let ended = match cancel {
-            Some(after) => tokio::select! {
-                // Fixed order (replay); either way the call ends here, or its future is dropped.
-                biased;
-                r = call => Some(r),
-                () = tokio::time::sleep(after) => None,
-            },
-            None => Some(call.await),
-        };
+        let ended = unless_given_up(cancel, call).await;
         note(
             &trace,
             format!(
