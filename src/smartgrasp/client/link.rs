@@ -11,7 +11,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use futures_core::Stream;
-use tokio::io::{AsyncWriteExt, ReadHalf, WriteHalf};
+use tokio::io::AsyncWriteExt;
 use tokio::net::TcpStream;
 use tokio::sync::{mpsc, oneshot};
 use tokio::time::Instant;
@@ -67,8 +67,11 @@ pub(crate) type OnPaired<'a> = dyn FnMut(&RequestFrame, &ResponseFrame) + Send +
 
 /// A connection and its pairing state.
 pub(crate) struct Link {
-    responses: FramedRead<ReadHalf<BoxStream>, ClientCodec>,
-    write: WriteHalf<BoxStream>,
+    /// The stream, read through the codec and written through `get_mut`. Not split in halves:
+    /// the link alone reads and writes it, one at a time, so the lock `tokio::io::split` takes
+    /// around every read and write would buy nothing, at about 200 instructions per call
+    /// (BENCHMARKS.md, "SmartGrasp: the stream unsplit, TCP unboxed").
+    stream: FramedRead<BoxStream, ClientCodec>,
     /// At most [`MAX_IN_FLIGHT`].
     waiting: VecDeque<Waiting>,
     pairing: Pairing,
@@ -124,11 +127,9 @@ impl Link {
 
     /// A link over a stream already open.
     pub(crate) fn over(stream: BoxStream, config: &ClientConfig, shared: &Arc<Shared>) -> Link {
-        let (read, write) = tokio::io::split(stream);
         Link {
             // V3 until the opening sequence chose a version (see `set_version`).
-            responses: FramedRead::new(read, ClientCodec::default()),
-            write,
+            stream: FramedRead::new(stream, ClientCodec::default()),
             waiting: VecDeque::with_capacity(MAX_IN_FLIGHT),
             pairing: if config.strict_response_counter {
                 Pairing::strict()
@@ -144,12 +145,12 @@ impl Link {
 
     /// The protocol version requests on this link are sent in.
     pub(crate) fn version(&self) -> u16 {
-        self.responses.decoder().version
+        self.stream.decoder().version
     }
 
     /// Sends every later request in protocol `version` (the opening sequence negotiated it).
     pub(crate) fn set_version(&mut self, version: u16) {
-        self.responses.decoder_mut().version = version;
+        self.stream.decoder_mut().version = version;
     }
 
     /// One request with nothing else in flight (the opening sequence), in the link's version,
@@ -162,7 +163,7 @@ impl Link {
     ) -> Result<Response> {
         let request = request.to_any_frame(self.version())?;
         let answer = async {
-            self.write.write_all(&request.encode()).await?;
+            self.stream.get_mut().write_all(&request.encode()).await?;
             let frame = match self.next_response().await {
                 None => return Err(server_closed()),
                 Some(frame) => frame?,
@@ -181,7 +182,7 @@ impl Link {
     }
 
     async fn next_response(&mut self) -> Option<Result<ResponseFrame>> {
-        poll_fn(|cx| Pin::new(&mut self.responses).poll_next(cx)).await
+        poll_fn(|cx| Pin::new(&mut self.stream).poll_next(cx)).await
     }
 
     /// Serves calls until the connection breaks (`Some(reason)`; every call that was waiting on
@@ -290,7 +291,8 @@ impl Link {
         deadline: Instant,
     ) -> Result<()> {
         let give_up_at = after(deadline, self.give_up_after);
-        if let Err(error) = write_within(&mut self.write, give_up_at, &request.encode()).await {
+        if let Err(error) = write_within(self.stream.get_mut(), give_up_at, &request.encode()).await
+        {
             let _ = reply.send(Err(error.clone()));
             return Err(error);
         }
