@@ -21,8 +21,9 @@ use tokio_util::sync::CancellationToken;
 use super::pairing::{ambiguous, check_response, Counted, Pairing};
 use super::shutdown::Shutdown;
 use super::{ClientConfig, Shared, Timeouts};
+use crate::client_stream::ClientStream;
 use crate::deadline::{after, move_timer, write_all_by};
-use crate::reconnect::{BoxStream, Open};
+use crate::reconnect::Open;
 use crate::smartgrasp::codec::ClientCodec;
 use crate::smartgrasp::error::{Error, Malformed, Result};
 use crate::smartgrasp::frame::{
@@ -71,7 +72,7 @@ pub(crate) struct Link {
     /// the link alone reads and writes it, one at a time, so the lock `tokio::io::split` takes
     /// around every read and write would buy nothing, at about 200 instructions per call
     /// (BENCHMARKS.md, "SmartGrasp: the stream unsplit, TCP unboxed").
-    stream: FramedRead<BoxStream, ClientCodec>,
+    stream: FramedRead<ClientStream, ClientCodec>,
     /// At most [`MAX_IN_FLIGHT`].
     waiting: VecDeque<Waiting>,
     pairing: Pairing,
@@ -97,7 +98,7 @@ pub(crate) enum Opener {
 
 impl Opener {
     /// One attempt, within `timeout`.
-    async fn open(&self, timeout: Duration) -> Result<BoxStream> {
+    async fn open(&self, timeout: Duration) -> Result<ClientStream> {
         within_connect_timeout(timeout, async {
             match self {
                 Opener::Tcp(addrs) => {
@@ -105,9 +106,9 @@ impl Opener {
                     // Requests are single 80-byte writes waiting for an answer: do not let
                     // Nagle hold them.
                     stream.set_nodelay(true)?;
-                    Ok(Box::new(stream) as BoxStream)
+                    Ok(ClientStream::Tcp(stream))
                 }
-                Opener::Custom(open) => Ok(open().await?),
+                Opener::Custom(open) => Ok(ClientStream::Boxed(open().await?)),
             }
         })
         .await
@@ -126,7 +127,7 @@ impl Link {
     }
 
     /// A link over a stream already open.
-    pub(crate) fn over(stream: BoxStream, config: &ClientConfig, shared: &Arc<Shared>) -> Link {
+    pub(crate) fn over(stream: ClientStream, config: &ClientConfig, shared: &Arc<Shared>) -> Link {
         Link {
             // V3 until the opening sequence chose a version (see `set_version`).
             stream: FramedRead::new(stream, ClientCodec::default()),
@@ -522,13 +523,12 @@ mod tests {
     use tokio::io::AsyncReadExt;
     use tokio::net::TcpListener;
 
-    async fn pair() -> (TcpStream, tokio::net::tcp::OwnedWriteHalf) {
+    /// The server's end, and the client's as a link holds it.
+    async fn pair() -> (TcpStream, ClientStream) {
         let listener = TcpListener::bind("127.0.0.1:0").await.unwrap();
         let client = TcpStream::connect(listener.local_addr().unwrap());
         let (client, accepted) = tokio::join!(client, listener.accept());
-        let (_read, write) = client.unwrap().into_split();
-        // The read half may go: the write half keeps the socket open.
-        (accepted.unwrap().0, write)
+        (accepted.unwrap().0, ClientStream::Tcp(client.unwrap()))
     }
 
     #[tokio::test]
