@@ -71,7 +71,7 @@ impl AsyncWrite for ClientStream {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use std::time::Duration;
 
     use tokio::io::{AsyncReadExt, AsyncWriteExt};
@@ -79,7 +79,8 @@ mod tests {
 
     use super::*;
 
-    async fn tcp_pair() -> (TcpStream, ClientStream) {
+    /// A loopback connection (port 0): the server's end, and the client's as a client holds it.
+    pub(crate) async fn tcp_pair() -> (TcpStream, ClientStream) {
         let listener = TcpListener::bind("127.0.0.1:0").await.unwrap();
         let client = TcpStream::connect(listener.local_addr().unwrap());
         let (client, accepted) = tokio::join!(client, listener.accept());

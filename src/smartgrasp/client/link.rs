@@ -520,16 +520,8 @@ pub(crate) fn closed_error(reason: Option<&Error>) -> Error {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::client_stream::tests::tcp_pair as pair;
     use tokio::io::AsyncReadExt;
-    use tokio::net::TcpListener;
-
-    /// The server's end, and the client's as a link holds it.
-    async fn pair() -> (TcpStream, ClientStream) {
-        let listener = TcpListener::bind("127.0.0.1:0").await.unwrap();
-        let client = TcpStream::connect(listener.local_addr().unwrap());
-        let (client, accepted) = tokio::join!(client, listener.accept());
-        (accepted.unwrap().0, ClientStream::Tcp(client.unwrap()))
-    }
 
     #[tokio::test]
     async fn a_write_that_fits_goes_out_whole() {
