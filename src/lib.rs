@@ -70,6 +70,7 @@
 #![warn(missing_docs)]
 #![forbid(unsafe_code)]
 
+mod client_stream;
 mod connection;
 mod deadline;
 /// Fault-injecting TCP proxy for tests (feature `sim`).

@@ -11,7 +11,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use futures_core::Stream;
-use tokio::io::{AsyncWriteExt, ReadHalf, WriteHalf};
+use tokio::io::AsyncWriteExt;
 use tokio::net::TcpStream;
 use tokio::sync::{mpsc, oneshot};
 use tokio::time::Instant;
@@ -21,8 +21,9 @@ use tokio_util::sync::CancellationToken;
 use super::pairing::{ambiguous, check_response, Counted, Pairing};
 use super::shutdown::Shutdown;
 use super::{ClientConfig, Shared, Timeouts};
+use crate::client_stream::ClientStream;
 use crate::deadline::{after, move_timer, write_all_by};
-use crate::reconnect::{BoxStream, Open};
+use crate::reconnect::Open;
 use crate::smartgrasp::codec::ClientCodec;
 use crate::smartgrasp::error::{Error, Malformed, Result};
 use crate::smartgrasp::frame::{
@@ -67,8 +68,11 @@ pub(crate) type OnPaired<'a> = dyn FnMut(&RequestFrame, &ResponseFrame) + Send +
 
 /// A connection and its pairing state.
 pub(crate) struct Link {
-    responses: FramedRead<ReadHalf<BoxStream>, ClientCodec>,
-    write: WriteHalf<BoxStream>,
+    /// The stream, read through the codec and written through `get_mut`. Not split in halves:
+    /// the link alone reads and writes it, one at a time, so the lock `tokio::io::split` takes
+    /// around every read and write would buy nothing, at about 200 instructions per call
+    /// (BENCHMARKS.md, "SmartGrasp: the stream unsplit, TCP unboxed").
+    stream: FramedRead<ClientStream, ClientCodec>,
     /// At most [`MAX_IN_FLIGHT`].
     waiting: VecDeque<Waiting>,
     pairing: Pairing,
@@ -94,7 +98,7 @@ pub(crate) enum Opener {
 
 impl Opener {
     /// One attempt, within `timeout`.
-    async fn open(&self, timeout: Duration) -> Result<BoxStream> {
+    async fn open(&self, timeout: Duration) -> Result<ClientStream> {
         within_connect_timeout(timeout, async {
             match self {
                 Opener::Tcp(addrs) => {
@@ -102,9 +106,9 @@ impl Opener {
                     // Requests are single 80-byte writes waiting for an answer: do not let
                     // Nagle hold them.
                     stream.set_nodelay(true)?;
-                    Ok(Box::new(stream) as BoxStream)
+                    Ok(ClientStream::Tcp(stream))
                 }
-                Opener::Custom(open) => Ok(open().await?),
+                Opener::Custom(open) => Ok(ClientStream::Boxed(open().await?)),
             }
         })
         .await
@@ -123,12 +127,10 @@ impl Link {
     }
 
     /// A link over a stream already open.
-    pub(crate) fn over(stream: BoxStream, config: &ClientConfig, shared: &Arc<Shared>) -> Link {
-        let (read, write) = tokio::io::split(stream);
+    pub(crate) fn over(stream: ClientStream, config: &ClientConfig, shared: &Arc<Shared>) -> Link {
         Link {
             // V3 until the opening sequence chose a version (see `set_version`).
-            responses: FramedRead::new(read, ClientCodec::default()),
-            write,
+            stream: FramedRead::new(stream, ClientCodec::default()),
             waiting: VecDeque::with_capacity(MAX_IN_FLIGHT),
             pairing: if config.strict_response_counter {
                 Pairing::strict()
@@ -144,12 +146,12 @@ impl Link {
 
     /// The protocol version requests on this link are sent in.
     pub(crate) fn version(&self) -> u16 {
-        self.responses.decoder().version
+        self.stream.decoder().version
     }
 
     /// Sends every later request in protocol `version` (the opening sequence negotiated it).
     pub(crate) fn set_version(&mut self, version: u16) {
-        self.responses.decoder_mut().version = version;
+        self.stream.decoder_mut().version = version;
     }
 
     /// One request with nothing else in flight (the opening sequence), in the link's version,
@@ -162,7 +164,7 @@ impl Link {
     ) -> Result<Response> {
         let request = request.to_any_frame(self.version())?;
         let answer = async {
-            self.write.write_all(&request.encode()).await?;
+            self.stream.get_mut().write_all(&request.encode()).await?;
             let frame = match self.next_response().await {
                 None => return Err(server_closed()),
                 Some(frame) => frame?,
@@ -181,7 +183,7 @@ impl Link {
     }
 
     async fn next_response(&mut self) -> Option<Result<ResponseFrame>> {
-        poll_fn(|cx| Pin::new(&mut self.responses).poll_next(cx)).await
+        poll_fn(|cx| Pin::new(&mut self.stream).poll_next(cx)).await
     }
 
     /// Serves calls until the connection breaks (`Some(reason)`; every call that was waiting on
@@ -290,7 +292,8 @@ impl Link {
         deadline: Instant,
     ) -> Result<()> {
         let give_up_at = after(deadline, self.give_up_after);
-        if let Err(error) = write_within(&mut self.write, give_up_at, &request.encode()).await {
+        if let Err(error) = write_within(self.stream.get_mut(), give_up_at, &request.encode()).await
+        {
             let _ = reply.send(Err(error.clone()));
             return Err(error);
         }
@@ -517,17 +520,8 @@ pub(crate) fn closed_error(reason: Option<&Error>) -> Error {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::client_stream::tests::tcp_pair as pair;
     use tokio::io::AsyncReadExt;
-    use tokio::net::TcpListener;
-
-    async fn pair() -> (TcpStream, tokio::net::tcp::OwnedWriteHalf) {
-        let listener = TcpListener::bind("127.0.0.1:0").await.unwrap();
-        let client = TcpStream::connect(listener.local_addr().unwrap());
-        let (client, accepted) = tokio::join!(client, listener.accept());
-        let (_read, write) = client.unwrap().into_split();
-        // The read half may go: the write half keeps the socket open.
-        (accepted.unwrap().0, write)
-    }
 
     #[tokio::test]
     async fn a_write_that_fits_goes_out_whole() {

@@ -26,6 +26,7 @@ use super::pose::Pose;
 use super::types::{
     GraspFeedback, MessageType, PoseFormat, ResponseCode, RobotSystem, ServerState,
 };
+use crate::client_stream::ClientStream;
 use crate::connection::Connection;
 use crate::reconnect::{ConnectionEvents, EventSender, EventSubscriber, ReconnectPolicy};
 use link::{Call, Link, Opener};
@@ -317,7 +318,7 @@ impl Client {
         })
         .await?;
         let shared = Arc::new(Shared::new(crate::smartgrasp::frame::PROTOCOL_VERSION));
-        let mut link = Link::over(stream, &config, &shared);
+        let mut link = Link::over(ClientStream::Boxed(stream), &config, &shared);
         let session = Session::from_config(&config);
         let opened = session.open(&mut link, &config).await?;
         shared.set_opened(&opened);
