@@ -8,7 +8,7 @@ use gripper::wsg::{Status, SystemState};
 use tokio::time::Instant;
 
 use super::oracle::{t, ClientView};
-use super::workload::{CallRec, Res, Update};
+use super::workload::{CallRec, Res};
 use crate::core::streams::Carried;
 
 /// How far before a reply a damaged byte can still cost it: a damaged length field (or noise
@@ -140,13 +140,19 @@ pub fn reply_lost_on_streams(
 pub const DAMAGED_PASSED_CRC: &str =
     "[the frame carries bytes the fault layer damaged and still passed its CRC16]";
 
-/// Whether update `u` came from a frame the link damaged that still passed its CRC16: some
-/// stream session of this client delivered, no later than `u.at`, the exact frame of `u` (as
-/// the device would encode it) with a damaged byte inside it, and the device sent no such
-/// frame on that session (`Carried::output`, `Carried::output_damaged`).
-pub fn passed_crc_damaged(record: &SimRecording, view: &ClientView, u: &Update) -> bool {
+/// Whether `reply`, received by `by` (an update, or a call's answer), came from a frame the
+/// link damaged that still passed its CRC16: some stream session of this client delivered, no
+/// later than `by`, the exact frame of `reply` (as the device would encode it) with a damaged
+/// byte inside it, and the device sent no such frame on that session (`Carried::output`,
+/// `Carried::output_damaged`). (`wsg-serial:0x8fb9d7a79c2aad1f`: two noise bytes inserted
+/// into a 0x50 reply made a frame whose checksum held, answering `request(0x50)`.)
+pub fn passed_crc_damaged(
+    record: &SimRecording,
+    view: &ClientView,
+    reply: &gripper::wsg::Reply,
+    by: Instant,
+) -> bool {
     let mut frame = bytes::BytesMut::new();
-    let reply = gripper::wsg::Reply::new(u.id, Status::Success, u.data.clone());
     if gripper::wsg::frame::encode(&reply.to_frame(), &mut frame).is_err() {
         return false;
     }
@@ -169,7 +175,7 @@ pub fn passed_crc_damaged(record: &SimRecording, view: &ClientView, u: &Update) 
                         .output_delivered
                         .iter()
                         .find(|(_, e)| *e >= end)
-                        .is_some_and(|(at, _)| *at <= u.at);
+                        .is_some_and(|(at, _)| *at <= by);
                     by && carried
                         .output_damaged
                         .iter()

@@ -295,6 +295,8 @@ fn check_client(
             FROM_FAULTED
         } else if strict && received.is_none_or(|at| at >= c.end) {
             NO_REQUEST
+        } else if answer(c).is_some_and(|r| passed_crc_damaged(record, view, &r, c.end)) {
+            DAMAGED_PASSED_CRC
         } else {
             ""
         };
@@ -366,7 +368,8 @@ fn check_client(
             s.id == u.id && s.status == Status::Success && s.data == u.data && s.at <= u.at
         });
         if !ok {
-            let tag = if passed_crc_damaged(record, view, u) {
+            let reply = gripper::wsg::Reply::new(u.id, Status::Success, u.data.clone());
+            let tag = if passed_crc_damaged(record, view, &reply, u.at) {
                 DAMAGED_PASSED_CRC
             } else {
                 ""
@@ -378,6 +381,19 @@ fn check_client(
         }
     }
     v
+}
+
+/// The reply frame call `c` ended on, as far as its result tells (a command's plain E_SUCCESS
+/// and a device error are taken to carry no data, as the simulator sends them).
+fn answer(c: &CallRec) -> Option<gripper::wsg::Reply> {
+    let (cmd, status, data) = match &c.res {
+        Res::Ok(Expect::Exact(st, d)) => (c.id, *st, d.clone()),
+        Res::Ok(Expect::Data(d)) => (c.id, Status::Success, d.clone()),
+        Res::Ok(Expect::Success | Expect::Motion) => (c.id, Status::Success, Vec::new()),
+        Res::Device(cmd, st) => (*cmd, *st, Vec::new()),
+        _ => return None,
+    };
+    Some(gripper::wsg::Reply::new(cmd, status, data))
 }
 
 /// Whether reply `s` carries what call `c` returned.
