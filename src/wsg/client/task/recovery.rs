@@ -68,8 +68,10 @@ impl Task {
                 self.pairing.settle_failed(id, query);
                 Ok(())
             }
-            // A caller still waiting (no timeout, released by the hold of `Pairing::set_holds`):
-            // its reply did not come within the query timeout.
+            // A caller still waiting is one without timeout (`Duration::MAX`), released by the
+            // hold of `Pairing::set_holds`: the timeout applied was the connection's query
+            // timeout. (A caller with a timeout keeps its id past its own deadline, by which
+            // its call has failed with its own timeout.)
             Some(Waiter::Caller(tx)) => {
                 let _ = tx.send(Err(Error::Timeout {
                     command: id,
