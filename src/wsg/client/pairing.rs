@@ -204,9 +204,9 @@ impl InFlight {
     fn due(&self, id: u8) -> Option<Instant> {
         if self.acknowledged && is_motion(id) {
             self.probe_at
-        } else if self.acknowledged {
-            Some(self.release_at)
-        } else if self.held {
+        } else if self.acknowledged || self.held {
+            // Acknowledged (not a motion): its final reply is owed, the deadline bounds it.
+            // Held: its caller's own deadline wins over the reply hold.
             Some(self.release_at)
         } else {
             Some(self.release_at.min(self.unacked_release_at))
