@@ -39,7 +39,9 @@
 //! (or at the deadline, if that comes first). A gone caller is noticed when another call of
 //! the id is submitted ([`Pairing::prune`]): the id matters only to a call that wants it, and
 //! that call then waits at most the hold from the gone request's send, not the gone caller's
-//! whole (maybe long) timeout; until then the id just stays taken, harming nobody. On UDP the
+//! whole (maybe long) timeout; until then the id just stays taken, harming nobody. (A caller
+//! that timed out is not "gone" so: its request keeps the id its grace past its deadline.)
+//! On UDP the
 //! residual risk is a reply arriving
 //! later than that grace: it would be taken as the reply to the next request of the same id.
 //! On an ordered transport (TCP, serial: [`Pairing::set_ordered`]) a request released with no
@@ -485,16 +487,23 @@ impl Pairing {
     /// Drops the queued (never sent) requests of `id` whose caller is gone, and the waiting stop
     /// requests whose caller is gone; returns their tokens. Called before queueing another, so
     /// that callers who keep timing out cannot grow the queue: it holds at most one request per
-    /// live caller. A request of `id` on the wire whose caller is gone is bounded by the holds
-    /// from now on ([`Pairing::set_holds`]): the call about to queue behind it waits at most
-    /// until the hold after its send, not until the gone caller's deadline.
-    pub(crate) fn prune(&mut self, id: u8, alive: impl Fn(Token) -> bool) -> Vec<Token> {
+    /// live caller. A request of `id` on the wire whose caller went away before its deadline
+    /// (`now`) is bounded by the holds from now on ([`Pairing::set_holds`]): the call about
+    /// to queue behind it waits at most until the hold after its send, not until the gone
+    /// caller's deadline. A caller gone at or after its deadline timed out: its request keeps
+    /// the id until that deadline + grace, as any (a late reply may still come).
+    pub(crate) fn prune(
+        &mut self,
+        id: u8,
+        alive: impl Fn(Token) -> bool,
+        now: Instant,
+    ) -> Vec<Token> {
         let mut gone = Vec::new();
         if let Some(stops) = self.stops.get_mut(&id) {
             gone.extend(stops.prune(&alive));
         }
         if let Some(f) = self.ids.get_mut(&id).and_then(|st| st.in_flight.as_mut()) {
-            if f.held && !alive(f.token) {
+            if f.held && now < f.deadline && !alive(f.token) {
                 f.forsake();
             }
         }

@@ -439,7 +439,10 @@ impl Task {
     async fn submit(&mut self, req: Request) -> io::Result<()> {
         let id = req.frame.id;
         let waiters = &self.waiters;
-        for gone in self.pairing.prune(id, |t| alive(waiters, t)) {
+        for gone in self
+            .pairing
+            .prune(id, |t| alive(waiters, t), Instant::now())
+        {
             self.waiters.remove(&gone);
         }
         match self.pairing.submit(req, Instant::now()) {

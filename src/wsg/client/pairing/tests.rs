@@ -128,7 +128,7 @@ fn stops_are_never_queued_and_a_reply_completes_only_the_calls_it_can_answer() {
         );
         // A caller that went away is forgotten before the next stop goes out.
         assert_eq!(sent(p.submit(req(3, id, t), now)), Some(3));
-        assert_eq!(p.prune(id, |t| t != 3), vec![3]);
+        assert_eq!(p.prune(id, |t| t != 3, now), vec![3]);
         assert!(matches!(
             p.on_reply(reply(id, Status::Success)),
             Event::Unsolicited(_)
@@ -730,7 +730,7 @@ fn prune_drops_only_queued_dead_callers() {
     for token in 2..=5 {
         assert!(matches!(p.submit(req(token, 0x50, t), now), Submit::Queued));
     }
-    assert_eq!(p.prune(0x50, |t| t == 1 || t == 4), vec![2, 3, 5]);
+    assert_eq!(p.prune(0x50, |t| t == 1 || t == 4, now), vec![2, 3, 5]);
     assert!(matches!(
         p.on_reply(reply(0x50, Status::Success)),
         Event::Resolved(1, _)
@@ -840,7 +840,11 @@ fn a_per_call_timeout_longer_than_the_holds_keeps_its_id_until_its_own_deadline(
         // A caller that went away: the next call of the id finds it gone, and the hold bounds
         // the request from its send on (nobody waits for the long deadline).
         assert_eq!(sent(p.submit(req(3, 0x44, now + ms(10_000)), now)), Some(3));
-        assert!(p.prune(0x44, |t| t != 3).is_empty());
+        // Gone after its deadline: it timed out, and keeps its id its grace past it.
+        assert!(p.prune(0x44, |t| t != 3, now + ms(10_000)).is_empty());
+        assert_eq!(p.next_due(), Some(now + ms(10_100)));
+        // Gone before: the hold bounds it.
+        assert!(p.prune(0x44, |t| t != 3, now + ms(500)).is_empty());
         assert!(matches!(
             p.submit(req(4, 0x44, now + ms(10_000)), now + ms(500)),
             Submit::Queued
@@ -865,7 +869,7 @@ fn a_per_call_timeout_longer_than_the_holds_keeps_its_id_until_its_own_deadline(
         );
         assert_eq!(p.next_due(), Some(now + ms(10_000)));
         assert!(p.due(now + motion).is_empty());
-        assert!(p.prune(id::GRASP, |t| t != 5).is_empty());
+        assert!(p.prune(id::GRASP, |t| t != 5, now + motion).is_empty());
         assert_eq!(p.next_due(), Some(now + motion));
         assert_eq!(p.due(now + motion), vec![Due::Probe(id::GRASP, 5)]);
     }
