@@ -30,31 +30,29 @@ mod task;
 
 pub use self::builder::ClientBuilder;
 
-use std::net::SocketAddr;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, OnceLock};
 use std::time::Duration;
 
 use bytes::Bytes;
-use tokio::net::{ToSocketAddrs, UdpSocket};
+use tokio::net::ToSocketAddrs;
 use tokio::sync::mpsc::error::TrySendError;
 use tokio::sync::{mpsc, oneshot};
 use tokio::time::{timeout_at, Instant};
-use tokio_util::codec::Framed;
 
-use self::connector::{Connector, ConnectorKind, Reconnect};
-use self::task::{Msg, Task};
+use self::connector::Reconnect;
+use self::task::Msg;
 use super::command::{id, Command, HomingDirection, UpdateMode};
 use super::subscription::{Subscriber, Subscription, UpdateOptions};
-use super::transport::{AsyncReadWrite, Link, TransportKind};
+use super::transport::TransportKind;
 use super::types::{self, decode_f32};
 use super::{
     Error, Finger, FingerFlags, FingerInfo, Frame, GraspingStatistics, GripState, Reply, Result,
-    SoftLimits, Status, SystemInfo, SystemLimits, SystemState, WsgCodec,
+    SoftLimits, Status, SystemInfo, SystemLimits, SystemState,
 };
 use crate::connection::Connection;
 use crate::deadline::after;
-use crate::reconnect::{ConnectionEvents, EventSubscriber, ReconnectPolicy};
+use crate::reconnect::{ConnectionEvents, EventSubscriber};
 
 /// Default timeout of queries and settings.
 pub const DEFAULT_QUERY_TIMEOUT: Duration = Duration::from_secs(1);

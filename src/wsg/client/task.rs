@@ -14,7 +14,7 @@ use tokio::time::{sleep_until, timeout, Instant};
 
 mod recovery;
 
-use super::pairing::{Due, Event, Observation, Pairing, Request, Submit, Token, Verdict};
+use super::pairing::{Event, Observation, Pairing, Request, Submit, Token};
 use super::Reconnect;
 use crate::deadline::{after, move_timer};
 use crate::int_map::IntMap;
