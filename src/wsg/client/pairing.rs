@@ -41,9 +41,8 @@
 //! that call then waits at most the hold from the gone request's send, not the gone caller's
 //! whole (maybe long) timeout; until then the id just stays taken, harming nobody. (A caller
 //! that timed out is not "gone" so: its request keeps the id its grace past its deadline.)
-//! On UDP the
-//! residual risk is a reply arriving
-//! later than that grace: it would be taken as the reply to the next request of the same id.
+//! On UDP the residual risk is a reply arriving later than that grace (or hold): it would be
+//! taken as the reply to the next request of the same id.
 //! On an ordered transport (TCP, serial: [`Pairing::set_ordered`]) a request released with no
 //! reply at all *fences* its id instead ([`Due::Fenced`]): the task sends a loop-back with a
 //! payload of its own, and the next request of the id waits until its echo comes back
