@@ -63,6 +63,13 @@ pub(crate) fn after(at: Instant, d: Duration) -> Instant {
         .unwrap_or(at)
 }
 
+/// Whether `deadline` means "no timeout": further than half of [`FAR_FUTURE`] (15 years)
+/// from `now`, as [`after`] makes it of `Duration::MAX` and of any duration too long for the
+/// clock. Such a caller is bounded by its connection's holds instead (wsg `Pairing`).
+pub(crate) fn is_never(deadline: Instant, now: Instant) -> bool {
+    deadline.saturating_duration_since(now) > FAR_FUTURE / 2
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -76,5 +83,17 @@ mod tests {
         );
         assert!(after(now, Duration::MAX) >= now + FAR_FUTURE);
         assert!(after(after(now, Duration::MAX), Duration::MAX) > now);
+    }
+
+    #[test]
+    fn only_a_saturated_deadline_is_never() {
+        let now = Instant::now();
+        assert!(is_never(after(now, Duration::MAX), now));
+        assert!(is_never(after(now, Duration::from_secs(u64::MAX)), now));
+        assert!(!is_never(
+            after(now, Duration::from_secs(86_400 * 365)),
+            now
+        ));
+        assert!(!is_never(now, now));
     }
 }

@@ -3,7 +3,28 @@
 
 // The builder fills the client's private parts (`Shared`, the task's settings): it is the
 // client module's own code, kept in its own room.
-use super::*;
+use std::net::SocketAddr;
+use std::sync::atomic::AtomicU64;
+use std::sync::{Arc, OnceLock};
+use std::time::Duration;
+
+use bytes::Bytes;
+use tokio::net::{ToSocketAddrs, UdpSocket};
+use tokio::sync::mpsc;
+use tokio::time::{timeout_at, Instant};
+use tokio_util::codec::Framed;
+
+use super::connector::{self, Connector, ConnectorKind, Reconnect};
+use super::task::Task;
+use super::{
+    Client, Shared, DEFAULT_CONNECT_TIMEOUT, DEFAULT_LATE_REPLY_GRACE, DEFAULT_MOTION_TIMEOUT,
+    DEFAULT_PARTIAL_FRAME_TIMEOUT, DEFAULT_QUERY_TIMEOUT, DEFAULT_SUBSCRIPTION_BUFFER,
+};
+use crate::connection::Connection;
+use crate::deadline::after;
+use crate::reconnect::ReconnectPolicy;
+use crate::wsg::transport::{AsyncReadWrite, Link, TransportKind};
+use crate::wsg::{Result, WsgCodec};
 
 /// Configures and opens a [`Client`].
 ///
@@ -114,15 +135,15 @@ impl ClientBuilder {
     }
 
     /// Reconnect after a lost connection, with this backoff (default: off, the client then fails
-    /// every later call with [`Error::ConnectionLost`]). TCP and serial only.
+    /// every later call with [`Error::ConnectionLost`](crate::wsg::Error::ConnectionLost)). TCP and serial only.
     ///
     /// With a policy:
-    /// - calls in flight when the link drops fail with [`Error::ConnectionLost`] and are never
+    /// - calls in flight when the link drops fail with [`Error::ConnectionLost`](crate::wsg::Error::ConnectionLost) and are never
     ///   sent again on their own, motion commands included; calls made while the client
     ///   reconnects wait for the new connection within their own timeouts;
     /// - each attempt reopens the same address or port (a TCP connect within
     ///   [`connect_timeout`](Self::connect_timeout));
-    /// - the auto-update streams that still have a [`Subscription`] are switched on again, and
+    /// - the auto-update streams that still have a [`Subscription`](crate::wsg::Subscription) are switched on again, and
     ///   the streams go on; dropped ones are not restored;
     /// - each loss, attempt and recovery is reported through [`Client::connection_events`] and
     ///   `tracing`; after the policy's last attempt the client gives up and later calls fail.

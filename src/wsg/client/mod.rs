@@ -12,7 +12,7 @@
 //! | A timed-out or dropped call keeps its id until its reply, or its deadline plus [`ClientBuilder::late_reply_grace`]; the late reply is discarded. | 1.2.2 | all | UDP: a reply later than the grace is taken for the next call of the id (datagrams keep no order: no barrier can prove that none is still on its way) |
 //! | TCP, serial, attached streams: a request released with no reply at all *fences* its id: the next request of the id waits for the echo of a loop-back (0x06, unique payload) sent at the release, and a reply of the id before that echo is the late one (dropped). A released motion goes back under recovery (below) at its E_CMD_PENDING, if that still comes before the echo, or at the echo (its E_CMD_PENDING may have been corrupted while the move runs: its final reply must not complete the next request). | 1.2.2, 1.3, 3.1.1 | TCP, serial | the manual does not state in so many words that a connection's immediate replies keep the order of its commands (its request-reply scheme implies it); the final reply of an acknowledged non-motion command (finger power on) later than the grace is not fenced; while no echo comes, calls of the fenced id time out (on TCP and serial an unanswered loop-back keeps its id [`ClientBuilder::partial_frame_timeout`] (at least [`DEFAULT_PARTIAL_FRAME_TIMEOUT`]) longer than other requests, so the line rests that long between barriers: a device whose decoder waits for silence to drop a frame with a corrupted length, as the simulator's does, gets it; the manual does not say how the device recovers: one that needs longer silence than a barrier's query timeout + partial frame timeout + grace may keep the id fenced); a device that answers three barriers in a row with something other than their echo gets the id released as on UDP |
 //! | E_CMD_PENDING acknowledges; the final reply follows and ends the call. | 1.3 | all | — |
-//! | No request keeps its id for ever, whatever its caller's deadline (`Duration::MAX`, or a caller that dropped the call): unacknowledged, it is released (fenced on streams) [`ClientBuilder::query_timeout`] + grace after it was sent, and a caller still waiting gets [`Error::Timeout`]; acknowledged, a motion goes under recovery (below) [`ClientBuilder::motion_timeout`] after it was sent. | 1.2.2, 1.3 (the reply or E_CMD_PENDING comes at once) | all | a raw request whose *immediate* reply the device sends later than the query timeout + grace (none in the manual) is released before it; an acknowledged non-motion command keeps its id until its caller's deadline + grace |
+//! | No request keeps its id for ever: a caller with a timeout of its own (also one longer than the connection's, [`Client::with_timeouts`]) keeps it until its deadline + grace; a caller without timeout (`Duration::MAX`), or one that dropped the call (noticed when the next call of the id comes), keeps it, unacknowledged, until [`ClientBuilder::query_timeout`] + grace after it was sent, then it is released (fenced on streams) and a caller still waiting gets [`Error::Timeout`] naming the query timeout; acknowledged, a motion goes under recovery (below) [`ClientBuilder::motion_timeout`] after it was sent. | 1.2.2, 1.3 (the reply or E_CMD_PENDING comes at once) | all | a raw request whose *immediate* reply the device sends later than the query timeout + grace (none in the manual) is released before it; an acknowledged non-motion command keeps its id until its caller's deadline + grace |
 //! | An E_CMD_PENDING after a final reply that had none may be that request's, reordered: it acknowledges the next request only doubtfully, and E_ALREADY_RUNNING still ends it. | 1.3 | all (needed on UDP) | UDP: a duplicated request's refusal, in that situation, ends the call as refused |
 //! | E_ALREADY_RUNNING for an acknowledged request refuses a duplicate of it: dropped. A loop reply that does not echo the payload on the wire is not its reply. | 1.3, 3.1.1 | all | — |
 //! | A second motion call of an id on the wire waits; the device's state is asked at once: SF_MOVING from a query sent after the call refuses it (E_ALREADY_RUNNING, unsent); the first's final reply, or two "not moving" a grace apart, sends it. Never refused on belief. | 3.2.2, Anhang B | all | SF_MOVING is not synchronised with the end of a move (Anhang B): a refusal right at a move's end; a final reply later than a grace after the second "not moving" goes to the next call |
@@ -30,31 +30,29 @@ mod task;
 
 pub use self::builder::ClientBuilder;
 
-use std::net::SocketAddr;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, OnceLock};
 use std::time::Duration;
 
 use bytes::Bytes;
-use tokio::net::{ToSocketAddrs, UdpSocket};
+use tokio::net::ToSocketAddrs;
 use tokio::sync::mpsc::error::TrySendError;
 use tokio::sync::{mpsc, oneshot};
 use tokio::time::{timeout_at, Instant};
-use tokio_util::codec::Framed;
 
-use self::connector::{Connector, ConnectorKind, Reconnect};
-use self::task::{Msg, Task};
+use self::connector::Reconnect;
+use self::task::Msg;
 use super::command::{id, Command, HomingDirection, UpdateMode};
 use super::subscription::{Subscriber, Subscription, UpdateOptions};
-use super::transport::{AsyncReadWrite, Link, TransportKind};
+use super::transport::TransportKind;
 use super::types::{self, decode_f32};
 use super::{
     Error, Finger, FingerFlags, FingerInfo, Frame, GraspingStatistics, GripState, Reply, Result,
-    SoftLimits, Status, SystemInfo, SystemLimits, SystemState, WsgCodec,
+    SoftLimits, Status, SystemInfo, SystemLimits, SystemState,
 };
 use crate::connection::Connection;
 use crate::deadline::after;
-use crate::reconnect::{ConnectionEvents, EventSubscriber, ReconnectPolicy};
+use crate::reconnect::{ConnectionEvents, EventSubscriber};
 
 /// Default timeout of queries and settings.
 pub const DEFAULT_QUERY_TIMEOUT: Duration = Duration::from_secs(1);
@@ -254,7 +252,22 @@ impl Client {
         ClientBuilder::default().connect_tcp(addr).await
     }
 
-    /// A handle on the same connection whose calls use these timeouts.
+    /// A handle on the same connection whose calls use these timeouts: `query` for queries,
+    /// settings and raw requests ([`Client::request`]), `motion` for motion commands.
+    ///
+    /// Each call gets exactly its timeout, shorter or longer than the connection's
+    /// ([`ClientBuilder::query_timeout`], [`ClientBuilder::motion_timeout`]): a device that
+    /// answers before it is heard, and a call that times out fails with [`Error::Timeout`]
+    /// naming this timeout. Its request keeps its command id until its deadline plus
+    /// [`ClientBuilder::late_reply_grace`] (see [`Client`]); a motion under recovery is
+    /// probed from its deadline on. The connection's timeouts still bound a request as a
+    /// *hold* when no deadline does: with `Duration::MAX` ("no timeout"), an unanswered
+    /// request is released the connection's query timeout + grace after it was sent (the call
+    /// fails with [`Error::Timeout`] naming the connection's query timeout), and an
+    /// acknowledged motion is probed from the connection's motion timeout after it was sent
+    /// (released only on evidence that its final reply is lost: [`Error::ReplyLost`]). A call
+    /// dropped before its reply keeps its id no longer than that hold either, once another
+    /// call of the id wants it: nobody waits for the reply.
     #[must_use]
     pub fn with_timeouts(&self, query: Duration, motion: Duration) -> Client {
         Client {

@@ -27,13 +27,22 @@
 //! - Everything else queues behind the request of its id on the wire.
 //!
 //! How long an id stays "poisoned" by a request that got no (final) reply: until its caller's
-//! deadline plus a grace period ([`Pairing::new`]), and for an unacknowledged request at most
-//! the reply hold plus grace from when it was sent ([`Pairing::set_holds`]: a caller without
-//! timeout, or one that dropped the call, does not hold it for ever); then the id is released,
-//! acknowledged or not, so a lost frame cannot block it forever. An acknowledged motion goes
-//! under recovery (below) at its caller's deadline or the motion hold after it was sent,
-//! whichever comes first. On UDP the residual risk is a reply arriving
-//! later than that grace: it would be taken as the reply to the next request of the same id.
+//! deadline plus a grace period ([`Pairing::new`]); then the id is released, acknowledged or
+//! not, so a lost frame cannot block it forever. The caller's own timeout wins: a per-call
+//! timeout longer than the connection's (`Client::with_timeouts`) keeps the id until *its*
+//! deadline plus grace, so the device's answer up to then reaches it. Two callers have no
+//! deadline that bounds anything, and for them the *holds* ([`Pairing::set_holds`], the
+//! connection's query and motion timeouts) do: a caller without timeout ([`is_never`]:
+//! `Duration::MAX`), and one that is gone (dropped its call; nobody waits for the reply). An
+//! unacknowledged request of theirs is released the reply hold plus grace after it was sent,
+//! and an acknowledged motion goes under recovery (below) the motion hold after it was sent
+//! (or at the deadline, if that comes first). A gone caller is noticed when another call of
+//! the id is submitted ([`Pairing::prune`]): the id matters only to a call that wants it, and
+//! that call then waits at most the hold from the gone request's send, not the gone caller's
+//! whole (maybe long) timeout; until then the id just stays taken, harming nobody. (A caller
+//! that timed out is not "gone" so: its request keeps the id its grace past its deadline.)
+//! On UDP the residual risk is a reply arriving later than that grace (or hold): it would be
+//! taken as the reply to the next request of the same id.
 //! On an ordered transport (TCP, serial: [`Pairing::set_ordered`]) a request released with no
 //! reply at all *fences* its id instead ([`Due::Fenced`]): the task sends a loop-back with a
 //! payload of its own, and the next request of the id waits until its echo comes back
@@ -78,7 +87,7 @@ use bytes::Bytes;
 use tokio::time::Instant;
 
 use super::stops::{StopDue, Stops};
-use crate::deadline::after;
+use crate::deadline::{after, is_never};
 use crate::int_map::IntMap;
 use crate::wsg::command::id;
 use crate::wsg::{Frame, Reply, Status};
@@ -114,11 +123,15 @@ struct InFlight {
     deadline: Instant,
     /// When an unanswered request gives its id up: deadline + grace.
     release_at: Instant,
-    /// When an unacknowledged request gives its id up whatever its caller's deadline: sent +
+    /// Its caller waits, with a timeout of its own (not [`is_never`]): only its deadline
+    /// bounds the id, the holds do not ([`Pairing::set_holds`]). Cleared when the caller is
+    /// found gone ([`Pairing::prune`]); never set for a caller without timeout.
+    held: bool,
+    /// When an unacknowledged request gives its id up if not [`InFlight::held`]: sent +
     /// [`Pairing::set_holds`]'s reply hold + grace (1.2.2, 1.3: the device answers a command,
     /// or acknowledges it with E_CMD_PENDING, at once).
     unacked_release_at: Instant,
-    /// When an acknowledged motion goes under recovery whatever its caller's deadline: sent +
+    /// When an acknowledged motion goes under recovery if not [`InFlight::held`]: sent +
     /// the motion hold (recovery releases only on evidence, so starting it early is sound).
     motion_probe_at: Instant,
     /// An acknowledged motion command under recovery: when the next probe is due (`None`
@@ -161,6 +174,7 @@ impl InFlight {
             acknowledged: false,
             deadline: req.deadline,
             release_at: after(req.deadline, grace),
+            held: !is_never(req.deadline, now),
             unacked_release_at: after(after(now, holds.0), grace),
             motion_probe_at: after(now, holds.1),
             probe_at: None,
@@ -191,10 +205,32 @@ impl InFlight {
     fn due(&self, id: u8) -> Option<Instant> {
         if self.acknowledged && is_motion(id) {
             self.probe_at
-        } else if self.acknowledged {
+        } else if self.acknowledged || self.held {
+            // Acknowledged (not a motion): its final reply is owed, the deadline bounds it.
+            // Held: its caller's own deadline wins over the reply hold.
             Some(self.release_at)
         } else {
             Some(self.release_at.min(self.unacked_release_at))
+        }
+    }
+
+    /// When an acknowledged motion goes under recovery: at its caller's deadline, or, when
+    /// its caller has none or is gone (not [`InFlight::held`]), the motion hold after it was
+    /// sent if that comes first.
+    fn recovery_at(&self) -> Instant {
+        if self.held {
+            self.deadline
+        } else {
+            self.deadline.min(self.motion_probe_at)
+        }
+    }
+
+    /// Its caller is gone: the holds bound the id from now on (a dropped call does not keep
+    /// its id until its deadline: nobody waits for the reply).
+    fn forsake(&mut self) {
+        self.held = false;
+        if let Some(at) = self.probe_at {
+            self.probe_at = Some(at.min(self.motion_probe_at));
         }
     }
 }
@@ -377,11 +413,14 @@ impl Pairing {
         }
     }
 
-    /// Bounds how long a request keeps its id independently of its caller's deadline (which
-    /// may be `Duration::MAX`, and outlives a caller that dropped the call): an unacknowledged
-    /// request is released `reply` + grace after it was sent (its immediate reply or
-    /// E_CMD_PENDING is lost), and an acknowledged motion goes under recovery `motion` after
-    /// it was sent. A caller still waiting then gets the error of the release.
+    /// Bounds how long a request keeps its id when its caller's deadline bounds nothing: the
+    /// caller has no timeout ([`is_never`], `Duration::MAX`) or is gone ([`Pairing::prune`]).
+    /// Then an unacknowledged request is released `reply` + grace after it was sent (its
+    /// immediate reply or E_CMD_PENDING is lost), and an acknowledged motion goes under
+    /// recovery `motion` after it was sent. A caller without timeout still waiting then gets
+    /// the error of the release. A caller waiting with a timeout of its own is bounded by its
+    /// deadline only, however much longer than `reply` or `motion` it is: the call gets the
+    /// timeout it asked for.
     pub(crate) fn set_holds(&mut self, reply: Duration, motion: Duration) {
         self.holds = (reply, motion);
     }
@@ -447,11 +486,25 @@ impl Pairing {
     /// Drops the queued (never sent) requests of `id` whose caller is gone, and the waiting stop
     /// requests whose caller is gone; returns their tokens. Called before queueing another, so
     /// that callers who keep timing out cannot grow the queue: it holds at most one request per
-    /// live caller.
-    pub(crate) fn prune(&mut self, id: u8, alive: impl Fn(Token) -> bool) -> Vec<Token> {
+    /// live caller. A request of `id` on the wire whose caller went away before its deadline
+    /// (`now`) is bounded by the holds from now on ([`Pairing::set_holds`]): the call about
+    /// to queue behind it waits at most until the hold after its send, not until the gone
+    /// caller's deadline. A caller gone at or after its deadline timed out: its request keeps
+    /// the id until that deadline + grace, as any (a late reply may still come).
+    pub(crate) fn prune(
+        &mut self,
+        id: u8,
+        alive: impl Fn(Token) -> bool,
+        now: Instant,
+    ) -> Vec<Token> {
         let mut gone = Vec::new();
         if let Some(stops) = self.stops.get_mut(&id) {
             gone.extend(stops.prune(&alive));
+        }
+        if let Some(f) = self.ids.get_mut(&id).and_then(|st| st.in_flight.as_mut()) {
+            if f.held && now < f.deadline && !alive(f.token) {
+                f.forsake();
+            }
         }
         if let Some(st) = self.ids.get_mut(&id).filter(|st| !st.queue.is_empty()) {
             st.queue.retain(|r| {
@@ -514,7 +567,8 @@ impl Pairing {
                     "WSG motion released without a reply was accepted after all: under recovery"
                 );
                 f.acknowledged = true;
-                f.probe_at = Some(f.deadline.min(f.motion_probe_at));
+                f.held = false;
+                f.probe_at = Some(f.recovery_at());
                 let token = f.token;
                 st.in_flight = Some(f);
                 return Event::Accepted(token);
@@ -543,7 +597,7 @@ impl Pairing {
             if !f.acknowledged {
                 f.acknowledged = true;
                 f.ack_doubtful = std::mem::take(&mut st.pending_owed);
-                f.probe_at = Some(f.deadline.min(f.motion_probe_at));
+                f.probe_at = Some(f.recovery_at());
             }
             return Event::Accepted(f.token);
         }

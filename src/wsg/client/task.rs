@@ -14,7 +14,7 @@ use tokio::time::{sleep_until, timeout, Instant};
 
 mod recovery;
 
-use super::pairing::{Due, Event, Observation, Pairing, Request, Submit, Token, Verdict};
+use super::pairing::{Event, Observation, Pairing, Request, Submit, Token};
 use super::Reconnect;
 use crate::deadline::{after, move_timer};
 use crate::int_map::IntMap;
@@ -439,7 +439,10 @@ impl Task {
     async fn submit(&mut self, req: Request) -> io::Result<()> {
         let id = req.frame.id;
         let waiters = &self.waiters;
-        for gone in self.pairing.prune(id, |t| alive(waiters, t)) {
+        for gone in self
+            .pairing
+            .prune(id, |t| alive(waiters, t), Instant::now())
+        {
             self.waiters.remove(&gone);
         }
         match self.pairing.submit(req, Instant::now()) {

@@ -13,7 +13,7 @@ use gripper::wsg::Status;
 use tokio::time::Instant;
 
 use super::oracle::{ClientView, Sent};
-use super::workload::CallRec;
+use super::workload::{CallRec, Res};
 use crate::core::datagrams::Faulted;
 
 /// What the tag needs to know about one client besides the stale reply.
@@ -95,14 +95,19 @@ pub fn beyond_the_rule(cx: &Context, k: usize, c: &CallRec) -> bool {
     if senders.is_empty() {
         return true;
     }
-    // The earliest the client may have given the id up (a call without a timeout: its reply
-    // hold alone).
+    // The earliest the client may have given the id up: a caller's own deadline (its
+    // timeout wins over the connection's, however much longer); the reply hold from the send
+    // only for a call without a timeout, or one dropped before its deadline (`Pairing::prune`).
     let hold = sent + cx.view.query_timeout;
     let deadline = senders
         .iter()
-        .filter_map(|o| o.limit.map(|l| o.start + l))
+        .map(|o| match o.limit {
+            None => hold,
+            Some(l) if o.res == Res::Cancelled => (o.start + l).min(hold),
+            Some(l) => o.start + l,
+        })
         .min()
-        .map_or(hold, |d| d.min(hold));
+        .unwrap_or(hold);
     s.at > deadline + cx.view.grace
 }
 

@@ -128,7 +128,7 @@ fn stops_are_never_queued_and_a_reply_completes_only_the_calls_it_can_answer() {
         );
         // A caller that went away is forgotten before the next stop goes out.
         assert_eq!(sent(p.submit(req(3, id, t), now)), Some(3));
-        assert_eq!(p.prune(id, |t| t != 3), vec![3]);
+        assert_eq!(p.prune(id, |t| t != 3, now), vec![3]);
         assert!(matches!(
             p.on_reply(reply(id, Status::Success)),
             Event::Unsolicited(_)
@@ -730,7 +730,7 @@ fn prune_drops_only_queued_dead_callers() {
     for token in 2..=5 {
         assert!(matches!(p.submit(req(token, 0x50, t), now), Submit::Queued));
     }
-    assert_eq!(p.prune(0x50, |t| t == 1 || t == 4), vec![2, 3, 5]);
+    assert_eq!(p.prune(0x50, |t| t == 1 || t == 4, now), vec![2, 3, 5]);
     assert!(matches!(
         p.on_reply(reply(0x50, Status::Success)),
         Event::Resolved(1, _)
@@ -799,5 +799,78 @@ proptest::proptest! {
         let waiting = p.drain().len() as u64;
         proptest::prop_assert_eq!(resolved + waiting, next_token);
         proptest::prop_assert!(sent >= resolved);
+    }
+}
+
+/// A caller's own timeout wins over the connection's holds (issue 20 follow-up): a request
+/// whose caller waits longer than the reply hold keeps its id until its own deadline + grace,
+/// and its reply up to then resolves it; once the caller is found gone (a call of the id
+/// queues), the hold bounds it again. Same for an acknowledged motion: probed from its
+/// caller's deadline, or from the motion hold once the caller is gone.
+#[test]
+fn a_per_call_timeout_longer_than_the_holds_keeps_its_id_until_its_own_deadline() {
+    let now = Instant::now();
+    let ms = Duration::from_millis;
+    let grace = ms(100);
+    let (query, motion) = (ms(1000), ms(2000));
+    for ordered in [false, true] {
+        let mut p = Pairing::new(grace);
+        p.set_ordered(ordered);
+        p.set_holds(query, motion);
+        // A 10 s query, answered after 5 s: between the hold (1.1 s) and its deadline.
+        assert_eq!(sent(p.submit(req(1, 0x43, now + ms(10_000)), now)), Some(1));
+        assert_eq!(p.next_due(), Some(now + ms(10_100)));
+        assert!(p.due(now + query + grace).is_empty());
+        assert!(p.due(now + ms(5000)).is_empty());
+        assert_eq!(
+            p.on_reply(reply(0x43, Status::Success)),
+            Event::Resolved(1, reply(0x43, Status::Success))
+        );
+
+        // Unanswered: released at its own deadline + grace, not at the hold.
+        assert_eq!(sent(p.submit(req(2, 0x43, now + ms(10_000)), now)), Some(2));
+        assert!(p.due(now + ms(10_099)).is_empty());
+        let released = if ordered {
+            Due::Fenced(0x43, 2)
+        } else {
+            Due::Released(0x43, 2)
+        };
+        assert_eq!(p.due(now + ms(10_100)), vec![released]);
+
+        // A caller that went away: the next call of the id finds it gone, and the hold bounds
+        // the request from its send on (nobody waits for the long deadline).
+        assert_eq!(sent(p.submit(req(3, 0x44, now + ms(10_000)), now)), Some(3));
+        // Gone after its deadline: it timed out, and keeps its id its grace past it.
+        assert!(p.prune(0x44, |t| t != 3, now + ms(10_000)).is_empty());
+        assert_eq!(p.next_due(), Some(now + ms(10_100)));
+        // Gone before: the hold bounds it.
+        assert!(p.prune(0x44, |t| t != 3, now + ms(500)).is_empty());
+        assert!(matches!(
+            p.submit(req(4, 0x44, now + ms(10_000)), now + ms(500)),
+            Submit::Queued
+        ));
+        assert_eq!(p.next_due(), Some(now + query + grace));
+        let released = if ordered {
+            Due::Fenced(0x44, 3)
+        } else {
+            Due::Released(0x44, 3)
+        };
+        assert_eq!(p.due(now + query + grace), vec![released]);
+
+        // An acknowledged motion whose caller waits 10 s: no probe at the motion hold, only
+        // from its deadline; once its caller is gone, from the motion hold.
+        assert_eq!(
+            sent(p.submit(req(5, id::GRASP, now + ms(10_000)), now)),
+            Some(5)
+        );
+        assert_eq!(
+            p.on_reply(reply(id::GRASP, Status::CmdPending)),
+            Event::Accepted(5)
+        );
+        assert_eq!(p.next_due(), Some(now + ms(10_000)));
+        assert!(p.due(now + motion).is_empty());
+        assert!(p.prune(id::GRASP, |t| t != 5, now + motion).is_empty());
+        assert_eq!(p.next_due(), Some(now + motion));
+        assert_eq!(p.due(now + motion), vec![Due::Probe(id::GRASP, 5)]);
     }
 }

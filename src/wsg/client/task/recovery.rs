@@ -2,7 +2,17 @@
 //! [`super::super::pairing`]): releases, stop re-sends, loop-back barriers that prove a reply
 //! lost before its id is reused, and the "is it still moving?" probes of motions under recovery.
 
-use super::*;
+use std::io;
+use std::time::Duration;
+
+use bytes::Bytes;
+use tokio::time::Instant;
+
+use super::{send_within, Task, Waiter, BARRIER_REFUSALS};
+use crate::deadline::after;
+use crate::wsg::client::pairing::{Due, Observation, Request, Token, Verdict};
+use crate::wsg::command::{id, Command, UpdateMode};
+use crate::wsg::{Error, Frame};
 
 impl Task {
     /// A request's time has come: its id is released, or its recovery needs a probe.
@@ -68,8 +78,10 @@ impl Task {
                 self.pairing.settle_failed(id, query);
                 Ok(())
             }
-            // A caller still waiting (no timeout, released by the hold of `Pairing::set_holds`):
-            // its reply did not come within the query timeout.
+            // A caller still waiting is one without timeout (`Duration::MAX`), released by the
+            // hold of `Pairing::set_holds`: the timeout applied was the connection's query
+            // timeout. (A caller with a timeout keeps its id past its own deadline, by which
+            // its call has failed with its own timeout.)
             Some(Waiter::Caller(tx)) => {
                 let _ = tx.send(Err(Error::Timeout {
                     command: id,
