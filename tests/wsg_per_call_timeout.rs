@@ -135,3 +135,28 @@ async fn a_per_call_timeout_longer_than_the_connections_is_the_one_applied_on_ud
         .unwrap();
     per_call_timeout_wins(client).await;
 }
+
+/// A motion's caller waits with the motion timeout, but its E_CMD_PENDING comes at once
+/// (manual 1.3): a `home` whose datagram the device never got fails once the connection's
+/// query timeout + grace have passed since it was sent, naming the query timeout, not after
+/// the 30 s motion timeout (which the first cut of the per-call rule waited for).
+#[tokio::test(start_paused = true)]
+async fn a_motion_without_acknowledgement_fails_after_the_query_timeout_and_grace() {
+    // A "gripper" that hears nothing (the request datagram is lost on the way).
+    let deaf = tokio::net::UdpSocket::bind("127.0.0.1:0").await.unwrap();
+    let client = Client::builder()
+        .query_timeout(QUERY)
+        .late_reply_grace(GRACE)
+        .motion_timeout(Duration::from_secs(30))
+        .connect_udp(deaf.local_addr().unwrap())
+        .await
+        .unwrap();
+    let start = tokio::time::Instant::now();
+    let home = client.home(gripper::wsg::HomingDirection::Default).await;
+    assert!(
+        matches!(home, Err(Error::Timeout { command: id::HOMING, timeout }) if timeout == QUERY),
+        "the error names the timeout applied: {home:?}"
+    );
+    assert_eq!(start.elapsed(), QUERY + GRACE);
+    drop(deaf);
+}

@@ -36,7 +36,10 @@
 //! `Duration::MAX`), and one that is gone (dropped its call; nobody waits for the reply). An
 //! unacknowledged request of theirs is released the reply hold plus grace after it was sent,
 //! and an acknowledged motion goes under recovery (below) the motion hold after it was sent
-//! (or at the deadline, if that comes first). A gone caller is noticed when another call of
+//! (or at the deadline, if that comes first). One exception: a motion command's deadline is
+//! the motion timeout, but the device acknowledges it at once (1.3), so the reply hold bounds
+//! the wait for its E_CMD_PENDING whoever the caller is (a `home` whose datagram was lost
+//! fails after the query timeout + grace, not after 30 s). A gone caller is noticed when another call of
 //! the id is submitted ([`Pairing::prune`]): the id matters only to a call that wants it, and
 //! that call then waits at most the hold from the gone request's send, not the gone caller's
 //! whole (maybe long) timeout; until then the id just stays taken, harming nobody. (A caller
@@ -205,9 +208,13 @@ impl InFlight {
     fn due(&self, id: u8) -> Option<Instant> {
         if self.acknowledged && is_motion(id) {
             self.probe_at
-        } else if self.acknowledged || self.held {
+        } else if self.acknowledged || self.held && !is_motion(id) {
             // Acknowledged (not a motion): its final reply is owed, the deadline bounds it.
-            // Held: its caller's own deadline wins over the reply hold.
+            // Held: its caller's own deadline wins over the reply hold. Not a motion's: its
+            // deadline is the motion timeout (30 s by default), while its E_CMD_PENDING comes
+            // at once (1.3), so the reply hold still bounds the wait for that: a motion
+            // command whose request or acknowledgement was lost fails after the query timeout
+            // + grace, as before per-call timeouts won (not after the motion timeout).
             Some(self.release_at)
         } else {
             Some(self.release_at.min(self.unacked_release_at))

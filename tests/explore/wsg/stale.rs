@@ -97,13 +97,18 @@ pub fn beyond_the_rule(cx: &Context, k: usize, c: &CallRec) -> bool {
     }
     // The earliest the client may have given the id up: a caller's own deadline (its
     // timeout wins over the connection's, however much longer); the reply hold from the send
-    // only for a call without a timeout, or one dropped before its deadline (`Pairing::prune`).
+    // only for a call without a timeout, one dropped before its deadline (`Pairing::prune`),
+    // or a motion command's acknowledgement (it comes at once, manual 1.3).
     let hold = sent + cx.view.query_timeout;
+    let motion = matches!(
+        s.id,
+        id::HOMING | id::PRE_POSITION | id::GRASP | id::RELEASE
+    );
     let deadline = senders
         .iter()
         .map(|o| match o.limit {
             None => hold,
-            Some(l) if o.res == Res::Cancelled => (o.start + l).min(hold),
+            Some(l) if o.res == Res::Cancelled || motion => (o.start + l).min(hold),
             Some(l) => o.start + l,
         })
         .min()

@@ -874,3 +874,47 @@ fn a_per_call_timeout_longer_than_the_holds_keeps_its_id_until_its_own_deadline(
         assert_eq!(p.due(now + motion), vec![Due::Probe(id::GRASP, 5)]);
     }
 }
+
+/// A motion command's caller waits with the motion timeout, but the device acknowledges it at
+/// once (1.3): a motion whose request or E_CMD_PENDING was lost is released the reply hold +
+/// grace after it was sent, not at its caller's deadline (with per-call timeouts winning over
+/// the holds, a lost `home` datagram on UDP failed only after the 30 s motion timeout). Once
+/// acknowledged, it goes under recovery at its caller's deadline.
+#[test]
+fn a_motion_waits_for_its_acknowledgement_only_the_reply_hold() {
+    let now = Instant::now();
+    let ms = Duration::from_millis;
+    let grace = ms(100);
+    let (query, motion) = (ms(1000), ms(30_000));
+    for ordered in [false, true] {
+        let mut p = Pairing::new(grace);
+        p.set_ordered(ordered);
+        p.set_holds(query, motion);
+        assert_eq!(
+            sent(p.submit(req(1, id::HOMING, now + motion), now)),
+            Some(1)
+        );
+        assert_eq!(p.next_due(), Some(now + query + grace));
+        let released = if ordered {
+            Due::Fenced(id::HOMING, 1)
+        } else {
+            Due::Released(id::HOMING, 1)
+        };
+        assert_eq!(p.due(now + query + grace), vec![released]);
+
+        // Acknowledged: the hold no longer applies; recovery starts at the deadline.
+        let mut p = Pairing::new(grace);
+        p.set_ordered(ordered);
+        p.set_holds(query, motion);
+        assert_eq!(
+            sent(p.submit(req(2, id::HOMING, now + motion), now)),
+            Some(2)
+        );
+        assert_eq!(
+            p.on_reply(reply(id::HOMING, Status::CmdPending)),
+            Event::Accepted(2)
+        );
+        assert!(p.due(now + query + grace).is_empty());
+        assert_eq!(p.next_due(), Some(now + motion));
+    }
+}

@@ -78,9 +78,9 @@ impl Task {
                 self.pairing.settle_failed(id, query);
                 Ok(())
             }
-            // A caller still waiting is one without timeout (`Duration::MAX`), released by the
-            // hold of `Pairing::set_holds`: the timeout applied was the connection's query
-            // timeout. (A caller with a timeout keeps its id past its own deadline, by which
+            // A caller still waiting is one without timeout (`Duration::MAX`), or a motion
+            // command's whose acknowledgement did not come, released by the hold of
+            // `Pairing::set_holds`: the timeout applied was the connection's query timeout. (A caller with a timeout keeps its id past its own deadline, by which
             // its call has failed with its own timeout.)
             Some(Waiter::Caller(tx)) => {
                 let _ = tx.send(Err(Error::Timeout {
