@@ -67,7 +67,10 @@ pub(crate) fn after(at: Instant, d: Duration) -> Instant {
 /// from `now`, as [`after`] makes it of `Duration::MAX` and of any duration too long for the
 /// clock. Such a caller is bounded by its connection's holds instead (wsg `Pairing`).
 pub(crate) fn is_never(deadline: Instant, now: Instant) -> bool {
-    deadline.saturating_duration_since(now) > FAR_FUTURE / 2
+    // The same as `deadline - now > FAR_FUTURE / 2`, but an addition and a comparison cost
+    // less than the saturating subtraction (this runs for every request).
+    now.checked_add(FAR_FUTURE / 2)
+        .is_none_or(|half| deadline > half)
 }
 
 #[cfg(test)]

@@ -508,12 +508,16 @@ impl Pairing {
         if let Some(stops) = self.stops.get_mut(&id) {
             gone.extend(stops.prune(&alive));
         }
-        if let Some(f) = self.ids.get_mut(&id).and_then(|st| st.in_flight.as_mut()) {
+        // One lookup (the hot path: a call of an id nobody else uses finds no state at all).
+        let Some(st) = self.ids.get_mut(&id) else {
+            return gone;
+        };
+        if let Some(f) = st.in_flight.as_mut() {
             if f.held && now < f.deadline && !alive(f.token) {
                 f.forsake();
             }
         }
-        if let Some(st) = self.ids.get_mut(&id).filter(|st| !st.queue.is_empty()) {
+        if !st.queue.is_empty() {
             st.queue.retain(|r| {
                 let keep = alive(r.token);
                 if !keep {

@@ -439,13 +439,12 @@ impl Task {
     async fn submit(&mut self, req: Request) -> io::Result<()> {
         let id = req.frame.id;
         let waiters = &self.waiters;
-        for gone in self
-            .pairing
-            .prune(id, |t| alive(waiters, t), Instant::now())
-        {
+        // One clock read for both (issue 14: the clock is a measurable part of a round trip).
+        let now = Instant::now();
+        for gone in self.pairing.prune(id, |t| alive(waiters, t), now) {
             self.waiters.remove(&gone);
         }
-        match self.pairing.submit(req, Instant::now()) {
+        match self.pairing.submit(req, now) {
             Submit::Send(req) => self.transmit(req).await,
             Submit::Queued => Ok(()),
         }
