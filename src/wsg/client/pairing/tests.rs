@@ -1,6 +1,8 @@
 //! The pairing rules as a pure state machine: each test drives `Pairing` by hand, with no I/O
 //! and no clock but the instants it passes.
 
+use bytes::Bytes;
+
 use super::*;
 
 fn req(token: Token, id: u8, deadline: Instant) -> Request {
