@@ -8,7 +8,6 @@ use std::sync::atomic::AtomicU64;
 use std::sync::{Arc, OnceLock};
 use std::time::Duration;
 
-use bytes::Bytes;
 use tokio::net::{ToSocketAddrs, UdpSocket};
 use tokio::sync::mpsc;
 use tokio::time::{timeout_at, Instant};
@@ -257,8 +256,8 @@ impl ClientBuilder {
     #[cfg(feature = "sim")]
     pub fn attach_datagrams(
         self,
-        outgoing: mpsc::UnboundedSender<Bytes>,
-        incoming: mpsc::UnboundedReceiver<Bytes>,
+        outgoing: mpsc::UnboundedSender<bytes::Bytes>,
+        incoming: mpsc::UnboundedReceiver<bytes::Bytes>,
     ) -> Client {
         let link = Link::Datagrams {
             tx: outgoing,
