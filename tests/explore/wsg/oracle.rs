@@ -552,13 +552,14 @@ fn next_calls_request(
 }
 
 /// Ids with auto-updates (manual 3.4.1, 3.4.2, 3.4.4–3.4.6).
-fn is_streamed(id: u8) -> bool {
+pub fn is_streamed(id: u8) -> bool {
     matches!(
         id,
         id::SYSTEM_STATE | id::GRIP_STATE | id::WIDTH | id::SPEED | id::FORCE
     )
 }
 
-fn is_motion(id: u8) -> bool {
+/// Motion commands (manual 3.2.1, 3.2.2, 3.2.6, 3.2.7).
+pub fn is_motion(id: u8) -> bool {
     matches!(id, id::HOMING | id::PRE_POSITION | id::GRASP | id::RELEASE)
 }

@@ -12,7 +12,7 @@ use gripper::wsg::sim::{SessionId, SimEvent, SimRecording};
 use gripper::wsg::Status;
 use tokio::time::Instant;
 
-use super::oracle::{ClientView, Sent};
+use super::oracle::{is_motion, is_streamed, ClientView, Sent};
 use super::workload::{CallRec, Res};
 use crate::core::datagrams::Faulted;
 
@@ -100,10 +100,7 @@ pub fn beyond_the_rule(cx: &Context, k: usize, c: &CallRec) -> bool {
     // only for a call without a timeout, one dropped before its deadline (`Pairing::prune`),
     // or a motion command's acknowledgement (it comes at once, manual 1.3).
     let hold = sent + cx.view.query_timeout;
-    let motion = matches!(
-        s.id,
-        id::HOMING | id::PRE_POSITION | id::GRASP | id::RELEASE
-    );
+    let motion = is_motion(s.id);
     let deadline = senders
         .iter()
         .map(|o| match o.limit {
@@ -118,16 +115,7 @@ pub fn beyond_the_rule(cx: &Context, k: usize, c: &CallRec) -> bool {
 
 /// Ids whose replies the client may hand to more than one request (streams, stops).
 fn is_shared(cmd: u8) -> bool {
-    matches!(
-        cmd,
-        id::SYSTEM_STATE
-            | id::GRIP_STATE
-            | id::WIDTH
-            | id::SPEED
-            | id::FORCE
-            | id::STOP
-            | id::FAST_STOP
-    )
+    is_streamed(cmd) || cmd == id::STOP || cmd == id::FAST_STOP
 }
 
 /// Whether datagram `f` is the request `cmd` with `payload`.
