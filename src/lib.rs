@@ -78,6 +78,7 @@ mod deadline;
 pub mod fault;
 pub mod griplink;
 mod int_map;
+mod line;
 /// Reconnecting after a lost connection: backoff policy and connection events, shared by the
 /// `smartgrasp`, `griplink` and `wsg` clients (wsg over TCP and serial; UDP has no connection).
 pub mod reconnect;

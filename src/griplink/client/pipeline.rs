@@ -20,10 +20,10 @@ use std::time::Duration;
 use tokio::sync::oneshot;
 use tokio::time::Instant;
 
-use crate::griplink::codec::Discarded;
 use crate::griplink::command::Expect;
 use crate::griplink::error::{Error, Result};
 use crate::griplink::reply::{interpret_datum, Checked};
+use crate::line::codec::Discarded;
 
 /// Where a caller waits for its result.
 pub(crate) type Waiter = oneshot::Sender<Result<Checked>>;

@@ -9,23 +9,18 @@
 //! §6.2) would end whichever call came first.
 
 use std::collections::{BTreeMap, VecDeque};
-use std::future::poll_fn;
-use std::pin::Pin;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use bytes::BytesMut;
-use futures_core::Stream;
-use tokio::io::{AsyncRead, AsyncWrite, AsyncWriteExt};
+use tokio::io::{AsyncRead, AsyncWrite};
 use tokio::sync::{mpsc, oneshot};
 use tokio::time::Instant;
-use tokio_util::codec::FramedRead;
 
 use super::error::Error;
 use super::line::{parse_number, parse_reply, ReplyLine};
 use super::push::{Push, PushSubscriber, Quantity};
-use crate::deadline::{move_timer, write_all_by};
-use crate::griplink::codec::{LineCodec, RawLine, RawLineCodec};
+use crate::deadline::move_timer;
+use crate::line::{io_error, peer_closed, Failure, LineConn, LineError};
 use crate::wsg::Status;
 
 /// What a command's call waits for.
@@ -76,24 +71,18 @@ struct Slot {
 /// What the handles and the task share.
 #[derive(Debug, Default)]
 pub(crate) struct Shared {
-    failure: Mutex<Option<Error>>,
+    failure: Failure<Error>,
     pub(crate) subscribers: Mutex<Vec<PushSubscriber>>,
 }
 
 impl Shared {
     /// Why the connection is gone ([`Error::Closed`] if no reason was recorded).
     pub(crate) fn failure(&self) -> Error {
-        self.failure
-            .lock()
-            .ok()
-            .and_then(|f| f.clone())
-            .unwrap_or(Error::Closed)
+        self.failure.get()
     }
 
     fn record(&self, error: &Error) {
-        if let Ok(mut f) = self.failure.lock() {
-            f.get_or_insert_with(|| error.clone());
-        }
+        self.failure.record(error);
     }
 
     fn deliver(&self, push: Push) {
@@ -119,41 +108,20 @@ pub(crate) fn after(from: Instant, d: Duration) -> Instant {
         .unwrap_or(from)
 }
 
-struct Conn<R, W> {
-    reader: FramedRead<R, RawLineCodec>,
-    writer: W,
-    out: BytesMut,
-}
+impl LineError for Error {
+    const PEER: &'static str = "gripper";
 
-impl<R, W: AsyncWrite + Unpin> Conn<R, W> {
-    async fn send(&mut self, line: &str, limit: Instant) -> Result<(), Error> {
-        self.out.clear();
-        self.out.extend_from_slice(line.as_bytes());
-        self.out.extend_from_slice(b"\n");
-        match write_all_by(&mut self.writer, &self.out, || limit).await {
-            Ok(Ok(())) => Ok(()),
-            Ok(Err(e)) => Err(io_error(e)),
-            Err(_) => Err(Error::ConnectionLost(
-                "the gripper stopped reading commands".into(),
-            )),
-        }
+    fn connection_lost(why: String) -> Self {
+        Error::ConnectionLost(why)
     }
-}
 
-fn io_error(e: std::io::Error) -> Error {
-    use std::io::ErrorKind::{BrokenPipe, ConnectionAborted, ConnectionReset, UnexpectedEof};
-    match e.kind() {
-        UnexpectedEof | ConnectionReset | ConnectionAborted | BrokenPipe => {
-            Error::ConnectionLost(format!("the gripper closed the connection: {e}"))
-        }
-        _ => Error::from(e),
+    fn invalid_line(reason: String) -> Self {
+        Error::invalid("command line", reason)
     }
-}
 
-async fn next_line<R: AsyncRead + Unpin>(
-    reader: &mut FramedRead<R, RawLineCodec>,
-) -> Option<std::io::Result<RawLine>> {
-    poll_fn(|cx| Pin::new(&mut *reader).poll_next(cx)).await
+    fn closed() -> Self {
+        Error::Closed
+    }
 }
 
 /// The commands on the wire (one per name) and the requests waiting for their name.
@@ -295,12 +263,7 @@ pub(crate) async fn run<R, W>(
     R: AsyncRead + Unpin,
     W: AsyncWrite + Unpin,
 {
-    let codec = RawLineCodec(LineCodec::new(config.max_line_len).reject_unterminated());
-    let mut conn = Conn {
-        reader: FramedRead::new(read, codec),
-        writer: write,
-        out: BytesMut::new(),
-    };
+    let mut conn = LineConn::from_halves(read, write, config.max_line_len);
     let mut book = Book {
         on_wire: BTreeMap::new(),
         waiting: VecDeque::new(),
@@ -320,7 +283,7 @@ pub(crate) async fn run<R, W>(
         tokio::select! {
             // Replies first: they free names and callers.
             biased;
-            line = next_line(&mut conn.reader) => match line {
+            line = conn.reader.next_line() => match line {
                 Some(Ok(line)) => match line.text() {
                     Ok(text) => match book.on_line(text, &shared) {
                         Handled::Bye => break Error::Closed,
@@ -331,7 +294,7 @@ pub(crate) async fn run<R, W>(
                     Err(why) => tracing::warn!(%why, "wsg text: reply line discarded"),
                 },
                 Some(Err(e)) => break io_error(e),
-                None => break Error::ConnectionLost("the gripper closed the connection".into()),
+                None => break peer_closed(),
             },
             () = &mut timer, if give_up.is_some() => {
                 let command = book
@@ -360,9 +323,18 @@ pub(crate) async fn run<R, W>(
         }
         if let Some(request) = to_send {
             let give_up_at = after(request.deadline, config.give_up_after);
-            if let Err(e) = conn.send(&request.line, give_up_at).await {
-                unsent = Some(request.waiter);
-                break 'serve e;
+            match conn.writer.send(&request.line, give_up_at).await {
+                Ok(()) => {}
+                // Refused by the codec, nothing sent (`Client::submit` checks the line first,
+                // so this is only a second guard).
+                Err(err @ Error::InvalidArgument { .. }) => {
+                    let _ = request.waiter.send(Err(err));
+                    continue;
+                }
+                Err(e) => {
+                    unsent = Some(request.waiter);
+                    break 'serve e;
+                }
             }
             tracing::trace!(command = %request.line, "wsg text: sent");
             closing |= request.name == "BYE";
@@ -398,5 +370,5 @@ pub(crate) async fn run<R, W>(
         // Ends every push stream.
         subs.clear();
     }
-    let _ = conn.writer.shutdown().await;
+    conn.writer.shutdown().await;
 }
