@@ -83,4 +83,5 @@ mod line;
 /// `smartgrasp`, `griplink` and `wsg` clients (wsg over TCP and serial; UDP has no connection).
 pub mod reconnect;
 pub mod smartgrasp;
+mod supervisor;
 pub mod wsg;

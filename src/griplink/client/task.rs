@@ -17,7 +17,8 @@ use crate::griplink::command::{Command, Expect};
 use crate::griplink::error::Error;
 use crate::griplink::reply::interpret;
 use crate::line::{io_error, peer_closed, Failure, LineConn, LineError, Opener};
-use crate::reconnect::{self, BoxStream, ConnectionEvent, EventSender, ReconnectPolicy};
+use crate::reconnect::{BoxStream, EventSender, ReconnectPolicy};
+use crate::supervisor::{supervise, Served, Session};
 
 /// A caller's command, on its way to the task.
 #[derive(Debug)]
@@ -131,66 +132,79 @@ async fn exchange(conn: &mut LineConn, command: Command, timeout: Duration) -> R
 }
 
 /// Runs until every handle is dropped, the program closes the connection, or it is lost for
-/// good.
-pub(crate) async fn run(stream: BoxStream, mut task: Task) {
-    let mut conn = LineConn::new(stream, task.config.max_line_len);
-    let end = loop {
-        let reconnects = task.reconnect.is_some();
-        let end = serve(
+/// good (the loop is the shared supervisor's, `crate::supervisor`).
+pub(crate) async fn run(stream: BoxStream, task: Task) {
+    let conn = LineConn::new(stream, task.config.max_line_len);
+    supervise(task, conn).await;
+}
+
+/// The reason a client ended, as its calls read it.
+fn reason(end: &Served<(), Error>) -> Error {
+    match end {
+        Served::Closed(()) => Error::Closed,
+        Served::Lost(reason) => reason.clone(),
+    }
+}
+
+/// The GRIPLINK session the supervisor runs: one connection at a time, restored with the
+/// last `VERBOSE` the controller accepted.
+impl Session for Task {
+    type Link = LineConn;
+    type Request = Request;
+    type Error = Error;
+    type Close = ();
+
+    async fn serve(&mut self, conn: &mut LineConn) -> Served<(), Error> {
+        let reconnects = self.reconnect.is_some();
+        // `Closed`: BYE, or nobody left to call; nothing to report or restore.
+        match serve(
             conn,
-            &mut task.requests,
-            &task.config,
-            &task.shared,
+            &mut self.requests,
+            &self.config,
+            &self.shared,
             reconnects,
         )
-        .await;
-        // `Closed`: BYE, or nobody left to call; nothing to report or restore.
-        if matches!(end, Error::Closed) {
-            break end;
+        .await
+        {
+            Error::Closed => Served::Closed(()),
+            lost => Served::Lost(lost),
         }
-        task.events.send(ConnectionEvent::Lost {
-            reason: end.to_string(),
-        });
-        let Some(policy) = task.reconnect else {
-            break end;
-        };
-        // Calls made meanwhile wait in the queue, within their own timeouts.
-        let Task {
-            requests,
-            config,
-            shared,
-            events,
-            opener,
-            ..
-        } = &task;
-        let restored = reconnect::retry(
-            &policy,
-            events,
-            || requests.is_closed(),
-            |_| async {
-                let mut conn =
-                    LineConn::open::<Error>(opener, config.connect_timeout, config.max_line_len)
-                        .await?;
-                events.send(ConnectionEvent::Connected);
-                if let Some(on) = shared.verbose() {
-                    exchange(&mut conn, Command::SetVerbose(on), config.query_timeout).await?;
-                }
-                Ok::<_, Error>(conn)
-            },
-        )
-        .await;
-        match restored {
-            Some(restored) => conn = restored,
-            None => break end,
+    }
+
+    fn requests(&mut self) -> &mut mpsc::Receiver<Request> {
+        &mut self.requests
+    }
+
+    fn events(&self) -> &EventSender {
+        &self.events
+    }
+
+    fn policy(&self) -> Option<ReconnectPolicy> {
+        self.reconnect
+    }
+
+    fn abandoned(&self) -> bool {
+        self.requests.is_closed()
+    }
+
+    async fn connect(&self) -> Result<LineConn, Error> {
+        let config = &self.config;
+        LineConn::open(&self.opener, config.connect_timeout, config.max_line_len).await
+    }
+
+    async fn restore(&self, conn: &mut LineConn) -> Result<(), Error> {
+        if let Some(on) = self.shared.verbose() {
+            exchange(conn, Command::SetVerbose(on), self.config.query_timeout).await?;
         }
-    };
-    task.shared.record(&end);
-    task.requests.close();
-    // `recv`, not `try_recv`: a call that took its place in the queue before it closed puts
-    // its request in afterwards, and `recv` waits for it where `try_recv` reports the queue
-    // empty; that request would then never be answered (its caller waited out its timeout).
-    while let Some(request) = task.requests.recv().await {
-        let _ = request.waiter.send(Err(end.clone()));
+        Ok(())
+    }
+
+    fn ended(&mut self, end: &Served<(), Error>) {
+        self.shared.record(&reason(end));
+    }
+
+    fn refuse(request: Request, end: &Served<(), Error>) {
+        let _ = request.waiter.send(Err(reason(end)));
     }
 }
 
@@ -202,16 +216,13 @@ pub(crate) async fn run(stream: BoxStream, mut task: Task) {
 /// refused by the closed queue reads the same reason (`ConnectionLost`, never a `Closed` that
 /// nobody asked for; issue 21).
 async fn serve(
-    conn: LineConn,
+    conn: &mut LineConn,
     requests: &mut mpsc::Receiver<Request>,
     config: &TaskConfig,
     shared: &Shared,
     reconnects: bool,
 ) -> Error {
-    let LineConn {
-        mut reader,
-        mut writer,
-    } = conn;
+    let LineConn { reader, writer } = conn;
     let mut pipeline =
         Pipeline::new(config.pipeline_depth).with_probe_timeout(config.probe_timeout);
     let mut closing = false;
