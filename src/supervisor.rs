@@ -121,6 +121,8 @@ pub(crate) async fn supervise<S: Session>(mut session: S, mut link: S::Link) {
             Served::Closed(close) => break Served::Closed(close),
             Served::Lost(reason) => reason,
         };
+        // The old connection is closed before the backoff: the peer sees it go at once.
+        drop(link);
         session.events().send(ConnectionEvent::Lost {
             reason: session.loss_report(&reason),
         });
