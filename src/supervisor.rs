@@ -35,34 +35,17 @@ pub(crate) enum Served<C, E> {
     Lost(E),
 }
 
-/// What a protocol's connection task supplies to the [`supervise`] loop. The connection itself
-/// (`Link`) is held apart: a reconnect attempt borrows the session (from another thread, for
-/// all the compiler knows: it must be `Sync`) while a byte stream is only `Send`.
-pub(crate) trait Session: Send + Sync + Sized {
-    /// A new connection, opened (and restored) by a reconnect.
+/// What a reconnect attempt needs of a session: a view of it that may be shared with the
+/// attempt's future (`Sync`), apart from the connection the session serves (a byte stream is
+/// only `Send`).
+pub(crate) trait Restore: Sync {
+    /// A new connection.
     type Link: Send;
-    /// A call waiting in the queue.
-    type Request: Send;
     /// Why a connection was lost, or an attempt to restore one failed.
     type Error: fmt::Display + Send + Sync;
-    /// What a close by the program carries to the end.
-    type Close: Default + Send;
-
-    /// Serves calls over `link` until it is closed or lost. The calls in flight on it are
-    /// answered (or failed) before it returns.
-    fn serve(
-        &mut self,
-        link: &mut Self::Link,
-    ) -> impl Future<Output = Served<Self::Close, Self::Error>> + Send;
-
-    /// The queue of calls from the handles.
-    fn requests(&mut self) -> &mut mpsc::Receiver<Self::Request>;
 
     /// Where the connection's events go.
     fn events(&self) -> &EventSender;
-
-    /// The reconnect policy (`None`: a lost connection stays closed).
-    fn policy(&self) -> Option<ReconnectPolicy>;
 
     /// Nobody is left to serve (every handle dropped, or the program is closing): stop
     /// reconnecting.
@@ -79,15 +62,6 @@ pub(crate) trait Session: Send + Sync + Sized {
         std::future::pending()
     }
 
-    /// What the [`ConnectionEvent::Lost`] event says about `reason`.
-    fn loss_report(&self, reason: &Self::Error) -> String {
-        reason.to_string()
-    }
-
-    /// After a loss is reported, before any reconnect: fail what `serve` left waiting, and
-    /// prepare what the new connection restores.
-    fn lost(&mut self, _reason: &Self::Error) {}
-
     /// Opens a new connection (one attempt, bounded by the connect timeout).
     fn connect(&self) -> impl Future<Output = Result<Self::Link, Self::Error>> + Send;
 
@@ -96,9 +70,80 @@ pub(crate) trait Session: Send + Sync + Sized {
         &'a self,
         link: &'a mut Self::Link,
     ) -> impl Future<Output = Result<(), Self::Error>> + Send + 'a;
+}
 
-    /// The connection restored, before calls are served over it.
-    fn restored(&mut self, _link: &mut Self::Link) {}
+impl<R: Restore> Restore for &R {
+    type Link = R::Link;
+    type Error = R::Error;
+
+    fn events(&self) -> &EventSender {
+        (**self).events()
+    }
+
+    fn abandoned(&self) -> bool {
+        (**self).abandoned()
+    }
+
+    fn close_requested(&self) -> bool {
+        (**self).close_requested()
+    }
+
+    fn closing(&self) -> impl Future<Output = ()> + Send {
+        (**self).closing()
+    }
+
+    fn connect(&self) -> impl Future<Output = Result<Self::Link, Self::Error>> + Send {
+        (**self).connect()
+    }
+
+    fn restore<'a>(
+        &'a self,
+        link: &'a mut Self::Link,
+    ) -> impl Future<Output = Result<(), Self::Error>> + Send + 'a {
+        (**self).restore(link)
+    }
+}
+
+/// What a protocol's connection task supplies to the [`supervise`] loop: it owns its current
+/// connection and serves it.
+pub(crate) trait Session: Send + Sized + 'static {
+    /// The view a reconnect attempt borrows.
+    type Restore<'a>: Restore<Link = Self::Link, Error = Self::Error>
+    where
+        Self: 'a;
+    /// A connection.
+    type Link: Send;
+    /// Why a connection was lost.
+    type Error: fmt::Display + Send + Sync;
+    /// A call waiting in the queue.
+    type Request: Send;
+    /// What a close by the program carries to the end.
+    type Close: Default + Send;
+
+    /// Serves calls over the current connection until it is closed or lost. The calls in flight
+    /// on it are answered (or failed) before it returns.
+    fn serve(&mut self) -> impl Future<Output = Served<Self::Close, Self::Error>> + Send;
+
+    /// The queue of calls from the handles.
+    fn requests(&mut self) -> &mut mpsc::Receiver<Self::Request>;
+
+    /// The view a reconnect attempt borrows.
+    fn restorer(&self) -> Self::Restore<'_>;
+
+    /// The reconnect policy (`None`: a lost connection stays closed).
+    fn policy(&self) -> Option<ReconnectPolicy>;
+
+    /// What the [`ConnectionEvent::Lost`] event says about `reason`.
+    fn loss_report(&self, reason: &Self::Error) -> String {
+        reason.to_string()
+    }
+
+    /// After a loss is reported, before any reconnect: close the old connection, fail what
+    /// `serve` left waiting, prepare what a new connection restores.
+    fn lost(&mut self, reason: &Self::Error);
+
+    /// The connection restored: serve calls over it from now on.
+    fn restored(&mut self, link: Self::Link);
 
     /// The client ends (for good) this way: record the reason for the handles, fail the calls
     /// the session holds. Runs before the queue is closed.
@@ -115,15 +160,13 @@ pub(crate) trait Session: Send + Sync + Sized {
 
 /// Runs a client's connection task: serves, reports a loss, reconnects with the policy and
 /// restores, until the client ends; then fails what is waiting (see the module docs).
-pub(crate) async fn supervise<S: Session>(mut session: S, mut link: S::Link) {
+pub(crate) async fn supervise<S: Session>(mut session: S) {
     let end = loop {
-        let reason = match session.serve(&mut link).await {
+        let reason = match session.serve().await {
             Served::Closed(close) => break Served::Closed(close),
             Served::Lost(reason) => reason,
         };
-        // The old connection is closed before the backoff: the peer sees it go at once.
-        drop(link);
-        session.events().send(ConnectionEvent::Lost {
+        session.restorer().events().send(ConnectionEvent::Lost {
             reason: session.loss_report(&reason),
         });
         session.lost(&reason);
@@ -131,35 +174,34 @@ pub(crate) async fn supervise<S: Session>(mut session: S, mut link: S::Link) {
             break Served::Lost(reason);
         };
         // Calls made meanwhile wait in the queue, within their own timeouts.
-        let restored = {
-            let session = &session;
-            let events = session.events();
+        let (restored, close_requested) = {
+            let restorer = session.restorer();
+            let restorer = &restorer;
+            let events = restorer.events();
             let retry = reconnect::retry(
                 &policy,
                 events,
-                || session.abandoned(),
+                || restorer.abandoned(),
                 |_| async {
-                    let mut link = session.connect().await?;
+                    let mut link = restorer.connect().await?;
                     events.send(ConnectionEvent::Connected);
-                    session.restore(&mut link).await?;
+                    restorer.restore(&mut link).await?;
                     Ok::<_, S::Error>(link)
                 },
             );
-            tokio::select! {
+            let restored = tokio::select! {
                 // Fixed order (a seeded run replays exactly; unbiased select! draws from a
                 // per-process random seed): an attempt that completes at the same poll as the
                 // close still counts, and the close is seen at the next poll either way.
                 biased;
                 restored = retry => restored,
-                () = session.closing() => None,
-            }
+                () = restorer.closing() => None,
+            };
+            (restored, restorer.close_requested())
         };
         match restored {
-            Some(restored) => {
-                link = restored;
-                session.restored(&mut link);
-            }
-            None if session.close_requested() => break Served::Closed(S::Close::default()),
+            Some(link) => session.restored(link),
+            None if close_requested => break Served::Closed(S::Close::default()),
             None => break Served::Lost(reason),
         }
     };

@@ -18,7 +18,7 @@ use crate::griplink::error::Error;
 use crate::griplink::reply::interpret;
 use crate::line::{io_error, peer_closed, Failure, LineConn, LineError, Opener};
 use crate::reconnect::{BoxStream, EventSender, ReconnectPolicy};
-use crate::supervisor::{supervise, Served, Session};
+use crate::supervisor::{supervise, Restore, Served, Session};
 
 /// A caller's command, on its way to the task.
 #[derive(Debug)]
@@ -135,7 +135,19 @@ async fn exchange(conn: &mut LineConn, command: Command, timeout: Duration) -> R
 /// good (the loop is the shared supervisor's, `crate::supervisor`).
 pub(crate) async fn run(stream: BoxStream, task: Task) {
     let conn = LineConn::new(stream, task.config.max_line_len);
-    supervise(task, conn).await;
+    supervise(Griplink {
+        task,
+        conn: Some(conn),
+    })
+    .await;
+}
+
+/// The GRIPLINK session the supervisor runs: one connection at a time, restored with the
+/// last `VERBOSE` the controller accepted.
+struct Griplink {
+    task: Task,
+    /// `None` from a loss until a reconnect: the lost connection is closed at once.
+    conn: Option<LineConn>,
 }
 
 /// The reason a client ended, as its calls read it.
@@ -146,41 +158,12 @@ fn reason(end: &Served<(), Error>) -> Error {
     }
 }
 
-/// The GRIPLINK session the supervisor runs: one connection at a time, restored with the
-/// last `VERBOSE` the controller accepted.
-impl Session for Task {
+impl Restore for Task {
     type Link = LineConn;
-    type Request = Request;
     type Error = Error;
-    type Close = ();
-
-    async fn serve(&mut self, conn: &mut LineConn) -> Served<(), Error> {
-        let reconnects = self.reconnect.is_some();
-        // `Closed`: BYE, or nobody left to call; nothing to report or restore.
-        match serve(
-            conn,
-            &mut self.requests,
-            &self.config,
-            &self.shared,
-            reconnects,
-        )
-        .await
-        {
-            Error::Closed => Served::Closed(()),
-            lost => Served::Lost(lost),
-        }
-    }
-
-    fn requests(&mut self) -> &mut mpsc::Receiver<Request> {
-        &mut self.requests
-    }
 
     fn events(&self) -> &EventSender {
         &self.events
-    }
-
-    fn policy(&self) -> Option<ReconnectPolicy> {
-        self.reconnect
     }
 
     fn abandoned(&self) -> bool {
@@ -198,9 +181,58 @@ impl Session for Task {
         }
         Ok(())
     }
+}
+
+impl Session for Griplink {
+    type Restore<'a> = &'a Task;
+    type Link = LineConn;
+    type Error = Error;
+    type Request = Request;
+    type Close = ();
+
+    async fn serve(&mut self) -> Served<(), Error> {
+        let task = &mut self.task;
+        let Some(conn) = self.conn.as_mut() else {
+            // Not reached: the supervisor serves only after a connect or a reconnect.
+            return Served::Lost(Error::ConnectionLost("not connected".into()));
+        };
+        // `Closed`: BYE, or nobody left to call; nothing to report or restore.
+        match serve(
+            conn,
+            &mut task.requests,
+            &task.config,
+            &task.shared,
+            task.reconnect.is_some(),
+        )
+        .await
+        {
+            Error::Closed => Served::Closed(()),
+            lost => Served::Lost(lost),
+        }
+    }
+
+    fn requests(&mut self) -> &mut mpsc::Receiver<Request> {
+        &mut self.task.requests
+    }
+
+    fn restorer(&self) -> &Task {
+        &self.task
+    }
+
+    fn policy(&self) -> Option<ReconnectPolicy> {
+        self.task.reconnect
+    }
+
+    fn lost(&mut self, _reason: &Error) {
+        self.conn = None;
+    }
+
+    fn restored(&mut self, conn: LineConn) {
+        self.conn = Some(conn);
+    }
 
     fn ended(&mut self, end: &Served<(), Error>) {
-        self.shared.record(&reason(end));
+        self.task.shared.record(&reason(end));
     }
 
     fn refuse(request: Request, end: &Served<(), Error>) {

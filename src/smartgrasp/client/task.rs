@@ -16,7 +16,7 @@ use super::session::Session;
 use super::{ClientConfig, Shared};
 use crate::reconnect::{EventSender, ReconnectPolicy};
 use crate::smartgrasp::error::Error;
-use crate::supervisor::{supervise, Served, Session as Supervised};
+use crate::supervisor::{supervise, Restore, Served, Session as Supervised};
 
 /// Everything the task needs besides the first connection.
 pub(crate) struct Task {
@@ -37,7 +37,19 @@ pub(crate) struct Task {
 /// Runs until every handle is dropped, the program closes the client, or the connection is lost
 /// for good (the loop is the shared supervisor's, `crate::supervisor`).
 pub(crate) async fn run(link: Link, task: Task) {
-    supervise(task, link).await;
+    supervise(SmartGrasp {
+        task,
+        link: Some(link),
+    })
+    .await;
+}
+
+/// The SmartGrasp session the supervisor runs: restored by the opening sequence again
+/// (`session.rs`).
+struct SmartGrasp {
+    task: Task,
+    /// `None` from a loss until a reconnect: the lost connection is closed at once.
+    link: Option<Link>,
 }
 
 /// The reason a client ended, as its calls read it.
@@ -48,40 +60,12 @@ fn reason(end: &Served<(), Error>) -> Error {
     }
 }
 
-/// The SmartGrasp session the supervisor runs: restored by the opening sequence again
-/// (`session.rs`).
-impl Supervised for Task {
+impl Restore for Task {
     type Link = Link;
-    type Request = Call;
     type Error = Error;
-    type Close = ();
-
-    async fn serve(&mut self, link: &mut Link) -> Served<(), Error> {
-        let session = &mut self.session;
-        let served = link
-            .serve(
-                &mut self.calls,
-                &mut |request, response| session.record(request, response),
-                &self.shutdown,
-            )
-            .await;
-        match served {
-            // `None`: every handle is gone. `Closed`: closed by the program.
-            None | Some(Error::Closed) => Served::Closed(()),
-            Some(reason) => Served::Lost(reason),
-        }
-    }
-
-    fn requests(&mut self) -> &mut mpsc::Receiver<Call> {
-        &mut self.calls
-    }
 
     fn events(&self) -> &EventSender {
         &self.events
-    }
-
-    fn policy(&self) -> Option<ReconnectPolicy> {
-        self.config.reconnect
     }
 
     fn abandoned(&self) -> bool {
@@ -105,9 +89,60 @@ impl Supervised for Task {
         self.shared.set_opened(&opened);
         Ok(())
     }
+}
+
+impl Supervised for SmartGrasp {
+    type Restore<'a> = &'a Task;
+    type Link = Link;
+    type Error = Error;
+    type Request = Call;
+    type Close = ();
+
+    async fn serve(&mut self) -> Served<(), Error> {
+        let task = &mut self.task;
+        let Some(link) = self.link.as_mut() else {
+            // Not reached: the supervisor serves only after a connect or a reconnect.
+            return Served::Lost(Error::ConnectionLost {
+                reason: "not connected".into(),
+            });
+        };
+        let session = &mut task.session;
+        let served = link
+            .serve(
+                &mut task.calls,
+                &mut |request, response| session.record(request, response),
+                &task.shutdown,
+            )
+            .await;
+        match served {
+            // `None`: every handle is gone. `Closed`: closed by the program.
+            None | Some(Error::Closed) => Served::Closed(()),
+            Some(reason) => Served::Lost(reason),
+        }
+    }
+
+    fn requests(&mut self) -> &mut mpsc::Receiver<Call> {
+        &mut self.task.calls
+    }
+
+    fn restorer(&self) -> &Task {
+        &self.task
+    }
+
+    fn policy(&self) -> Option<ReconnectPolicy> {
+        self.task.config.reconnect
+    }
+
+    fn lost(&mut self, _reason: &Error) {
+        self.link = None;
+    }
+
+    fn restored(&mut self, link: Link) {
+        self.link = Some(link);
+    }
 
     fn ended(&mut self, end: &Served<(), Error>) {
-        let _ = self.closed.set(reason(end));
+        let _ = self.task.closed.set(reason(end));
     }
 
     fn refuse(call: Call, end: &Served<(), Error>) {
