@@ -76,6 +76,7 @@ mod deadline;
 /// Fault-injecting TCP proxy for tests (feature `sim`).
 #[cfg(feature = "sim")]
 pub mod fault;
+mod give_up;
 pub mod griplink;
 mod int_map;
 mod line;

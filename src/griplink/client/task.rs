@@ -13,6 +13,7 @@ use tokio::time::Instant;
 
 use super::pipeline::{Delivery, Pipeline, Slot, Waiter};
 use crate::deadline::move_timer;
+use crate::give_up::GiveUp;
 use crate::griplink::command::{Command, Expect};
 use crate::griplink::error::Error;
 use crate::griplink::reply::interpret;
@@ -267,7 +268,7 @@ async fn serve(
     let give_up_timer = tokio::time::sleep_until(Instant::now());
     tokio::pin!(give_up_timer);
     let end: Error = loop {
-        let give_up = pipeline.give_up_at();
+        let give_up = pipeline.give_up_at(Instant::now);
         if let Some(at) = give_up {
             move_timer(give_up_timer.as_mut(), at);
         }
@@ -278,7 +279,7 @@ async fn serve(
                 Some(Ok(line)) => match pipeline.on_line(line.text()) {
                     Delivery::Resync(probe) if !closing => {
                         tracing::warn!(%probe, "griplink: a reply was out of step, resynchronising");
-                        let limit = pipeline.give_up_at().unwrap_or_else(Instant::now);
+                        let limit = pipeline.give_up_at(Instant::now).unwrap_or_else(Instant::now);
                         if let Err(e) = writer.send(probe, limit).await {
                             break e;
                         }
@@ -316,8 +317,13 @@ async fn serve(
                     }));
                     continue;
                 }
-                let give_up_at = crate::deadline::after(request.deadline, config.give_up_after);
-                match writer.send(&request.line, give_up_at).await {
+                let give_up = GiveUp::new(
+                    request.deadline,
+                    config.give_up_after,
+                    pipeline.is_empty(),
+                    || request.timeout,
+                );
+                match writer.send(&request.line, give_up.limit()).await {
                     Ok(()) => {}
                     Err(err @ Error::InvalidArgument { .. }) => {
                         let _ = request.waiter.send(Err(err));
@@ -334,7 +340,7 @@ async fn serve(
                     line: request.line,
                     expect: request.expect,
                     waiter: request.waiter,
-                    give_up_at,
+                    give_up,
                     probe: None,
                 });
             }
