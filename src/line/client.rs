@@ -35,6 +35,9 @@ pub(crate) trait LineError: From<std::io::Error> + Clone {
 
     /// The connection was closed by this client.
     fn closed() -> Self;
+
+    /// Whether this is [`LineError::closed`].
+    fn is_closed(&self) -> bool;
 }
 
 /// Why a connection ended, as the handles read it: the first reason recorded, or
@@ -295,6 +298,9 @@ mod tests {
         }
         fn closed() -> Self {
             TestError::Closed
+        }
+        fn is_closed(&self) -> bool {
+            matches!(self, TestError::Closed)
         }
     }
 

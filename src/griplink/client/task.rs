@@ -17,9 +17,11 @@ use crate::give_up::GiveUp;
 use crate::griplink::command::{Command, Expect};
 use crate::griplink::error::Error;
 use crate::griplink::reply::interpret;
-use crate::line::{io_error, peer_closed, Failure, LineConn, LineError, Opener};
+use crate::line::{
+    io_error, peer_closed, Failure, LineConn, LineError, LineSession, LineTask, Opener,
+};
 use crate::reconnect::{BoxStream, EventSender, ReconnectPolicy};
-use crate::supervisor::{supervise, Restore, Served, Session};
+use crate::supervisor::supervise;
 
 /// A caller's command, on its way to the task.
 #[derive(Debug)]
@@ -104,6 +106,10 @@ impl LineError for Error {
     fn closed() -> Self {
         Error::Closed
     }
+
+    fn is_closed(&self) -> bool {
+        matches!(self, Error::Closed)
+    }
 }
 
 /// One command and its reply, before any caller's command is served (restoring the session
@@ -136,44 +142,50 @@ async fn exchange(conn: &mut LineConn, command: Command, timeout: Duration) -> R
 /// good (the loop is the shared supervisor's, `crate::supervisor`).
 pub(crate) async fn run(stream: BoxStream, task: Task) {
     let conn = LineConn::new(stream, task.config.max_line_len);
-    supervise(Griplink {
-        task,
-        conn: Some(conn),
-    })
-    .await;
+    supervise(LineSession::new(task, conn)).await;
 }
 
 /// The GRIPLINK session the supervisor runs: one connection at a time, restored with the
 /// last `VERBOSE` the controller accepted.
-struct Griplink {
-    task: Task,
-    /// `None` from a loss until a reconnect: the lost connection is closed at once.
-    conn: Option<LineConn>,
-}
-
-/// The reason a client ended, as its calls read it.
-fn reason(end: &Served<(), Error>) -> Error {
-    match end {
-        Served::Closed(()) => Error::Closed,
-        Served::Lost(reason) => reason.clone(),
-    }
-}
-
-impl Restore for Task {
-    type Link = LineConn;
+impl LineTask for Task {
     type Error = Error;
+    type Request = Request;
 
-    fn events(&self) -> &EventSender {
-        &self.events
+    fn requests(&mut self) -> &mut mpsc::Receiver<Request> {
+        &mut self.requests
     }
 
     fn abandoned(&self) -> bool {
         self.requests.is_closed()
     }
 
-    async fn connect(&self) -> Result<LineConn, Error> {
+    fn events(&self) -> &EventSender {
+        &self.events
+    }
+
+    fn policy(&self) -> Option<ReconnectPolicy> {
+        self.reconnect
+    }
+
+    fn opener(&self) -> (Option<&Opener>, Duration, usize) {
         let config = &self.config;
-        LineConn::open(&self.opener, config.connect_timeout, config.max_line_len).await
+        (
+            Some(&self.opener),
+            config.connect_timeout,
+            config.max_line_len,
+        )
+    }
+
+    async fn serve(&mut self, conn: &mut LineConn) -> Error {
+        let reconnects = self.reconnect.is_some();
+        serve(
+            conn,
+            &mut self.requests,
+            &self.config,
+            &self.shared,
+            reconnects,
+        )
+        .await
     }
 
     async fn restore(&self, conn: &mut LineConn) -> Result<(), Error> {
@@ -182,62 +194,13 @@ impl Restore for Task {
         }
         Ok(())
     }
-}
 
-impl Session for Griplink {
-    type Restore<'a> = &'a Task;
-    type Link = LineConn;
-    type Error = Error;
-    type Request = Request;
-    type Close = ();
-
-    async fn serve(&mut self) -> Served<(), Error> {
-        let task = &mut self.task;
-        let Some(conn) = self.conn.as_mut() else {
-            // Not reached: the supervisor serves only after a connect or a reconnect.
-            return Served::Lost(Error::ConnectionLost("not connected".into()));
-        };
-        // `Closed`: BYE, or nobody left to call; nothing to report or restore.
-        match serve(
-            conn,
-            &mut task.requests,
-            &task.config,
-            &task.shared,
-            task.reconnect.is_some(),
-        )
-        .await
-        {
-            Error::Closed => Served::Closed(()),
-            lost => Served::Lost(lost),
-        }
+    fn ended(&mut self, reason: &Error) {
+        self.shared.record(reason);
     }
 
-    fn requests(&mut self) -> &mut mpsc::Receiver<Request> {
-        &mut self.task.requests
-    }
-
-    fn restorer(&self) -> &Task {
-        &self.task
-    }
-
-    fn policy(&self) -> Option<ReconnectPolicy> {
-        self.task.reconnect
-    }
-
-    fn lost(&mut self, _reason: &Error) {
-        self.conn = None;
-    }
-
-    fn restored(&mut self, conn: LineConn) {
-        self.conn = Some(conn);
-    }
-
-    fn ended(&mut self, end: &Served<(), Error>) {
-        self.task.shared.record(&reason(end));
-    }
-
-    fn refuse(request: Request, end: &Served<(), Error>) {
-        let _ = request.waiter.send(Err(reason(end)));
+    fn refuse(request: Request, reason: &Error) {
+        let _ = request.waiter.send(Err(reason.clone()));
     }
 }
 

@@ -19,9 +19,11 @@ use super::error::Error;
 use super::line::{parse_number, parse_reply, ReplyLine};
 use super::push::{Push, PushSubscriber, Quantity};
 use crate::deadline::move_timer;
-use crate::line::{io_error, peer_closed, Failure, LineConn, LineError, Opener};
+use crate::line::{
+    io_error, peer_closed, Failure, LineConn, LineError, LineSession, LineTask, Opener,
+};
 use crate::reconnect::{BoxStream, EventSender, ReconnectPolicy};
-use crate::supervisor::{supervise, Restore, Served, Session};
+use crate::supervisor::supervise;
 use crate::wsg::Status;
 
 /// What a command's call waits for.
@@ -176,6 +178,10 @@ impl LineError for Error {
     fn closed() -> Self {
         Error::Closed
     }
+
+    fn is_closed(&self) -> bool {
+        matches!(self, Error::Closed)
+    }
 }
 
 /// The commands on the wire (one per name) and the requests waiting for their name.
@@ -309,50 +315,50 @@ fn usable(request: Request) -> Option<Request> {
 /// good (the loop is the shared supervisor's, `crate::supervisor`).
 pub(crate) async fn run(stream: BoxStream, task: Task) {
     let conn = LineConn::new(stream, task.config.max_line_len);
-    supervise(Text {
-        task,
-        conn: Some(conn),
-    })
-    .await;
+    supervise(LineSession::new(task, conn)).await;
 }
 
 /// The text session the supervisor runs: restored with the settings the gripper accepted
 /// (`VERBOSE`, `PWT`, `CLT`, `AUTOSEND`), in the order they were first set.
-struct Text {
-    task: Task,
-    /// `None` from a loss until a reconnect: the lost connection is closed at once.
-    conn: Option<LineConn>,
-}
-
-/// The reason a client ended, as its calls read it.
-fn reason(end: &Served<(), Error>) -> Error {
-    match end {
-        Served::Closed(()) => Error::Closed,
-        Served::Lost(reason) => reason.clone(),
-    }
-}
-
-impl Restore for Task {
-    type Link = LineConn;
+impl LineTask for Task {
     type Error = Error;
+    type Request = Request;
 
-    fn events(&self) -> &EventSender {
-        &self.events
+    fn requests(&mut self) -> &mut mpsc::Receiver<Request> {
+        &mut self.requests
     }
 
     fn abandoned(&self) -> bool {
         self.requests.is_closed()
     }
 
-    async fn connect(&self) -> Result<LineConn, Error> {
-        let Some(opener) = &self.opener else {
-            // Not reached: `Client::from_io` takes no reconnect policy.
-            return Err(Error::ConnectionLost(
-                "the stream cannot be opened again".into(),
-            ));
-        };
+    fn events(&self) -> &EventSender {
+        &self.events
+    }
+
+    fn policy(&self) -> Option<ReconnectPolicy> {
+        self.reconnect
+    }
+
+    fn opener(&self) -> (Option<&Opener>, Duration, usize) {
         let config = &self.config;
-        LineConn::open(opener, config.connect_timeout, config.max_line_len).await
+        (
+            self.opener.as_ref(),
+            config.connect_timeout,
+            config.max_line_len,
+        )
+    }
+
+    async fn serve(&mut self, conn: &mut LineConn) -> Error {
+        let reconnects = self.reconnect.is_some();
+        serve(
+            conn,
+            &mut self.requests,
+            self.config,
+            &self.shared,
+            reconnects,
+        )
+        .await
     }
 
     async fn restore(&self, conn: &mut LineConn) -> Result<(), Error> {
@@ -361,66 +367,17 @@ impl Restore for Task {
         }
         Ok(())
     }
-}
 
-impl Session for Text {
-    type Restore<'a> = &'a Task;
-    type Link = LineConn;
-    type Error = Error;
-    type Request = Request;
-    type Close = ();
-
-    async fn serve(&mut self) -> Served<(), Error> {
-        let task = &mut self.task;
-        let Some(conn) = self.conn.as_mut() else {
-            // Not reached: the supervisor serves only after a connect or a reconnect.
-            return Served::Lost(Error::ConnectionLost("not connected".into()));
-        };
-        let reconnects = task.reconnect.is_some();
-        match serve(
-            conn,
-            &mut task.requests,
-            task.config,
-            &task.shared,
-            reconnects,
-        )
-        .await
-        {
-            Error::Closed => Served::Closed(()),
-            lost => Served::Lost(lost),
-        }
-    }
-
-    fn requests(&mut self) -> &mut mpsc::Receiver<Request> {
-        &mut self.task.requests
-    }
-
-    fn restorer(&self) -> &Task {
-        &self.task
-    }
-
-    fn policy(&self) -> Option<ReconnectPolicy> {
-        self.task.reconnect
-    }
-
-    fn lost(&mut self, _reason: &Error) {
-        self.conn = None;
-    }
-
-    fn restored(&mut self, conn: LineConn) {
-        self.conn = Some(conn);
-    }
-
-    fn ended(&mut self, end: &Served<(), Error>) {
-        self.task.shared.record(&reason(end));
-        if let Ok(mut subs) = self.task.shared.subscribers.lock() {
+    fn ended(&mut self, reason: &Error) {
+        self.shared.record(reason);
+        if let Ok(mut subs) = self.shared.subscribers.lock() {
             // Ends every push stream.
             subs.clear();
         }
     }
 
-    fn refuse(request: Request, end: &Served<(), Error>) {
-        let _ = request.waiter.send(Err(reason(end)));
+    fn refuse(request: Request, reason: &Error) {
+        let _ = request.waiter.send(Err(reason.clone()));
     }
 }
 
