@@ -151,8 +151,16 @@ impl Device {
                     Err(e) => out.push(e),
                     Ok(()) => {
                         self.grip = GripState::Positioning;
-                        let kind = MotionKind::PrePosition;
-                        out.push(self.start(session, id, kind, target, speed_mm_per_s));
+                        // A part between the fingers stops a move that closes past it (3.2.2).
+                        let here = self.width_mm();
+                        let part = self.cfg.part.filter(|p| {
+                            self.cfg.part_blocks_motion && here > p.width_mm && target < p.width_mm
+                        });
+                        let (kind, end) = match part {
+                            Some(p) => (MotionKind::PrePosition { blocked: true }, p.width_mm),
+                            None => (MotionKind::PrePosition { blocked: false }, target),
+                        };
+                        out.push(self.start(session, id, kind, end, speed_mm_per_s));
                     }
                 }
             }

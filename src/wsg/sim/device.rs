@@ -234,9 +234,14 @@ impl Device {
                         self.grip = GripState::Idle;
                         Status::Success
                     }
-                    MotionKind::PrePosition | MotionKind::Release => {
+                    MotionKind::PrePosition { blocked: false } | MotionKind::Release => {
                         self.grip = GripState::Idle;
                         Status::Success
+                    }
+                    MotionKind::PrePosition { blocked: true } => {
+                        self.grip = GripState::Idle;
+                        self.target_reached = false;
+                        Status::AxisBlocked
                     }
                     MotionKind::Grasp { found: true } => {
                         self.grip = GripState::Holding;
@@ -428,6 +433,44 @@ mod tests {
         };
         assert_eq!(cmd(&mut d, t, grasp), [Status::CmdPending]);
         assert!(d.next_event().is_some_and(f64::is_finite));
+    }
+
+    /// Manual 3.2.2: a pre-position that meets a blockage in its direction ends with
+    /// E_AXIS_BLOCKED, the fingers stopped there. With `part_blocks_motion`, the part is that
+    /// blockage for a move closing past it; without, the move passes (the default, unchanged).
+    #[test]
+    fn a_blocking_part_stops_a_closing_pre_position_at_its_width() {
+        let pre = |width_mm| Command::PrePosition {
+            relative: false,
+            stop_on_block: true,
+            width_mm,
+            speed_mm_per_s: 50.0,
+        };
+        for (blocking, status, end) in [
+            (true, Status::AxisBlocked, 40.0),
+            (false, Status::Success, 5.0),
+        ] {
+            let mut cfg = SimConfig::default().with_part(40.0, 1.0);
+            cfg.part_blocks_motion = blocking;
+            let mut d = Device::new(cfg);
+            d.connect(1, SessionKind::Tcp);
+            cmd(&mut d, 0.0, Command::Homing(HomingDirection::Default));
+            d.advance(100.0);
+            assert_eq!(cmd(&mut d, 100.0, pre(5.0)), [Status::CmdPending]);
+            assert_eq!(d.advance(200.0)[0].reply.status, status);
+            assert_eq!(d.width_mm(), end, "blocking: {blocking}");
+            assert_eq!(d.grip_state(), GripState::Idle);
+        }
+        // Opening, or closing to a width above the part, is not blocked.
+        let mut d = Device::new(SimConfig::default().with_part(40.0, 1.0).with_blocking_part());
+        d.connect(1, SessionKind::Tcp);
+        cmd(&mut d, 0.0, Command::Homing(HomingDirection::Default));
+        d.advance(100.0);
+        cmd(&mut d, 100.0, pre(60.0));
+        assert_eq!(d.advance(200.0)[0].reply.status, Status::Success);
+        cmd(&mut d, 200.0, pre(90.0));
+        assert_eq!(d.advance(300.0)[0].reply.status, Status::Success);
+        assert_eq!(d.width_mm(), 90.0);
     }
 
     #[test]

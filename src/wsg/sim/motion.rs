@@ -7,7 +7,8 @@ use super::device::SessionId;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(super) enum MotionKind {
     Homing,
-    PrePosition,
+    /// `blocked`: the fingers stop on a part before the target (E_AXIS_BLOCKED).
+    PrePosition { blocked: bool },
     Grasp { found: bool },
     Release,
 }
