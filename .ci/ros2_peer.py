@@ -261,7 +261,7 @@ def main():
     log = tempfile.NamedTemporaryFile("w+", prefix="gripper-ros2-", suffix=".log", delete=False)
     node = subprocess.Popen(
         [binary, "--sim", "wsg", "--ros-args", "-p", "dds_interfaces:=[127.0.0.1]",
-         "-p", "speed_m_per_s:=0.02"],
+         "-p", "speed_m_per_s:=0.02", "-p", "allow_stalling:=true"],
         env=env, stdout=log, stderr=subprocess.STDOUT,
     )
     try:
@@ -341,10 +341,29 @@ def run_checks(domain, log):
         # Repeatable: a finished goal's result is kept and answered again.
         return get_result.call(lambda c, q: GetResultRequest(c, q, gid), attempt_s=10.0)
 
-    res = result(goal(0.04, 20.0))
-    if res.status != SUCCEEDED or not res.result.stalled or res.result.effort <= 0.0:
+    # MoveIt's "close" (0 m) on the simulator's 40 mm part, whose width the goal does not
+    # know: the fingers stop on it and hold it, a stall (allow_stalling: SUCCEEDED).
+    res = result(goal(0.0, 20.0))
+    if (res.status != SUCCEEDED or not res.result.stalled or res.result.reached_goal
+            or res.result.effort <= 0.0 or abs(res.result.position - 0.04) > 0.001):
         fail(f"closing on the 40 mm part: status {res.status}, {res.result}")
-    print(f"ros2 peer: ok close on the part: stalled with {res.result.effort} N: {res.result}")
+    print(f"ros2 peer: ok close (0 m) until contact: stalled at {res.result.position} m "
+          f"with {res.result.effort} N")
+
+    # Preemption: a second goal while the first runs (70 -> 100 mm at 20 mm/s takes 1.5 s
+    # after the release below): the first ends CANCELED, the second runs to its position.
+    res = result(goal(0.07, 0.0))
+    if res.status != SUCCEEDED or not res.result.reached_goal:
+        fail(f"opening to 0.07 m: status {res.status}, {res.result}")
+    first = goal(0.1, 0.0)
+    second = goal(0.08, 0.0)
+    res = result(first)
+    if res.status != CANCELED:
+        fail(f"the preempted goal: status {res.status}, {res.result}")
+    res = result(second)
+    if res.status != SUCCEEDED or abs(res.result.position - 0.08) > 0.001:
+        fail(f"the preempting goal: status {res.status}, {res.result}")
+    print("ros2 peer: ok a second goal preempts the first: CANCELED, then the second SUCCEEDED")
 
     res = result(goal(0.07, 0.0))
     if res.status != SUCCEEDED or not res.result.reached_goal or abs(res.result.position - 0.07) > 0.001:

@@ -10,8 +10,16 @@
 //!   STATUS_UNKNOWN for a goal id never seen (as rclcpp_action does);
 //! - cancel requests are read all the time, and a cancel of the running goal sends the device's
 //!   stop at once, never queued behind the motion;
-//! - a goal that arrives while another runs is **rejected** (the running goal is not disturbed;
-//!   cancel it first). MoveIt sends one gripper goal at a time and waits for its result.
+//! - a new goal **preempts** the running one, as ros2_controllers' gripper_action_controller
+//!   does (`preempt_active_goal`): the running goal ends CANCELED at once, the new one is
+//!   accepted; its motion starts once the device has stopped the old one (a WSG refuses a motion
+//!   while another runs, E_ALREADY_RUNNING, manual 3.2.2). A goal the device cannot carry out
+//!   is rejected without disturbing the running one, as rclcpp_action rejects it before the
+//!   controller's `accepted_callback` preempts;
+//! - a goal ends as the controller's `check_for_success` ends it: SUCCEEDED when the position
+//!   was reached; when the fingers stalled short of it (a part held, a blocked axis),
+//!   SUCCEEDED with `allow_stalling` and ABORTED without (the controller's parameter and
+//!   default); ABORTED when the device failed the command.
 //!
 //! ros2-client's servers hand out requests through `&mut` accessors or non-blocking reads, so
 //! the three services are read every [`POLL_PERIOD`].
@@ -67,12 +75,28 @@ pub fn action_qos() -> ActionServerQosPolicies {
 /// How a goal ended on the device.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Outcome {
-    /// Whether the goal succeeded (else: aborted).
-    pub succeeded: bool,
+    /// The device failed the goal (a fault, an error reply, a lost link): ABORTED whatever the
+    /// result says. Otherwise [`verdict`] decides from the result.
+    pub failed: bool,
     /// The result to send.
     pub result: GripperCommandResult,
     /// Why, for the log.
     pub message: String,
+}
+
+/// The status a goal ends with, as gripper_action_controller's `check_for_success` gives it:
+/// the position reached is SUCCEEDED; fingers that stalled before it (a part held, a blocked
+/// axis) are SUCCEEDED with `allow_stalling`, ABORTED without; anything else, or a device
+/// failure, is ABORTED.
+pub fn verdict(outcome: &Outcome, allow_stalling: bool) -> GoalStatusEnum {
+    let r = &outcome.result;
+    if outcome.failed {
+        GoalStatusEnum::Aborted
+    } else if r.reached_goal || (r.stalled && allow_stalling) {
+        GoalStatusEnum::Succeeded
+    } else {
+        GoalStatusEnum::Aborted
+    }
 }
 
 /// The checks every device makes before accepting a goal: a position that is an opening
@@ -100,12 +124,34 @@ pub trait Actuator: Send + Sync + 'static {
     fn feedback(&self) -> GripperCommandFeedback;
 }
 
+/// A goal's task, aborted when dropped: a motion abandoned after a cancel or a preemption must
+/// not go on polling the device.
+struct Motion(tokio::task::JoinHandle<()>);
+
+impl Drop for Motion {
+    fn drop(&mut self) {
+        self.0.abort();
+    }
+}
+
+impl Motion {
+    /// Waits up to [`CANCEL_GRACE`] for a stopped motion to end, else abandons it.
+    async fn end_within_grace(mut self) {
+        if tokio::time::timeout(CANCEL_GRACE, &mut self.0)
+            .await
+            .is_err()
+        {
+            tracing::warn!("a stopped motion did not end within {CANCEL_GRACE:?}: abandoned");
+        }
+    }
+}
+
 struct Active {
     info: GoalInfo,
     status: GoalStatusEnum,
     done: oneshot::Receiver<Outcome>,
     /// The task running the motion (aborted when a cancelled motion does not end by itself).
-    task: tokio::task::JoinHandle<()>,
+    task: Motion,
     /// The stop of a cancel, while it runs.
     stopping: Option<oneshot::Receiver<Result<(), String>>>,
     /// After a successful stop: when to stop waiting for the motion to report its end.
@@ -156,15 +202,22 @@ struct Finished {
 /// The goal bookkeeping of one action server.
 pub struct GoalKeeper {
     actuator: Arc<dyn Actuator>,
+    /// gripper_action_controller's `allow_stalling`: a stall is SUCCEEDED, not ABORTED.
+    allow_stalling: Arc<std::sync::atomic::AtomicBool>,
     active: Option<Active>,
     finished: VecDeque<Finished>,
 }
 
 impl GoalKeeper {
-    /// A keeper for goals that `actuator` carries out.
-    pub fn new(actuator: Arc<dyn Actuator>) -> Self {
+    /// A keeper for goals that `actuator` carries out; `allow_stalling` is read when a goal
+    /// ends (the parameter can be set while the node runs).
+    pub fn new(
+        actuator: Arc<dyn Actuator>,
+        allow_stalling: Arc<std::sync::atomic::AtomicBool>,
+    ) -> Self {
         GoalKeeper {
             actuator,
+            allow_stalling,
             active: None,
             finished: VecDeque::new(),
         }
@@ -186,12 +239,8 @@ impl GoalKeeper {
                     if self.active.is_some() => match event {
                     GoalEvent::Ended(outcome) => self.finish(&server, outcome),
                     GoalEvent::Stopped(result) => self.stopped(result),
-                    GoalEvent::GaveUp => {
-                        if let Some(active) = &self.active {
-                            active.task.abort();
-                        }
-                        self.finish(&server, None);
-                    }
+                    // Finishing drops the motion's task, which aborts it.
+                    GoalEvent::GaveUp => self.finish(&server, None),
                 },
                 _ = shutdown.wait_for(|stop| *stop) => break,
             }
@@ -248,12 +297,7 @@ impl GoalKeeper {
         goal: GripperCommandGoal,
     ) {
         let stamp = Time::now();
-        let verdict = if let Some(a) = &self.active {
-            Err(format!(
-                "goal {:?} still runs (one goal at a time: cancel it first)",
-                a.info.goal_id
-            ))
-        } else if self.known(&goal_id) {
+        let verdict = if self.known(&goal_id) {
             Err("a goal with this id was already received".to_owned())
         } else {
             self.actuator.check(&goal)
@@ -269,11 +313,20 @@ impl GoalKeeper {
         if !accepted {
             return;
         }
+        let previous = self.preempt(server);
         let (tx, done) = oneshot::channel();
         let run = self.actuator.execute(goal);
-        let task = tokio::spawn(async move {
+        let task = Motion(tokio::spawn(async move {
+            if let Some((stop, motion)) = previous {
+                // The device first stops the preempted motion (a WSG refuses a new one while it
+                // runs, E_ALREADY_RUNNING, manual 3.2.2), which then reports its end.
+                if let Err(e) = stop.await {
+                    tracing::error!("the stop of a preempted goal failed: {e}");
+                }
+                motion.end_within_grace().await;
+            }
             let _ = tx.send(run.await);
-        });
+        }));
         // ACCEPTED and EXECUTING at once: the motion starts now.
         self.active = Some(Active {
             info: GoalInfo { goal_id, stamp },
@@ -285,6 +338,22 @@ impl GoalKeeper {
             waiters: Vec::new(),
         });
         self.publish_statuses(server);
+    }
+
+    /// A goal was accepted while another runs: that one ends CANCELED now, with where the
+    /// fingers are as its result (gripper_action_controller's `preempt_active_goal` cancels it
+    /// with an empty result). Returns the stop to send and the motion to wait for, if it still
+    /// runs.
+    fn preempt(
+        &mut self,
+        server: &GripperActionServer,
+    ) -> Option<(BoxFuture<'static, Result<(), String>>, Motion)> {
+        let active = self.active.take()?;
+        tracing::info!(goal = ?active.info.goal_id, "goal preempted by a new goal: canceled");
+        let result = self.actuator.feedback();
+        let still_runs = !active.task.0.is_finished();
+        let motion = self.conclude(server, active, GoalStatusEnum::Canceled, result);
+        still_runs.then(|| (self.actuator.stop(), motion))
     }
 
     fn known(&self, goal_id: &GoalId) -> bool {
@@ -397,6 +466,9 @@ impl GoalKeeper {
         let Some(active) = self.active.take() else {
             return;
         };
+        let allow_stalling = self
+            .allow_stalling
+            .load(std::sync::atomic::Ordering::Relaxed);
         let (status, result) = match (active.status, outcome) {
             (GoalStatusEnum::Canceling, o) => {
                 // The result of a cancelled goal is where the fingers stopped.
@@ -404,11 +476,7 @@ impl GoalKeeper {
                 (GoalStatusEnum::Canceled, result)
             }
             (_, Some(o)) => {
-                let status = if o.succeeded {
-                    GoalStatusEnum::Succeeded
-                } else {
-                    GoalStatusEnum::Aborted
-                };
+                let status = verdict(&o, allow_stalling);
                 tracing::info!(goal = ?active.info.goal_id, ?status, result = ?o.result, "{}", o.message);
                 (status, o.result)
             }
@@ -417,6 +485,19 @@ impl GoalKeeper {
         if status == GoalStatusEnum::Canceled {
             tracing::info!(goal = ?active.info.goal_id, ?result, "goal cancelled");
         }
+        // Dropped: the motion's task, if it still runs, is aborted.
+        drop(self.conclude(server, active, status, result));
+    }
+
+    /// `active` ended with `status` and `result`: its result requests are answered, it is kept
+    /// for late ones, and the statuses are published. Returns its motion's task.
+    fn conclude(
+        &mut self,
+        server: &GripperActionServer,
+        active: Active,
+        status: GoalStatusEnum,
+        result: GripperCommandResult,
+    ) -> Motion {
         for waiter in active.waiters {
             send_result(server, waiter, status, result);
         }
@@ -429,6 +510,7 @@ impl GoalKeeper {
             result,
         });
         self.publish_statuses(server);
+        active.task
     }
 
     fn publish_feedback(&self, server: &GripperActionServer) {
@@ -509,6 +591,29 @@ mod tests {
             },
             stamp: Time::new(stamp_s, 0),
         }
+    }
+
+    #[test]
+    fn verdicts_of_gripper_action_controller() {
+        let ended = |reached_goal, stalled, failed| Outcome {
+            failed,
+            result: GripperCommandResult {
+                position: 0.04,
+                effort: 20.0,
+                stalled,
+                reached_goal,
+            },
+            message: String::new(),
+        };
+        use GoalStatusEnum::{Aborted, Succeeded};
+        for allow in [false, true] {
+            assert_eq!(verdict(&ended(true, false, false), allow), Succeeded);
+            assert_eq!(verdict(&ended(true, true, false), allow), Succeeded);
+            assert_eq!(verdict(&ended(false, false, false), allow), Aborted);
+            assert_eq!(verdict(&ended(true, false, true), allow), Aborted);
+        }
+        assert_eq!(verdict(&ended(false, true, false), true), Succeeded);
+        assert_eq!(verdict(&ended(false, true, false), false), Aborted);
     }
 
     #[test]

@@ -8,7 +8,7 @@ use tokio::sync::watch;
 
 use crate::action::{action_qos, Actuator, GoalKeeper};
 use crate::msgs::gripper_command_type;
-use crate::params::{Mapping, Params};
+use crate::params::{Live, Mapping, Params};
 use crate::telemetry::Shared;
 use crate::trigger::{self, Handler};
 use crate::{diagnostics, joint_states, ros};
@@ -30,6 +30,7 @@ pub fn serve(
     telemetry: &Shared,
     actuator: Arc<dyn Actuator>,
     services: Services,
+    live: &Live,
     shutdown: &watch::Receiver<bool>,
 ) -> Result<(), String> {
     let mapping = params
@@ -44,7 +45,9 @@ pub fn serve(
             action_qos(),
         )
         .map_err(|e| format!("action ~/gripper_cmd: {e:?}"))?;
-    tokio::spawn(GoalKeeper::new(actuator).serve(server, shutdown.clone()));
+    tokio::spawn(
+        GoalKeeper::new(actuator, live.allow_stalling.clone()).serve(server, shutdown.clone()),
+    );
 
     joint_states::spawn(node, params, telemetry, shutdown)?;
     diagnostics::spawn(node, params, telemetry, shutdown)?;

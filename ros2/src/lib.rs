@@ -52,15 +52,16 @@ pub async fn run(cli: Cli, stop: impl Future<Output = ()>) -> Result<(), String>
     };
     let context = ros::context(&params)?;
     let mut node = ros::node(&context, &params)?;
+    let live = params::Live::new(&params);
     let link = match params.device {
         DeviceKind::Wsg => {
             let client = wsg_node::connect(&params).await?;
-            wsg_node::start(&mut node, &params, client.clone(), &shutdown).await?;
+            wsg_node::start(&mut node, &params, client.clone(), &live, &shutdown).await?;
             Link::Wsg(client)
         }
         DeviceKind::Griplink => {
             let client = griplink_node::connect(&params).await?;
-            griplink_node::start(&mut node, &params, client.clone(), &shutdown).await?;
+            griplink_node::start(&mut node, &params, client.clone(), &live, &shutdown).await?;
             Link::Griplink(client)
         }
         DeviceKind::SmartGrasp => {

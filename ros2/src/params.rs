@@ -125,8 +125,13 @@ pub struct Params {
     pub goal_tolerance_m: f64,
     /// GRIPLINK: the grip force when a goal's `max_effort` is 0, N (0: such a goal is rejected).
     pub default_effort_n: f64,
-    /// WSG: a closing goal grasps a part (0x25) rather than pre-positions (0x21).
+    /// WSG: a closing goal that stops on a part grasps it there (0x25), so that it is held
+    /// with the grasping force; without, the fingers stay where they stopped.
     pub grasp_on_close: bool,
+    /// A goal whose fingers stall before its position (a part held, a blocked axis) is
+    /// SUCCEEDED rather than ABORTED: gripper_action_controller's parameter, default false as
+    /// there. Can be set while the node runs.
+    pub allow_stalling: bool,
     /// Acknowledge a FAST STOP found after a reconnect (default: report it, leave it).
     pub auto_acknowledge_fast_stop: bool,
     /// Reconnect a lost link (WSG over TCP or serial, GRIPLINK).
@@ -161,6 +166,7 @@ impl Default for Params {
             speed_m_per_s: 0.05,
             goal_tolerance_m: 0.001,
             grasp_on_close: true,
+            allow_stalling: false,
             default_effort_n: 0.0,
             auto_acknowledge_fast_stop: false,
             reconnect: true,
@@ -274,6 +280,23 @@ impl Cli {
     }
 }
 
+/// The parameters that take effect while the node runs: set through the parameter services
+/// and read where they are used.
+#[derive(Clone, Debug, Default)]
+pub struct Live {
+    /// [`Params::allow_stalling`].
+    pub allow_stalling: std::sync::Arc<std::sync::atomic::AtomicBool>,
+}
+
+impl Live {
+    /// The live parameters, at their start-up values.
+    pub fn new(params: &Params) -> Self {
+        Live {
+            allow_stalling: std::sync::Arc::new(params.allow_stalling.into()),
+        }
+    }
+}
+
 impl Params {
     /// The fully qualified node name, e.g. `/gripper` or `/left/gripper`.
     pub fn fully_qualified_name(&self) -> String {
@@ -325,6 +348,7 @@ impl Params {
             "goal_tolerance_m" => self.goal_tolerance_m = float()?,
             "default_effort_n" => self.default_effort_n = float()?,
             "grasp_on_close" => self.grasp_on_close = boolean()?,
+            "allow_stalling" => self.allow_stalling = boolean()?,
             "auto_acknowledge_fast_stop" => self.auto_acknowledge_fast_stop = boolean()?,
             "reconnect" => self.reconnect = boolean()?,
             "service_mapping" => {

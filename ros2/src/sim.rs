@@ -32,8 +32,10 @@ pub async fn start(
 ) -> Result<Sim, String> {
     match kind {
         DeviceKind::Wsg => {
-            // A WSG 50 with a 40 mm part (±2 mm), moving in real time.
-            let server = SimServer::bind("127.0.0.1:0", SimConfig::standalone())
+            // A WSG 50 with a 40 mm part (±2 mm) between its fingers, which stops a closing
+            // move (E_AXIS_BLOCKED), moving in real time.
+            let config = SimConfig::standalone().with_blocking_part();
+            let server = SimServer::bind("127.0.0.1:0", config)
                 .await
                 .map_err(|e| format!("WSG simulator: {e}"))?;
             let addr = server
