@@ -1,8 +1,9 @@
 """An independent ROS 2 peer for `gripper-ros2`: Eclipse Cyclone DDS (the DDS under
 rmw_cyclonedds_cpp), with the ROS 2 types written here in IDL, and no ROS installation.
 
-Starts `gripper-ros2 --sim wsg` with RMW_IMPLEMENTATION=rmw_cyclonedds_cpp on a domain of its
-own, on loopback only, then checks over plain DDS what a ROS 2 client would see:
+Starts `gripper-ros2 --sim wsg` on a domain of its own, on loopback only, with no
+RMW_IMPLEMENTATION (the node answers each peer in its own request/reply mapping: this one's is
+Cyclone's), then checks over plain DDS what a ROS 2 client would see:
 joint_states and diagnostics with the ROS type names; the ~/home service
 (rq/gripper/homeRequest, rr/gripper/homeReply); GripperCommand goals through
 _action/send_goal and _action/get_result (an opening in metres is reached, a close on a part
@@ -257,7 +258,8 @@ def main():
     # A domain of its own (0..=232), from the process id.
     domain = 1 + os.getpid() % 232
     os.environ["CYCLONEDDS_URI"] = cyclone_config(domain)
-    env = dict(os.environ, RMW_IMPLEMENTATION="rmw_cyclonedds_cpp", ROS_DOMAIN_ID=str(domain))
+    env = dict(os.environ, ROS_DOMAIN_ID=str(domain))
+    env.pop("RMW_IMPLEMENTATION", None)
     log = tempfile.NamedTemporaryFile("w+", prefix="gripper-ros2-", suffix=".log", delete=False)
     node = subprocess.Popen(
         [binary, "--sim", "wsg", "--ros-args", "-p", "dds_interfaces:=[127.0.0.1]",

@@ -35,11 +35,11 @@ use ros2_client::action::{
 };
 use ros2_client::action_msgs::{CancelGoalResponseEnum, GoalStatus, GoalStatusArray};
 use ros2_client::builtin_interfaces::Time;
-use ros2_client::{ActionServer, RmwRequestId};
+use ros2_client::{ActionServer, RmwRequestId, ServiceMapping};
 use tokio::sync::{oneshot, watch};
 
 use crate::msgs::{GripperCommandFeedback, GripperCommandGoal, GripperCommandResult};
-use crate::qos;
+use crate::{qos, rpc};
 
 /// How often the goal, cancel and result services are read.
 pub const POLL_PERIOD: Duration = Duration::from_millis(10);
@@ -59,6 +59,22 @@ pub const RESULT_WAITERS_MAX: usize = 64;
 /// Our server type.
 pub type GripperActionServer =
     ActionServer<GripperCommandGoal, GripperCommandResult, GripperCommandFeedback>;
+
+/// The action's servers, one per request/reply mapping served (see [`crate::rpc`]); a request
+/// is answered through the server that received it. Feedback and statuses, plain topics, are
+/// published through the first.
+pub type Servers = [(ServiceMapping, GripperActionServer)];
+
+/// At most this many requests of one kind are read from one server in a round: a reader that
+/// keeps failing must not hold the loop.
+const READS_PER_ROUND: usize = 64;
+
+/// A request's return address: the server that received it and its id.
+#[derive(Clone, Copy, Debug)]
+struct Caller {
+    server: usize,
+    id: RmwRequestId,
+}
 
 /// The QoS of the action's services and topics: rcl_action's defaults (services reliable and
 /// volatile, keep last 10; status transient-local keep last 1, so a late client sees it).
@@ -156,7 +172,7 @@ struct Active {
     stopping: Option<oneshot::Receiver<Result<(), String>>>,
     /// After a successful stop: when to stop waiting for the motion to report its end.
     give_up_at: Option<tokio::time::Instant>,
-    waiters: Vec<RmwRequestId>,
+    waiters: Vec<Caller>,
 }
 
 /// What happened to the running goal.
@@ -225,22 +241,27 @@ impl GoalKeeper {
 
     /// Serves the action until `shutdown` turns true (or its sender is dropped); a goal still
     /// running then is stopped and aborted.
-    pub async fn serve(mut self, server: GripperActionServer, mut shutdown: watch::Receiver<bool>) {
+    pub async fn serve(
+        mut self,
+        servers: Vec<(ServiceMapping, GripperActionServer)>,
+        mut shutdown: watch::Receiver<bool>,
+    ) {
+        let server = &servers[..];
         let mut poll = tokio::time::interval(POLL_PERIOD);
         poll.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
         let mut feedback = tokio::time::interval(FEEDBACK_PERIOD);
         feedback.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
         loop {
             tokio::select! {
-                _ = poll.tick() => self.poll(&server),
-                _ = feedback.tick() => self.publish_feedback(&server),
+                _ = poll.tick() => self.poll(server),
+                _ = feedback.tick() => self.publish_feedback(server),
                 // Lazy: select! builds every branch's future, disabled ones too.
                 event = async { self.active.as_mut().expect("guarded").next_event().await },
                     if self.active.is_some() => match event {
-                    GoalEvent::Ended(outcome) => self.finish(&server, outcome),
+                    GoalEvent::Ended(outcome) => self.finish(server, outcome),
                     GoalEvent::Stopped(result) => self.stopped(result),
                     // Finishing drops the motion's task, which aborts it.
-                    GoalEvent::GaveUp => self.finish(&server, None),
+                    GoalEvent::GaveUp => self.finish(server, None),
                 },
                 _ = shutdown.wait_for(|stop| *stop) => break,
             }
@@ -250,40 +271,46 @@ impl GoalKeeper {
             if let Err(e) = self.actuator.stop().await {
                 tracing::warn!("stop at shutdown failed: {e}");
             }
-            self.finish(&server, None);
+            self.finish(server, None);
         }
     }
 
-    fn poll(&mut self, server: &GripperActionServer) {
+    fn poll(&mut self, servers: &Servers) {
         // Cancels first: a cancel and a goal read in the same round must not see the goal
         // started after the cancel was handled.
-        loop {
-            match server.receive_cancel_request() {
-                Ok(Some((id, req))) => self.cancel(server, id, req),
-                Ok(None) => break,
-                Err(e) => {
-                    tracing::warn!("reading a cancel request failed: {e:?}");
-                    break;
+        for (i, (mapping, server)) in servers.iter().enumerate() {
+            for _ in 0..READS_PER_ROUND {
+                match server.receive_cancel_request() {
+                    Ok(Some((id, req))) if rpc::answers(*mapping, servers.len(), &id) => {
+                        self.cancel(servers, Caller { server: i, id }, req)
+                    }
+                    Ok(Some(_)) => {}
+                    Ok(None) => break,
+                    Err(e) => tracing::debug!("a cancel request not read: {e:?}"),
                 }
             }
         }
-        loop {
-            match server.receive_goal() {
-                Ok(Some((id, req))) => self.goal(server, id, req.goal_id, req.goal),
-                Ok(None) => break,
-                Err(e) => {
-                    tracing::warn!("reading a goal failed: {e:?}");
-                    break;
+        for (i, (mapping, server)) in servers.iter().enumerate() {
+            for _ in 0..READS_PER_ROUND {
+                match server.receive_goal() {
+                    Ok(Some((id, req))) if rpc::answers(*mapping, servers.len(), &id) => {
+                        self.goal(servers, Caller { server: i, id }, req.goal_id, req.goal)
+                    }
+                    Ok(Some(_)) => {}
+                    Ok(None) => break,
+                    Err(e) => tracing::debug!("a goal not read: {e:?}"),
                 }
             }
         }
-        loop {
-            match server.receive_result_request() {
-                Ok(Some((id, req))) => self.result_request(server, id, req.goal_id),
-                Ok(None) => break,
-                Err(e) => {
-                    tracing::warn!("reading a result request failed: {e:?}");
-                    break;
+        for (i, (mapping, server)) in servers.iter().enumerate() {
+            for _ in 0..READS_PER_ROUND {
+                match server.receive_result_request() {
+                    Ok(Some((id, req))) if rpc::answers(*mapping, servers.len(), &id) => {
+                        self.result_request(servers, Caller { server: i, id }, req.goal_id)
+                    }
+                    Ok(Some(_)) => {}
+                    Ok(None) => break,
+                    Err(e) => tracing::debug!("a result request not read: {e:?}"),
                 }
             }
         }
@@ -291,8 +318,8 @@ impl GoalKeeper {
 
     fn goal(
         &mut self,
-        server: &GripperActionServer,
-        req_id: RmwRequestId,
+        server: &Servers,
+        caller: Caller,
         goal_id: GoalId,
         goal: GripperCommandGoal,
     ) {
@@ -307,7 +334,11 @@ impl GoalKeeper {
             Ok(()) => tracing::info!(?goal_id, ?goal, "goal accepted"),
             Err(why) => tracing::warn!(?goal_id, ?goal, "goal rejected: {why}"),
         }
-        if let Err(e) = server.send_goal_response(req_id, SendGoalResponse { accepted, stamp }) {
+        let response = SendGoalResponse { accepted, stamp };
+        if let Err(e) = server[caller.server]
+            .1
+            .send_goal_response(caller.id, response)
+        {
             tracing::warn!("answering a goal failed: {e:?}");
         }
         if !accepted {
@@ -346,7 +377,7 @@ impl GoalKeeper {
     /// runs.
     fn preempt(
         &mut self,
-        server: &GripperActionServer,
+        server: &Servers,
     ) -> Option<(BoxFuture<'static, Result<(), String>>, Motion)> {
         let active = self.active.take()?;
         tracing::info!(goal = ?active.info.goal_id, "goal preempted by a new goal: canceled");
@@ -363,12 +394,7 @@ impl GoalKeeper {
             || self.finished.iter().any(|f| f.info.goal_id == *goal_id)
     }
 
-    fn cancel(
-        &mut self,
-        server: &GripperActionServer,
-        req_id: RmwRequestId,
-        req: CancelGoalRequest,
-    ) {
+    fn cancel(&mut self, server: &Servers, caller: Caller, req: CancelGoalRequest) {
         let response = match cancel_target(&req) {
             Err(e) => {
                 tracing::warn!("cancel request not understood: {e}");
@@ -376,16 +402,15 @@ impl GoalKeeper {
             }
             Ok(target) => self.cancel_matching(server, &target),
         };
-        if let Err(e) = server.send_cancel_response(req_id, response) {
+        if let Err(e) = server[caller.server]
+            .1
+            .send_cancel_response(caller.id, response)
+        {
             tracing::warn!("answering a cancel request failed: {e:?}");
         }
     }
 
-    fn cancel_matching(
-        &mut self,
-        server: &GripperActionServer,
-        target: &GoalInfo,
-    ) -> CancelGoalResponse {
+    fn cancel_matching(&mut self, server: &Servers, target: &GoalInfo) -> CancelGoalResponse {
         let matches = |info: &GoalInfo| cancel_matches(target, info);
         if let Some(active) = self.active.as_mut().filter(|a| matches(&a.info)) {
             if active.status != GoalStatusEnum::Canceling {
@@ -437,15 +462,10 @@ impl GoalKeeper {
         }
     }
 
-    fn result_request(
-        &mut self,
-        server: &GripperActionServer,
-        req_id: RmwRequestId,
-        goal_id: GoalId,
-    ) {
+    fn result_request(&mut self, server: &Servers, caller: Caller, goal_id: GoalId) {
         if let Some(active) = self.active.as_mut().filter(|a| a.info.goal_id == goal_id) {
             if active.waiters.len() < RESULT_WAITERS_MAX {
-                active.waiters.push(req_id);
+                active.waiters.push(caller);
                 return;
             }
             tracing::warn!(
@@ -457,12 +477,12 @@ impl GoalKeeper {
             Some(f) => (f.status, f.result),
             None => (GoalStatusEnum::Unknown, GripperCommandResult::default()),
         };
-        send_result(server, req_id, status, result);
+        send_result(server, caller, status, result);
     }
 
     /// The running goal ended: `outcome` is `None` when it did not report (shutdown, or its
     /// task ended without an answer).
-    fn finish(&mut self, server: &GripperActionServer, outcome: Option<Outcome>) {
+    fn finish(&mut self, server: &Servers, outcome: Option<Outcome>) {
         let Some(active) = self.active.take() else {
             return;
         };
@@ -493,7 +513,7 @@ impl GoalKeeper {
     /// for late ones, and the statuses are published. Returns its motion's task.
     fn conclude(
         &mut self,
-        server: &GripperActionServer,
+        server: &Servers,
         active: Active,
         status: GoalStatusEnum,
         result: GripperCommandResult,
@@ -513,15 +533,16 @@ impl GoalKeeper {
         active.task
     }
 
-    fn publish_feedback(&self, server: &GripperActionServer) {
+    fn publish_feedback(&self, server: &Servers) {
         if let Some(active) = &self.active {
-            if let Err(e) = server.send_feedback(active.info.goal_id, self.actuator.feedback()) {
+            let feedback = self.actuator.feedback();
+            if let Err(e) = server[0].1.send_feedback(active.info.goal_id, feedback) {
                 tracing::debug!("feedback not sent: {e:?}");
             }
         }
     }
 
-    fn publish_statuses(&self, server: &GripperActionServer) {
+    fn publish_statuses(&self, server: &Servers) {
         let finished = self.finished.iter().map(|f| GoalStatus {
             goal_info: f.info.clone(),
             status: f.status,
@@ -531,19 +552,23 @@ impl GoalKeeper {
             status: a.status,
         });
         let status_list = finished.chain(active).collect();
-        if let Err(e) = server.send_goal_statuses(GoalStatusArray { status_list }) {
+        if let Err(e) = server[0]
+            .1
+            .send_goal_statuses(GoalStatusArray { status_list })
+        {
             tracing::debug!("goal statuses not sent: {e:?}");
         }
     }
 }
 
 fn send_result(
-    server: &GripperActionServer,
-    req_id: RmwRequestId,
+    server: &Servers,
+    caller: Caller,
     status: GoalStatusEnum,
     result: GripperCommandResult,
 ) {
-    if let Err(e) = server.send_result(req_id, GetResultResponse { status, result }) {
+    let response = GetResultResponse { status, result };
+    if let Err(e) = server[caller.server].1.send_result(caller.id, response) {
         tracing::warn!("sending a result failed: {e:?}");
     }
 }

@@ -13,11 +13,13 @@ pub mod gripper_node;
 pub mod joint_states;
 pub mod kit_node;
 pub mod link;
+pub mod logging;
 pub mod msgs;
 pub mod params;
 pub mod periodic;
 pub mod qos;
 pub mod ros;
+pub mod rpc;
 pub mod sim;
 pub mod telemetry;
 pub mod trigger;
@@ -51,7 +53,8 @@ pub async fn run(cli: Cli, stop: impl Future<Output = ()>) -> Result<(), String>
         None => None,
     };
     let context = ros::context(&params)?;
-    let mut node = ros::node(&context, &params)?;
+    let mut node = ros::node(&context, &params, cli.rosout_logs)?;
+    logging::attach(&node, &params);
     let live = params::Live::new(&params);
     let link = match params.device {
         DeviceKind::Wsg => {
@@ -70,11 +73,14 @@ pub async fn run(cli: Cli, stop: impl Future<Output = ()>) -> Result<(), String>
             Link::SmartGrasp(client)
         }
     };
+    let mapping = match params.service_mapping {
+        Some(m) => format!("{m:?} service mapping"),
+        None => "each peer's service mapping".to_owned(),
+    };
     tracing::info!(
-        "ready: node {} on ROS domain {}, {:?} service mapping",
+        "ready: node {} on ROS domain {}, {mapping}",
         params.fully_qualified_name(),
         params.domain_id,
-        params.service_mapping.unwrap_or(params::Mapping::Enhanced),
     );
     stop.await;
     tracing::info!("shutting down");

@@ -41,7 +41,9 @@ pub async fn start(
             let addr = server
                 .local_addr()
                 .ok_or("the WSG simulator has no address")?;
-            tracing::info!("WSG simulator (WSG 50, 40 mm part, real time) on {addr}");
+            tracing::info!(
+                "WSG simulator (WSG 50, a 40 mm part between the fingers, real time) on {addr}"
+            );
             params.transport = "tcp".into();
             params.address = addr.to_string();
             let server = Arc::new(server);

@@ -25,6 +25,9 @@ async fn close_until_contact_on_a_part_of_unknown_width_and_a_late_result_reques
         .with_blocking_part())
     .await;
     let mut p = params(DeviceKind::Wsg, addr, domain(), Mapping::Enhanced);
+    // auto, the default: this RustDDS peer is answered in the Enhanced mapping (a Cyclone DDS
+    // peer in the Cyclone one: .ci/ros2_peer.py).
+    p.service_mapping = None;
     p.allow_stalling = true;
     let (node, _me, gripper) = homed_gripper(p).await;
 
