@@ -15,6 +15,7 @@ pub mod kit_node;
 pub mod link;
 pub mod logging;
 pub mod msgs;
+pub mod param_services;
 pub mod params;
 pub mod periodic;
 pub mod qos;
@@ -56,6 +57,7 @@ pub async fn run(cli: Cli, stop: impl Future<Output = ()>) -> Result<(), String>
     let mut node = ros::node(&context, &params, cli.rosout_logs)?;
     logging::attach(&node, &params);
     let live = params::Live::new(&params);
+    param_services::spawn(&mut node, &params, &live, &shutdown)?;
     let link = match params.device {
         DeviceKind::Wsg => {
             let client = wsg_node::connect(&params).await?;
