@@ -462,7 +462,11 @@ mod tests {
             assert_eq!(d.grip_state(), GripState::Idle);
         }
         // Opening, or closing to a width above the part, is not blocked.
-        let mut d = Device::new(SimConfig::default().with_part(40.0, 1.0).with_blocking_part());
+        let mut d = Device::new(
+            SimConfig::default()
+                .with_part(40.0, 1.0)
+                .with_blocking_part(),
+        );
         d.connect(1, SessionKind::Tcp);
         cmd(&mut d, 0.0, Command::Homing(HomingDirection::Default));
         d.advance(100.0);

@@ -4,10 +4,10 @@
 use super::device::SessionId;
 
 /// What a move is for: decides the grip state and the final status when it ends (Anhang C).
+/// A pre-position that is `blocked` stops on a part before its target (E_AXIS_BLOCKED).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(super) enum MotionKind {
     Homing,
-    /// `blocked`: the fingers stop on a part before the target (E_AXIS_BLOCKED).
     PrePosition { blocked: bool },
     Grasp { found: bool },
     Release,
