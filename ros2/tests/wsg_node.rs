@@ -266,3 +266,80 @@ async fn auto_acknowledge_clears_the_fast_stop_after_a_reconnect() {
     .await;
     node.stop().await.unwrap();
 }
+
+/// The parameter services of a node with `service_mapping: auto` answer this RustDDS peer in
+/// the Enhanced mapping (.ci/ros2_peer.py checks the Cyclone one against the same default),
+/// and a set of `allow_stalling` changes how the next stall ends.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn parameter_services_and_a_live_allow_stalling() {
+    use ros2_client::parameters::{raw, ParameterValue};
+    use ros2_client::rcl_interfaces::{
+        ListParametersRequest, ListParametersResponse, SetParametersRequest, SetParametersResponse,
+    };
+    use ros2_client::{Name, ServiceTypeName};
+
+    let (_wsg, addr) = sim(SimConfig::default()
+        .with_part(40.0, 2.0)
+        .with_blocking_part())
+    .await;
+    let mut p = params(DeviceKind::Wsg, addr, domain(), Mapping::Enhanced);
+    p.service_mapping = None;
+    let (node, mut me, gripper) = homed_gripper(p).await;
+    let service = |name: &str, type_name: &str| {
+        (
+            Name::new("/gripper", name).unwrap(),
+            ServiceTypeName::new("rcl_interfaces", type_name),
+        )
+    };
+    let (name, type_name) = service("list_parameters", "ListParameters");
+    let list = me
+        .node
+        .create_client::<ListParametersRequest, ListParametersResponse>(
+            ServiceMapping::Enhanced,
+            &name,
+            &type_name,
+            gripper_ros2::qos::services(),
+            gripper_ros2::qos::services(),
+        )
+        .unwrap();
+    let (name, type_name) = service("set_parameters", "SetParameters");
+    let set = me
+        .node
+        .create_client::<SetParametersRequest, SetParametersResponse>(
+            ServiceMapping::Enhanced,
+            &name,
+            &type_name,
+            gripper_ros2::qos::services(),
+            gripper_ros2::qos::services(),
+        )
+        .unwrap();
+    me.wait_for_service("gripper/list_parameters").await;
+    me.wait_for_service("gripper/set_parameters").await;
+    let listed = ping("list_parameters", || {
+        list.async_call_service(ListParametersRequest {
+            prefixes: Vec::new(),
+            depth: 0,
+        })
+    })
+    .await;
+    assert!(listed.result.names.contains(&"allow_stalling".to_owned()));
+
+    // The default, false: a stall on the part ABORTS.
+    let (_, status, _) = run_goal(&gripper, 0.0, 0.0).await;
+    assert_eq!(status, GoalStatusEnum::Aborted);
+    let (_, status, _) = run_goal(&gripper, 0.07, 0.0).await;
+    assert_eq!(status, GoalStatusEnum::Succeeded);
+    let set_to = |v: bool| SetParametersRequest {
+        parameter: vec![raw::Parameter {
+            name: "allow_stalling".into(),
+            value: ParameterValue::Boolean(v).into(),
+        }],
+    };
+    // Idempotent: repeated until answered.
+    let r = ping("set_parameters", || set.async_call_service(set_to(true))).await;
+    assert!(r.results[0].successful, "{:?}", r.results);
+    let (_, status, result) = run_goal(&gripper, 0.0, 0.0).await;
+    assert_eq!(status, GoalStatusEnum::Succeeded, "{result:?}");
+    assert!(result.stalled);
+    node.stop().await.unwrap();
+}
