@@ -312,6 +312,15 @@ class DescribeParametersReply(
 
 
 @dataclass
+class ParameterEvent(IdlStruct, typename="rcl_interfaces::msg::dds_::ParameterEvent_"):
+    stamp: Time
+    node: str
+    new_parameters: t.sequence[Parameter]
+    changed_parameters: t.sequence[Parameter]
+    deleted_parameters: t.sequence[Parameter]
+
+
+@dataclass
 class Log(IdlStruct, typename="rcl_interfaces::msg::dds_::Log_"):
     stamp: Time
     level: t.uint8
@@ -459,6 +468,7 @@ def run_checks(domain, log):
                 Policy.Durability.TransientLocal,
                 Policy.DataRepresentation(use_cdrv0_representation=True)),
     )
+    events = DataReader(dp, Topic(dp, "rt/parameter_events", ParameterEvent), qos=RELIABLE)
     params = "gripper/"
     list_params = Service(dp, params + "list_parameters", ListParametersRequest,
                           ListParametersReply)
@@ -582,6 +592,12 @@ def run_checks(domain, log):
     if not results[0].successful or results[1].successful or "read-only" not in results[1].reason:
         fail(f"set_parameters: {results}")
     ok(f"set_parameters: allow_stalling set; speed_m_per_s refused: {results[1].reason!r}")
+
+    ev = first_sample(events, "the change on rt/parameter_events",
+                      lambda e: e.node == "/gripper" and [
+                          (p.name, p.value.bool_value) for p in e.changed_parameters
+                      ] == [("allow_stalling", False)])
+    ok(f"/parameter_events: {ev.node} changed allow_stalling")
 
     # allow_stalling is now false: the same close on the part is a stall that ABORTS.
     res = result(goal(0.0, 20.0))

@@ -57,7 +57,7 @@ pub async fn run(cli: Cli, stop: impl Future<Output = ()>) -> Result<(), String>
     let mut node = ros::node(&context, &params, cli.rosout_logs)?;
     logging::attach(&node, &params);
     let live = params::Live::new(&params);
-    param_services::spawn(&mut node, &params, &live, &shutdown)?;
+    param_services::spawn(&context, &mut node, &params, &live, &shutdown)?;
     let link = match params.device {
         DeviceKind::Wsg => {
             let client = wsg_node::connect(&params).await?;

@@ -9,6 +9,10 @@
 //! a read-only parameter); `allow_stalling` takes effect for the next goal that ends, and
 //! `use_sim_time` is accepted (the node stamps with the system clock all the same).
 //!
+//! Each change is published on `/parameter_events` (`rcl_interfaces/msg/ParameterEvent`, as
+//! rclcpp publishes it: the declarations once at start, then each set), which rqt and
+//! `ros2 param` tools watch.
+//!
 //! ros2-client 0.12.1's own parameter services are not used: they always use the Enhanced
 //! mapping, and their descriptors carry neither description nor range.
 
@@ -22,7 +26,7 @@ use ros2_client::rcl_interfaces::{
     ListParametersResponse, ListParametersResult, SetParametersAtomicallyResponse,
     SetParametersRequest, SetParametersResponse,
 };
-use ros2_client::{Message, Node, ServiceTypeName};
+use ros2_client::{Context, Message, Node, Publisher, ServiceTypeName};
 use serde::{de::DeserializeOwned, Serialize};
 use tokio::sync::watch;
 
@@ -281,18 +285,59 @@ pub fn declarations(p: &Params) -> Vec<Declared> {
     ]
 }
 
+/// Where a store publishes its changes: `/parameter_events` and the node's full name.
+pub struct Events {
+    /// The publisher on `/parameter_events`.
+    pub publisher: Publisher<raw::ParameterEvent>,
+    /// The node's fully qualified name, the events' `node`.
+    pub node: String,
+}
+
 /// The declared parameters and what a set changes.
 pub struct Store {
     params: Mutex<Vec<Declared>>,
     live: Live,
+    events: Option<Events>,
 }
 
 impl Store {
-    /// The parameters of `params`; a set of `allow_stalling` reaches `live`.
-    pub fn new(params: &Params, live: Live) -> Self {
-        Store {
+    /// The parameters of `params`; a set of `allow_stalling` reaches `live`; changes are
+    /// published through `events`, the declarations at once.
+    pub fn new(params: &Params, live: Live, events: Option<Events>) -> Self {
+        let store = Store {
             params: Mutex::new(declarations(params)),
             live,
+            events,
+        };
+        let declared: Vec<raw::Parameter> = store
+            .lock()
+            .iter()
+            .map(|d| raw::Parameter {
+                name: d.descriptor.name.clone(),
+                value: d.value.clone().into(),
+            })
+            .collect();
+        store.publish(declared, Vec::new());
+        store
+    }
+
+    fn publish(
+        &self,
+        new_parameters: Vec<raw::Parameter>,
+        changed_parameters: Vec<raw::Parameter>,
+    ) {
+        let Some(events) = &self.events else {
+            return;
+        };
+        let event = raw::ParameterEvent {
+            stamp: ros2_client::builtin_interfaces::Time::now(),
+            node: events.node.clone(),
+            new_parameters,
+            changed_parameters,
+            deleted_parameters: Vec::new(),
+        };
+        if let Err(e) = events.publisher.publish(event) {
+            tracing::debug!("parameter event not sent: {e:?}");
         }
     }
 
@@ -403,8 +448,13 @@ impl Store {
         }
         tracing::info!("parameter {name} set to {value:?}");
         if let Some(d) = params.iter_mut().find(|d| d.descriptor.name == name) {
-            d.value = value;
+            d.value = value.clone();
         }
+        let changed = raw::Parameter {
+            name: name.to_owned(),
+            value: value.into(),
+        };
+        self.publish(Vec::new(), vec![changed]);
     }
 
     /// `SetParameters`: each parameter set on its own, one result each.
@@ -519,12 +569,20 @@ where
 
 /// Declares the node's parameters and serves the six parameter services until `shutdown`.
 pub fn spawn(
+    context: &Context,
     node: &mut Node,
     params: &Params,
     live: &Live,
     shutdown: &watch::Receiver<bool>,
 ) -> Result<(), String> {
-    let store = Arc::new(Store::new(params, live.clone()));
+    let publisher = node
+        .create_publisher(&context.get_parameter_events_topic(), None)
+        .map_err(|e| format!("/parameter_events: {e:?}"))?;
+    let events = Events {
+        publisher,
+        node: params.fully_qualified_name(),
+    };
+    let store = Arc::new(Store::new(params, live.clone(), Some(events)));
     serve(
         node,
         params,
@@ -614,7 +672,7 @@ mod tests {
     #[test]
     fn get_set_describe_as_rclcpp_answers() {
         let live = Live::default();
-        let s = Store::new(&Params::default(), live.clone());
+        let s = Store::new(&Params::default(), live.clone(), None);
         let all = s.list(&ListParametersRequest {
             prefixes: Vec::new(),
             depth: 0,
