@@ -523,48 +523,52 @@ fn type_name(t: u8) -> &'static str {
     }
 }
 
-/// Serves one parameter service `~/name` with `answer` until `shutdown`.
-fn serve<Q, P>(
-    node: &mut Node,
-    params: &Params,
-    name: &str,
-    store: &Arc<Store>,
-    answer: fn(&Store, Q) -> P,
-    shutdown: &watch::Receiver<bool>,
-) -> Result<(), String>
-where
-    Q: Message + Clone + Serialize + DeserializeOwned + Send + Sync + 'static,
-    P: Message + Clone + Serialize + DeserializeOwned + Send + Sync + 'static,
-{
-    let type_name = name
-        .split('_')
-        .map(|w| {
-            let mut c = w.chars();
-            c.next()
-                .map(|f| f.to_ascii_uppercase().to_string() + c.as_str())
-                .unwrap_or_default()
-        })
-        .collect::<String>();
-    let service = rpc::Service::<Q, P>::create(
-        node,
-        params,
-        &ros::private_name(params, name)?,
-        &ServiceTypeName::new("rcl_interfaces", &type_name),
-    )?;
-    let (store, mut shutdown) = (store.clone(), shutdown.clone());
-    tokio::spawn(async move {
-        loop {
-            let r = tokio::select! {
-                r = service.receive() => r,
-                _ = shutdown.wait_for(|s| *s) => return,
-            };
-            let response = answer(&store, r.request);
-            if let Err(e) = service.respond(r.server, r.id, response) {
-                tracing::warn!("{e}");
+/// What the parameter services are created with.
+struct Spawner<'a> {
+    node: &'a mut Node,
+    params: &'a Params,
+    store: Arc<Store>,
+    shutdown: &'a watch::Receiver<bool>,
+}
+
+impl Spawner<'_> {
+    /// Serves the parameter service `~/name` (type `rcl_interfaces/srv/<Name>`, in camel
+    /// case) with `answer` until shutdown.
+    fn serve<Q, P>(&mut self, name: &str, answer: fn(&Store, Q) -> P) -> Result<(), String>
+    where
+        Q: Message + Clone + Serialize + DeserializeOwned + Send + Sync + 'static,
+        P: Message + Clone + Serialize + DeserializeOwned + Send + Sync + 'static,
+    {
+        let type_name = name
+            .split('_')
+            .map(|w| {
+                let mut c = w.chars();
+                c.next()
+                    .map(|f| f.to_ascii_uppercase().to_string() + c.as_str())
+                    .unwrap_or_default()
+            })
+            .collect::<String>();
+        let service = rpc::Service::<Q, P>::create(
+            self.node,
+            self.params,
+            &ros::private_name(self.params, name)?,
+            &ServiceTypeName::new("rcl_interfaces", &type_name),
+        )?;
+        let (store, mut shutdown) = (self.store.clone(), self.shutdown.clone());
+        tokio::spawn(async move {
+            loop {
+                let r = tokio::select! {
+                    r = service.receive() => r,
+                    _ = shutdown.wait_for(|s| *s) => return,
+                };
+                let response = answer(&store, r.request);
+                if let Err(e) = service.respond(r.server, r.id, response) {
+                    tracing::warn!("{e}");
+                }
             }
-        }
-    });
-    Ok(())
+        });
+        Ok(())
+    }
 }
 
 /// Declares the node's parameters and serves the six parameter services until `shutdown`.
@@ -583,64 +587,40 @@ pub fn spawn(
         node: params.fully_qualified_name(),
     };
     let store = Arc::new(Store::new(params, live.clone(), Some(events)));
-    serve(
+    let mut s = Spawner {
         node,
         params,
-        "list_parameters",
-        &store,
-        |s, q: ListParametersRequest| ListParametersResponse { result: s.list(&q) },
+        store,
         shutdown,
-    )?;
-    serve(
-        node,
-        params,
-        "get_parameters",
-        &store,
-        |s, q: GetParametersRequest| GetParametersResponse {
+    };
+    s.serve("list_parameters", |s, q: ListParametersRequest| {
+        ListParametersResponse { result: s.list(&q) }
+    })?;
+    s.serve("get_parameters", |s, q: GetParametersRequest| {
+        GetParametersResponse {
             values: s.get(&q.names),
-        },
-        shutdown,
-    )?;
-    serve(
-        node,
-        params,
-        "get_parameter_types",
-        &store,
-        |s, q: GetParameterTypesRequest| GetParameterTypesResponse {
+        }
+    })?;
+    s.serve("get_parameter_types", |s, q: GetParameterTypesRequest| {
+        GetParameterTypesResponse {
             values: s.types(&q.names),
-        },
-        shutdown,
-    )?;
-    serve(
-        node,
-        params,
-        "set_parameters",
-        &store,
-        |s, q: SetParametersRequest| SetParametersResponse {
+        }
+    })?;
+    s.serve("set_parameters", |s, q: SetParametersRequest| {
+        SetParametersResponse {
             results: s.set(q.parameter),
-        },
-        shutdown,
-    )?;
-    serve(
-        node,
-        params,
-        "set_parameters_atomically",
-        &store,
-        |s, q: SetParametersRequest| SetParametersAtomicallyResponse {
+        }
+    })?;
+    s.serve("set_parameters_atomically", |s, q: SetParametersRequest| {
+        SetParametersAtomicallyResponse {
             result: s.set_atomically(q.parameter),
-        },
-        shutdown,
-    )?;
-    serve(
-        node,
-        params,
-        "describe_parameters",
-        &store,
-        |s, q: DescribeParametersRequest| DescribeParametersResponse {
+        }
+    })?;
+    s.serve("describe_parameters", |s, q: DescribeParametersRequest| {
+        DescribeParametersResponse {
             values: s.describe(&q.names),
-        },
-        shutdown,
-    )
+        }
+    })
 }
 
 #[cfg(test)]

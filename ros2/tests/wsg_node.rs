@@ -276,7 +276,6 @@ async fn parameter_services_and_a_live_allow_stalling() {
     use ros2_client::rcl_interfaces::{
         ListParametersRequest, ListParametersResponse, SetParametersRequest, SetParametersResponse,
     };
-    use ros2_client::{Name, ServiceTypeName};
 
     let (_wsg, addr) = sim(SimConfig::default()
         .with_part(40.0, 2.0)
@@ -285,34 +284,16 @@ async fn parameter_services_and_a_live_allow_stalling() {
     let mut p = params(DeviceKind::Wsg, addr, domain(), Mapping::Enhanced);
     p.service_mapping = None;
     let (node, mut me, gripper) = homed_gripper(p).await;
-    let service = |name: &str, type_name: &str| {
-        (
-            Name::new("/gripper", name).unwrap(),
-            ServiceTypeName::new("rcl_interfaces", type_name),
-        )
-    };
-    let (name, type_name) = service("list_parameters", "ListParameters");
-    let list = me
-        .node
-        .create_client::<ListParametersRequest, ListParametersResponse>(
-            ServiceMapping::Enhanced,
-            &name,
-            &type_name,
-            gripper_ros2::qos::services(),
-            gripper_ros2::qos::services(),
-        )
-        .unwrap();
-    let (name, type_name) = service("set_parameters", "SetParameters");
-    let set = me
-        .node
-        .create_client::<SetParametersRequest, SetParametersResponse>(
-            ServiceMapping::Enhanced,
-            &name,
-            &type_name,
-            gripper_ros2::qos::services(),
-            gripper_ros2::qos::services(),
-        )
-        .unwrap();
+    let list = param_client::<ListParametersRequest, ListParametersResponse>(
+        &mut me,
+        "list_parameters",
+        "ListParameters",
+    );
+    let set = param_client::<SetParametersRequest, SetParametersResponse>(
+        &mut me,
+        "set_parameters",
+        "SetParameters",
+    );
     me.wait_for_service("gripper/list_parameters").await;
     me.wait_for_service("gripper/set_parameters").await;
     let listed = ping("list_parameters", || {
@@ -342,4 +323,21 @@ async fn parameter_services_and_a_live_allow_stalling() {
     assert_eq!(status, GoalStatusEnum::Succeeded, "{result:?}");
     assert!(result.stalled);
     node.stop().await.unwrap();
+}
+
+/// A client (Enhanced mapping) of the node's parameter service `/gripper/<name>`.
+fn param_client<Q, P>(me: &mut TestNode, name: &str, type_name: &str) -> ros2_client::Client<Q, P>
+where
+    Q: ros2_client::Message + Clone + 'static,
+    P: ros2_client::Message + 'static,
+{
+    me.node
+        .create_client::<Q, P>(
+            ServiceMapping::Enhanced,
+            &ros2_client::Name::new("/gripper", name).unwrap(),
+            &ros2_client::ServiceTypeName::new("rcl_interfaces", type_name),
+            gripper_ros2::qos::services(),
+            gripper_ros2::qos::services(),
+        )
+        .unwrap()
 }
