@@ -25,6 +25,7 @@ pub mod sim;
 pub mod telemetry;
 pub mod trigger;
 pub mod wsg_node;
+pub mod wsg_text_node;
 
 use std::future::Future;
 use std::time::Duration;
@@ -40,6 +41,7 @@ pub const SHUTDOWN_GRACE: Duration = Duration::from_secs(3);
 /// The device link to close at shutdown.
 enum Link {
     Wsg(gripper::wsg::Client),
+    WsgText(gripper::wsg::text::Client),
     Griplink(gripper::griplink::Client),
     SmartGrasp(gripper::smartgrasp::Client),
 }
@@ -59,6 +61,11 @@ pub async fn run(cli: Cli, stop: impl Future<Output = ()>) -> Result<(), String>
     let live = params::Live::new(&params);
     param_services::spawn(&context, &mut node, &params, &live, &shutdown)?;
     let link = match params.device {
+        DeviceKind::Wsg if params.transport == "text" => {
+            let client = wsg_text_node::connect(&params).await?;
+            wsg_text_node::start(&mut node, &params, client.clone(), &live, &shutdown).await?;
+            Link::WsgText(client)
+        }
         DeviceKind::Wsg => {
             let client = wsg_node::connect(&params).await?;
             wsg_node::start(&mut node, &params, client.clone(), &live, &shutdown).await?;
@@ -101,6 +108,12 @@ pub async fn run(cli: Cli, stop: impl Future<Output = ()>) -> Result<(), String>
             .await
             .map_err(|_| "closing the WSG link timed out".to_owned())
             .and_then(|r| r.map_err(|e| format!("closing the WSG link: {e}"))),
+        // BYE(): announces the disconnect, so the WSG does not go into FAST STOP (GCL manual,
+        // chapter 2).
+        Link::WsgText(client) => tokio::time::timeout(SHUTDOWN_GRACE, client.close())
+            .await
+            .map_err(|_| "closing the WSG text link timed out".to_owned())
+            .and_then(|r| r.map_err(|e| format!("closing the WSG text link: {e}"))),
         // BYE(): ends the session (manual 3.3.1).
         Link::Griplink(client) => tokio::time::timeout(SHUTDOWN_GRACE, client.close())
             .await

@@ -119,7 +119,8 @@ pub struct Params {
     pub namespace: String,
     /// The device.
     pub device: DeviceKind,
-    /// WSG transport: `tcp`, `udp` or `serial`.
+    /// WSG transport: `tcp`, `udp` or `serial` (the binary protocol), or `text` (the text
+    /// interface, GCL, over TCP).
     pub transport: String,
     /// `host:port` of the WSG (TCP/UDP), the GRIPLINK or the Grasping-Kit.
     pub address: String,

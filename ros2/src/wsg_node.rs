@@ -63,7 +63,11 @@ pub async fn connect(params: &Params) -> Result<Client, String> {
             builder.connect_udp(addr).await
         }
         "serial" => builder.open_serial(&params.serial_port, params.baud_rate),
-        other => return Err(format!("transport {other:?}: expected tcp, udp or serial")),
+        other => {
+            return Err(format!(
+                "transport {other:?}: expected tcp, udp, serial or text"
+            ))
+        }
     };
     client.map_err(|e| format!("{what}: {e}"))
 }
