@@ -360,13 +360,12 @@ impl Cli {
         let original = params.node_name.clone();
         let ours = |node: &Option<String>| node.as_deref().is_none_or(|n| n == original);
         // Remappings first: a parameter file's section is chosen by the node's name.
-        for (node, from, to) in remaps.iter().filter(|(n, _, _)| ours(n)) {
+        for (_, from, to) in remaps.iter().filter(|(n, _, _)| ours(n)) {
             match from.as_str() {
                 "__ns" => params.namespace = check_namespace(to)?,
                 "__node" | "__name" => params.node_name = check_node_name(to)?,
                 _ => {}
             }
-            let _ = node;
         }
         for (_, from, to) in remaps.iter().filter(|(n, _, _)| ours(n)) {
             if !matches!(from.as_str(), "__ns" | "__node" | "__name") {
