@@ -53,6 +53,11 @@ async fn close_until_contact_on_a_part_of_unknown_width_and_a_late_result_reques
         "the part is held"
     );
 
+    // "Close" again while holding it: the fingers are on the part, blocked at once, and hold.
+    let (_, status, again) = run_goal(&gripper, 0.0, 30.0).await;
+    assert_eq!(status, GoalStatusEnum::Succeeded, "{again:?}");
+    assert!(again.stalled && again.position == 0.04, "{again:?}");
+
     // Asked again long after the goal ended: answered from the kept results (ros2-client's
     // AsyncActionServer never answers this one).
     let (status, again) = bounded("late get_result", gripper.async_request_result(id))

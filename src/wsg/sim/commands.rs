@@ -151,10 +151,11 @@ impl Device {
                     Err(e) => out.push(e),
                     Ok(()) => {
                         self.grip = GripState::Positioning;
-                        // A part between the fingers stops a move that closes past it (3.2.2).
+                        // A part between the fingers stops a move that closes past it (3.2.2),
+                        // also one that starts on it (fingers holding it).
                         let here = self.width_mm();
                         let part = self.cfg.part.filter(|p| {
-                            self.cfg.part_blocks_motion && here > p.width_mm && target < p.width_mm
+                            self.cfg.part_blocks_motion && here >= p.width_mm && target < p.width_mm
                         });
                         let (kind, end) = match part {
                             Some(p) => (MotionKind::PrePosition { blocked: true }, p.width_mm),

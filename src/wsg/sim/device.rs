@@ -460,6 +460,12 @@ mod tests {
             assert_eq!(d.advance(200.0)[0].reply.status, status);
             assert_eq!(d.width_mm(), end, "blocking: {blocking}");
             assert_eq!(d.grip_state(), GripState::Idle);
+            // Fingers on the part: closing further is blocked at once.
+            if blocking {
+                assert_eq!(cmd(&mut d, 200.0, pre(5.0)), [Status::CmdPending]);
+                assert_eq!(d.advance(300.0)[0].reply.status, Status::AxisBlocked);
+                assert_eq!(d.width_mm(), 40.0);
+            }
         }
         // Opening, or closing to a width above the part, is not blocked.
         let mut d = Device::new(
