@@ -254,7 +254,16 @@ impl Griplink {
         let tolerance = inner.params.goal_tolerance_m * 1000.0;
         let closing = target < width - tolerance;
         *inner.gripping.lock().unwrap_or_else(|e| e.into_inner()) = closing;
-        let (ok, stalled, what) = if closing {
+        // A grip in DS_HOLDING is a state conflict (3.4.4 GRIP, 3.4.6 FLEXGRIP): a close of a
+        // part already held is that stall, reported without a command.
+        let held = closing
+            && match inner.port.state().await {
+                Ok(s) => s == DeviceState::Holding,
+                Err(e) => return self.failed(e),
+            };
+        let (ok, stalled, what) = if held {
+            (true, true, "grip: the part is already held")
+        } else if closing {
             let force = self.force(&goal);
             *inner.force_n.lock().unwrap_or_else(|e| e.into_inner()) = force;
             let grip = FlexGrip {

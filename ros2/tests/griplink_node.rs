@@ -38,6 +38,20 @@ async fn grip_on_a_part_release_and_a_grip_without_force_rejected() {
     assert!((result.position - 0.010).abs() < 0.0005, "{result:?}");
     assert_eq!(sim.device_state(0), Some(DeviceState::Holding));
 
+    // "Close" again: the part is already held (a grip now would be a state conflict): the
+    // same stall, nothing sent.
+    sim.start_recording(1024);
+    let (_, status, again) = run_goal(&gripper, 0.0, 15.0).await;
+    assert_eq!(status, GoalStatusEnum::Succeeded, "{again:?}");
+    assert!(
+        again.stalled && (again.position - 0.010).abs() < 0.0005,
+        "{again:?}"
+    );
+    assert!(!sim
+        .recording()
+        .iter()
+        .any(|x| x.request.starts_with("FLEXGRIP")));
+
     // Closing needs a force: max_effort 0 with no default_effort_n is rejected, unsent.
     let (_, response) = bounded("send_goal", gripper.async_send_goal(goal(0.002, 0.0)))
         .await
