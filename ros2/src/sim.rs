@@ -33,8 +33,13 @@ pub async fn start(
     match kind {
         DeviceKind::Wsg => {
             // A WSG 50 with a 40 mm part (±2 mm) between its fingers, which stops a closing
-            // move (E_AXIS_BLOCKED), moving in real time.
-            let config = SimConfig::standalone().with_blocking_part();
+            // move (E_AXIS_BLOCKED), moving in real time; over its text interface (GCL) with
+            // `transport: text`, else over the binary protocol on TCP.
+            let text = params.transport == "text";
+            let mut config = SimConfig::standalone().with_blocking_part();
+            if text {
+                config = config.text();
+            }
             let server = SimServer::bind("127.0.0.1:0", config)
                 .await
                 .map_err(|e| format!("WSG simulator: {e}"))?;
@@ -44,7 +49,9 @@ pub async fn start(
             tracing::info!(
                 "WSG simulator (WSG 50, a 40 mm part between the fingers, real time) on {addr}"
             );
-            params.transport = "tcp".into();
+            if !text {
+                params.transport = "tcp".into();
+            }
             params.address = addr.to_string();
             let server = Arc::new(server);
             tokio::spawn(log_wsg(server.clone(), shutdown));

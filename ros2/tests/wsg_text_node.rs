@@ -39,3 +39,26 @@ async fn close_with_the_part_agnostic_grip_then_open() {
     assert!((result.position - 0.07).abs() < 1e-3, "{result:?}");
     node.stop().await.unwrap();
 }
+
+/// `--sim wsg -p transport:=text`: the node's own simulator serves GCL.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_in_process_simulator_speaks_the_text_interface_when_asked() {
+    let mut p = params(DeviceKind::Wsg, String::new(), domain(), Mapping::Enhanced);
+    p.transport = "text".into();
+    p.speed_m_per_s = 0.2;
+    let mut cli = gripper_ros2::params::Cli::for_params(p.clone());
+    cli.sim = Some(DeviceKind::Wsg);
+    let node = Running::start_cli(cli);
+    let mut me = TestNode::new(p.domain_id, "test_client");
+    let home = trigger_client(&mut me, ros2_client::ServiceMapping::Enhanced, "home").await;
+    assert!(trigger_retrying(&home).await.success);
+    let gripper = action_client(&mut me, ros2_client::ServiceMapping::Enhanced).await;
+    // Real time: 110 -> 40 mm at 200 mm/s; the part stops GRIP, a stall (ABORTED by default).
+    let (_, status, result) = run_goal(&gripper, 0.0, 0.0).await;
+    assert_eq!(status, GoalStatusEnum::Aborted, "{result:?}");
+    assert!(
+        result.stalled && (result.position - 0.04).abs() < 1e-3,
+        "{result:?}"
+    );
+    node.stop().await.unwrap();
+}

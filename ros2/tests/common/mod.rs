@@ -56,8 +56,12 @@ pub struct Running {
 impl Running {
     /// Starts the node.
     pub fn start(params: Params) -> Self {
+        Running::start_cli(Cli::for_params(params))
+    }
+
+    /// Starts the node of a command line (e.g. one with `--sim`).
+    pub fn start_cli(cli: Cli) -> Self {
         let (stop, stopped) = oneshot::channel::<()>();
-        let cli = Cli::for_params(params);
         let task = tokio::spawn(gripper_ros2::run(cli, async {
             let _ = stopped.await;
         }));
