@@ -177,6 +177,8 @@ class CancelReply(IdlStruct, typename="action_msgs::srv::dds_::CancelGoal_Respon
 
 
 SUCCEEDED, CANCELED = 4, 5
+# The node's default joint names: the finger joints of the description it ships (ros2/urdf/).
+JOINTS = ["base_joint_gripper_left", "base_joint_gripper_right"]
 RELIABLE = Qos(
     Policy.Reliability.Reliable(duration(seconds=1)),
     Policy.History.KeepLast(10),
@@ -301,7 +303,7 @@ def run_checks(domain, log):
     get_result = Service(dp, action + "get_result", GetResultRequest, GetResultReply)
     cancel = Service(dp, action + "cancel_goal", CancelRequest, CancelReply)
 
-    s = first_sample(js, "rt/joint_states", lambda s: list(s.name) == ["gripper_joint"])
+    s = first_sample(js, "rt/joint_states", lambda s: list(s.name) == JOINTS)
     print(f"ros2 peer: ok joint_states: {list(s.name)} at {list(s.position)} m")
     d = first_sample(diag, "rt/diagnostics", lambda d: len(d.status) == 1)
     print(f"ros2 peer: ok diagnostics: {d.status[0].name!r}: {d.status[0].message!r}")
