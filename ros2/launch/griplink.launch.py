@@ -11,8 +11,6 @@ The port is the griplink_port parameter (config/griplink.yaml).
 import os
 import sys
 
-from launch.actions import DeclareLaunchArgument
-
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import gripper_ros2_common as common  # noqa: E402  (beside this file, installed with it)
 
@@ -21,10 +19,8 @@ def generate_launch_description():
     return common.launch_description(
         "griplink",
         address_help="HOST:PORT of the GRIPLINK controller (its port is 10001 by default)",
-        extra_arguments=[
-            DeclareLaunchArgument(
-                "stroke", default_value="0.020",
-                description="the gripper's full stroke, m (0.020: the simulator's IEG 55-020)"),
-        ],
-        description_args=["stroke"],
+        description_args={
+            "stroke": ("0.020", "the gripper's full stroke, m (0.020: the simulator's IEG 55-020)",
+                       None),
+        },
     )

@@ -93,11 +93,18 @@ def nodes(context, device, description_args):
     return out
 
 
-def launch_description(device, address_help, extra_arguments=(), description_args=()):
-    """The LaunchDescription of one device kind. `extra_arguments`: DeclareLaunchArgument of
-    the description's own arguments, whose names `description_args` lists."""
+def launch_description(device, address_help, description_args=None):
+    """The LaunchDescription of one device kind. `description_args`: the description's own
+    xacro arguments, {name: (default, help, choices or None)}, declared as launch arguments too;
+    None for a device without a description."""
+    own = [
+        DeclareLaunchArgument(name, default_value=default, description=help, choices=choices)
+        for name, (default, help, choices) in (description_args or {}).items()
+    ]
     return LaunchDescription([
         *common_arguments(device, address_help),
-        *extra_arguments,
-        OpaqueFunction(function=nodes, args=[device, description_args]),
+        *own,
+        OpaqueFunction(
+            function=nodes,
+            args=[device, None if description_args is None else list(description_args)]),
     ])

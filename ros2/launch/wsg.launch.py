@@ -9,8 +9,6 @@ Arguments: sim, namespace, prefix, address, params_file (launch/gripper_ros2_com
 import os
 import sys
 
-from launch.actions import DeclareLaunchArgument
-
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import gripper_ros2_common as common  # noqa: E402  (beside this file, installed with it)
 
@@ -19,10 +17,7 @@ def generate_launch_description():
     return common.launch_description(
         "wsg",
         address_help="HOST:PORT of the WSG over TCP (its port is 1000 by default)",
-        extra_arguments=[
-            DeclareLaunchArgument(
-                "model", default_value="50", choices=["50", "32", "25"],
-                description="the WSG model, for the description's stroke"),
-        ],
-        description_args=["model"],
+        description_args={
+            "model": ("50", "the WSG model, for the description's stroke", ["50", "32", "25"]),
+        },
     )
