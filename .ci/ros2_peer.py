@@ -8,7 +8,10 @@ joint_states and diagnostics with the ROS type names; the ~/home service
 (rq/gripper/homeRequest, rr/gripper/homeReply); GripperCommand goals through
 _action/send_goal and _action/get_result (an opening in metres is reached, a close on a part
 ends stalled with effort); a slow goal cancelled through _action/cancel_goal, and the
-simulator's log shows the stop. Every wait is bounded. Usage: ros2_peer.py PATH/TO/gripper-ros2
+simulator's log shows the stop. Every joint_states sample from homing to the end is read: each
+name must be a movable joint of the description URDF (the node's defaults against the package's
+urdf/wsg.urdf.xacro, expanded by the caller) and each position within that joint's limits.
+Every wait is bounded. Usage: ros2_peer.py PATH/TO/gripper-ros2 PATH/TO/wsg.urdf
 """
 
 import os
@@ -17,7 +20,9 @@ import signal
 import subprocess
 import sys
 import tempfile
+import threading
 import time
+import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 
 from cyclonedds.core import Policy, Qos
@@ -332,6 +337,10 @@ class Log(IdlStruct, typename="rcl_interfaces::msg::dds_::Log_"):
 
 
 SUCCEEDED, ABORTED, CANCELED = 4, 6, 5
+# The node's default joint names: the finger joints of the description it ships (ros2/urdf/).
+JOINTS = ["base_joint_gripper_left", "base_joint_gripper_right"]
+# Where the peer has the node publish them (a remap, as launch files do).
+JOINT_STATES = "rt/arm/joint_states"
 RELIABLE = Qos(
     Policy.Reliability.Reliable(duration(seconds=1)),
     Policy.History.KeepLast(10),
@@ -415,8 +424,79 @@ def cyclone_config(domain):
     )
 
 
+def joint_limits(urdf_path):
+    """{name: (lower, upper)} of the description's movable joints."""
+    limits = {}
+    for j in ET.parse(urdf_path).getroot().iter("joint"):
+        if j.get("type") in ("prismatic", "revolute"):
+            lim = j.find("limit")
+            limits[j.get("name")] = (float(lim.get("lower")), float(lim.get("upper")))
+        elif j.get("type") != "fixed":
+            limits[j.get("name")] = (float("-inf"), float("inf"))
+    return limits
+
+
+class JointStateRecorder(threading.Thread):
+    """Takes every joint_states sample (a reader of its own, drained every 10 ms: at 50 Hz
+    its history of 10 never overflows) until stopped."""
+
+    def __init__(self, dp):
+        super().__init__(daemon=True)
+        self.reader = DataReader(dp, Topic(dp, JOINT_STATES, JointState), qos=RELIABLE)
+        self.samples = []
+        self.done = threading.Event()
+
+    def run(self):
+        while not self.done.is_set():
+            for s in self.reader.take(N=64):
+                self.samples.append((list(s.name), list(s.position)))
+            time.sleep(0.01)
+
+    def stop(self):
+        self.done.set()
+        self.join(5)
+
+
+def check_against_description(samples, limits):
+    """Every published name is a movable joint of the description, every position within its
+    limits; and the samples saw the grasp (the fingers on the 40 mm part) and an opening of
+    70 mm or more, so that the check covered the motion."""
+    if len(samples) < 20:
+        fail(f"only {len(samples)} joint_states samples recorded")
+    widths = []
+    for names, positions in samples:
+        unknown = [n for n in names if n not in limits]
+        if unknown:
+            fail(f"joint_states names {unknown}, not joints of the description {sorted(limits)}")
+        for n, p in zip(names, positions):
+            lower, upper = limits[n]
+            if not lower <= p <= upper:
+                fail(f"{n} at {p}, outside its limits [{lower}, {upper}]")
+        pos = dict(zip(names, positions))
+        widths.append(pos[JOINTS[1]] - pos[JOINTS[0]])
+    if min(widths) > 0.041 or max(widths) < 0.07:
+        fail(f"the samples span openings {min(widths)}..{max(widths)} m: not the grasp and opening")
+    ok(f"{len(samples)} joint_states samples, openings {min(widths):.4f}.."
+       f"{max(widths):.4f} m: every name a joint of the description, every position within "
+       "its limits")
+
+
+def cyclone_config(domain):
+    # Loopback only, no multicast: nothing leaves this machine, and parallel runs on other
+    # domains do not meet.
+    return (
+        f'<CycloneDDS><Domain Id="{domain}"><General><Interfaces>'
+        '<NetworkInterface address="127.0.0.1"/></Interfaces>'
+        "<AllowMulticast>false</AllowMulticast></General>"
+        "<Discovery><ParticipantIndex>auto</ParticipantIndex>"
+        "<MaxAutoParticipantIndex>20</MaxAutoParticipantIndex>"
+        '<Peers><Peer address="127.0.0.1"/></Peers></Discovery></Domain></CycloneDDS>'
+    )
+
+
 def main():
-    binary = sys.argv[1]
+    binary, urdf = sys.argv[1], sys.argv[2]
+    limits = joint_limits(urdf)
     # A domain of its own (0..=232), from the process id.
     domain = 1 + os.getpid() % 232
     os.environ["CYCLONEDDS_URI"] = cyclone_config(domain)
@@ -432,7 +512,7 @@ def main():
         env=env, stdout=log, stderr=subprocess.STDOUT,
     )
     try:
-        run_checks(domain, log)
+        run_checks(domain, log, limits)
     except BaseException:
         node.kill()
         node.wait(10)
@@ -459,9 +539,11 @@ def main():
     print(f"ros2-peer: {len(PASSED)} passed, 0 failed")
 
 
-def run_checks(domain, log):
+def run_checks(domain, log, limits):
     dp = DomainParticipant(domain)
-    js = DataReader(dp, Topic(dp, "rt/arm/joint_states", JointState), qos=RELIABLE)
+    recorder = JointStateRecorder(dp)
+    recorder.start()
+    js = DataReader(dp, Topic(dp, JOINT_STATES, JointState), qos=RELIABLE)
     rosout = DataReader(
         dp, Topic(dp, "rt/rosout", Log),
         qos=Qos(Policy.Reliability.Reliable(duration(seconds=1)), Policy.History.KeepLast(100),
@@ -483,7 +565,7 @@ def run_checks(domain, log):
     get_result = Service(dp, action + "get_result", GetResultRequest, GetResultReply)
     cancel = Service(dp, action + "cancel_goal", CancelRequest, CancelReply)
 
-    s = first_sample(js, "rt/arm/joint_states", lambda s: list(s.name) == ["gripper_joint"])
+    s = first_sample(js, JOINT_STATES, lambda s: list(s.name) == JOINTS)
     ok(f"joint_states remapped to /arm/joint_states: {list(s.name)} at {list(s.position)} m")
     d = first_sample(diag, "rt/diagnostics", lambda d: len(d.status) == 1)
     ok(f"diagnostics: {d.status[0].name!r}: {d.status[0].message!r}")
@@ -609,6 +691,9 @@ def run_checks(domain, log):
     rec = first_sample(rosout, "the parameter's record on rt/rosout",
                        lambda r: r.name == "gripper" and "allow_stalling" in r.msg)
     ok(f"/rosout: level {rec.level} from {rec.name!r}: {rec.msg!r}")
+
+    recorder.stop()
+    check_against_description(recorder.samples, limits)
 
 
 if __name__ == "__main__":

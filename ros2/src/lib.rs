@@ -10,6 +10,7 @@ pub mod action;
 pub mod diagnostics;
 pub mod griplink_node;
 pub mod gripper_node;
+pub mod joint_map;
 pub mod joint_states;
 pub mod kit_node;
 pub mod link;

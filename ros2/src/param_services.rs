@@ -94,7 +94,7 @@ fn declared(
 /// Every parameter of the node with its value in `p` (the README's table, with types and
 /// ranges).
 pub fn declarations(p: &Params) -> Vec<Declared> {
-    use ParameterValue::{Boolean, Double, Integer, String as Text, StringArray};
+    use ParameterValue::{Boolean, Double, DoubleArray, Integer, String as Text, StringArray};
     let text = |s: &str| Text(s.to_owned());
     let ro = true;
     let at_start = "read-only: set it at start (parameter file, -p)";
@@ -154,8 +154,25 @@ pub fn declarations(p: &Params) -> Vec<Declared> {
         declared(
             "joint_names",
             StringArray(p.joint_names.clone()),
-            "joint_states names: one (the opening) or two (each finger)",
-            &format!("one or two names; {at_start}"),
+            "the joints joint_states names",
+            at_start,
+            Range::None,
+            ro,
+        ),
+        declared(
+            "joint_multipliers",
+            DoubleArray(p.joint_multipliers.clone()),
+            "joint position per metre of opening, one per joint name (empty: from the number \
+             of names)",
+            &format!("empty or one per joint name; {at_start}"),
+            Range::None,
+            ro,
+        ),
+        declared(
+            "joint_offsets",
+            DoubleArray(p.joint_offsets.clone()),
+            "joint position at a closed gripper, one per joint name (empty: all 0)",
+            &format!("empty or one per joint name; {at_start}"),
             Range::None,
             ro,
         ),

@@ -86,7 +86,7 @@ impl Mapping {
 }
 
 /// The name of every parameter [`Params::set`] takes.
-pub const NAMES: [&str; 21] = [
+pub const NAMES: [&str; 23] = [
     "device",
     "transport",
     "address",
@@ -94,6 +94,8 @@ pub const NAMES: [&str; 21] = [
     "baud_rate",
     "griplink_port",
     "joint_names",
+    "joint_multipliers",
+    "joint_offsets",
     "position_convention",
     "joint_states_rate_hz",
     "speed_m_per_s",
@@ -130,8 +132,13 @@ pub struct Params {
     pub baud_rate: u32,
     /// The GRIPLINK port (0..=3) this node drives.
     pub griplink_port: u8,
-    /// One name (the opening) or two (each finger).
+    /// The joints `joint_states` names (see [`crate::joint_map`]).
     pub joint_names: Vec<String>,
+    /// Joint position per metre of opening, one per joint name; empty: derived from the
+    /// number of names (see [`crate::joint_map`]).
+    pub joint_multipliers: Vec<f64>,
+    /// Joint position at a closed gripper, one per joint name; empty: all 0.
+    pub joint_offsets: Vec<f64>,
     /// See [`PositionConvention`].
     pub position_convention: PositionConvention,
     /// `joint_states` rate, Hz.
@@ -183,7 +190,11 @@ impl Default for Params {
             serial_port: String::new(),
             baud_rate: 115_200,
             griplink_port: 0,
-            joint_names: vec!["gripper_joint".into()],
+            joint_names: crate::joint_map::DEFAULT_JOINT_NAMES
+                .map(str::to_owned)
+                .to_vec(),
+            joint_multipliers: Vec::new(),
+            joint_offsets: Vec::new(),
             position_convention: PositionConvention::Width,
             joint_states_rate_hz: 50.0,
             speed_m_per_s: 0.05,
@@ -481,6 +492,12 @@ impl Params {
                     .and_then(|s| s.iter().map(|n| n.as_str().map(str::to_owned)).collect())
                     .ok_or_else(|| bad("a list of strings"))?
             }
+            "joint_multipliers" => {
+                self.joint_multipliers = float_list(v).ok_or_else(|| bad("a list of numbers"))?
+            }
+            "joint_offsets" => {
+                self.joint_offsets = float_list(v).ok_or_else(|| bad("a list of numbers"))?
+            }
             "position_convention" => {
                 self.position_convention = match string()?.as_str() {
                     "width" => PositionConvention::Width,
@@ -619,16 +636,17 @@ impl Params {
                 "default_effort_n must be 0 or a positive force".into(),
             ));
         }
-        if !(1..=2).contains(&self.joint_names.len()) {
-            return Err(ParamError(
-                "joint_names must hold one name (the opening) or two (the fingers)".into(),
-            ));
-        }
+        crate::joint_map::JointMap::new(self)?;
         if self.griplink_port > 3 {
             return Err(ParamError("griplink_port must be 0..=3".into()));
         }
         Ok(())
     }
+}
+
+/// A YAML list of numbers (integers taken as numbers: `[-1, 1]` is what a user types).
+fn float_list(v: &Value) -> Option<Vec<f64>> {
+    v.as_sequence()?.iter().map(Value::as_f64).collect()
 }
 
 fn split_assignment(s: &str) -> Result<(String, String), ParamError> {
@@ -887,6 +905,21 @@ mod tests {
         assert_eq!(cli.unwrap().params.service_mapping, Some(Mapping::Enhanced));
         let bad = |k: &str| (k == "ROS_DOMAIN_ID").then(|| "300".to_owned());
         assert!(Cli::parse(&[], bad, |_| Err(String::new())).is_err());
+    }
+
+    #[test]
+    fn joint_mapping_lists_from_the_command_line_and_a_file() {
+        let file = "/**:\n  ros__parameters:\n    joint_names: [a, b, c]\n    \
+                    joint_multipliers: [-1, 1, 0.5]\n";
+        let p = parse("--params-file f -p joint_offsets:=[0.1,0,-0.1]", file)
+            .unwrap()
+            .params;
+        assert_eq!(p.joint_multipliers, vec![-1.0, 1.0, 0.5]);
+        assert_eq!(p.joint_offsets, vec![0.1, 0.0, -0.1]);
+        // The lists must match the names: three names and two multipliers is refused.
+        assert!(parse("-p joint_names:=[a,b,c] -p joint_multipliers:=[1,1]", "").is_err());
+        assert!(parse("-p joint_multipliers:=[a,b]", "").is_err());
+        assert!(parse("-p joint_offsets:=1.0", "").is_err());
     }
 
     #[test]
