@@ -14,7 +14,7 @@ use gripper::reconnect::{ConnectionEvent, ConnectionEvents};
 use tokio::io::DuplexStream;
 
 use super::phases::{after_close, DocumentedErrors};
-use super::streams::{faulty_pipe, StreamProfile};
+use super::streams::{faulty_pipe_logged, Carried, CarriedLog, StreamProfile};
 use super::{note, Prng, SharedTrace};
 
 /// The server of the moment (`slot`), its generation (0 for the first, then one more per
@@ -103,26 +103,57 @@ impl<S: Send + Sync + 'static, R: Send + 'static> Servers<S, R> {
 
 /// Follows a client's connection events into the trace; the flag turns true at its first
 /// reported loss (the documented errors after it).
-pub fn watch_losses(
+pub fn watch_losses(events: ConnectionEvents, index: usize, trace: SharedTrace) -> Arc<AtomicBool> {
+    watch_losses_logged(events, index, trace).0
+}
+
+/// Each loss a client reported: when (simulated) and the reason it gave (rule 6 judges it).
+pub type Losses = Arc<Mutex<Vec<(tokio::time::Instant, String)>>>;
+
+/// [`watch_losses`], also keeping each reported loss with its time and reason.
+pub fn watch_losses_logged(
     mut events: ConnectionEvents,
     index: usize,
     trace: SharedTrace,
-) -> Arc<AtomicBool> {
+) -> (Arc<AtomicBool>, Losses) {
     let lost = Arc::new(AtomicBool::new(false));
-    let flag = lost.clone();
+    let losses = Losses::default();
+    let (flag, log) = (lost.clone(), losses.clone());
     tokio::spawn(async move {
         while let Some(ev) = events.next().await {
             note(&trace, format!("client {index}: event {ev:?}"));
-            if matches!(ev, ConnectionEvent::Lost { .. }) {
+            if let ConnectionEvent::Lost { reason } = &ev {
                 flag.store(true, Ordering::SeqCst);
+                log.lock()
+                    .unwrap()
+                    .push((tokio::time::Instant::now(), reason.clone()));
             }
         }
     });
-    lost
+    (lost, losses)
 }
 
-/// A client's sessions: (server generation, session number), in the order opened.
-pub type Sessions = Arc<Mutex<Vec<(u64, u64)>>>;
+/// One session a client opened: the server generation and session number, when it opened, and
+/// what the link did with the server's bytes (when each reached the client intact: rules 6-8).
+#[derive(Clone, Debug)]
+pub struct SessionRec {
+    pub gen: u64,
+    pub session: u64,
+    pub opened: tokio::time::Instant,
+    pub down: CarriedLog,
+}
+
+impl SessionRec {
+    /// When the first `end` bytes the server wrote on this session had all reached the client
+    /// (`None`: never, e.g. cut off).
+    pub fn delivered_by(&self, end: u64) -> Option<tokio::time::Instant> {
+        let c: std::sync::MutexGuard<'_, Carried> = self.down.lock().unwrap();
+        c.delivered.iter().find(|&&(_, e)| e >= end).map(|&(t, _)| t)
+    }
+}
+
+/// A client's sessions, in the order opened.
+pub type Sessions = Arc<Mutex<Vec<SessionRec>>>;
 
 impl<S: Send + Sync + 'static, R: Send + 'static> Servers<S, R> {
     /// The opener a client `index` reconnects through: each call makes a new in-memory pipe
@@ -145,15 +176,22 @@ impl<S: Send + Sync + 'static, R: Send + 'static> Servers<S, R> {
         move || {
             let (sim, gen) = sims.current();
             let mut r = rng.lock().unwrap();
-            let (client_end, server_end) = faulty_pipe(
+            let down = CarriedLog::default();
+            let (client_end, server_end) = faulty_pipe_logged(
                 &mut r,
                 profile,
                 faults_on.clone(),
                 trace.clone(),
                 format!("c{index}"),
+                Some(down.clone()),
             );
             let session = serve(&sim, server_end);
-            sessions.lock().unwrap().push((gen, session));
+            sessions.lock().unwrap().push(SessionRec {
+                gen,
+                session,
+                opened: tokio::time::Instant::now(),
+                down,
+            });
             note(
                 &trace,
                 format!("client {index}: open session {gen}/{session}"),

@@ -27,7 +27,9 @@ use crate::core::phases::{
     draw_restart, draw_shape, fault_phase, open_retrying, reconnect_policy, run_line,
     unless_given_up, DocumentedErrors,
 };
-use crate::core::servers::{close_and_check, draw_drops, quiet_call, watch_losses, Servers};
+use crate::core::servers::{
+    close_and_check, draw_drops, quiet_call, watch_losses, Servers, Sessions,
+};
 use crate::core::streams::StreamProfile;
 use crate::core::{note, Caps, Prng, Scenario, SharedTrace};
 
@@ -73,8 +75,8 @@ fn new_sim(version: u16) -> Arc<SimServer> {
 struct Ctx {
     index: usize,
     client: Client,
-    /// Its sessions: (server generation, session number).
-    sessions: Arc<Mutex<Vec<(u64, u64)>>>,
+    /// Its sessions.
+    sessions: Sessions,
     reconnects: bool,
     /// Trusts the response counter (`ClientConfig::strict_response_counter`).
     strict: bool,
@@ -412,7 +414,8 @@ fn oracle(
         };
         let loose = dropped && !ctx.strict;
         let sessions = ctx.sessions.lock().unwrap().clone();
-        let found = sessions.iter().find_map(|&(g, s)| {
+        let found = sessions.iter().find_map(|rec| {
+            let (g, s) = (rec.gen, rec.session);
             records[g as usize].iter().enumerate().find_map(|(j, e)| {
                 let base = e.session == s
                     && e.sent_at >= c.start
