@@ -101,16 +101,12 @@ impl<S: Send + Sync + 'static, R: Send + 'static> Servers<S, R> {
     }
 }
 
-/// Follows a client's connection events into the trace; the flag turns true at its first
-/// reported loss (the documented errors after it).
-pub fn watch_losses(events: ConnectionEvents, index: usize, trace: SharedTrace) -> Arc<AtomicBool> {
-    watch_losses_logged(events, index, trace).0
-}
-
 /// Each loss a client reported: when (simulated) and the reason it gave (rule 6 judges it).
 pub type Losses = Arc<Mutex<Vec<(tokio::time::Instant, String)>>>;
 
-/// [`watch_losses`], also keeping each reported loss with its time and reason.
+/// Follows a client's connection events into the trace; the flag turns true at its first
+/// reported loss (the documented errors after it), and each loss is kept with its time and
+/// reason.
 pub fn watch_losses_logged(
     mut events: ConnectionEvents,
     index: usize,
@@ -148,7 +144,10 @@ impl SessionRec {
     /// (`None`: never, e.g. cut off).
     pub fn delivered_by(&self, end: u64) -> Option<tokio::time::Instant> {
         let c: std::sync::MutexGuard<'_, Carried> = self.down.lock().unwrap();
-        c.delivered.iter().find(|&&(_, e)| e >= end).map(|&(t, _)| t)
+        c.delivered
+            .iter()
+            .find(|&&(_, e)| e >= end)
+            .map(|&(t, _)| t)
     }
 }
 

@@ -262,7 +262,10 @@ fn device_faults(rng: &mut Prng, sims: &Sims, trace: &SharedTrace) {
         tokio::spawn(async move {
             tokio::time::sleep(at).await;
             let sim = sims.current().0;
-            note(&trace, format!("fault: device {port} faults (at once: {now})"));
+            note(
+                &trace,
+                format!("fault: device {port} faults (at once: {now})"),
+            );
             if now {
                 sim.inject_device_fault(port);
             }
@@ -332,7 +335,6 @@ async fn quiet_kinds(ctx: &Ctx, run_wide: &RunWide) -> Vec<String> {
             end: Instant::now(),
             timeout: Duration::from_secs(20),
             result: Some(result),
-            quiet: true,
         });
     }
     out
@@ -396,7 +398,11 @@ async fn caller(ctx: Arc<Ctx>, k: usize, mut rng: Prng, ops: u32, run_wide: Arc<
         let op = pick(&mut rng, &run_wide.labels);
         // Now and then a burst: up to 5 calls at once that differ only in a port or an index
         // (4 callers of 5: 20 calls in flight on one client).
-        let n = if rng.one_in(6) { rng.between(2, 5) as usize } else { 1 };
+        let n = if rng.one_in(6) {
+            rng.between(2, 5) as usize
+        } else {
+            1
+        };
         let calls: Vec<_> = (0..n)
             .map(|i| {
                 let op = if i == 0 { op.clone() } else { sibling(&op, i) };
@@ -460,7 +466,6 @@ async fn one_call(ctx: Arc<Ctx>, k: usize, op: Op, mut rng: Prng, run_wide: Arc<
         end,
         timeout,
         result,
-        quiet: false,
     });
 }
 

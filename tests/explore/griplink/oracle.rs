@@ -101,7 +101,84 @@ pub fn judge(
         losses(i, v, calls, &sent[i], dropped, &mut out);
     }
     timeouts(views, calls, &sent, dropped, &mut out);
+    fault_waits(calls, &sent, &mut out);
     out
+}
+
+/// Rule 7 for the grip helpers started in `DS_FAULT` (client docs, "Waiting for a motion":
+/// from `DS_FAULT`, a state other than `DS_FAULT` read after the command shows the re-enable,
+/// and then any outcome state read later, `DS_FAULT` included, ends the wait): a helper that
+/// timed out although those two readings reached the client in time. Judged only where no
+/// other call of the client may have read that port's state meanwhile (the readings are then
+/// the helper's own).
+fn fault_waits(calls: &[CallRec], sent: &[Vec<Sent>], out: &mut Vec<String>) {
+    for c in calls {
+        let Op::Wait { port, kind, .. } = &c.op else {
+            continue;
+        };
+        if !kind.is_grip() || !matches!(c.result, Some(Err(Error::Timeout { .. }))) {
+            continue;
+        }
+        let state_of = |line: &str| -> Option<i64> {
+            let key = [format!("DEVSTATE[{port}]="), format!("WSTR[{port}]=")];
+            let v = key.iter().find_map(|k| line.strip_prefix(k.as_str()))?;
+            v.parse().ok()
+        };
+        let others = calls.iter().any(|o| {
+            !std::ptr::eq(o, c)
+                && o.client == c.client
+                && o.start <= c.end
+                && o.end >= c.start
+                && (o.op.may_send(&format!("DEVSTATE[{port}]?"))
+                    || o.op.line().is_some_and(|l| {
+                        l == format!("DEVSTATE[{port}]?") || l == format!("WSTR[{port}]?")
+                    }))
+        });
+        if others {
+            continue;
+        }
+        let deadline = c.start.checked_add(c.timeout);
+        let mine: Vec<&Sent> = sent[c.client]
+            .iter()
+            .filter(|s| s.exchange.sent_at >= c.start && s.exchange.sent_at <= c.end)
+            .collect();
+        let Some(ack) = mine.iter().position(|s| {
+            s.exchange.reply == "ACK"
+                && (s.exchange.request.starts_with("GRIP(")
+                    || s.exchange.request.starts_with("FLEXGRIP"))
+        }) else {
+            continue;
+        };
+        let started_in_fault = mine[..ack]
+            .iter()
+            .rev()
+            .find_map(|s| state_of(&s.exchange.reply))
+            == Some(7);
+        if !started_in_fault {
+            continue;
+        }
+        let states: Vec<(i64, Instant)> = mine[ack + 1..]
+            .iter()
+            .filter_map(|s| Some((state_of(&s.exchange.reply)?, s.delivered?)))
+            .collect();
+        let Some(left) = states.iter().position(|&(v, _)| v != 7) else {
+            continue;
+        };
+        let ended = states[left + 1..].iter().find(|&&(v, d)| {
+            matches!(v, 4 | 5 | 7) && deadline.is_none_or(|dl| d + DELIVERY_MARGIN < dl)
+        });
+        if let Some((v, d)) = ended {
+            out.push(format!(
+                "7 (a Timeout only when its reply did not arrive in time): client {} {} started in DS_FAULT; after the command the device read state {} (re-enabled), then state {v}, which reached the client {:?} after the call began, within its timeout {:?}; the wait ended {:?}",
+                c.client,
+                c.op.kind(),
+                states[left].0,
+                *d - c.start,
+                c.timeout,
+                c.result
+            ));
+        }
+    }
 }
 
 /// Rules 1 and 5.
@@ -296,7 +373,9 @@ fn losses(
     out: &mut Vec<String>,
 ) {
     for (t, reason) in &view.losses {
-        let Some(s) = session_at(view, *t) else { continue };
+        let Some(s) = session_at(view, *t) else {
+            continue;
+        };
         // After a dropped reply the pairing is shifted by one (a later reply taken for the
         // front's, which stays away): a reply reaching the client is no sign that the front
         // request was answered, so the silence cannot be measured.
@@ -363,11 +442,14 @@ fn timeouts(
         let view = &views[c.client];
         let found = sent[c.client].iter().find(|s| {
             let Some(d) = s.delivered else { return false };
+            // Another call that may have sent that line: one overlapping, or an earlier one
+            // that got no answer (its reply may still have been on its way).
             let others = calls.iter().any(|o| {
                 !std::ptr::eq(o, c)
                     && o.client == c.client
                     && o.start <= d
-                    && o.end >= c.start
+                    && (o.end >= c.start
+                        || !matches!(o.result, Some(Ok(_) | Err(Error::Device { .. }))))
                     && o.op.line().is_none_or(|l| l == line)
             });
             s.exchange.request == line

@@ -52,9 +52,18 @@ pub enum Op {
     /// `Client::command` with the command's line.
     Raw(Command),
     /// A grip or release helper that waits for the outcome (several commands).
-    Wait { port: u8, kind: WaitKind, by: WaitBy },
+    Wait {
+        port: u8,
+        kind: WaitKind,
+        by: WaitBy,
+    },
     /// `watch_state` or `watch_value`: a few readings, then dropped.
-    Watch { port: u8, value: bool, interval: Duration, n: usize },
+    Watch {
+        port: u8,
+        value: bool,
+        interval: Duration,
+        n: usize,
+    },
     /// The handle's own accessors (no command): `is_closed`, `config`, `port().number()`,
     /// `port().client()`, `connection_events`.
     Local,
@@ -69,6 +78,16 @@ pub enum WaitKind {
     FlexGripScaled,
     FlexRelease,
     FlexReleaseScaled,
+}
+
+impl WaitKind {
+    /// A grip (its outcomes: holding, no part, fault).
+    pub fn is_grip(&self) -> bool {
+        matches!(
+            self,
+            WaitKind::Grip(_) | WaitKind::FlexGrip | WaitKind::FlexGripScaled
+        )
+    }
 }
 
 impl Op {
@@ -121,16 +140,6 @@ impl Op {
             Op::Wait { port, .. } => {
                 line.contains(&format!("({port},")) || line.contains(&format!("[{port}]"))
             }
-            _ => false,
-        }
-    }
-
-    /// Whether the controller holds the line until a motion or state change is done (manual
-    /// 2.1): other calls may wait behind it (rule 7 then allows their timeout).
-    pub fn holds_line(&self) -> bool {
-        match self {
-            Op::Typed(c, _) | Op::Execute(c) | Op::Raw(c) => holds(c),
-            Op::Wait { by, .. } => *by == WaitBy::Transition,
             _ => false,
         }
     }
@@ -203,8 +212,6 @@ pub struct CallRec {
     pub timeout: Duration,
     /// Its result read as its method returns it (`Debug`), or `None` if the caller gave up.
     pub result: Option<Result<String, Error>>,
-    /// Whether the call was made in the quiet phase (rule 10).
-    pub quiet: bool,
 }
 
 /// A port: 0 and 2 hold a device, 1 and 3 are empty (`SimConfig::et4`).
@@ -435,7 +442,14 @@ pub fn pick(rng: &mut Prng, labels: &AtomicU64) -> Op {
                     tag: format!("R{n}"),
                     params: [n, 1, 2, 3, 4, 5, 6, 7],
                 };
-                typed(C::SetGripCfg { port: p, index: i, config }, Render::Recipe)
+                typed(
+                    C::SetGripCfg {
+                        port: p,
+                        index: i,
+                        config,
+                    },
+                    Render::Recipe,
+                )
             } else {
                 let config = GripConfigF {
                     tag: format!("R{n}"),
@@ -522,9 +536,10 @@ pub async fn perform(client: &Client, op: &Op, rng: &mut Prng) -> Result<String,
                 WaitKind::Grip(i) => show(pt.grip_and_wait(i, by).await),
                 WaitKind::Release(i) => show(pt.release_and_wait(i, by).await),
                 WaitKind::FlexGrip => show(pt.flex_grip_and_wait(flex_grip(rng), by).await),
-                WaitKind::FlexGripScaled => {
-                    show(pt.flex_grip_scaled_and_wait(flex_grip_scaled(rng), by).await)
-                }
+                WaitKind::FlexGripScaled => show(
+                    pt.flex_grip_scaled_and_wait(flex_grip_scaled(rng), by)
+                        .await,
+                ),
                 WaitKind::FlexRelease => {
                     show(pt.flex_release_and_wait(flex_release(rng), by).await)
                 }
@@ -645,9 +660,7 @@ async fn typed(client: &Client, c: &Command) -> Result<String, Error> {
                 .await,
         ),
         C::DevState(p) => show(client.port(p).state().await),
-        C::Value { port, index: 0 } if port % 2 == 0 => {
-            show(client.port(port).position_um().await)
-        }
+        C::Value { port, index: 0 } if port % 2 == 0 => show(client.port(port).position_um().await),
         C::Value { port, index } => show(client.port(port).value(index).await),
         C::ValueF { port, index: 0 } if port % 2 == 0 => {
             show(client.port(port).position_mm().await)
