@@ -390,16 +390,23 @@ fn behind(
     (opened, t, last): (Instant, Instant, Instant),
     reason: &str,
 ) -> bool {
+    // The client's own marker query (GET_PROTOCOL_VERSION or GET_STATE, sent before a call of
+    // the type of an abandoned request, `client/link.rs`) is no caller's: it counts when a call
+    // it may have preceded was sent before the last response and got none.
+    let marker = ["GET_PROTOCOL_VERSION", "GET_STATE"]
+        .iter()
+        .any(|m| reason.contains(&format!("no response to {m} ")));
     calls.iter().any(|c| {
         c.client == i
             && c.start < last
             && c.end >= opened
             && !answered(c)
-            && reason.contains(&format!("no response to {} ", c.request.message_type()))
-            && c.start
-                .checked_add(c.timeout)
-                .and_then(|d| d.checked_add(view.give_up_after))
-                .is_some_and(|g| g <= t + DELIVERY_MARGIN)
+            && (marker
+                || (reason.contains(&format!("no response to {} ", c.request.message_type()))
+                    && c.start
+                        .checked_add(c.timeout)
+                        .and_then(|d| d.checked_add(view.give_up_after))
+                        .is_some_and(|g| g <= t + DELIVERY_MARGIN)))
     })
 }
 
