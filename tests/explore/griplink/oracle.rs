@@ -102,7 +102,87 @@ pub fn judge(
     }
     timeouts(views, calls, &sent, dropped, &mut out);
     fault_waits(calls, &sent, &mut out);
+    helpers(calls, &sent, &mut out);
     out
+}
+
+/// Rule 2 for the helpers: each reading a watch yielded is a reply to its query (`DEVSTATE` or
+/// `VALUEF` of its port) sent to that client during the watch, and a wait's outcome is a state
+/// the device reported (`DEVSTATE` or `WSTR` of its port) during the wait.
+fn helpers(calls: &[CallRec], sent: &[Vec<Sent>], out: &mut Vec<String>) {
+    for c in calls {
+        let Some(Ok(shown)) = &c.result else { continue };
+        let during = |line: &str| -> Vec<&str> {
+            sent[c.client]
+                .iter()
+                .filter(|s| s.exchange.request == line)
+                .filter(|s| s.exchange.sent_at >= c.start && s.exchange.sent_at <= c.end)
+                .map(|s| s.exchange.reply.as_str())
+                .collect()
+        };
+        match &c.op {
+            Op::Watch { port, value, .. } => {
+                let (line, as_read) = if *value {
+                    (format!("VALUEF[{port}][0]?"), Render::Float)
+                } else {
+                    (format!("DEVSTATE[{port}]?"), Render::State)
+                };
+                let expect = Op::Typed(
+                    if *value {
+                        gripper::griplink::command::Command::ValueF {
+                            port: *port,
+                            index: 0,
+                        }
+                    } else {
+                        gripper::griplink::command::Command::DevState(*port)
+                    },
+                    as_read,
+                )
+                .expect();
+                let readings: BTreeSet<String> = during(&line)
+                    .into_iter()
+                    .filter_map(|r| interpret(&line, expect, r).ok())
+                    .filter_map(|a| render(as_read, &a))
+                    .map(|v| format!("Ok({v})"))
+                    .collect();
+                for item in shown.split(", ").filter(|i| i.starts_with("Ok(")) {
+                    if !readings.contains(item) {
+                        out.push(format!(
+                            "2 (the controller's answer): client {} {} yielded {item}, which the controller did not send to {line} during the watch",
+                            c.client,
+                            c.op.kind()
+                        ));
+                    }
+                }
+            }
+            Op::Wait { port, kind, .. } => {
+                let code = match (kind.is_grip(), shown.as_str()) {
+                    (true, "Holding") => 5,
+                    (true, "NoPart") => 4,
+                    (false, "Released") => 3,
+                    (_, "Fault") => 7,
+                    _ => continue,
+                };
+                let states = [format!("DEVSTATE[{port}]="), format!("WSTR[{port}]=")];
+                let reported = [format!("DEVSTATE[{port}]?"), format!("WSTR[{port}]?")]
+                    .iter()
+                    .flat_map(|l| during(l))
+                    .any(|r| {
+                        states
+                            .iter()
+                            .any(|k| r.strip_prefix(k.as_str()) == Some(&code.to_string()))
+                    });
+                if !reported {
+                    out.push(format!(
+                        "2 (the controller's answer): client {} {} ended {shown}, a state the device did not report during the wait",
+                        c.client,
+                        c.op.kind()
+                    ));
+                }
+            }
+            _ => {}
+        }
+    }
 }
 
 /// Rule 7 for the grip helpers started in `DS_FAULT` (client docs, "Waiting for a motion":
