@@ -288,3 +288,68 @@ where
     let lost = lost.load(Ordering::SeqCst) || r.as_ref().is_err_and(|e| e.is_connection_lost());
     after_close(index, what, &after, lost)
 }
+
+/// One reply a server sent on one of a client's sessions, and when it reached the client intact
+/// (the evidence of rules 6-8 of the stream scenarios).
+pub struct Sent<'a, E> {
+    /// Its place in the records: (server generation, index).
+    pub key: (u64, usize),
+    pub gen: u64,
+    pub session: u64,
+    pub exchange: &'a E,
+    /// When its last byte reached the client (`None`: never, e.g. cut off).
+    pub delivered: Option<tokio::time::Instant>,
+}
+
+/// Every reply sent on one of `sessions`, in order: each record of `records` (by generation)
+/// whose session (`session_of`) is one of them, with when its bytes (`len` long, written one
+/// after another on the session) reached the client.
+pub fn sent_on<'a, E>(
+    sessions: &[SessionRec],
+    records: &'a [Vec<E>],
+    session_of: impl Fn(&E) -> u64,
+    len: impl Fn(&E) -> u64,
+) -> Vec<Sent<'a, E>> {
+    let mut out = Vec::new();
+    for s in sessions {
+        let mut end = 0u64;
+        for (j, e) in records[s.gen as usize].iter().enumerate() {
+            if session_of(e) != s.session {
+                continue;
+            }
+            end += len(e);
+            out.push(Sent {
+                key: (s.gen, j),
+                gen: s.gen,
+                session: s.session,
+                exchange: e,
+                delivered: s.delivered_by(end),
+            });
+        }
+    }
+    out
+}
+
+/// The session a client used at `t` (the last one opened by then).
+pub fn session_at(sessions: &[SessionRec], t: tokio::time::Instant) -> Option<&SessionRec> {
+    sessions.iter().rev().find(|s| s.opened <= t)
+}
+
+/// Rule 6's measure: how long before `t` the last reply on session `s` reached the client (or
+/// the session opened, if later). The documented give-up time counts from when a request waits
+/// at the front, so a give-up needs at least `give_up_after` of it.
+pub fn silence_before<E>(
+    s: &SessionRec,
+    sent: &[Sent<'_, E>],
+    t: tokio::time::Instant,
+) -> (Duration, tokio::time::Instant) {
+    let last = sent
+        .iter()
+        .filter(|x| x.gen == s.gen && x.session == s.session)
+        .filter_map(|x| x.delivered)
+        .filter(|&d| d <= t)
+        .max()
+        .unwrap_or(s.opened)
+        .max(s.opened);
+    (t - last, last)
+}

@@ -33,7 +33,7 @@ use tokio::time::Instant;
 
 use super::workload::{CallRec, Op, Render};
 use crate::core::matching;
-use crate::core::servers::SessionRec;
+use crate::core::servers::{self, session_at, silence_before, SessionRec};
 
 /// How late a call may end after its timeout (the task's own bookkeeping; simulated time).
 pub const CALL_SLACK: Duration = Duration::from_millis(10);
@@ -54,35 +54,16 @@ pub struct ClientView {
 }
 
 /// A reply the controller sent: where, what, and when it reached the client intact.
-struct Sent<'a> {
-    key: (u64, usize),
-    session: u64,
-    gen: u64,
-    exchange: &'a SimExchange,
-    /// When its last byte reached the client (`None`: never).
-    delivered: Option<Instant>,
-}
+type Sent<'a> = servers::Sent<'a, SimExchange>;
 
 /// Every reply sent on one of `view`'s sessions, in order, with when it was delivered.
 fn sent_on<'a>(view: &ClientView, records: &'a [Vec<SimExchange>]) -> Vec<Sent<'a>> {
-    let mut out = Vec::new();
-    for s in &view.sessions {
-        let mut end = 0u64;
-        for (j, e) in records[s.gen as usize].iter().enumerate() {
-            if e.session != s.session {
-                continue;
-            }
-            end += e.reply.len() as u64 + 1;
-            out.push(Sent {
-                key: (s.gen, j),
-                session: s.session,
-                gen: s.gen,
-                exchange: e,
-                delivered: s.delivered_by(end),
-            });
-        }
-    }
-    out
+    servers::sent_on(
+        &view.sessions,
+        records,
+        |e| e.session,
+        |e| e.reply.len() as u64 + 1,
+    )
 }
 
 /// The oracle over every client's calls and every controller's record. `dropped`: the
@@ -396,11 +377,6 @@ fn render(render: Render, a: &Answer) -> Option<String> {
     })
 }
 
-/// The session a client used at `t` (the last one opened by then).
-fn session_at(view: &ClientView, t: Instant) -> Option<&SessionRec> {
-    view.sessions.iter().rev().find(|s| s.opened <= t)
-}
-
 /// Whether a reply on the session was too long for the client's line limit (the client
 /// discards it, documented: `ClientConfig::max_line_len`).
 fn too_long(view: &ClientView, sent: &[Sent], gen: u64, session: u64) -> bool {
@@ -458,23 +434,15 @@ fn losses(
     out: &mut Vec<String>,
 ) {
     for (t, reason) in &view.losses {
-        let Some(s) = session_at(view, *t) else {
+        let Some(s) = session_at(&view.sessions, *t) else {
             continue;
         };
         // After a dropped reply the pairing is shifted by one (a later reply taken for the
         // front's, which stays away): a reply reaching the client is no sign that the front
         // request was answered, so the silence cannot be measured.
         if reason.contains("long after its timeout") && !dropped {
-            // The last reply line that reached the client on that session before the loss.
-            let last = sent
-                .iter()
-                .filter(|x| x.gen == s.gen && x.session == s.session)
-                .filter_map(|x| x.delivered)
-                .filter(|&d| d <= *t)
-                .max()
-                .unwrap_or(s.opened)
-                .max(s.opened);
-            let silence = *t - last;
+            // Since the last reply line that reached the client on that session.
+            let (silence, last) = silence_before(s, sent, *t);
             if silence < view.give_up_after {
                 let tag = if behind(i, view, calls, (s.opened, *t, last), reason) {
                     " [the request waited behind another's reply; its give-up time counted from when it was sent]"

@@ -19,7 +19,7 @@
 //!
 //! Rule 9 (a stop is sent at once) has nothing to judge: the Smart Grasping protocol has no stop.
 
-use std::collections::BTreeSet;
+use std::collections::{BTreeMap, BTreeSet};
 use std::time::Duration;
 
 use gripper::smartgrasp::frame::{AnyResponseFrame, FRAME_LEN};
@@ -31,7 +31,7 @@ use gripper::smartgrasp::{
 use tokio::time::Instant;
 
 use crate::core::matching;
-use crate::core::servers::SessionRec;
+use crate::core::servers::{self, session_at, silence_before, SessionRec};
 
 /// How late a call may end after its timeout (the task's own bookkeeping; simulated time).
 pub const CALL_SLACK: Duration = Duration::from_millis(10);
@@ -173,15 +173,7 @@ fn fits(c: &CallRec, r: Option<Response>) -> bool {
 }
 
 /// A response the server sent: where, what, and when it reached the client intact.
-struct Sent<'a> {
-    key: (u64, usize),
-    gen: u64,
-    session: u64,
-    exchange: &'a SimExchange,
-    delivered: Option<Instant>,
-    /// Part of the session's opening sequence (the client's own requests, no caller's).
-    opening: bool,
-}
+type Sent<'a> = servers::Sent<'a, SimExchange>;
 
 /// The opening sequence's requests, in their order (`client/session.rs`): a session's records
 /// that start with them in this order are the client's own.
@@ -194,25 +186,27 @@ const OPENING: [MessageType; 6] = [
     MessageType::SetWorkspace,
 ];
 
+/// Every response sent on one of `view`'s sessions, in order, with when it was delivered.
 fn sent_on<'a>(view: &ClientView, records: &'a [Vec<SimExchange>]) -> Vec<Sent<'a>> {
-    let mut out = Vec::new();
-    for s in &view.sessions {
-        let (mut end, mut step) = (0u64, Some(0usize));
-        for (j, e) in records[s.gen as usize].iter().enumerate() {
-            if e.session != s.session {
-                continue;
-            }
-            end += e.response.len() as u64;
-            let t = e.request.header().message_type;
-            step = step.and_then(|k| OPENING[k..].iter().position(|&o| o == t).map(|p| k + p + 1));
-            out.push(Sent {
-                key: (s.gen, j),
-                gen: s.gen,
-                session: s.session,
-                exchange: e,
-                delivered: s.delivered_by(end),
-                opening: step.is_some(),
-            });
+    servers::sent_on(
+        &view.sessions,
+        records,
+        |e| e.session,
+        |e| e.response.len() as u64,
+    )
+}
+
+/// The keys of the responses to each session's opening sequence (the client's own requests, no
+/// caller's): a session's records that start with [`OPENING`]'s requests in that order.
+fn openings(sent: &[Sent]) -> BTreeSet<(u64, usize)> {
+    let mut out = BTreeSet::new();
+    let mut step: BTreeMap<(u64, u64), Option<usize>> = BTreeMap::new();
+    for s in sent {
+        let k = step.entry((s.gen, s.session)).or_insert(Some(0));
+        let t = s.exchange.request.header().message_type;
+        *k = k.and_then(|k| OPENING[k..].iter().position(|&o| o == t).map(|p| k + p + 1));
+        if k.is_some() {
+            out.insert(s.key);
         }
     }
     out
@@ -341,20 +335,12 @@ fn losses(
     out: &mut Vec<String>,
 ) {
     for (t, reason) in &view.losses {
-        let Some(s) = view.sessions.iter().rev().find(|s| s.opened <= *t) else {
+        let Some(s) = session_at(&view.sessions, *t) else {
             continue;
         };
         let overdue = reason.contains("the server stopped answering");
         if overdue && !dropped && !view.corrupts {
-            let last = sent
-                .iter()
-                .filter(|x| x.gen == s.gen && x.session == s.session)
-                .filter_map(|x| x.delivered)
-                .filter(|&d| d <= *t)
-                .max()
-                .unwrap_or(s.opened)
-                .max(s.opened);
-            let silence = *t - last;
+            let (silence, last) = silence_before(s, sent, *t);
             if silence < view.give_up_after {
                 let tag = if behind(i, view, calls, (s.opened, *t, last), reason) {
                     " [the request waited behind another's response; its give-up time counted from when it was sent]"
@@ -424,6 +410,7 @@ fn timeouts(
     if dropped {
         return;
     }
+    let opening: Vec<BTreeSet<(u64, usize)>> = sent.iter().map(|s| openings(s)).collect();
     for c in calls {
         if views[c.client].corrupts {
             continue;
@@ -453,7 +440,7 @@ fn timeouts(
                     && (marker
                         || o.request.to_any_frame(e.request.version()).ok() == Some(e.request))
             });
-            !s.opening
+            !opening[c.client].contains(&s.key)
                 && c.request.to_any_frame(e.request.version()).ok() == Some(e.request)
                 && e.sent_at >= c.start
                 && deadline.is_none_or(|dl| d + DELIVERY_MARGIN < dl)
