@@ -16,11 +16,11 @@ use std::time::Duration;
 
 use gripper::griplink::command::Command;
 use gripper::griplink::sim::{Fault, SimConfig, SimExchange, SimServer};
-use gripper::griplink::{Client, ClientConfig, Error};
+use gripper::griplink::{Client, ClientConfig, Error, WaitBy};
 use tokio::time::Instant;
 
 use self::oracle::ClientView;
-use self::workload::{perform, pick, timeout_of, CallRec, Op, Render};
+use self::workload::{perform, pick, timeout_of, CallRec, Op, Render, WaitKind};
 use crate::core::phases::{
     draw_restart, draw_shape, fault_phase, open_retrying, reconnect_policy, run_line,
     unless_given_up, DocumentedErrors,
@@ -213,6 +213,10 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
         );
         violations.extend(quiet.await);
         violations.extend(quiet_kinds(ctx, &run_wide).await);
+        // One run in eight, chosen from the seed without a draw (every other path stays).
+        if ctx.index == 0 && seed.rotate_left(17) % 8 == 0 {
+            fault_again(ctx, &sims, &run_wide).await;
+        }
     }
     for ctx in &ctxs {
         // Closed again even if a caller closed it: its close() may have timed out before
@@ -272,6 +276,55 @@ fn device_faults(rng: &mut Prng, sims: &Sims, trace: &SharedTrace) {
             sim.fault_next_motion(port);
         });
     }
+}
+
+/// Issue 29 G, on purpose (the fault phase meets it only by chance): the empty-handed gripper on
+/// port 2 closes on nothing (`DS_NO_PART` at its limit), faults, and a `grip_and_wait` starts in
+/// `DS_FAULT`; an `ENABLE` of the same port shows the re-enable (a state other than `DS_FAULT`
+/// read after the command: the simulator keeps a motion's start state until its end, so it
+/// shows none of its own), then the device faults again, its fingers where they were. The
+/// client docs say that state and the `DS_FAULT` read after it end the wait: rule 7
+/// (`oracle.rs`, `fault_waits`) judges the 1.5 s wait, well below the 2 s re-enable window that
+/// would end it otherwise.
+async fn fault_again(ctx: &Ctx, sims: &Sims, run_wide: &RunWide) {
+    let client = ctx.client.with_timeout(Duration::from_secs(20));
+    let port = client.port(2);
+    let prepared = (port.home().await, port.grip_and_wait(0, WaitBy::Polling(Duration::from_millis(10))).await);
+    note(&run_wide.trace, format!("quiet client {}: fault again, prepared {prepared:?}", ctx.index));
+    let sim = sims.current().0;
+    sim.inject_device_fault(2);
+    sim.fault_next_motion(2);
+    let op = Op::Wait {
+        port: 2,
+        kind: WaitKind::Grip(0),
+        by: WaitBy::Polling(Duration::from_millis(10)),
+    };
+    let timeout = Duration::from_millis(1500);
+    let waiter = ctx.client.with_timeout(timeout);
+    let start = Instant::now();
+    // The re-enable shows (ENABLE: `DS_DISABLED`), then the device faults again, its fingers
+    // where they were.
+    let enable = async {
+        tokio::time::sleep(Duration::from_millis(20)).await;
+        let enabled = port.enable().await;
+        tokio::time::sleep(Duration::from_millis(100)).await;
+        sim.inject_device_fault(2);
+        enabled
+    };
+    let mut rng = Prng::new(0);
+    let (result, enabled) = tokio::join!(perform(&waiter, &op, &mut rng), enable);
+    note(
+        &run_wide.trace,
+        format!("quiet client {}: fault again: {result:?} (enable {enabled:?})", ctx.index),
+    );
+    run_wide.log.lock().unwrap().push(CallRec {
+        client: ctx.index,
+        op,
+        start,
+        end: Instant::now(),
+        timeout,
+        result: Some(result),
+    });
 }
 
 /// Rule 10: in the quiet phase one call of every kind (one command each, valid arguments, a
