@@ -289,8 +289,18 @@ fn device_faults(rng: &mut Prng, sims: &Sims, trace: &SharedTrace) {
 async fn fault_again(ctx: &Ctx, sims: &Sims, run_wide: &RunWide) {
     let client = ctx.client.with_timeout(Duration::from_secs(20));
     let port = client.port(2);
-    let prepared = (port.home().await, port.grip_and_wait(0, WaitBy::Polling(Duration::from_millis(10))).await);
-    note(&run_wide.trace, format!("quiet client {}: fault again, prepared {prepared:?}", ctx.index));
+    let prepared = (
+        port.home().await,
+        port.grip_and_wait(0, WaitBy::Polling(Duration::from_millis(10)))
+            .await,
+    );
+    note(
+        &run_wide.trace,
+        format!(
+            "quiet client {}: fault again, prepared {prepared:?}",
+            ctx.index
+        ),
+    );
     let sim = sims.current().0;
     sim.inject_device_fault(2);
     sim.fault_next_motion(2);
@@ -315,7 +325,10 @@ async fn fault_again(ctx: &Ctx, sims: &Sims, run_wide: &RunWide) {
     let (result, enabled) = tokio::join!(perform(&waiter, &op, &mut rng), enable);
     note(
         &run_wide.trace,
-        format!("quiet client {}: fault again: {result:?} (enable {enabled:?})", ctx.index),
+        format!(
+            "quiet client {}: fault again: {result:?} (enable {enabled:?})",
+            ctx.index
+        ),
     );
     run_wide.log.lock().unwrap().push(CallRec {
         client: ctx.index,

@@ -193,6 +193,11 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
         );
         violations.extend(quiet.await);
         violations.extend(quiet_kinds(ctx, version, &log, &trace).await);
+        // One run in eight with a single reconnecting client, chosen from the seed without a
+        // draw (every other path stays).
+        if ctxs.len() == 1 && ctx.reconnects && seed.rotate_left(23) % 8 == 0 {
+            violations.extend(slow_project(ctx, version, &sims, &trace).await);
+        }
     }
     for ctx in &ctxs {
         ctx.closing.store(true, Ordering::SeqCst);
@@ -387,6 +392,64 @@ async fn quiet_kinds(
         });
     }
     out
+}
+
+/// Issue 29 J, on purpose (the simulator answers SET_PROJECT at once; a delayed response is one
+/// response, not the restore after a reconnect): the program's `set_project` works with a
+/// timeout longer than the configured detection timeout against a server that takes longer
+/// than that; the server restarts and keeps taking that long for SET_PROJECT (30 reconnect
+/// attempts' worth). The client docs: a reconnect restores "the last ... SET_PROJECT the server
+/// accepted", and `with_timeout` exists so that a slow SET_PROJECT "does not re-open the
+/// session"; a client that restores it with the configured timeout never gets its session back.
+/// Rule 10: a GET_STATE after the restart must be served within 30 s.
+async fn slow_project(ctx: &Ctx, version: u16, sims: &Sims, trace: &SharedTrace) -> Vec<String> {
+    let detection = ctx.config.detection_timeout;
+    let slow = detection + Duration::from_millis(300);
+    let worked = slow + Duration::from_secs(2);
+    sims.current().0.inject(Fault::DelayReply(slow));
+    let set = ctx.client.with_timeout(worked).set_project(0).await;
+    note(
+        trace,
+        format!("quiet client {}: slow SET_PROJECT {set:?}", ctx.index),
+    );
+    if set.is_err() {
+        return Vec::new();
+    }
+    // The next server answers GET_PROTOCOL_VERSION, GET_STATE and REGISTER_CLIENT (the quiet
+    // phase registered) at once and SET_PROJECT after `slow`, attempt after attempt.
+    let fresh = new_sim(version);
+    for _ in 0..30 {
+        for _ in 0..3 {
+            fresh.inject(Fault::DelayReply(Duration::ZERO));
+        }
+        fresh.inject(Fault::DelayReply(slow));
+    }
+    let restart = sims.restart_at(
+        Duration::ZERO,
+        move || fresh,
+        SimServer::recording,
+        trace.clone(),
+    );
+    let _ = restart.await;
+    let after = ctx
+        .client
+        .with_timeout(Duration::from_secs(30))
+        .get_state()
+        .await;
+    note(
+        trace,
+        format!(
+            "quiet client {}: GET_STATE after the slow restart {after:?}",
+            ctx.index
+        ),
+    );
+    match after {
+        Ok(_) => Vec::new(),
+        Err(e) => vec![format!(
+            "10 (the quiet phase serves every kind of call): client {} GET_STATE after a reconnect to a server that answers SET_PROJECT in {slow:?} (the program's set_project worked with a {worked:?} timeout; detection_timeout {detection:?}): {e:?}",
+            ctx.index
+        )],
+    }
 }
 
 /// Makes the call through `call` or through its typed method, by name; returns what the method
