@@ -3,8 +3,10 @@
 //! phase (recovery, promise 5; a stop during a motion, promise 3), closing, then the oracle.
 
 mod byte_stream;
+mod liveness;
 mod oracle;
 mod stale;
+mod tap;
 mod workload;
 
 use std::collections::BTreeSet;
@@ -16,7 +18,7 @@ use std::time::Duration;
 
 use gripper::wsg::command::id;
 use gripper::wsg::sim::{Model, SessionKind, SimConfig, SimEvent, SimServer};
-use gripper::wsg::{Client, Status};
+use gripper::wsg::{Client, Status, TransportKind};
 use tokio::time::Instant;
 
 use self::oracle::ClientView;
@@ -85,7 +87,7 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
         let mut crng = rng.fork();
         ctxs.push(Arc::new(
             open_client(
-                index, transport, &mut crng, level, settle, &sim, &faults_on, &trace,
+                index, transport, &mut crng, level, settle, &sim, sim_t0, &faults_on, &trace,
             )
             .await,
         ));
@@ -102,7 +104,22 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
             restart_at(at, &trace, move || sim.restart())
         })
     };
-    fault_phase(&mut rng, caps, &ctxs, caller, restart, &faults_on, &trace).await;
+    // One run in ten crowds each client with up to five times the callers (20 at full caps):
+    // more stops than the client keeps unanswered, more requests than a small queue holds.
+    let crowd = rng.one_in(10);
+    let callers = if crowd {
+        caps.callers * 5
+    } else {
+        caps.callers
+    };
+    if crowd {
+        note(&trace, format!("crowd: up to {callers} callers per client"));
+    }
+    let phase_caps = Caps { callers, ..caps };
+    fault_phase(
+        &mut rng, phase_caps, &ctxs, caller, restart, &faults_on, &trace,
+    )
+    .await;
 
     // The quiet phase.
     let mut quiet = Vec::new();
@@ -148,11 +165,21 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
                 .iter()
                 .map(|(s, log)| (*s, log.lock().unwrap().clone()))
                 .collect(),
+            taps: c
+                .taps
+                .lock()
+                .unwrap()
+                .iter()
+                .map(|(s, log)| (*s, log.lock().unwrap().clone()))
+                .collect(),
+            max_payload: c.options.max_payload(),
+            notes: c.notes.lock().unwrap().clone(),
         })
         .collect();
     let calls = log.calls.lock().unwrap().clone();
     let updates = log.updates.lock().unwrap().clone();
     let mut v = oracle::check(&calls, &updates, &record, sim_t0, &views);
+    v.extend(log.notes.lock().unwrap().iter().cloned());
     v.extend(quiet);
     drop(ctxs);
     drop(sim);
@@ -168,27 +195,41 @@ async fn open_client(
     level: u32,
     settle: Duration,
     sim: &Arc<SimServer>,
+    sim_t0: Instant,
     faults_on: &Arc<AtomicBool>,
     trace: &SharedTrace,
 ) -> ClientCtx {
     let query_timeout = rng.millis(50, 1000);
-    let motion_timeout = rng.millis(1000, 10_000);
+    // Now and then "no timeout" for motions (issue 29 B: a motion whose final reply is lost
+    // must still end, on the probes' evidence).
+    let motion_timeout = if rng.one_in(20) {
+        Duration::MAX
+    } else {
+        rng.millis(1000, 10_000)
+    };
     let grace = rng.millis(50, 2000).max(settle + Duration::from_millis(50));
     let reconnect = transport != Transport::Udp && rng.one_in(2);
     let announce = transport == Transport::Tcp;
-    let mut b = Client::builder()
-        .query_timeout(query_timeout)
-        .motion_timeout(motion_timeout)
-        .late_reply_grace(grace)
-        .announce_disconnect(announce);
+    let options = BuilderOptions::draw(rng);
+    note(trace, format!("client {index}: {options:?}"));
+    let mut b = options.apply(
+        Client::builder()
+            .query_timeout(query_timeout)
+            .motion_timeout(motion_timeout)
+            .late_reply_grace(grace)
+            .announce_disconnect(announce),
+    );
     if rng.one_in(3) {
         b = b.partial_frame_timeout(rng.millis(20, 500));
     }
     if reconnect {
         b = b.reconnect(reconnect_policy());
     }
+    // A stream client without reconnect is attached (`ClientBuilder::attach`) one time in two.
+    let attach = !reconnect && rng.one_in(2);
     let sessions = Arc::new(Mutex::new(Vec::new()));
     let carried = Arc::new(Mutex::new(Vec::new()));
+    let taps = Arc::new(Mutex::new(Vec::new()));
     let faulted: crate::core::datagrams::FaultedLog = Default::default();
     let faulted_requests: crate::core::datagrams::FaultedLog = Default::default();
     let label = format!("client {index}");
@@ -229,12 +270,13 @@ async fn open_client(
             let profile = StreamProfile::random(rng, level, serial);
             note(trace, format!("{label}: {profile:?}"));
             let net = Arc::new(Mutex::new(rng.fork()));
-            let (sim, on, trace, sessions, carried) = (
+            let (sim, on, trace, sessions, carried, taps) = (
                 sim.clone(),
                 faults_on.clone(),
                 trace.clone(),
                 sessions.clone(),
                 carried.clone(),
+                taps.clone(),
             );
             let connect = move || {
                 let mut rng = net.lock().unwrap();
@@ -251,15 +293,35 @@ async fn open_client(
                 note(&trace, format!("{label}: connected as session {session}"));
                 sessions.lock().unwrap().push(session);
                 carried.lock().unwrap().push((session, down));
+                let tap = tap::TapLog::new();
+                taps.lock().unwrap().push((session, tap.clone()));
+                let c = tap::Tap::new(c, tap);
                 async move { Ok(c) }
             };
-            b.connect_with(connect)
-                .await
-                .expect("an in-memory connect cannot fail")
+            if attach {
+                let io = connect().await.expect("an in-memory connect cannot fail");
+                b.attach(io)
+            } else {
+                b.connect_with(connect)
+                    .await
+                    .expect("an in-memory connect cannot fail")
+            }
         }
     };
     let losses = Arc::new(Mutex::new(Vec::new()));
     workload::watch_losses(&client, losses.clone());
+    let expected = if transport == Transport::Udp {
+        TransportKind::Udp
+    } else {
+        TransportKind::Attached
+    };
+    let mut notes = Vec::new();
+    if client.transport() != expected {
+        notes.push(format!(
+            "2 (each answer is the device's): client {index}'s transport() is {:?}, not {expected:?}",
+            client.transport()
+        ));
+    }
     ClientCtx {
         index,
         losses,
@@ -274,6 +336,64 @@ async fn open_client(
         query_timeout,
         motion_timeout,
         grace,
+        options,
+        notes: Mutex::new(notes),
+        kinds: Default::default(),
+        sim: sim.clone(),
+        sim_t0,
+        taps,
+    }
+}
+
+/// The builder options a client is opened with besides its timeouts (issue 29: every option
+/// drawn, its extremes included).
+#[derive(Clone, Copy, Debug)]
+pub struct BuilderOptions {
+    /// `subscription_buffer` (None: the default).
+    pub subscription_buffer: Option<usize>,
+    /// `request_queue` (None: the default).
+    pub request_queue: Option<usize>,
+    /// `max_payload_len` (None: the default).
+    pub max_payload_len: Option<usize>,
+}
+
+impl BuilderOptions {
+    /// The draw: mostly the defaults, then small values, and now and then the extremes.
+    fn draw(rng: &mut Prng) -> Self {
+        let mut size = |small: u64, extreme: usize| match rng.below(8) {
+            0 => Some(rng.between(0, small) as usize),
+            1 if rng.one_in(4) => Some(extreme),
+            _ => None,
+        };
+        BuilderOptions {
+            subscription_buffer: size(4, usize::MAX),
+            request_queue: size(4, usize::MAX),
+            // 0 to 64 bytes: below the longest replies (system info, limits) and now and then
+            // below the barrier's echo.
+            max_payload_len: size(64, usize::MAX),
+        }
+    }
+
+    /// The builder with these options (and the connect timeout and serial exclusivity, which
+    /// an in-memory link ignores).
+    fn apply(self, mut b: gripper::wsg::ClientBuilder) -> gripper::wsg::ClientBuilder {
+        if let Some(n) = self.subscription_buffer {
+            b = b.subscription_buffer(n);
+        }
+        if let Some(n) = self.request_queue {
+            b = b.request_queue(n);
+        }
+        if let Some(n) = self.max_payload_len {
+            b = b.max_payload_len(n);
+        }
+        b.connect_timeout(Duration::from_secs(1))
+            .serial_exclusive(false)
+    }
+
+    /// The longest reply payload the client accepts.
+    pub fn max_payload(&self) -> usize {
+        self.max_payload_len
+            .unwrap_or(gripper::wsg::frame::DEFAULT_MAX_PAYLOAD_LEN)
     }
 }
 
@@ -288,8 +408,13 @@ async fn recovery(ctx: &ClientCtx, log: &Log, trace: &SharedTrace) -> Vec<String
     if ctx.closing.load(Ordering::SeqCst) {
         return Vec::new();
     }
+    // A motion timeout of Duration::MAX ("none"): its probes begin at the longest motion the
+    // workload draws instead (110 mm at 5 mm/s).
+    let motion = ctx.motion_timeout.min(Duration::from_secs(23));
+    // On UDP a datagram delayed before the faults stopped may come that much later.
+    let delayed = Duration::from_millis(crate::core::datagrams::MAX_DELAY_MS);
     let bound =
-        ctx.motion_timeout + ctx.grace + Duration::from_millis(500) + ctx.query_timeout + MAX_STALL;
+        motion + ctx.grace + Duration::from_millis(500) + ctx.query_timeout + MAX_STALL + delayed;
     tokio::time::sleep(bound).await;
     let lost = ctx.first_loss().is_some();
     let mut v = Vec::new();
@@ -299,15 +424,28 @@ async fn recovery(ctx: &ClientCtx, log: &Log, trace: &SharedTrace) -> Vec<String
         trace,
         format!("recovery client {}: system_info {r:?}", ctx.index),
     );
+    let too_long = || {
+        let max = ctx.options.max_payload();
+        too_long_reply(
+            &ctx.sim_record(),
+            id::SYSTEM_INFO,
+            start,
+            Instant::now(),
+            max,
+            ctx,
+        )
+    };
     match (&r, ctx.reconnect, lost) {
         (Ok(_), _, _) => {}
         (Err(gripper::wsg::Error::ConnectionLost(_)), false, true) => {}
+        (Err(gripper::wsg::Error::Timeout { .. }), _, _) if too_long() => {}
         _ => v.push(format!(
             "5 (recovery): client {} (reconnect {}, lost before: {lost}): {:?} after the faults stopped, the next call (system_info) ended {r:?}",
             ctx.index, ctx.reconnect, bound
         )),
     }
     let end = Instant::now();
+    v.extend(every_kind(ctx, log, trace, lost).await);
     // Its answer is checked like any other call's.
     log.calls.lock().unwrap().push(CallRec {
         client: ctx.index,
@@ -317,12 +455,75 @@ async fn recovery(ctx: &ClientCtx, log: &Log, trace: &SharedTrace) -> Vec<String
         start,
         end,
         limit: Some(ctx.query_timeout),
+        bad: false,
+        echo: None,
+        quiet: true,
         res: match r {
             Ok(_) => Res::Ok(workload::Expect::Success),
             Err(e) => workload::classify(&e),
         },
     });
     v
+}
+
+/// Promise 10: in the quiet phase every kind of call the client's callers made is served
+/// once more (valid arguments, the client's timeouts, one after the other): it ends on the
+/// device's answer, a value or a device status (which promises 2 and 4 judge), not on a
+/// `Timeout`, `ReplyLost`, a lost connection or any other error of the client's own. Excused:
+/// `ConnectionLost` of a client without reconnect that lost its connection (promise 5), and a
+/// `Timeout` whose reply the device sent longer than the client's `max_payload_len` (the
+/// documented drop; the oracle sees that reply in the record).
+async fn every_kind(ctx: &ClientCtx, log: &Log, trace: &SharedTrace, lost: bool) -> Vec<String> {
+    let kinds: Vec<u64> = ctx.kinds.lock().unwrap().iter().copied().collect();
+    let mut rng = Prng::new(0x5155_4945_5400 ^ ctx.index as u64);
+    let mut v = Vec::new();
+    for kind in kinds.into_iter().filter(|&k| !workload::is_close(k)) {
+        let who = format!("{}.quiet.{kind}", ctx.index);
+        workload::one_call(ctx, &who, &mut rng, workload::How::Quiet(kind), log, trace).await;
+        let c = log
+            .calls
+            .lock()
+            .unwrap()
+            .last()
+            .cloned()
+            .expect("just logged");
+        let served = match &c.res {
+            Res::Ok(_) | Res::Device(..) => true,
+            Res::Lost => !ctx.reconnect && lost,
+            Res::Timeout => {
+                let max = ctx.options.max_payload();
+                too_long_reply(&ctx.sim_record(), c.id, c.start, c.end, max, ctx)
+            }
+            _ => false,
+        };
+        if !served {
+            v.push(format!(
+                "10 (the quiet phase serves every kind of call): client {} {} {} ended {:?} in [{}, {}] after the faults stopped",
+                ctx.index, c.who, c.op, c.res, oracle::t(c.start, ctx.sim_t0), oracle::t(c.end, ctx.sim_t0)
+            ));
+        }
+    }
+    v
+}
+
+/// Whether the device sent client `ctx` a reply of `id` in `[start, end]` longer than `max`
+/// (status included): one the client drops as documented (`ClientBuilder::max_payload_len`).
+fn too_long_reply(
+    record: &gripper::wsg::sim::SimRecording,
+    id: u8,
+    start: Instant,
+    end: Instant,
+    max: usize,
+    ctx: &ClientCtx,
+) -> bool {
+    let sessions = ctx.sessions.lock().unwrap().clone();
+    record.records.iter().any(|r| {
+        let at = ctx.sim_t0 + r.at;
+        matches!(&r.event, SimEvent::Reply { id: rid, data, .. } if *rid == id && data.len() + 2 > max)
+            && sessions.contains(&r.session)
+            && at >= start
+            && at <= end
+    })
 }
 
 /// Promise 3, live: with the network quiet, a stop sent while a slow motion runs reaches the

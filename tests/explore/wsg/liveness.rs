@@ -1,0 +1,197 @@
+//! The WSG oracle's rules on errors and liveness (issue 29), numbered as for every protocol:
+//! 6 (a connection is lost only for cause), 7 (a Timeout only when its reply did not arrive in
+//! time), 8 (a call without timeout ends, and frees what it held) and 9 (a stop is sent at
+//! once, faults or not). Rule 10 (the quiet phase serves every kind of call) lives with the
+//! quiet phase (`mod.rs`, `every_kind`).
+
+use std::time::Duration;
+
+use gripper::wsg::command::id;
+use gripper::wsg::sim::{SimEvent, SimRecording};
+use gripper::wsg::Status;
+use tokio::time::Instant;
+
+use super::byte_stream::delivered_intact;
+use super::oracle::{is_motion, t, ClientView, CALL_SLACK};
+use super::tap::written_frames;
+use super::workload::{CallRec, Res, NEVER_ENDS};
+
+/// How soon after a stop call its stop frame must be written (promise 9): at once, in
+/// simulated time; this only absorbs the hand-over from the caller to the connection task.
+const AT_ONCE: Duration = Duration::from_millis(1);
+
+/// Every violation of rules 6–9 for one client.
+pub fn check(
+    calls: &[&CallRec],
+    record: &SimRecording,
+    t0: Instant,
+    view: &ClientView,
+    udp: bool,
+    close_start: Option<Instant>,
+) -> Vec<String> {
+    let mut v = Vec::new();
+    v.extend(lost_for_cause(calls, t0, view, udp));
+    v.extend(timeouts(calls, record, t0, view, udp, close_start));
+    for c in calls.iter().filter(|c| c.res == Res::Hung) {
+        v.push(format!(
+            "8 (a call without timeout ends, and frees what it held): {} {} began at {} and had not ended {NEVER_ENDS:?} later",
+            c.who, c.op, t(c.start, t0)
+        ));
+    }
+    if !udp {
+        v.extend(stops_at_once(calls, t0, view, close_start));
+    }
+    v
+}
+
+/// Rule 6: the client reports a loss (`connection_events`), or fails a call with
+/// `ConnectionLost`, only once its link ended: on TCP and serial the client's end of the
+/// stream read its end (the schedule cut it, the device closed or restarted) or a write
+/// failed (`tap.rs`); UDP has no connection to lose. The WSG binary client has no give-up
+/// time on silence: the link ending is its only cause.
+fn lost_for_cause(calls: &[&CallRec], t0: Instant, view: &ClientView, udp: bool) -> Vec<String> {
+    let mut v = Vec::new();
+    let mut ends: Vec<Instant> = view.taps.iter().filter_map(|(_, l)| l.ended).collect();
+    ends.sort();
+    let mut previous: Option<Instant> = None;
+    for &lost in &view.losses {
+        // One link end per loss: after a loss the client runs on a new link (or none).
+        let cause = ends
+            .iter()
+            .any(|&e| e <= lost && previous.is_none_or(|p| e > p));
+        if udp || !cause {
+            v.push(format!(
+                "6 (a connection is lost only for cause): the client reported its connection lost at {}, but its link had not ended (no end of stream, no failed write{})",
+                t(lost, t0),
+                previous.map(|p| format!(" since the loss at {}", t(p, t0))).unwrap_or_default()
+            ));
+        }
+        previous = Some(lost);
+    }
+    for c in calls.iter().filter(|c| c.res == Res::Lost) {
+        if !view.losses.iter().any(|&l| l <= c.end) {
+            v.push(format!(
+                "6 (a connection is lost only for cause): {} {} ended ConnectionLost at {}, but the client had reported no loss",
+                c.who, c.op, t(c.end, t0)
+            ));
+        }
+    }
+    v
+}
+
+/// Rule 7: a `Timeout` only when the call's reply did not arrive in time. A call with a
+/// timeout of its own that is no motion (a motion's acknowledgement is awaited the query
+/// timeout + grace, which may be shorter: documented) fails with `Timeout` at its deadline,
+/// not before. On TCP and serial a loop-back's reply is its own (its payload is unique): if the
+/// link delivered it intact (`byte_stream.rs`) before the call's deadline while the client
+/// held that connection, the call must have got it.
+fn timeouts(
+    calls: &[&CallRec],
+    record: &SimRecording,
+    t0: Instant,
+    view: &ClientView,
+    udp: bool,
+    close_start: Option<Instant>,
+) -> Vec<String> {
+    let mut v = Vec::new();
+    for c in calls.iter().filter(|c| c.res == Res::Timeout) {
+        let Some(limit) = c.limit else { continue };
+        let took = c.end - c.start;
+        if !is_motion(c.id) && c.op != "close" && took + AT_ONCE < limit {
+            v.push(format!(
+                "7 (a Timeout only when its reply did not arrive in time): {} {} ended Timeout after {took:?}, before its timeout of {limit:?}",
+                c.who, c.op
+            ));
+            continue;
+        }
+        let (Some(echo), false) = (&c.echo, udp) else {
+            continue;
+        };
+        if echo.len() + 2 > view.max_payload {
+            continue; // Dropped by the client as documented (`max_payload_len`).
+        }
+        let deadline = c.start + limit;
+        for (i, r) in record.records.iter().enumerate() {
+            let at = t0 + r.at;
+            let SimEvent::Reply {
+                id, status, data, ..
+            } = &r.event
+            else {
+                continue;
+            };
+            if *id != id::LOOP
+                || *status != Status::Success
+                || data[..] != echo[..]
+                || at < c.start
+                || !view.sessions.contains(&r.session)
+            {
+                continue;
+            }
+            let Some(got) = delivered_intact(record, view, i) else {
+                continue;
+            };
+            let held = view
+                .taps
+                .iter()
+                .any(|(s, l)| *s == r.session && l.ended.is_none_or(|e| e > got))
+                && close_start.is_none_or(|s| s > got);
+            if held && got + CALL_SLACK < deadline {
+                v.push(format!(
+                    "7 (a Timeout only when its reply did not arrive in time): {} {} ended Timeout at {}, but its own reply (the device sent it at {}) reached the client intact at {}, before its deadline {}",
+                    c.who, c.op, t(c.end, t0), t(at, t0), t(got, t0), t(deadline, t0)
+                ));
+            }
+        }
+    }
+    v
+}
+
+/// Rule 9 (TCP, serial): a stop or FAST STOP call's frame is written at once, whatever else is
+/// on the wire (manual 3.2.3/3.2.4: "unmittelbar"), in the fault phase as in the quiet one:
+/// the client wrote a frame of its id within [`AT_ONCE`] of the call, if the call found a
+/// live link (one opened before it that had not ended, no loss since) and the client was not
+/// closing.
+fn stops_at_once(
+    calls: &[&CallRec],
+    t0: Instant,
+    view: &ClientView,
+    close_start: Option<Instant>,
+) -> Vec<String> {
+    let mut v = Vec::new();
+    for c in calls {
+        let stop = c.id == id::STOP || c.id == id::FAST_STOP;
+        if !stop || c.bad || c.quiet || close_start.is_some_and(|s| s <= c.start + AT_ONCE) {
+            continue;
+        }
+        if c.res == Res::Cancelled && c.end < c.start + AT_ONCE {
+            continue;
+        }
+        // The link the call found: the last one opened by then.
+        let Some((_, tap)) = view.taps.iter().rev().find(|(_, l)| l.opened <= c.start) else {
+            continue;
+        };
+        let live = tap.ended.is_none_or(|e| e > c.start + AT_ONCE)
+            && !view
+                .losses
+                .iter()
+                .any(|&l| l >= tap.opened && l <= c.start + AT_ONCE);
+        if !live {
+            continue;
+        }
+        let sent = written_frames(tap)
+            .iter()
+            .any(|(at, f)| f.id == c.id && *at >= c.start && *at <= c.start + AT_ONCE);
+        if !sent {
+            let first = written_frames(tap)
+                .into_iter()
+                .find(|(at, f)| f.id == c.id && *at >= c.start)
+                .map(|(at, _)| format!("{:?} after the call", at - c.start))
+                .unwrap_or_else(|| "never".into());
+            v.push(format!(
+                "9 (a stop is sent at once, faults or not): {} {} (in the fault phase, at {}) was written to the link {first} (ended {:?})",
+                c.who, c.op, t(c.start, t0), c.res
+            ));
+        }
+    }
+    v
+}
