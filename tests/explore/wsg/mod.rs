@@ -210,8 +210,24 @@ async fn open_client(
     let grace = rng.millis(50, 2000).max(settle + Duration::from_millis(50));
     let reconnect = transport != Transport::Udp && rng.one_in(2);
     let announce = transport == Transport::Tcp;
-    let options = BuilderOptions::draw(rng);
+    let mut options = BuilderOptions::draw(rng);
     note(trace, format!("client {index}: {options:?}"));
+    if let Some(n) = options.request_queue {
+        // A request queue too large for tokio's channel panics as the client starts (a finding,
+        // counted by the panic hook as promise 1); that must not end the whole process, so
+        // the size is tried on a client of its own first, and the run goes on with the default.
+        let (io, _peer) = tokio::io::duplex(64);
+        let trial = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            Client::builder().request_queue(n).attach(io)
+        }));
+        if trial.is_err() {
+            note(
+                trace,
+                format!("client {index}: request_queue({n}) panicked; the default instead"),
+            );
+            options.request_queue = None;
+        }
+    }
     let mut b = options.apply(
         Client::builder()
             .query_timeout(query_timeout)
@@ -345,6 +361,16 @@ async fn open_client(
     }
 }
 
+/// Appended to a quiet-phase violation (promises 3, 5, 10) of a TCP or serial client whose
+/// `max_payload_len` is below the length of the echo of its own loop-back barriers
+/// ([`BARRIER_ECHO_LEN`]): the client drops every echo, so no barrier completes and an id that
+/// waits for one stays held (issue 29 C, open: a clear error or a clamp is the fix).
+pub const SHORT_OF_BARRIER: &str = "[max_payload_len below the barrier echo's length]";
+
+/// The payload length of a barrier's echo: E_SUCCESS (2 bytes) and the barrier's payload,
+/// "gripper barrier " and an 8-byte token (`client/task/recovery.rs`).
+pub const BARRIER_ECHO_LEN: usize = 2 + 16 + 8;
+
 /// The builder options a client is opened with besides its timeouts (issue 29: every option
 /// drawn, its extremes included).
 #[derive(Clone, Copy, Debug)]
@@ -404,7 +430,7 @@ impl BuilderOptions {
 /// longest stall ([`MAX_STALL`]): one that began just before the faults were turned off holds
 /// the bytes for that long afterwards (wsg-serial:0x51f787988b892550: a 2.98 s hold outlasted
 /// a 2.3 s bound; a false alarm).
-async fn recovery(ctx: &ClientCtx, log: &Log, trace: &SharedTrace) -> Vec<String> {
+async fn recovery(ctx: &Arc<ClientCtx>, log: &Arc<Log>, trace: &SharedTrace) -> Vec<String> {
     if ctx.closing.load(Ordering::SeqCst) {
         return Vec::new();
     }
@@ -440,8 +466,8 @@ async fn recovery(ctx: &ClientCtx, log: &Log, trace: &SharedTrace) -> Vec<String
         (Err(gripper::wsg::Error::ConnectionLost(_)), false, true) => {}
         (Err(gripper::wsg::Error::Timeout { .. }), _, _) if too_long() => {}
         _ => v.push(format!(
-            "5 (recovery): client {} (reconnect {}, lost before: {lost}): {:?} after the faults stopped, the next call (system_info) ended {r:?}",
-            ctx.index, ctx.reconnect, bound
+            "5 (recovery): client {} (reconnect {}, lost before: {lost}): {:?} after the faults stopped, the next call (system_info) ended {r:?} {}",
+            ctx.index, ctx.reconnect, bound, ctx.echo_tag()
         )),
     }
     let end = Instant::now();
@@ -473,13 +499,25 @@ async fn recovery(ctx: &ClientCtx, log: &Log, trace: &SharedTrace) -> Vec<String
 /// `ConnectionLost` of a client without reconnect that lost its connection (promise 5), and a
 /// `Timeout` whose reply the device sent longer than the client's `max_payload_len` (the
 /// documented drop; the oracle sees that reply in the record).
-async fn every_kind(ctx: &ClientCtx, log: &Log, trace: &SharedTrace, lost: bool) -> Vec<String> {
+async fn every_kind(
+    ctx: &Arc<ClientCtx>,
+    log: &Arc<Log>,
+    trace: &SharedTrace,
+    lost: bool,
+) -> Vec<String> {
     let kinds: Vec<u64> = ctx.kinds.lock().unwrap().iter().copied().collect();
     let mut rng = Prng::new(0x5155_4945_5400 ^ ctx.index as u64);
     let mut v = Vec::new();
     for kind in kinds.into_iter().filter(|&k| !workload::is_close(k)) {
         let who = format!("{}.quiet.{kind}", ctx.index);
-        workload::one_call(ctx, &who, &mut rng, workload::How::Quiet(kind), log, trace).await;
+        let (c2, l2, t2, mut r2) = (ctx.clone(), log.clone(), trace.clone(), rng.fork());
+        // In a task of its own: a panic (counted by the hook, promise 1) ends only this call.
+        let call = tokio::spawn(async move {
+            workload::one_call(&c2, &who, &mut r2, workload::How::Quiet(kind), &l2, &t2).await
+        });
+        if call.await.is_err() {
+            continue;
+        }
         let c = log
             .calls
             .lock()
@@ -498,8 +536,8 @@ async fn every_kind(ctx: &ClientCtx, log: &Log, trace: &SharedTrace, lost: bool)
         };
         if !served {
             v.push(format!(
-                "10 (the quiet phase serves every kind of call): client {} {} {} ended {:?} in [{}, {}] after the faults stopped",
-                ctx.index, c.who, c.op, c.res, oracle::t(c.start, ctx.sim_t0), oracle::t(c.end, ctx.sim_t0)
+                "10 (the quiet phase serves every kind of call): client {} {} {} ended {:?} in [{}, {}] after the faults stopped {}",
+                ctx.index, c.who, c.op, c.res, oracle::t(c.start, ctx.sim_t0), oracle::t(c.end, ctx.sim_t0), ctx.echo_tag()
             ));
         }
     }
@@ -584,8 +622,8 @@ async fn stop_is_not_queued(
     match stop_seen {
         Some(r) if sim_t0 + r.at <= start + Duration::from_millis(1) => {}
         other => v.push(format!(
-            "3 (a stop goes out at once): a stop called during a slow motion on a quiet network reached the device {:?} after the call (stop {stopped:?} after {took:?})",
-            other.map(|r| (sim_t0 + r.at).saturating_duration_since(start))
+            "3 (a stop goes out at once): a stop called during a slow motion on a quiet network reached the device {:?} after the call (stop {stopped:?} after {took:?}) {}",
+            other.map(|r| (sim_t0 + r.at).saturating_duration_since(start)), ctx.echo_tag()
         )),
     }
     if !matches!(
@@ -596,7 +634,8 @@ async fn stop_is_not_queued(
         }))
     ) {
         v.push(format!(
-            "3 (a stop stops): the motion stopped during its run ended {motion:?}"
+            "3 (a stop stops): the motion stopped during its run ended {motion:?} {}",
+            ctx.echo_tag()
         ));
     }
     v

@@ -145,6 +145,17 @@ pub struct ClientCtx {
 }
 
 impl ClientCtx {
+    /// [`super::SHORT_OF_BARRIER`] if it applies to this client (a byte stream whose
+    /// `max_payload_len` is below a barrier echo's length), else empty.
+    pub fn echo_tag(&self) -> &'static str {
+        let stream = self.client.transport() != gripper::wsg::TransportKind::Udp;
+        if stream && self.options.max_payload() < super::BARRIER_ECHO_LEN {
+            super::SHORT_OF_BARRIER
+        } else {
+            ""
+        }
+    }
+
     /// The simulator's record so far.
     pub fn sim_record(&self) -> gripper::wsg::sim::SimRecording {
         self.sim.recording()
