@@ -20,6 +20,56 @@ use super::workload::{CallRec, Res, NEVER_ENDS};
 /// simulated time; this only absorbs the hand-over from the caller to the connection task.
 const AT_ONCE: Duration = Duration::from_millis(1);
 
+/// Appended to a violation of rules 5, 8 or 10 (a call that never ended, or timed out, after
+/// the faults stopped) when no request of the call's id reached the device during the call:
+/// the client held the id (an earlier request's, a fence waiting for a barrier). Issue 29 B, C
+/// and the stuck fences of the WSG report (`known.txt`); a call whose request did reach the
+/// device and still failed is not tagged.
+pub const NOT_SENT: &str = "[no request of its id reached the device during the call]";
+
+/// Appended to a rule 8 violation when the device acknowledged the call's command
+/// (E_CMD_PENDING) during the call: a motion or finger power on whose final reply did not end
+/// it (issue 29 B: the probes' next step is scheduled at the never-deadline).
+pub const ACKNOWLEDGED: &str = "[the device acknowledged it during the call]";
+
+/// Whether the device received a request of `id` (intact or not) from one of `ours` sessions
+/// in `[start, end]`.
+pub fn request_reached(
+    record: &SimRecording,
+    t0: Instant,
+    ours: &impl Fn(gripper::wsg::sim::SessionId) -> bool,
+    id: u8,
+    start: Instant,
+    end: Instant,
+) -> bool {
+    record.records.iter().any(|r| {
+        let at = t0 + r.at;
+        matches!(r.event, SimEvent::Request { id: rid, .. } if rid == id)
+            && ours(r.session)
+            && at >= start
+            && at <= end
+    })
+}
+
+/// Whether the device acknowledged (E_CMD_PENDING) a command `id` of one of `ours` sessions in
+/// `[start, end]`.
+fn acknowledged(
+    record: &SimRecording,
+    t0: Instant,
+    ours: &impl Fn(gripper::wsg::sim::SessionId) -> bool,
+    id: u8,
+    start: Instant,
+    end: Instant,
+) -> bool {
+    record.records.iter().any(|r| {
+        let at = t0 + r.at;
+        matches!(r.event, SimEvent::Reply { id: rid, status: Status::CmdPending, .. } if rid == id)
+            && ours(r.session)
+            && at >= start
+            && at <= end
+    })
+}
+
 /// Every violation of rules 6–9 for one client.
 pub fn check(
     calls: &[&CallRec],
@@ -33,8 +83,16 @@ pub fn check(
     v.extend(lost_for_cause(calls, t0, view, udp));
     v.extend(timeouts(calls, record, t0, view, udp, close_start));
     for c in calls.iter().filter(|c| c.res == Res::Hung) {
+        let sessions = |s| view.sessions.contains(&s);
+        let tag = if !request_reached(record, t0, &sessions, c.id, c.start, c.end) {
+            NOT_SENT
+        } else if acknowledged(record, t0, &sessions, c.id, c.start, c.end) {
+            ACKNOWLEDGED
+        } else {
+            ""
+        };
         v.push(format!(
-            "8 (a call without timeout ends, and frees what it held): {} {} began at {} and had not ended {NEVER_ENDS:?} later",
+            "8 (a call without timeout ends, and frees what it held): {} {} began at {} and had not ended {NEVER_ENDS:?} later {tag}",
             c.who, c.op, t(c.start, t0)
         ));
     }
@@ -163,7 +221,9 @@ fn stops_at_once(
         if !stop || c.bad || c.quiet || close_start.is_some_and(|s| s <= c.start + AT_ONCE) {
             continue;
         }
-        if c.res == Res::Cancelled && c.end < c.start + AT_ONCE {
+        // A call given up, or timed out, before the hand-over: its request need never be sent
+        // (a zero timeout, say: the caller gives up before the task reads the request).
+        if c.end < c.start + AT_ONCE && matches!(c.res, Res::Cancelled | Res::Timeout) {
             continue;
         }
         // The link the call found: the last one opened by then.

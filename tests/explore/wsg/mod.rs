@@ -450,24 +450,35 @@ async fn recovery(ctx: &Arc<ClientCtx>, log: &Arc<Log>, trace: &SharedTrace) -> 
         trace,
         format!("recovery client {}: system_info {r:?}", ctx.index),
     );
-    let too_long = || {
-        let max = ctx.options.max_payload();
-        too_long_reply(
-            &ctx.sim_record(),
+    let not_sent = || {
+        let sessions = ctx.sessions.lock().unwrap().clone();
+        let ours = |s| sessions.contains(&s);
+        let record = ctx.sim_record();
+        let sent = liveness::request_reached(
+            &record,
+            ctx.sim_t0,
+            &ours,
             id::SYSTEM_INFO,
             start,
             Instant::now(),
-            max,
-            ctx,
-        )
+        );
+        if sent {
+            ""
+        } else {
+            liveness::NOT_SENT
+        }
+    };
+    let too_long = || {
+        let max = ctx.options.max_payload();
+        too_long_reply(&ctx.sim_record(), id::SYSTEM_INFO, Instant::now(), max, ctx)
     };
     match (&r, ctx.reconnect, lost) {
         (Ok(_), _, _) => {}
         (Err(gripper::wsg::Error::ConnectionLost(_)), false, true) => {}
         (Err(gripper::wsg::Error::Timeout { .. }), _, _) if too_long() => {}
         _ => v.push(format!(
-            "5 (recovery): client {} (reconnect {}, lost before: {lost}): {:?} after the faults stopped, the next call (system_info) ended {r:?} {}",
-            ctx.index, ctx.reconnect, bound, ctx.echo_tag()
+            "5 (recovery): client {} (reconnect {}, lost before: {lost}): {:?} after the faults stopped, the next call (system_info) ended {r:?} {} {}",
+            ctx.index, ctx.reconnect, bound, ctx.echo_tag(), not_sent()
         )),
     }
     let end = Instant::now();
@@ -530,26 +541,36 @@ async fn every_kind(
             Res::Lost => !ctx.reconnect && lost,
             Res::Timeout => {
                 let max = ctx.options.max_payload();
-                too_long_reply(&ctx.sim_record(), c.id, c.start, c.end, max, ctx)
+                too_long_reply(&ctx.sim_record(), c.id, c.end, max, ctx)
             }
             _ => false,
         };
         if !served {
+            let hung = c.res == Res::Hung;
+            let sessions = ctx.sessions.lock().unwrap().clone();
+            let ours = |s| sessions.contains(&s);
+            let record = ctx.sim_record();
+            let sent = liveness::request_reached(&record, ctx.sim_t0, &ours, c.id, c.start, c.end);
+            let tag = if sent { "" } else { liveness::NOT_SENT };
             v.push(format!(
-                "10 (the quiet phase serves every kind of call): client {} {} {} ended {:?} in [{}, {}] after the faults stopped {}",
+                "10 (the quiet phase serves every kind of call): client {} {} {} ended {:?} in [{}, {}] after the faults stopped {} {tag}",
                 ctx.index, c.who, c.op, c.res, oracle::t(c.start, ctx.sim_t0), oracle::t(c.end, ctx.sim_t0), ctx.echo_tag()
             ));
+            if hung {
+                break; // A call that never ends may hold the line: the rest would wait as long.
+            }
         }
     }
     v
 }
 
-/// Whether the device sent client `ctx` a reply of `id` in `[start, end]` longer than `max`
-/// (status included): one the client drops as documented (`ClientBuilder::max_payload_len`).
+/// Whether the device sent client `ctx` a reply of `id` by `end` longer than `max` (status
+/// included): one the client drops as documented (`ClientBuilder::max_payload_len`), during
+/// the call or before it (the request it answered then keeps the id for its grace, and the
+/// call waits behind it). `start` is unused: any such reply before the call may hold it.
 fn too_long_reply(
     record: &gripper::wsg::sim::SimRecording,
     id: u8,
-    start: Instant,
     end: Instant,
     max: usize,
     ctx: &ClientCtx,
@@ -559,7 +580,6 @@ fn too_long_reply(
         let at = ctx.sim_t0 + r.at;
         matches!(&r.event, SimEvent::Reply { id: rid, data, .. } if *rid == id && data.len() + 2 > max)
             && sessions.contains(&r.session)
-            && at >= start
             && at <= end
     })
 }

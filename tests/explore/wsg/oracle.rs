@@ -231,7 +231,7 @@ fn check_client(
         if let (false, Some(lost)) = (view.reconnect, first_lost) {
             let fine = matches!(
                 c.res,
-                Res::Lost | Res::Cancelled | Res::Closed | Res::Conflict
+                Res::Lost | Res::Cancelled | Res::Closed | Res::Conflict | Res::Invalid
             );
             if c.start > lost && !fine {
                 v.push(format!(

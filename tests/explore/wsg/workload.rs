@@ -241,6 +241,13 @@ const KINDS: u64 = 50;
 /// `close()`.
 const CLOSE: u64 = KINDS;
 
+/// The motion timeout of the quiet phase's calls: far more than any motion takes at
+/// [`QUIET_SPEED`] (110 mm in under half a second) or a homing of the simulated WSG 50.
+const QUIET_MOTION_TIMEOUT: Duration = Duration::from_secs(30);
+
+/// The finger speed of the quiet phase's motions, mm/s.
+const QUIET_SPEED: f32 = 400.0;
+
 /// `Client::request_with_timeout`'s own refusal: a command id the framing cannot carry.
 const UNFRAMEABLE_ID: u8 = 0xAA;
 
@@ -334,7 +341,9 @@ pub async fn one_call(
     };
     // Timeouts: the client's, or the caller's own (sometimes "none": Duration::MAX, or zero).
     let (q, m) = match rng.below(60) {
-        _ if quiet => (ctx.query_timeout, ctx.motion_timeout),
+        // The quiet phase: the client's query timeout, and time enough for any motion of the
+        // simulated WSG 50 (homing included) at the quiet phase's speed.
+        _ if quiet => (ctx.query_timeout, QUIET_MOTION_TIMEOUT),
         0 => (Duration::MAX, Duration::MAX),
         1 => (Duration::ZERO, Duration::ZERO),
         2 => (ctx.query_timeout, Duration::MAX),
@@ -355,7 +364,11 @@ pub async fn one_call(
         _ => rng.below(if last { KINDS + 1 } else { KINDS }),
     };
     let width = rng.float(0.0, 110.0);
-    let speed = rng.float(5.0, 420.0);
+    let speed = if quiet {
+        QUIET_SPEED
+    } else {
+        rng.float(5.0, 420.0)
+    };
     // Now and then an argument the client must refuse with Error::InvalidArgument (bad input is
     // a typed error, never a panic or a request sent).
     let bad = rng.one_in(25) && !quiet;
