@@ -592,7 +592,11 @@ async fn stop_is_not_queued(
     sim_t0: Instant,
     trace: &SharedTrace,
 ) -> Vec<String> {
-    let c = ctx.client.clone();
+    // A motion timeout of the quiet phase's own: the client's may be Duration::MAX (issue 29 B
+    // would then hold this check for ever).
+    let c = ctx
+        .client
+        .with_timeouts(ctx.query_timeout, Duration::from_secs(30));
     let losses_before = ctx.losses.lock().unwrap().len();
     let _ = c.acknowledge_fast_stop().await;
     if c.home(gripper::wsg::HomingDirection::Default)
