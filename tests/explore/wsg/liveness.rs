@@ -98,6 +98,7 @@ pub fn check(
     }
     if !udp {
         v.extend(stops_at_once(calls, t0, view, close_start));
+        v.extend(stops_reach_the_device(calls, record, t0, view));
     }
     v
 }
@@ -249,6 +250,57 @@ fn stops_at_once(
                 .unwrap_or_else(|| "never".into());
             v.push(format!(
                 "9 (a stop is sent at once, faults or not): {} {} (in the fault phase, at {}) was written to the link {first} (ended {:?})",
+                c.who, c.op, t(c.start, t0), c.res
+            ));
+        }
+    }
+    v
+}
+
+/// How long a stop whose request was lost may take to reach the device on a link that works:
+/// the client proves it lost by a barrier (a round trip, or the query timeout + grace and the
+/// resync pause if that too is lost) and sends it again.
+const RESEND_WINDOW: Duration = Duration::from_secs(10);
+
+/// Rule 9, the re-send (TCP, serial): a stop or FAST STOP call that did not get its reply (it
+/// timed out, or its caller gave up) on a connection that held must still reach the device: the
+/// client sends it again once a barrier proves it lost, whether or not its caller still waits
+/// (issue 29 E: the device never stops). A violation when no intact stop of its id from that
+/// session reached the device within [`RESEND_WINDOW`] of the call, yet the link carried
+/// later requests (the device received one intact after that window: not a half-closed or
+/// stalled link) and the client reported no loss since the call.
+fn stops_reach_the_device(
+    calls: &[&CallRec],
+    record: &SimRecording,
+    t0: Instant,
+    view: &ClientView,
+) -> Vec<String> {
+    let mut v = Vec::new();
+    for c in calls {
+        let stop = c.id == id::STOP || c.id == id::FAST_STOP;
+        if !stop || c.bad || !matches!(c.res, Res::Timeout | Res::Cancelled) {
+            continue;
+        }
+        if c.end < c.start + AT_ONCE || view.losses.iter().any(|&l| l >= c.start) {
+            continue;
+        }
+        let Some((session, _)) = view.taps.iter().rev().find(|(_, l)| l.opened <= c.start) else {
+            continue;
+        };
+        let requests = || {
+            record.records.iter().filter_map(|r| match r.event {
+                SimEvent::Request {
+                    id, corrupt: false, ..
+                } if r.session == *session => Some((t0 + r.at, id)),
+                _ => None,
+            })
+        };
+        let until = c.start + RESEND_WINDOW;
+        let reached = requests().any(|(at, id)| id == c.id && at >= c.start && at <= until);
+        let link_works = requests().any(|(at, _)| at > until);
+        if !reached && link_works {
+            v.push(format!(
+                "9 (a stop is sent at once, faults or not): {} {} (at {}, ended {:?}) never reached the device intact within {RESEND_WINDOW:?}, though the connection held and carried later requests (a lost stop is sent again)",
                 c.who, c.op, t(c.start, t0), c.res
             ));
         }

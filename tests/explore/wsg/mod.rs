@@ -112,8 +112,18 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
     } else {
         caps.callers
     };
+    // Half the crowded runs are stop storms: half of every call a stop, so that more stops of
+    // one id go unanswered than the client keeps track of on UDP (issue 29 D, `stops.rs`
+    // MAX_UNANSWERED).
+    let storm = crowd && rng.one_in(2);
     if crowd {
-        note(&trace, format!("crowd: up to {callers} callers per client"));
+        note(
+            &trace,
+            format!("crowd: up to {callers} callers per client, storm {storm}"),
+        );
+    }
+    for ctx in &ctxs {
+        ctx.storm.store(storm, Ordering::SeqCst);
     }
     let phase_caps = Caps { callers, ..caps };
     fault_phase(
@@ -358,6 +368,7 @@ async fn open_client(
         sim: sim.clone(),
         sim_t0,
         taps,
+        storm: AtomicBool::new(false),
     }
 }
 

@@ -142,6 +142,8 @@ pub struct ClientCtx {
     pub sim_t0: Instant,
     /// Per stream connection, what the client's end saw (`tap.rs`).
     pub taps: Arc<Mutex<Vec<(SessionId, super::tap::SharedTap)>>>,
+    /// A stop storm: half of every caller's calls are stops (issue 29 D).
+    pub storm: AtomicBool,
 }
 
 impl ClientCtx {
@@ -371,6 +373,7 @@ pub async fn one_call(
     // right after a timeout or a cancellation is where a late reply can reach the wrong call.
     let pick = match (how, previous) {
         (How::Quiet(p), _) => p,
+        _ if ctx.storm.load(Ordering::Relaxed) && rng.one_in(2) => 6 + rng.below(3),
         (_, Some(p)) if p < CLOSE && rng.one_in(3) => p,
         _ => rng.below(if last { KINDS + 1 } else { KINDS }),
     };
