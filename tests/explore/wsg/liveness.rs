@@ -84,7 +84,9 @@ pub fn check(
     v.extend(timeouts(calls, record, t0, view, udp, close_start));
     for c in calls.iter().filter(|c| c.res == Res::Hung) {
         let sessions = |s| view.sessions.contains(&s);
-        let tag = if !request_reached(record, t0, &sessions, c.id, c.start, c.end) {
+        let tag = if !udp && view.max_payload < super::BARRIER_ECHO_LEN {
+            super::SHORT_OF_BARRIER
+        } else if !request_reached(record, t0, &sessions, c.id, c.start, c.end) {
             NOT_SENT
         } else if acknowledged(record, t0, &sessions, c.id, c.start, c.end) {
             ACKNOWLEDGED
@@ -127,10 +129,13 @@ fn lost_for_cause(calls: &[&CallRec], t0: Instant, view: &ClientView, udp: bool)
         }
         previous = Some(lost);
     }
+    // A call may also end ConnectionLost on a link that ended while the client was closing (its
+    // announcement then waits in vain; no loss is reported while closing).
     for c in calls.iter().filter(|c| c.res == Res::Lost) {
-        if !view.losses.iter().any(|&l| l <= c.end) {
+        let ended = ends.iter().any(|&e| e <= c.end) && !udp;
+        if !ended && !view.losses.iter().any(|&l| l <= c.end) {
             v.push(format!(
-                "6 (a connection is lost only for cause): {} {} ended ConnectionLost at {}, but the client had reported no loss",
+                "6 (a connection is lost only for cause): {} {} ended ConnectionLost at {}, but the client had reported no loss and its link had not ended",
                 c.who, c.op, t(c.end, t0)
             ));
         }
