@@ -42,31 +42,23 @@ pub fn request_reached(
     start: Instant,
     end: Instant,
 ) -> bool {
-    record.records.iter().any(|r| {
-        let at = t0 + r.at;
-        matches!(r.event, SimEvent::Request { id: rid, .. } if rid == id)
-            && ours(r.session)
-            && at >= start
-            && at <= end
-    })
+    let of_id = |e: &SimEvent| matches!(e, SimEvent::Request { id: rid, .. } if *rid == id);
+    recorded(record, t0, ours, start, end, of_id)
 }
 
-/// Whether the device acknowledged (E_CMD_PENDING) a command `id` of one of `ours` sessions in
+/// Whether the simulator recorded an event that `is` on one of `ours` sessions in
 /// `[start, end]`.
-fn acknowledged(
+fn recorded(
     record: &SimRecording,
     t0: Instant,
     ours: &impl Fn(gripper::wsg::sim::SessionId) -> bool,
-    id: u8,
     start: Instant,
     end: Instant,
+    is: impl Fn(&SimEvent) -> bool,
 ) -> bool {
     record.records.iter().any(|r| {
         let at = t0 + r.at;
-        matches!(r.event, SimEvent::Reply { id: rid, status: Status::CmdPending, .. } if rid == id)
-            && ours(r.session)
-            && at >= start
-            && at <= end
+        is(&r.event) && ours(r.session) && at >= start && at <= end
     })
 }
 
@@ -88,7 +80,10 @@ pub fn check(
             super::SHORT_OF_BARRIER
         } else if !request_reached(record, t0, &sessions, c.id, c.start, c.end) {
             NOT_SENT
-        } else if acknowledged(record, t0, &sessions, c.id, c.start, c.end) {
+        } else if recorded(record, t0, &sessions, c.start, c.end, |e| {
+            // Acknowledged (E_CMD_PENDING) during the call.
+            matches!(e, SimEvent::Reply { id, status: Status::CmdPending, .. } if *id == c.id)
+        }) {
             ACKNOWLEDGED
         } else {
             ""

@@ -281,40 +281,53 @@ fn encoded(f: impl FnOnce(&mut bytes::BytesMut)) -> Vec<u8> {
     b.to_vec()
 }
 
-/// Reads up to `wanted` updates of a subscription (each within four periods), checks its own
-/// accessors, records the updates (as the device's bytes) for the oracle, then drops it.
-#[allow(clippy::too_many_arguments)]
-async fn read_updates<T>(
-    mut sub: Subscription<T>,
-    id: u8,
+/// What following a subscription needs besides the subscription.
+struct Follow<'a> {
+    /// Notes when the subscription call returned (the end of the call for the oracle).
+    subscribed: &'a (dyn Fn() + Sync),
     client: usize,
     period: Duration,
     wanted: u64,
-    data: fn(&T) -> Vec<u8>,
-    who: &str,
-    log: &Log,
-) {
-    if sub.command_id() != id {
-        log.notes.lock().unwrap().push(format!(
-            "2 (each answer is the device's): {who}'s subscription says command id {:#04x}, not {id:#04x}",
-            sub.command_id()
-        ));
-    }
-    let mut got = Vec::new();
-    for _ in 0..wanted {
-        match tokio::time::timeout(period * 4 + Duration::from_millis(100), sub.next()).await {
-            Ok(Some(v)) => got.push(Update {
-                client,
-                id,
-                data: data(&v),
-                at: Instant::now(),
-            }),
-            _ => break,
+    who: &'a str,
+    log: &'a Log,
+}
+
+impl Follow<'_> {
+    /// Reads up to `wanted` updates of `sub` (each within four periods), checks its own
+    /// accessors, records the updates (as the device's bytes, `data`) for the oracle, then
+    /// drops it: the subscription call's answer.
+    async fn run<T>(
+        &self,
+        mut sub: Subscription<T>,
+        id: u8,
+        data: fn(&T) -> Vec<u8>,
+    ) -> Result<Expect, Error> {
+        (self.subscribed)();
+        if sub.command_id() != id {
+            self.log.notes.lock().unwrap().push(format!(
+                "2 (each answer is the device's): {}'s subscription says command id {:#04x}, not {id:#04x}",
+                self.who,
+                sub.command_id()
+            ));
         }
+        let mut got = Vec::new();
+        for _ in 0..self.wanted {
+            let wait = self.period * 4 + Duration::from_millis(100);
+            match tokio::time::timeout(wait, sub.next()).await {
+                Ok(Some(v)) => got.push(Update {
+                    client: self.client,
+                    id,
+                    data: data(&v),
+                    at: Instant::now(),
+                }),
+                _ => break,
+            }
+        }
+        // Counted, not judged: a reader that keeps up misses nothing, but the buffer may be 1.
+        let _ = sub.missed();
+        self.log.updates.lock().unwrap().extend(got);
+        Ok(Expect::Success)
     }
-    // Counted, not judged: a reader that keeps up misses nothing, but the buffer may be 1.
-    let _ = sub.missed();
-    log.updates.lock().unwrap().extend(got);
 }
 
 /// How a call's kind and arguments are chosen.
@@ -549,7 +562,14 @@ pub async fn one_call(
         *subscribed_at.lock().unwrap() = Some(Instant::now());
         note(trace, format!("call {who} {op} subscribed"));
     };
-    let client = ctx.index;
+    let follow = Follow {
+        subscribed: &subscribed,
+        client: ctx.index,
+        period,
+        wanted: updates_wanted,
+        who,
+        log,
+    };
     let f32d = |v: f32| Expect::Data(f32_data(v));
     let call = async {
         match pick {
@@ -582,10 +602,7 @@ pub async fn one_call(
             }
             19 | 20 => {
                 let sub = cl.subscribe_width_mm(options).await?;
-                subscribed();
-                let (p, n) = (period, updates_wanted);
-                read_updates(sub, id::WIDTH, client, p, n, |v| f32_data(*v), who, log).await;
-                Ok(Expect::Success)
+                follow.run(sub, id::WIDTH, |v| f32_data(*v)).await
             }
             21 => cl
                 .loop_back(typed_payload.clone())
@@ -662,31 +679,19 @@ pub async fn one_call(
             }
             46 => {
                 let sub = cl.subscribe_system_state(options).await?;
-                subscribed();
-                let (p, n) = (period, updates_wanted);
-                read_updates(sub, id::SYSTEM_STATE, client, p, n, state_data, who, log).await;
-                Ok(Expect::Success)
+                follow.run(sub, id::SYSTEM_STATE, state_data).await
             }
             47 => {
                 let sub = cl.subscribe_grip_state(options).await?;
-                subscribed();
-                let (p, n) = (period, updates_wanted);
-                read_updates(sub, id::GRIP_STATE, client, p, n, grip_data, who, log).await;
-                Ok(Expect::Success)
+                follow.run(sub, id::GRIP_STATE, grip_data).await
             }
             48 => {
                 let sub = cl.subscribe_speed_mm_per_s(options).await?;
-                subscribed();
-                let (p, n) = (period, updates_wanted);
-                read_updates(sub, id::SPEED, client, p, n, |v| f32_data(*v), who, log).await;
-                Ok(Expect::Success)
+                follow.run(sub, id::SPEED, |v| f32_data(*v)).await
             }
             49 => {
                 let sub = cl.subscribe_force_n(options).await?;
-                subscribed();
-                let (p, n) = (period, updates_wanted);
-                read_updates(sub, id::FORCE, client, p, n, |v| f32_data(*v), who, log).await;
-                Ok(Expect::Success)
+                follow.run(sub, id::FORCE, |v| f32_data(*v)).await
             }
             _ => {
                 ctx.closing.store(true, Ordering::SeqCst);
