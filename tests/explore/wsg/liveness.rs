@@ -27,6 +27,12 @@ const AT_ONCE: Duration = Duration::from_millis(1);
 /// device and still failed is not tagged.
 pub const NOT_SENT: &str = "[no request of its id reached the device during the call]";
 
+/// Appended to a rule 8 violation when the device answered the call's requests with replies
+/// longer than the client's `max_payload_len` (status included), which the client drops as
+/// documented: with no timeout, a call whose every reply is dropped never ends (a
+/// `max_payload_len` below 2 drops every reply; issue 29 C asks for a clear error or a clamp).
+pub const TOO_LONG: &str = "[its replies are longer than max_payload_len]";
+
 /// Appended to a rule 8 violation when the device acknowledged the call's command
 /// (E_CMD_PENDING) during the call: a motion or finger power on whose final reply did not end
 /// it (issue 29 B: the probes' next step is scheduled at the never-deadline).
@@ -76,8 +82,11 @@ pub fn check(
     v.extend(timeouts(calls, record, t0, view, udp, close_start));
     for c in calls.iter().filter(|c| c.res == Res::Hung) {
         let sessions = |s| view.sessions.contains(&s);
+        let too_long = |e: &SimEvent| matches!(e, SimEvent::Reply { id, data, .. } if *id == c.id && data.len() + 2 > view.max_payload);
         let tag = if !udp && view.max_payload < super::BARRIER_ECHO_LEN {
             super::SHORT_OF_BARRIER
+        } else if recorded(record, t0, &sessions, c.start, c.end, too_long) {
+            TOO_LONG
         } else if !request_reached(record, t0, &sessions, c.id, c.start, c.end) {
             NOT_SENT
         } else if recorded(record, t0, &sessions, c.start, c.end, |e| {
