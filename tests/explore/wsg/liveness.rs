@@ -38,6 +38,12 @@ pub const TOO_LONG: &str = "[its replies are longer than max_payload_len]";
 /// it (issue 29 B: the probes' next step is scheduled at the never-deadline).
 pub const ACKNOWLEDGED: &str = "[the device acknowledged it during the call]";
 
+/// Appended to a rule 8 violation when the device answered the call's request with a final
+/// status (a refusal, say) during the call and the call still never ended: its answer was lost
+/// on the way, and the client, holding the id for it, never gave the call up (issue 29 B's
+/// kind: a call without timeout never ends, its id stays held).
+pub const ANSWERED: &str = "[the device answered it during the call]";
+
 /// Whether the device received a request of `id` (intact or not) from one of `ours` sessions
 /// in `[start, end]`.
 pub fn request_reached(
@@ -94,6 +100,11 @@ pub fn check(
             matches!(e, SimEvent::Reply { id, status: Status::CmdPending, .. } if *id == c.id)
         }) {
             ACKNOWLEDGED
+        } else if recorded(record, t0, &sessions, c.start, c.end, |e| {
+            // Answered (a final status other than E_CMD_PENDING) during the call.
+            matches!(e, SimEvent::Reply { id, status, .. } if *id == c.id && *status != Status::CmdPending)
+        }) {
+            ANSWERED
         } else {
             ""
         };
