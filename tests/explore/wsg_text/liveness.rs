@@ -1,0 +1,344 @@
+//! The rules of issue 29 for the text client, judged on what the client itself wrote and read
+//! (`tap.rs`), with the numbers and wording every protocol's oracle uses:
+//!
+//! 6. **A connection is lost only for cause**: the client gives a connection up on time
+//!    ("no reply to CMD long after its timeout") only if no reply of CMD's name reached it since
+//!    it wrote CMD: not when the reply came (a decoder that lost it), nor when the device had
+//!    acknowledged the motion (`ACK MOVE`: the device answers in order, the motion runs; issue
+//!    29 L). Losses by the end of the stream (a cut, a restart) are the schedule's.
+//! 7. **A Timeout only when its reply did not arrive in time**: a call that ended `Timeout`
+//!    after the client wrote its line must not have had a reply of its name read by the client
+//!    before its deadline (the next such line after the write is the call's: one command per
+//!    name on the wire).
+//! 8. **A call without timeout ends, and frees what it held**: a `Duration::MAX` call must end
+//!    (the workload drops it after `FOREVER_BOUND` and records it `Hung`); its name must be free
+//!    afterwards (`quiet.rs`, rule 10's calls).
+//! 9. **A stop is sent at once, faults or not**: `STOP()`/`FASTSTOP()` is written the instant it
+//!    is called, unless one of the same name is on the wire unanswered (one command per name: by
+//!    design, not judged) or `BYE()` was written. Issue 29 K: a queue full of calls whose
+//!    callers gave up holds it.
+//!
+//! And promise 5's documented errors after `close()` (issue 29 N): nothing is written after
+//! `BYE()`, and a call after `close()` fails at once.
+
+use std::time::Duration;
+
+use gripper::wsg::text::line::{parse_reply, ReplyLine};
+use gripper::wsg::text::ClientConfig;
+use tokio::time::Instant;
+
+use super::oracle::request_name;
+use super::tap::{Line, SharedTap, TapLog};
+use super::workload::{AfterClose, CallRec, Expect, Res, FOREVER_BOUND};
+
+/// How far before its deadline a reply must have been read to count as in time (the task and
+/// the caller's timer may run in either order at one instant).
+const MARGIN: Duration = Duration::from_millis(1);
+
+/// How late after a call began its stop may be written (the task's turn, simulated).
+const AT_ONCE: Duration = Duration::from_millis(1);
+
+const MOTIONS: [&str; 4] = ["HOME", "MOVE", "GRIP", "RELEASE"];
+
+/// Whether `line` ends a command `name` that waits for `expect` (what the client's pairing
+/// takes as its reply: a final reply, an `ERR`, or a wrong form of that name; a motion's `ACK`
+/// does not end it, nor a push or an `ERR` without a name).
+fn ends(line: &str, name: &str, expect: Expect) -> bool {
+    let n = match parse_reply(line) {
+        Ok(ReplyLine::Ack(_)) if expect == Expect::Fin => return false,
+        Ok(ReplyLine::Ack(n) | ReplyLine::Fin(n) | ReplyLine::Value { name: n, .. }) => n,
+        Ok(ReplyLine::Err { name: Some(n), .. }) => n,
+        _ => return false,
+    };
+    n.eq_ignore_ascii_case(name)
+}
+
+/// What a command of `name` waits for.
+fn expect_of(name: &str, calls: &[CallRec]) -> Expect {
+    if MOTIONS.contains(&name) {
+        return Expect::Fin;
+    }
+    calls
+        .iter()
+        .find(|c| c.name.eq_ignore_ascii_case(name))
+        .map_or(Expect::Ack, |c| c.expect)
+}
+
+/// The first line read after the line numbered `after` and before `to` that ends `name`, no
+/// longer than the client reads.
+fn reply_read<'a>(
+    log: &'a TapLog,
+    name: &str,
+    expect: Expect,
+    (after, to): (u64, Instant),
+    max_line_len: usize,
+) -> Option<&'a Line> {
+    log.read.lines.iter().find(|l| {
+        l.seq > after && l.at < to && l.text.len() <= max_line_len && ends(&l.text, name, expect)
+    })
+}
+
+/// The first line written in `[from, to]` with the text `text`.
+fn written<'a>(log: &'a TapLog, text: &str, (from, to): (Instant, Instant)) -> Option<&'a Line> {
+    log.written
+        .lines
+        .iter()
+        .find(|l| l.at >= from && l.at <= to && l.text == text)
+}
+
+/// Whether a command of `name` was on the wire unanswered at `at` (written, and no line that
+/// ends it read since, by `at`).
+fn busy(log: &TapLog, name: &str, expect: Expect, at: Instant, max_line_len: usize) -> bool {
+    let last = log
+        .written
+        .lines
+        .iter()
+        .filter(|l| l.at <= at && request_name(&l.text) == name)
+        .next_back();
+    // `at` itself counts: a reply read at that instant freed the name by then.
+    let until = at + Duration::from_nanos(1);
+    last.is_some_and(|w| reply_read(log, name, expect, (w.seq, until), max_line_len).is_none())
+}
+
+/// Every rule above; `taps[i][k]`: client `i`'s connection `k`.
+pub fn check(
+    calls: &[CallRec],
+    taps: &[Vec<SharedTap>],
+    configs: &[ClientConfig],
+    after_close: &[AfterClose],
+) -> Vec<String> {
+    let mut out = Vec::new();
+    let mut judged_losses = std::collections::BTreeSet::new();
+    for c in calls {
+        let Some(tap) = taps[c.client].get(c.conn) else {
+            continue;
+        };
+        let log = tap.lock().unwrap();
+        let max = configs[c.client].max_line_len;
+        let who = format!("client {} {}", c.client, c.line);
+        match &c.res {
+            Res::Timeout => out.extend(timeout(c, calls, &log, max, &who)),
+            Res::Lost(why) if judged_losses.insert((c.client, c.conn)) => {
+                out.extend(loss(c, why, calls, &log, max));
+            }
+            Res::Hung => {
+                let replied = log
+                    .read
+                    .lines
+                    .iter()
+                    .any(|l| l.at >= c.start && l.at <= c.end && ends(&l.text, c.name, c.expect));
+                let tag = if replied {
+                    ""
+                } else {
+                    " [no reply of its name reached the client]"
+                };
+                out.push(format!(
+                    "8 (a call without timeout ends, and frees what it held): {who} (no timeout) had not ended {FOREVER_BOUND:?} after it began{tag}"
+                ));
+            }
+            _ => {}
+        }
+        if matches!(c.name, "STOP" | "FASTSTOP") {
+            out.extend(stop(c, calls, &log, &configs[c.client], &who));
+        }
+    }
+    for a in after_close {
+        let Some(tap) = taps[a.client].get(a.conn) else {
+            continue;
+        };
+        let log = tap.lock().unwrap();
+        out.extend(closed(a, &log));
+    }
+    out
+}
+
+/// Rule 7 for one call that ended `Timeout`.
+fn timeout(
+    c: &CallRec,
+    calls: &[CallRec],
+    log: &TapLog,
+    max: usize,
+    who: &str,
+) -> Option<String> {
+    let deadline = c.start.checked_add(c.timeout)?;
+    let w = written(log, &c.line, (c.start, deadline)).filter(|w| w.at < deadline)?;
+    // The write is this call's unless another live call of the connection had the same line.
+    let shared = calls.iter().any(|o| {
+        !std::ptr::eq(o, c)
+            && o.client == c.client
+            && o.conn == c.conn
+            && o.line == c.line
+            && o.start <= w.at
+            && w.at <= o.end
+    });
+    if shared {
+        return None;
+    }
+    let r = reply_read(log, c.name, c.expect, (w.seq, deadline), max)?;
+    (r.at + MARGIN <= deadline).then(|| {
+        format!(
+            "7 (a Timeout only when its reply did not arrive in time): {who} (timeout {:?}) ended Timeout, yet the client wrote it {:?} after the call began and read {:?} {:?} after, {:?} before its deadline",
+            c.timeout,
+            w.at - c.start,
+            r.text,
+            r.at - w.at,
+            deadline - r.at
+        )
+    })
+}
+
+/// Rule 6 for the first loss of a connection.
+fn loss(c: &CallRec, why: &str, calls: &[CallRec], log: &TapLog, max: usize) -> Option<String> {
+    let command = why
+        .strip_prefix("no reply to ")?
+        .split(" long after its timeout")
+        .next()?;
+    let name = request_name(command);
+    let expect = expect_of(&name, calls);
+    let w = log
+        .written
+        .lines
+        .iter()
+        .filter(|l| l.at <= c.end && l.text == command)
+        .next_back()?;
+    let who = format!("client {} (connection {})", c.client, c.conn);
+    if let Some(r) = reply_read(log, &name, expect, (w.seq, c.end), max) {
+        return Some(format!(
+            "6 (a connection is lost only for cause): {who} was given up for no reply to {command}, yet the client read {:?} {:?} after writing it and {:?} before giving up",
+            r.text,
+            r.at - w.at,
+            c.end - r.at
+        ));
+    }
+    let ack = format!("ACK {name}");
+    let acked = log
+        .read
+        .lines
+        .iter()
+        .find(|l| l.seq > w.seq && l.at <= c.end && l.text == ack);
+    acked.map(|r| {
+        format!(
+            "6 (a connection is lost only for cause): {who} was given up for no reply to {command}, which the device had acknowledged ({ack:?} read {:?} after writing it, {:?} before giving up) [an acknowledged motion: the device answers in order]",
+            r.at - w.at,
+            c.end - r.at
+        )
+    })
+}
+
+/// Rule 9 for one `STOP()`/`FASTSTOP()` call.
+fn stop(
+    c: &CallRec,
+    calls: &[CallRec],
+    log: &TapLog,
+    config: &ClientConfig,
+    who: &str,
+) -> Option<String> {
+    let max = config.max_line_len;
+    let ended_with_connection = matches!(c.res, Res::Lost(_) | Res::Closed);
+    if c.timeout.is_zero() || ended_with_connection || c.end <= c.start {
+        return None;
+    }
+    // One command per name: a stop behind an unanswered one of its name, or behind an earlier
+    // call of its name still waiting to be written, waits (by design, not judged).
+    let earlier_waiting = calls.iter().any(|o| {
+        !std::ptr::eq(o, c)
+            && o.client == c.client
+            && o.conn == c.conn
+            && o.name == c.name
+            && o.start <= c.start
+            && o.end > c.start
+            && written(log, &o.line, (o.start, c.start)).is_none()
+    });
+    if earlier_waiting || busy(log, c.name, Expect::Ack, c.start, max) {
+        return None;
+    }
+    let bye = log
+        .written
+        .lines
+        .iter()
+        .any(|l| l.at <= c.start && l.text == "BYE()");
+    if bye {
+        return None;
+    }
+    let written = written(log, &c.line, (c.start, c.end)).map(|w| w.at - c.start);
+    if written.is_some_and(|d| d <= AT_ONCE) {
+        return None;
+    }
+    let tag = if behind_a_full_queue(c, calls, log, config) {
+        " [behind a full queue of calls not yet sent]"
+    } else {
+        ""
+    };
+    Some(format!(
+        "9 (a stop is sent at once, faults or not): {who} ({:?}, ended {:?}) was written {written:?} after it was called (none of its name on the wire){tag}",
+        c.timeout, c.res
+    ))
+}
+
+/// Whether, when `c` was called, the client's queue (`queue_len` calls in its channel and as
+/// many again waiting behind busy names) may have been full (issue 29 K): at least `queue_len`
+/// other calls of the connection had begun and not had their line written by then, each still
+/// waiting or given up (timed out, dropped) without ever being written. A request whose caller
+/// gave up leaves the queue only when a request is added behind a busy name or its own name
+/// frees up, so a queue of them can hold a stop behind a motion for as long as the motion runs.
+fn behind_a_full_queue(c: &CallRec, calls: &[CallRec], log: &TapLog, config: &ClientConfig) -> bool {
+    let written = |o: &CallRec, until: Instant| written(log, &o.line, (o.start, until)).is_some();
+    let queued = calls
+        .iter()
+        .filter(|o| {
+            !std::ptr::eq(*o, c)
+                && o.client == c.client
+                && o.conn == c.conn
+                && o.start <= c.start
+                && !written(o, c.start)
+                && (o.end > c.start
+                    || matches!(o.res, Res::Timeout | Res::Cancelled) && !written(o, o.end))
+        })
+        .count();
+    queued >= config.queue_len.max(1)
+}
+
+/// Promise 5 after a `close()` of the fault phase: nothing is written after `BYE()`, and the
+/// call made right after `close()` fails with `Closed` (or `ConnectionLost`), not a timeout.
+fn closed(a: &AfterClose, log: &TapLog) -> Vec<String> {
+    let mut out = Vec::new();
+    let bye_acked = a.close.1 == Res::Done;
+    let tag = if bye_acked {
+        ""
+    } else {
+        " [BYE() was not answered ACK BYE]"
+    };
+    // A `close()` that ended before `BYE()` went out leaves the connection open (documented).
+    let bye_written = log
+        .written
+        .lines
+        .iter()
+        .any(|l| l.at >= a.close.0 && l.at <= a.after.0 && l.text == "BYE()");
+    if bye_written && !matches!(a.after.2, Res::Closed | Res::Lost(_)) {
+        out.push(format!(
+            "5 (documented errors): client {}: close() ended {:?}, then a call ended {:?} after {:?}, not Closed{tag}",
+            a.client,
+            a.close.1,
+            a.after.2,
+            a.after.1 - a.after.0
+        ));
+    }
+    let bye = log
+        .written
+        .lines
+        .iter()
+        .position(|l| l.at >= a.close.0 && l.text == "BYE()");
+    if let Some(i) = bye {
+        let later: Vec<&str> = log.written.lines[i + 1..]
+            .iter()
+            .map(|l| l.text.as_str())
+            .collect();
+        if !later.is_empty() {
+            out.push(format!(
+                "5 (nothing is written after BYE()): client {}: the client wrote {later:?} after BYE()",
+                a.client
+            ));
+        }
+    }
+    out
+}

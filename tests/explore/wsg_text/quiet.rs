@@ -1,0 +1,154 @@
+//! Rule 10, **the quiet phase serves every kind of call** (issue 29): after recovery, with the
+//! network quiet, each client makes one call of every kind the workload makes (every command
+//! name, the push streams included) and each must succeed; a client whose connection ended
+//! without reconnect must fail each with `ConnectionLost`. The calls are logged like the
+//! workload's, so promise 2 checks their answers too. A kind whose name a call without timeout
+//! still holds (rule 8: its reply never reached the client) is tagged: issue 29 M.
+
+use std::sync::atomic::Ordering;
+use std::time::Duration;
+
+use gripper::wsg::text::{Client, Quantity};
+use gripper::wsg::HomingDirection;
+use tokio::time::Instant;
+
+use super::workload::{classify, CallRec, Expect, Log, Res};
+use super::Ctx;
+use crate::core::{note, SharedTrace};
+
+/// Timeouts of the quiet calls: a motion here runs at most 110 mm at the default speed; a reply
+/// comes at once, behind the simulator's quiet gap after an `ACK` (at most 50 ms).
+const MOTION: Duration = Duration::from_secs(30);
+const QUERY: Duration = Duration::from_secs(2);
+
+/// One call of every kind, in an order the device accepts (a release needs a grip before it).
+const KINDS: [(&str, &str, Expect); 24] = [
+    ("FSACK()", "FSACK", Expect::Ack),
+    ("HOME()", "HOME", Expect::Fin),
+    ("MOVE(60,50)", "MOVE", Expect::Fin),
+    ("GRIP()", "GRIP", Expect::Fin),
+    ("RELEASE()", "RELEASE", Expect::Fin),
+    ("GRIP(10,40,50)", "GRIP", Expect::Fin),
+    ("RELEASE(5,50)", "RELEASE", Expect::Fin),
+    ("STOP()", "STOP", Expect::Ack),
+    ("FASTSTOP()", "FASTSTOP", Expect::Ack),
+    ("FSACK()", "FSACK", Expect::Ack),
+    ("POS?", "POS", Expect::Value),
+    ("SPEED?", "SPEED", Expect::Value),
+    ("FORCE?", "FORCE", Expect::Value),
+    ("GRIPSTATE?", "GRIPSTATE", Expect::Value),
+    ("TEMP?", "TEMP", Expect::Value),
+    ("VERBOSE=1", "VERBOSE", Expect::Value),
+    ("VERBOSE=0", "VERBOSE", Expect::Value),
+    ("PWT=5", "PWT", Expect::Value),
+    ("PWT?", "PWT", Expect::Value),
+    ("CLT=5", "CLT", Expect::Value),
+    ("CLT?", "CLT", Expect::Value),
+    ("AUTOSEND(\"POS\",50)", "AUTOSEND", Expect::Ack),
+    ("AUTOSEND(\"POS\",0)", "AUTOSEND", Expect::Ack),
+    ("HOME(1)", "HOME", Expect::Fin),
+];
+
+/// Makes the call of `line` on `c`: its result, and for an `AUTOSEND` on, whether a push came
+/// (on its own stream and on a stream of every push) within a second.
+async fn call(c: &Client, line: &str) -> (Result<Res, gripper::wsg::text::Error>, Option<bool>) {
+    let q = c.with_timeout(QUERY);
+    let m = c.with_timeout(MOTION);
+    let done = |r: Result<(), _>| r.map(|()| Res::Done);
+    let num = |r: Result<f64, _>| r.map(Res::Value);
+    let r = match line {
+        "FSACK()" => done(q.ack_fast_stop().await),
+        "HOME()" => done(m.home(HomingDirection::Default).await),
+        "HOME(1)" => done(m.home(HomingDirection::Positive).await),
+        "MOVE(60,50)" => done(m.move_to(60.0, Some(50.0)).await),
+        "GRIP()" => done(m.grip(None).await),
+        "RELEASE()" => done(m.release(None, None).await),
+        "GRIP(10,40,50)" => done(m.grip_part(10.0, 40.0, Some(50.0)).await),
+        "RELEASE(5,50)" => done(m.release(Some(5.0), Some(50.0)).await),
+        "STOP()" => done(q.stop().await),
+        "FASTSTOP()" => done(q.fast_stop().await),
+        "POS?" => num(q.position_mm().await),
+        "SPEED?" => num(q.speed_mm_per_s().await),
+        "FORCE?" => num(q.force_n().await),
+        "GRIPSTATE?" => q.grip_state().await.map(|s| Res::Value(s.to_u8().into())),
+        "TEMP?" => num(q.temperature_c().await),
+        "VERBOSE=1" => q.set_verbose(true).await.map(|b| Res::Value(f64::from(b))),
+        "VERBOSE=0" => q.set_verbose(false).await.map(|b| Res::Value(f64::from(b))),
+        "PWT=5" => num(q.set_part_width_tolerance_mm(5.0).await),
+        "PWT?" => num(q.part_width_tolerance_mm().await),
+        "CLT=5" => num(q.set_clamping_travel_mm(5.0).await),
+        "CLT?" => num(q.clamping_travel_mm().await),
+        "AUTOSEND(\"POS\",0)" => done(q.stop_autosend(Quantity::Position).await),
+        _ => {
+            let mut every = q.pushes();
+            let r = q.autosend(Quantity::Position, 50, false).await;
+            let Ok(mut own) = r else {
+                return (r.map(|_| Res::Done), None);
+            };
+            let within = |s| tokio::time::timeout(Duration::from_secs(1), s);
+            let got = within(own.recv()).await.ok().flatten().is_some()
+                && within(every.recv()).await.ok().flatten().is_some();
+            return (Ok(Res::Done), Some(got));
+        }
+    };
+    (r, None)
+}
+
+/// Rule 10 for one client.
+pub async fn every_kind(ctx: &Ctx, log: &Log, trace: &SharedTrace) -> Vec<String> {
+    if ctx.closing.load(Ordering::SeqCst) {
+        return Vec::new();
+    }
+    let (c, conn) = ctx.current();
+    let lost = c.is_closed();
+    let held_forever = |name: &str| {
+        log.calls.lock().unwrap().iter().any(|o| {
+            o.client == ctx.index
+                && o.conn == conn
+                && o.name == name
+                && o.timeout == Duration::MAX
+                && matches!(o.res, Res::Hung | Res::Cancelled)
+        })
+    };
+    let mut v = Vec::new();
+    for (line, name, expect) in KINDS {
+        let start = Instant::now();
+        let (r, pushed) = call(&c, line).await;
+        note(
+            trace,
+            format!("quiet client {}: {line} {r:?} pushes {pushed:?}", ctx.index),
+        );
+        let res = r.as_ref().map_or_else(classify, Clone::clone);
+        let fine = match (&res, lost) {
+            (Res::Done | Res::Value(_), false) => pushed != Some(false),
+            (Res::Lost(_), true) => true,
+            _ => false,
+        };
+        if !fine {
+            let tag = if held_forever(name) {
+                " [its name is held by a call without timeout that never ended]"
+            } else {
+                ""
+            };
+            v.push(format!(
+                "10 (the quiet phase serves every kind of call): client {} (reconnect {}, lost {lost}): {line} ended {r:?}{}{tag}",
+                ctx.index,
+                ctx.reconnect,
+                if pushed == Some(false) { ", and no push came within 1 s" } else { "" }
+            ));
+        }
+        let timeout = if expect == Expect::Fin { MOTION } else { QUERY };
+        log.calls.lock().unwrap().push(CallRec {
+            client: ctx.index,
+            conn,
+            line: line.into(),
+            name,
+            expect,
+            start,
+            end: Instant::now(),
+            timeout,
+            res,
+        });
+    }
+    v
+}
