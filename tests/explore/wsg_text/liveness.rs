@@ -78,14 +78,6 @@ fn reply_read<'a>(
     })
 }
 
-/// The first line written in `[from, to]` with the text `text`.
-fn written<'a>(log: &'a TapLog, text: &str, (from, to): (Instant, Instant)) -> Option<&'a Line> {
-    log.written
-        .lines
-        .iter()
-        .find(|l| l.at >= from && l.at <= to && l.text == text)
-}
-
 /// Whether a command of `name` was on the wire unanswered at `at` (written, and no line that
 /// ends it read since, by `at`).
 fn busy(log: &TapLog, name: &str, expect: Expect, at: Instant, max_line_len: usize) -> bool {
@@ -100,6 +92,34 @@ fn busy(log: &TapLog, name: &str, expect: Expect, at: Instant, max_line_len: usi
     last.is_some_and(|w| reply_read(log, name, expect, (w.seq, until), max_line_len).is_none())
 }
 
+/// When each call's own line was written (time, place), if it was: the writes of a line pair
+/// with the calls of that line in the order the calls began (a name's requests wait in order;
+/// identical lines of several callers are told apart only so).
+fn own_writes(calls: &[CallRec], taps: &[Vec<SharedTap>]) -> Vec<Option<(Instant, u64)>> {
+    let mut own = vec![None; calls.len()];
+    let mut order: Vec<usize> = (0..calls.len()).collect();
+    order.sort_by_key(|&i| calls[i].start);
+    let mut taken = std::collections::BTreeSet::new();
+    for i in order {
+        let c = &calls[i];
+        let Some(tap) = taps[c.client].get(c.conn) else {
+            continue;
+        };
+        let log = tap.lock().unwrap();
+        let w = log.written.lines.iter().find(|l| {
+            l.at >= c.start
+                && l.at <= c.end
+                && l.text == c.line
+                && !taken.contains(&(c.client, c.conn, l.seq))
+        });
+        if let Some(w) = w {
+            taken.insert((c.client, c.conn, w.seq));
+            own[i] = Some((w.at, w.seq));
+        }
+    }
+    own
+}
+
 /// Every rule above; `taps[i][k]`: client `i`'s connection `k`.
 pub fn check(
     calls: &[CallRec],
@@ -109,7 +129,8 @@ pub fn check(
 ) -> Vec<String> {
     let mut out = Vec::new();
     let mut judged_losses = std::collections::BTreeSet::new();
-    for c in calls {
+    let own = own_writes(calls, taps);
+    for (i, c) in calls.iter().enumerate() {
         let Some(tap) = taps[c.client].get(c.conn) else {
             continue;
         };
@@ -117,16 +138,15 @@ pub fn check(
         let max = configs[c.client].max_line_len;
         let who = format!("client {} {}", c.client, c.line);
         match &c.res {
-            Res::Timeout => out.extend(timeout(c, calls, &log, max, &who)),
+            Res::Timeout => out.extend(timeout(i, calls, &own, &log, max)),
             Res::Lost(why) if judged_losses.insert((c.client, c.conn)) => {
                 out.extend(loss(c, why, calls, &log, max));
             }
             Res::Hung => {
-                let replied = log
-                    .read
-                    .lines
-                    .iter()
-                    .any(|l| l.at >= c.start && l.at <= c.end && ends(&l.text, c.name, c.expect));
+                let replied =
+                    log.read.lines.iter().any(|l| {
+                        l.at >= c.start && l.at <= c.end && ends(&l.text, c.name, c.expect)
+                    });
                 let tag = if replied {
                     ""
                 } else {
@@ -139,7 +159,7 @@ pub fn check(
             _ => {}
         }
         if matches!(c.name, "STOP" | "FASTSTOP") {
-            out.extend(stop(c, calls, &log, &configs[c.client], &who));
+            out.extend(stop(i, calls, &own, &log, &configs[c.client]));
         }
     }
     for a in after_close {
@@ -152,36 +172,39 @@ pub fn check(
     out
 }
 
-/// Rule 7 for one call that ended `Timeout`.
+/// Rule 7 for call `i`, which ended `Timeout`.
 fn timeout(
-    c: &CallRec,
+    i: usize,
     calls: &[CallRec],
+    own: &[Option<(Instant, u64)>],
     log: &TapLog,
     max: usize,
-    who: &str,
 ) -> Option<String> {
+    let c = &calls[i];
     let deadline = c.start.checked_add(c.timeout)?;
-    let w = written(log, &c.line, (c.start, deadline)).filter(|w| w.at < deadline)?;
-    // The write is this call's unless another live call of the connection had the same line.
-    let shared = calls.iter().any(|o| {
-        !std::ptr::eq(o, c)
+    let (w, seq) = own[i].filter(|(w, _)| *w < deadline)?;
+    // Another live call of the connection with the very same line: the write may be either's.
+    let shared = calls.iter().enumerate().any(|(j, o)| {
+        j != i
             && o.client == c.client
             && o.conn == c.conn
             && o.line == c.line
-            && o.start <= w.at
-            && w.at <= o.end
+            && o.start <= w
+            && w <= o.end
     });
     if shared {
         return None;
     }
-    let r = reply_read(log, c.name, c.expect, (w.seq, deadline), max)?;
+    let r = reply_read(log, c.name, c.expect, (seq, deadline), max)?;
     (r.at + MARGIN <= deadline).then(|| {
         format!(
-            "7 (a Timeout only when its reply did not arrive in time): {who} (timeout {:?}) ended Timeout, yet the client wrote it {:?} after the call began and read {:?} {:?} after, {:?} before its deadline",
+            "7 (a Timeout only when its reply did not arrive in time): client {} {} (timeout {:?}) ended Timeout, yet the client wrote it {:?} after the call began and read {:?} {:?} after, {:?} before its deadline",
+            c.client,
+            c.line,
             c.timeout,
-            w.at - c.start,
+            w - c.start,
             r.text,
-            r.at - w.at,
+            r.at - w,
             deadline - r.at
         )
     })
@@ -225,29 +248,31 @@ fn loss(c: &CallRec, why: &str, calls: &[CallRec], log: &TapLog, max: usize) -> 
     })
 }
 
-/// Rule 9 for one `STOP()`/`FASTSTOP()` call.
+/// Rule 9 for call `i`, a `STOP()` or `FASTSTOP()`.
 fn stop(
-    c: &CallRec,
+    i: usize,
     calls: &[CallRec],
+    own: &[Option<(Instant, u64)>],
     log: &TapLog,
     config: &ClientConfig,
-    who: &str,
 ) -> Option<String> {
+    let c = &calls[i];
     let max = config.max_line_len;
     let ended_with_connection = matches!(c.res, Res::Lost(_) | Res::Closed);
     if c.timeout.is_zero() || ended_with_connection || c.end <= c.start {
         return None;
     }
+    let same_conn = |o: &CallRec| o.client == c.client && o.conn == c.conn;
+    let unwritten_at = |j: usize, at: Instant| own[j].is_none_or(|(w, _)| w > at);
     // One command per name: a stop behind an unanswered one of its name, or behind an earlier
     // call of its name still waiting to be written, waits (by design, not judged).
-    let earlier_waiting = calls.iter().any(|o| {
-        !std::ptr::eq(o, c)
-            && o.client == c.client
-            && o.conn == c.conn
+    let earlier_waiting = calls.iter().enumerate().any(|(j, o)| {
+        j != i
+            && same_conn(o)
             && o.name == c.name
             && o.start <= c.start
             && o.end > c.start
-            && written(log, &o.line, (o.start, c.start)).is_none()
+            && unwritten_at(j, c.start)
     });
     if earlier_waiting || busy(log, c.name, Expect::Ack, c.start, max) {
         return None;
@@ -260,42 +285,37 @@ fn stop(
     if bye {
         return None;
     }
-    let written = written(log, &c.line, (c.start, c.end)).map(|w| w.at - c.start);
+    let written = own[i].map(|(w, _)| w - c.start);
     if written.is_some_and(|d| d <= AT_ONCE) {
         return None;
     }
-    let tag = if behind_a_full_queue(c, calls, log, config) {
+    // Issue 29 K: the client's queue (`queue_len` calls in its channel and as many again waiting
+    // behind busy names) was full: at least `queue_len` other calls of the connection had begun
+    // and not had their line written, each still waiting or given up (timed out, dropped)
+    // without being written. A request whose caller gave up leaves the queue only when a request
+    // is added behind a busy name or its own name frees up, so a queue of them can hold a stop
+    // behind a motion for as long as the motion runs.
+    let queued = calls
+        .iter()
+        .enumerate()
+        .filter(|&(j, o)| {
+            j != i
+                && same_conn(o)
+                && o.start <= c.start
+                && unwritten_at(j, c.start)
+                && (o.end > c.start
+                    || matches!(o.res, Res::Timeout | Res::Cancelled) && own[j].is_none())
+        })
+        .count();
+    let tag = if queued >= config.queue_len.max(1) {
         " [behind a full queue of calls not yet sent]"
     } else {
         ""
     };
     Some(format!(
-        "9 (a stop is sent at once, faults or not): {who} ({:?}, ended {:?}) was written {written:?} after it was called (none of its name on the wire){tag}",
-        c.timeout, c.res
+        "9 (a stop is sent at once, faults or not): client {} {} ({:?}, ended {:?}) was written {written:?} after it was called (none of its name on the wire; {queued} other calls not yet sent, queue_len {}){tag}",
+        c.client, c.line, c.timeout, c.res, config.queue_len
     ))
-}
-
-/// Whether, when `c` was called, the client's queue (`queue_len` calls in its channel and as
-/// many again waiting behind busy names) may have been full (issue 29 K): at least `queue_len`
-/// other calls of the connection had begun and not had their line written by then, each still
-/// waiting or given up (timed out, dropped) without ever being written. A request whose caller
-/// gave up leaves the queue only when a request is added behind a busy name or its own name
-/// frees up, so a queue of them can hold a stop behind a motion for as long as the motion runs.
-fn behind_a_full_queue(c: &CallRec, calls: &[CallRec], log: &TapLog, config: &ClientConfig) -> bool {
-    let written = |o: &CallRec, until: Instant| written(log, &o.line, (o.start, until)).is_some();
-    let queued = calls
-        .iter()
-        .filter(|o| {
-            !std::ptr::eq(*o, c)
-                && o.client == c.client
-                && o.conn == c.conn
-                && o.start <= c.start
-                && !written(o, c.start)
-                && (o.end > c.start
-                    || matches!(o.res, Res::Timeout | Res::Cancelled) && !written(o, o.end))
-        })
-        .count();
-    queued >= config.queue_len.max(1)
 }
 
 /// Promise 5 after a `close()` of the fault phase: nothing is written after `BYE()`, and the

@@ -288,7 +288,10 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
     let mut all = oracle::check(
         &calls, &pushes, &record, sim_t0, &sessions, &closed_at, exact,
     );
-    let taps: Vec<Vec<SharedTap>> = ctxs.iter().map(|c| c.taps.lock().unwrap().clone()).collect();
+    let taps: Vec<Vec<SharedTap>> = ctxs
+        .iter()
+        .map(|c| c.taps.lock().unwrap().clone())
+        .collect();
     let configs: Vec<ClientConfig> = ctxs.iter().map(|c| c.config.clone()).collect();
     let after_close = log.after_close.lock().unwrap().clone();
     all.extend(liveness::check(&calls, &taps, &configs, &after_close));

@@ -433,7 +433,10 @@ pub async fn caller(
             let after = c.with_timeout(AFTER_CLOSE_TIMEOUT).position_mm().await;
             note(
                 &trace,
-                format!("client {} caller {k}: POS? after close: {after:?}", ctx.index),
+                format!(
+                    "client {} caller {k}: POS? after close: {after:?}",
+                    ctx.index
+                ),
             );
             log.after_close.lock().unwrap().push(AfterClose {
                 client: ctx.index,
