@@ -85,8 +85,7 @@ fn busy(log: &TapLog, name: &str, expect: Expect, at: Instant, max_line_len: usi
         .written
         .lines
         .iter()
-        .filter(|l| l.at <= at && request_name(&l.text) == name)
-        .next_back();
+        .rfind(|l| l.at <= at && request_name(&l.text) == name);
     // `at` itself counts: a reply read at that instant freed the name by then.
     let until = at + Duration::from_nanos(1);
     last.is_some_and(|w| reply_read(log, name, expect, (w.seq, until), max_line_len).is_none())
@@ -222,8 +221,7 @@ fn loss(c: &CallRec, why: &str, calls: &[CallRec], log: &TapLog, max: usize) -> 
         .written
         .lines
         .iter()
-        .filter(|l| l.at <= c.end && l.text == command)
-        .next_back()?;
+        .rfind(|l| l.at <= c.end && l.text == command)?;
     let who = format!("client {} (connection {})", c.client, c.conn);
     if let Some(r) = reply_read(log, &name, expect, (w.seq, c.end), max) {
         return Some(format!(
