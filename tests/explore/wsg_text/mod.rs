@@ -73,6 +73,9 @@ pub struct Ctx {
     /// Whether its link may flip bits (GCL has no checksum: a flipped bit is another line).
     corrupting: bool,
     closing: AtomicBool,
+    /// Whether the quiet phase found a name of this client held for good, or its queue full of
+    /// such calls (issue 29 K, M): the documented errors after `close()` are then tagged.
+    stuck: AtomicBool,
     /// When a `close()` began (a `Closed` before it breaks promise 5).
     closed_at: Mutex<Option<Instant>>,
     config: ClientConfig,
@@ -213,6 +216,7 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
             reconnect,
             corrupting,
             closing: AtomicBool::new(false),
+            stuck: AtomicBool::new(false),
             closed_at: Mutex::new(None),
             config,
             net,
@@ -268,11 +272,18 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
         }
         let c = ctx.client();
         let lost = c.is_closed();
+        // Bounded: a client may have drawn `Duration::MAX` for its query timeout.
+        let c = c.with_timeout(RECOVERY_TIMEOUT);
         let r = c.close().await;
         note(&trace, format!("close client {}: {r:?}", ctx.index));
         let after = c.position_mm().await;
         let lost = lost || matches!(r, Err(Error::ConnectionLost(_)));
-        v.extend(after_close(ctx.index, "POS?", &after, lost));
+        let stuck = if ctx.stuck.load(Ordering::SeqCst) {
+            quiet::FULL
+        } else {
+            ""
+        };
+        v.extend(after_close(ctx.index, "POS?", &after, lost).map(|e| e + stuck));
     }
 
     let record = crate::wsg::note_record(&sim, &trace);
@@ -358,8 +369,10 @@ async fn recovery(ctx: &Ctx, log: &Log, trace: &SharedTrace) -> Vec<String> {
         match (&res, lost) {
             (Res::Done | Res::Value(_), false) | (Res::Lost(_), true) => {}
             _ => v.push(format!(
-                "5 (recovery): client {} (reconnect {}, lost {lost}): {bound:?} after the faults stopped, {line} ended {r:?}",
-                ctx.index, ctx.reconnect
+                "5 (recovery): client {} (reconnect {}, lost {lost}): {bound:?} after the faults stopped, {line} ended {r:?}{}",
+                ctx.index,
+                ctx.reconnect,
+                quiet::held_tag(ctx, log, conn, name, expect, start)
             )),
         }
         log.calls.lock().unwrap().push(CallRec {
@@ -386,14 +399,16 @@ async fn stop_is_not_queued(
     sim_t0: Instant,
     trace: &SharedTrace,
 ) -> Vec<String> {
-    let c = ctx.client();
+    // Bounded calls: a client may have drawn `Duration::MAX` for its default timeouts.
+    let c = ctx.client().with_timeout(RECOVERY_TIMEOUT);
     let _ = c.ack_fast_stop().await;
-    if c.home(HomingDirection::Default).await.is_err() {
+    let m = c.with_timeout(Duration::from_secs(30));
+    if m.home(HomingDirection::Default).await.is_err() {
         return Vec::new();
     }
     let width = c.position_mm().await.unwrap_or(0.0);
     let target = if width > 55.0 { 5.0 } else { 105.0 };
-    let mover = c.clone();
+    let mover = m.clone();
     let motion_start = Instant::now();
     let motion = tokio::spawn(async move { mover.move_to(target, Some(10.0)).await });
     tokio::time::sleep(Duration::from_millis(200)).await;

@@ -94,6 +94,80 @@ async fn call(c: &Client, line: &str) -> (Result<Res, gripper::wsg::text::Error>
     (r, None)
 }
 
+/// The tag of a call that failed because its name is held for good: a command of the name was
+/// written on the connection and never answered by the call's start, and nothing bounds it (a
+/// call of the name without timeout, or a client without give-up time): issue 29 M.
+const HELD: &str = " [its name is held by a call whose reply never came, with no bound]";
+
+/// The tag of a call refused by the device (FAST STOP not acknowledged, a release without a
+/// grip) after an earlier quiet call failed with [`HELD`] or [`FULL`].
+pub const AFTER_HELD: &str =
+    " [refused after an earlier quiet call could not be made: a name held by a call whose reply never came]";
+
+/// The tag of a call never written because the client's queue was full of calls given up
+/// unwritten, their names held (issue 29 K with M).
+pub const FULL: &str = " [behind a full queue of calls not yet sent]";
+
+/// [`FULL`] if a call of `line` made at `start` on connection `conn` was never written while at
+/// least `queue_len` earlier calls of the connection had been given up without being written.
+fn full_tag(ctx: &Ctx, log: &Log, conn: usize, line: &str, start: Instant) -> &'static str {
+    let Some(tap) = ctx.taps.lock().unwrap().get(conn).cloned() else {
+        return "";
+    };
+    let tap = tap.lock().unwrap();
+    let written = |text: &str, from: Instant, to: Instant| {
+        tap.written
+            .lines
+            .iter()
+            .any(|l| l.at >= from && l.at <= to && l.text == text)
+    };
+    if written(line, start, Instant::now()) {
+        return "";
+    }
+    let given_up = log
+        .calls
+        .lock()
+        .unwrap()
+        .iter()
+        .filter(|o| {
+            o.client == ctx.index
+                && o.conn == conn
+                && o.end <= start
+                && matches!(o.res, Res::Timeout | Res::Cancelled | Res::Hung)
+                && !written(&o.line, o.start, o.end)
+        })
+        .count();
+    if given_up >= ctx.config.queue_len.max(1) {
+        FULL
+    } else {
+        ""
+    }
+}
+
+/// [`HELD`] if it applies to a call of `name` made at `start` on connection `conn`, else "".
+pub fn held_tag(
+    ctx: &Ctx,
+    log: &Log,
+    conn: usize,
+    name: &str,
+    expect: Expect,
+    start: Instant,
+) -> &'static str {
+    let Some(tap) = ctx.taps.lock().unwrap().get(conn).cloned() else {
+        return "";
+    };
+    let busy = super::liveness::busy(&tap.lock().unwrap(), name, expect, start, usize::MAX);
+    let unbounded = ctx.config.give_up_after == Duration::MAX
+        || log.calls.lock().unwrap().iter().any(|o| {
+            o.client == ctx.index && o.conn == conn && o.name == name && o.timeout == Duration::MAX
+        });
+    if busy && unbounded {
+        HELD
+    } else {
+        ""
+    }
+}
+
 /// Rule 10 for one client.
 pub async fn every_kind(ctx: &Ctx, log: &Log, trace: &SharedTrace) -> Vec<String> {
     if ctx.closing.load(Ordering::SeqCst) {
@@ -101,16 +175,10 @@ pub async fn every_kind(ctx: &Ctx, log: &Log, trace: &SharedTrace) -> Vec<String
     }
     let (c, conn) = ctx.current();
     let lost = c.is_closed();
-    let held_forever = |name: &str| {
-        log.calls.lock().unwrap().iter().any(|o| {
-            o.client == ctx.index
-                && o.conn == conn
-                && o.name == name
-                && o.timeout == Duration::MAX
-                && matches!(o.res, Res::Hung | Res::Cancelled)
-        })
-    };
     let mut v = Vec::new();
+    // A call failed because a name is held (or the queue is full of such calls): what the
+    // device refuses afterwards (FAST STOP not acknowledged, a release without its grip) follows.
+    let mut held_before = false;
     for (line, name, expect) in KINDS {
         let start = Instant::now();
         let (r, pushed) = call(&c, line).await;
@@ -125,11 +193,17 @@ pub async fn every_kind(ctx: &Ctx, log: &Log, trace: &SharedTrace) -> Vec<String
             _ => false,
         };
         if !fine {
-            let tag = if held_forever(name) {
-                " [its name is held by a call without timeout that never ended]"
-            } else {
-                ""
-            };
+            let mut tag = held_tag(ctx, log, conn, name, expect, start);
+            if tag.is_empty() {
+                tag = full_tag(ctx, log, conn, line, start);
+            }
+            if tag.is_empty() && held_before && matches!(res, Res::Device(_)) {
+                tag = AFTER_HELD;
+            }
+            held_before |= !tag.is_empty();
+            if !tag.is_empty() {
+                ctx.stuck.store(true, Ordering::SeqCst);
+            }
             v.push(format!(
                 "10 (the quiet phase serves every kind of call): client {} (reconnect {}, lost {lost}): {line} ended {r:?}{}{tag}",
                 ctx.index,

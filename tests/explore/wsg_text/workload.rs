@@ -348,7 +348,14 @@ async fn autosend(
     let start = Instant::now();
     let timeout = c.config().query_timeout;
     let c = c.with_timeout(timeout);
-    let r = res(c.stop_autosend(q).await, |()| Res::Done);
+    let r = forever_bounded(timeout, async {
+        (
+            res(c.stop_autosend(q).await, |()| Res::Done),
+            Instant::now(),
+        )
+    })
+    .await
+    .0;
     note(
         at.trace,
         format!(
@@ -369,6 +376,21 @@ async fn autosend(
         res: r,
     });
     (Res::Done, acked)
+}
+
+/// Rule 8: a call without timeout must end; past [`FOREVER_BOUND`] it is dropped and reported
+/// ([`Res::Hung`]). A call with a timeout runs as it is.
+async fn forever_bounded(
+    timeout: Duration,
+    call: impl std::future::Future<Output = (Res, Instant)>,
+) -> (Res, Instant) {
+    if timeout != Duration::MAX {
+        return call.await;
+    }
+    match tokio::time::timeout(FOREVER_BOUND, call).await {
+        Ok(ended) => ended,
+        Err(_) => (Res::Hung, Instant::now()),
+    }
 }
 
 /// The timeout of the call made right after a `close()` (it must fail at once).
@@ -471,17 +493,7 @@ pub async fn caller(
             log: &log,
             trace: &trace,
         };
-        let call = async {
-            if timeout != Duration::MAX {
-                return perform(&client, &op.call, &at, &mut prng).await;
-            }
-            // Rule 8: a call without timeout must end; past the bound it is dropped, reported.
-            let call = perform(&client, &op.call, &at, &mut prng);
-            match tokio::time::timeout(FOREVER_BOUND, call).await {
-                Ok(ended) => ended,
-                Err(_) => (Res::Hung, Instant::now()),
-            }
-        };
+        let call = forever_bounded(timeout, perform(&client, &op.call, &at, &mut prng));
         let ended = unless_given_up(cancel, call).await;
         note(
             &trace,
