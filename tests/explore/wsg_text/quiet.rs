@@ -21,9 +21,13 @@ use crate::core::{note, SharedTrace};
 const MOTION: Duration = Duration::from_secs(30);
 const QUERY: Duration = Duration::from_secs(2);
 
-/// One call of every kind, in an order the device accepts (a release needs a grip before it).
+/// One call of every kind, in an order the device accepts (a release needs a grip before it;
+/// the part width tolerance and clamping travel are set first: the fault phase may have left
+/// them at 0 on this connection, and the part is 40 mm ± 2 mm).
 const KINDS: [(&str, &str, Expect); 24] = [
     ("FSACK()", "FSACK", Expect::Ack),
+    ("PWT=5", "PWT", Expect::Value),
+    ("CLT=5", "CLT", Expect::Value),
     ("HOME()", "HOME", Expect::Fin),
     ("MOVE(60,50)", "MOVE", Expect::Fin),
     ("GRIP()", "GRIP", Expect::Fin),
@@ -40,9 +44,7 @@ const KINDS: [(&str, &str, Expect); 24] = [
     ("TEMP?", "TEMP", Expect::Value),
     ("VERBOSE=1", "VERBOSE", Expect::Value),
     ("VERBOSE=0", "VERBOSE", Expect::Value),
-    ("PWT=5", "PWT", Expect::Value),
     ("PWT?", "PWT", Expect::Value),
-    ("CLT=5", "CLT", Expect::Value),
     ("CLT?", "CLT", Expect::Value),
     ("AUTOSEND(\"POS\",50)", "AUTOSEND", Expect::Ack),
     ("AUTOSEND(\"POS\",0)", "AUTOSEND", Expect::Ack),
