@@ -150,8 +150,15 @@ pub fn check(
                 // M: the call's own command, or the one of its name it waited behind, was never
                 // answered (its reply was damaged): the name was still busy when it was dropped.
                 // A call left waiting after its name freed up is another bug: untagged.
-                let tag = if busy(&log, c.name, c.expect, c.end, max) {
+                // K with M: never written, behind a queue full of such calls.
+                let full = own[i].is_none()
+                    && queued_before(i, calls, &own) >= configs[c.client].queue_len.max(1);
+                // (Strictly before the drop: the caller's next line may draw a reply at once.)
+                let dropped = c.end - Duration::from_nanos(1);
+                let tag = if busy(&log, c.name, c.expect, dropped, max) {
                     " [no reply of its name reached the client]"
+                } else if full {
+                    FULL
                 } else {
                     ""
                 };
@@ -297,20 +304,9 @@ fn stop(
     // without being written. A request whose caller gave up leaves the queue only when a request
     // is added behind a busy name or its own name frees up, so a queue of them can hold a stop
     // behind a motion for as long as the motion runs.
-    let queued = calls
-        .iter()
-        .enumerate()
-        .filter(|&(j, o)| {
-            j != i
-                && same_conn(o)
-                && o.start <= c.start
-                && unwritten_at(j, c.start)
-                && (o.end > c.start
-                    || matches!(o.res, Res::Timeout | Res::Cancelled) && own[j].is_none())
-        })
-        .count();
+    let queued = queued_before(i, calls, own);
     let tag = if queued >= config.queue_len.max(1) {
-        " [behind a full queue of calls not yet sent]"
+        FULL
     } else {
         ""
     };
@@ -318,6 +314,32 @@ fn stop(
         "9 (a stop is sent at once, faults or not): client {} {} ({:?}, ended {:?}) was written {written:?} after it was called (none of its name on the wire; {queued} other calls not yet sent, queue_len {}){tag}",
         c.client, c.line, c.timeout, c.res, config.queue_len
     ))
+}
+
+/// The tag of a call held behind a full queue (issue 29 K).
+const FULL: &str = " [behind a full queue of calls not yet sent]";
+
+/// How many other calls of call `i`'s connection had begun by its start and not had their line
+/// written, each still waiting then, or given up (timed out, dropped, dropped by the workload
+/// without timeout) without ever being written: the client's queue holds them (`queue_len` in
+/// its channel, as many again behind busy names; a request whose caller gave up leaves only
+/// when a request is added behind a busy name or its own name frees up).
+fn queued_before(i: usize, calls: &[CallRec], own: &[Option<(Instant, u64)>]) -> usize {
+    let c = &calls[i];
+    calls
+        .iter()
+        .enumerate()
+        .filter(|&(j, o)| {
+            j != i
+                && o.client == c.client
+                && o.conn == c.conn
+                && o.start <= c.start
+                && own[j].is_none_or(|(w, _)| w > c.start)
+                && (o.end > c.start
+                    || matches!(o.res, Res::Timeout | Res::Cancelled | Res::Hung)
+                        && own[j].is_none())
+        })
+        .count()
 }
 
 /// Promise 5 after a `close()` of the fault phase: nothing is written after `BYE()`, and the

@@ -259,7 +259,10 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
     for ctx in &ctxs {
         v.extend(quiet::every_kind(ctx, &log, &trace).await);
     }
-    if let Some(ctx) = ctxs.iter().find(|c| !c.closing.load(Ordering::SeqCst)) {
+    // A client whose quiet phase found a name held for good (issue 29 K, M) may hold STOP too.
+    let usable =
+        |c: &&Arc<Ctx>| !c.closing.load(Ordering::SeqCst) && !c.stuck.load(Ordering::SeqCst);
+    if let Some(ctx) = ctxs.iter().find(usable) {
         v.extend(stop_is_not_queued(ctx, &sim, sim_t0, &trace).await);
     }
     // After the stop check: the edge client may leave without `BYE()` (FAST STOP).
@@ -372,7 +375,7 @@ async fn recovery(ctx: &Ctx, log: &Log, trace: &SharedTrace) -> Vec<String> {
                 "5 (recovery): client {} (reconnect {}, lost {lost}): {bound:?} after the faults stopped, {line} ended {r:?}{}",
                 ctx.index,
                 ctx.reconnect,
-                quiet::held_tag(ctx, log, conn, name, expect, start)
+                recovery_tag(ctx, log, conn, (line, name, expect), start)
             )),
         }
         log.calls.lock().unwrap().push(CallRec {
@@ -388,6 +391,23 @@ async fn recovery(ctx: &Ctx, log: &Log, trace: &SharedTrace) -> Vec<String> {
         });
     }
     v
+}
+
+/// Why a recovery call failed, if it is a known finding: its name held for good (issue 29 M),
+/// or the client's queue full of calls given up behind such names (K with M).
+fn recovery_tag(
+    ctx: &Ctx,
+    log: &Log,
+    conn: usize,
+    (line, name, expect): (&str, &str, Expect),
+    start: Instant,
+) -> &'static str {
+    let held = quiet::held_tag(ctx, log, conn, name, expect, start);
+    if held.is_empty() {
+        quiet::full_tag(ctx, log, conn, line, start)
+    } else {
+        held
+    }
 }
 
 /// Promise 3, live: with the network quiet, a `STOP()` called while a slow `MOVE` runs reaches

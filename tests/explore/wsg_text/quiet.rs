@@ -112,7 +112,7 @@ pub const FULL: &str = " [behind a full queue of calls not yet sent]";
 
 /// [`FULL`] if a call of `line` made at `start` on connection `conn` was never written while at
 /// least `queue_len` earlier calls of the connection had been given up without being written.
-fn full_tag(ctx: &Ctx, log: &Log, conn: usize, line: &str, start: Instant) -> &'static str {
+pub fn full_tag(ctx: &Ctx, log: &Log, conn: usize, line: &str, start: Instant) -> &'static str {
     let Some(tap) = ctx.taps.lock().unwrap().get(conn).cloned() else {
         return "";
     };
