@@ -345,8 +345,23 @@ async fn autosend(
     );
     drop(pushes);
     let off = Call::AutosendOff(q);
-    let start = Instant::now();
     let timeout = c.config().query_timeout;
+    // Logged even if the caller drops this call midway (its request may wait in the client's
+    // queue: rule 9 counts what the queue holds).
+    let mut logged = Logged {
+        log: at.log,
+        rec: Some(CallRec {
+            client: at.ctx.index,
+            conn: at.conn,
+            line: line_of("AUTOSEND", &off),
+            name: "AUTOSEND",
+            expect: Expect::Ack,
+            start: Instant::now(),
+            end: Instant::now(),
+            timeout,
+            res: Res::Cancelled,
+        }),
+    };
     let c = c.with_timeout(timeout);
     let r = forever_bounded(timeout, async {
         (
@@ -364,18 +379,31 @@ async fn autosend(
             line_of("AUTOSEND", &off)
         ),
     );
-    at.log.calls.lock().unwrap().push(CallRec {
-        client: at.ctx.index,
-        conn: at.conn,
-        line: line_of("AUTOSEND", &off),
-        name: "AUTOSEND",
-        expect: Expect::Ack,
-        start,
-        end: Instant::now(),
-        timeout,
-        res: r,
-    });
+    logged.end(r);
     (Res::Done, acked)
+}
+
+/// A call's record, logged when it ends, or as [`Res::Cancelled`] when its future is dropped.
+struct Logged<'a> {
+    log: &'a Log,
+    rec: Option<CallRec>,
+}
+
+impl Logged<'_> {
+    /// The call ended: `res`, now.
+    fn end(&mut self, res: Res) {
+        if let Some(mut rec) = self.rec.take() {
+            rec.end = Instant::now();
+            rec.res = res;
+            self.log.calls.lock().unwrap().push(rec);
+        }
+    }
+}
+
+impl Drop for Logged<'_> {
+    fn drop(&mut self) {
+        self.end(Res::Cancelled);
+    }
 }
 
 /// Rule 8: a call without timeout must end; past [`FOREVER_BOUND`] it is dropped and reported
