@@ -8,6 +8,7 @@ use std::time::Duration;
 use super::message::RequestError;
 use super::pose::PoseError;
 use super::types::{CommunicationType, MessageType, ResponseCode, ServerState};
+use crate::ErrorKind;
 
 /// Result of this module.
 pub type Result<T> = std::result::Result<T, Error>;
@@ -18,7 +19,8 @@ pub type Result<T> = std::result::Result<T, Error>;
 /// [`Error::NotOperational`]), the connection ([`Error::Io`], [`Error::ConnectionLost`],
 /// [`Error::Closed`], [`Error::ResponseLost`]), the clock ([`Error::Timeout`]), the bytes on the
 /// wire ([`Error::MalformedReply`]) and this crate before anything was sent
-/// ([`Error::InvalidArgument`], [`Error::Pose`]).
+/// ([`Error::InvalidArgument`], [`Error::Pose`]). [`Error::kind`] classifies them the same way
+/// as the other protocols' errors.
 ///
 /// `Clone`, so the reason a connection broke can be handed to every call that was waiting on it.
 #[derive(Debug, Clone, thiserror::Error)]
@@ -79,11 +81,11 @@ pub enum Error {
     MalformedReply(#[from] Malformed),
     /// Reading from or writing to the socket failed, or connecting failed.
     #[error("I/O error: {0}")]
-    Io(Arc<std::io::Error>),
+    Io(#[source] Arc<std::io::Error>),
     /// The connection was lost: the server closed it, it stopped reading requests, or an earlier
     /// error broke it. Without [`ClientConfig::reconnect`](super::ClientConfig::reconnect) (or
     /// once its policy gave up) every later call gets this too.
-    #[error("the connection is lost: {reason}")]
+    #[error("connection lost: {reason}")]
     ConnectionLost {
         /// Why, as far as known.
         reason: Arc<str>,
@@ -98,8 +100,13 @@ pub enum Error {
     #[error("cannot send: {0}")]
     Request(#[from] RequestError),
     /// An argument was refused before anything was sent.
-    #[error("invalid argument: {0}")]
-    InvalidArgument(&'static str),
+    #[error("invalid {what}: {reason}")]
+    InvalidArgument {
+        /// Which argument.
+        what: &'static str,
+        /// Why.
+        reason: String,
+    },
     /// A pose could not be converted.
     #[error("pose: {0}")]
     Pose(#[from] PoseError),
@@ -111,6 +118,34 @@ impl Error {
         match self {
             Error::Device { status, .. } => Some(*status),
             _ => None,
+        }
+    }
+}
+
+impl Error {
+    /// What kind of failure this is, in the classification every protocol shares.
+    pub fn kind(&self) -> ErrorKind {
+        match self {
+            // The server's state is its answer that it cannot serve the call.
+            Error::Device { .. } | Error::NotOperational { .. } => ErrorKind::Device,
+            Error::ServerTooOld { .. } => ErrorKind::Incompatible,
+            Error::ResponseLost { .. } => ErrorKind::ReplyLost,
+            Error::Timeout { .. } => ErrorKind::Timeout,
+            Error::MalformedReply(_) => ErrorKind::MalformedReply,
+            Error::Io(e) => ErrorKind::of_io(e),
+            Error::ConnectionLost { .. } => ErrorKind::ConnectionLost,
+            Error::Closed => ErrorKind::Closed,
+            // Nothing was sent: the request (or its pose) cannot be put on the wire.
+            Error::Request(_) | Error::InvalidArgument { .. } | Error::Pose(_) => {
+                ErrorKind::InvalidArgument
+            }
+        }
+    }
+
+    pub(crate) fn invalid(what: &'static str, reason: impl Into<String>) -> Error {
+        Error::InvalidArgument {
+            what,
+            reason: reason.into(),
         }
     }
 }

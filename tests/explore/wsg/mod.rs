@@ -301,7 +301,7 @@ async fn recovery(ctx: &ClientCtx, log: &Log, trace: &SharedTrace) -> Vec<String
     );
     match (&r, ctx.reconnect, lost) {
         (Ok(_), _, _) => {}
-        (Err(gripper::wsg::Error::ConnectionLost(_)), false, true) => {}
+        (Err(gripper::wsg::Error::ConnectionLost { .. }), false, true) => {}
         _ => v.push(format!(
             "5 (recovery): client {} (reconnect {}, lost before: {lost}): {:?} after the faults stopped, the next call (system_info) ended {r:?}",
             ctx.index, ctx.reconnect, bound
@@ -407,7 +407,7 @@ impl DocumentedErrors for gripper::wsg::Error {
     }
 
     fn is_connection_lost(&self) -> bool {
-        matches!(self, gripper::wsg::Error::ConnectionLost(_))
+        matches!(self, gripper::wsg::Error::ConnectionLost { .. })
     }
 }
 

@@ -154,7 +154,7 @@ pub fn classify(e: &Error) -> Res {
         Error::Device { command, status } => Res::Device(*command, *status),
         Error::Timeout { .. } => Res::Timeout,
         Error::ReplyLost { command } => Res::ReplyLost(*command),
-        Error::ConnectionLost(_) => Res::Lost,
+        Error::ConnectionLost { .. } => Res::Lost,
         Error::Closed => Res::Closed,
         Error::SubscriptionConflict { .. } => Res::Conflict,
         other => Res::Other(format!("{other:?}")),

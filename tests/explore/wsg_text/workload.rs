@@ -236,7 +236,7 @@ pub fn classify(e: &Error) -> Res {
     match e {
         Error::Device { line, .. } => Res::Device(line.clone()),
         Error::Closed => Res::Closed,
-        Error::ConnectionLost(_) => Res::Lost,
+        Error::ConnectionLost { .. } => Res::Lost,
         Error::Timeout { .. } => Res::Timeout,
         Error::MalformedReply { .. } | Error::UnexpectedReply { .. } => {
             Res::Malformed(e.to_string())
