@@ -34,6 +34,7 @@ from pathlib import Path
 EXEMPT: list[frozenset[str]] = [
     frozenset({"wsg/client/builder.rs", "wsg/client/connector.rs"}),
     frozenset({"wsg/client/pairing.rs", "wsg/client/stops.rs"}),
+    frozenset({"wsg/sim/device.rs", "wsg/sim/motion.rs", "wsg/sim/sessions.rs"}),
     frozenset(
         {
             "griplink/sim/controller.rs",
@@ -43,8 +44,6 @@ EXEMPT: list[frozenset[str]] = [
             "griplink/sim/wait.rs",
         }
     ),
-    frozenset({"wsg/sim/device.rs", "wsg/sim/motion.rs", "wsg/sim/sessions.rs"}),
-    frozenset({"smartgrasp/error.rs", "smartgrasp/message.rs"}),
 ]
 
 ITEM = re.compile(
