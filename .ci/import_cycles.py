@@ -34,7 +34,6 @@ from pathlib import Path
 EXEMPT: list[frozenset[str]] = [
     frozenset({"wsg/client/builder.rs", "wsg/client/connector.rs"}),
     frozenset({"wsg/client/pairing.rs", "wsg/client/stops.rs"}),
-    frozenset({"wsg/sim/device.rs", "wsg/sim/motion.rs", "wsg/sim/sessions.rs"}),
     frozenset(
         {
             "griplink/sim/controller.rs",
