@@ -34,15 +34,6 @@ from pathlib import Path
 EXEMPT: list[frozenset[str]] = [
     frozenset({"wsg/client/builder.rs", "wsg/client/connector.rs"}),
     frozenset({"wsg/client/pairing.rs", "wsg/client/stops.rs"}),
-    frozenset(
-        {
-            "griplink/sim/controller.rs",
-            "griplink/sim/dispatch.rs",
-            "griplink/sim/motion.rs",
-            "griplink/sim/port.rs",
-            "griplink/sim/wait.rs",
-        }
-    ),
 ]
 
 ITEM = re.compile(
