@@ -257,12 +257,13 @@ async fn scripted(reply: Vec<u8>) -> std::net::SocketAddr {
 mod kinds {
     use super::*;
 
-    /// The kind of a call's error (the call must fail).
-    fn kind<T: std::fmt::Debug, E: std::fmt::Debug>(
-        r: Result<T, E>,
-        of: fn(&E) -> ErrorKind,
-    ) -> ErrorKind {
-        of(&r.expect_err("the call must fail"))
+    /// Asserts that `r` failed with `pattern`, and that the error's `kind()` is `kind`.
+    macro_rules! fails_as {
+        ($r:expr, $pattern:pat, $kind:expr) => {{
+            let r = $r;
+            assert!(matches!(r, Err($pattern)), "{r:?}");
+            assert_eq!(r.expect_err("it failed").kind(), $kind);
+        }};
     }
 
     mod wsg {
@@ -285,27 +286,22 @@ mod kinds {
             // E_ACCESS_DENIED (16).
             let client = answering_width(vec![16, 0]).await;
             let r = within("width", client.width_mm()).await;
-            assert!(matches!(r, Err(Error::Device { .. })), "{r:?}");
-            assert_eq!(kind(r, Error::kind), ErrorKind::Device);
+            fails_as!(r, Error::Device { .. }, ErrorKind::Device);
 
             // E_SUCCESS with two bytes where the width is a 4-byte float (manual 3.4.3).
             let client = answering_width(vec![0, 0, 1, 2]).await;
             let r = within("width", client.width_mm()).await;
-            assert!(matches!(r, Err(Error::MalformedReply { .. })), "{r:?}");
-            assert_eq!(kind(r, Error::kind), ErrorKind::MalformedReply);
+            fails_as!(r, Error::MalformedReply { .. }, ErrorKind::MalformedReply);
 
             let invalid = within("id 0xAA", client.request(0xAA, Vec::new())).await;
-            assert!(
-                matches!(
-                    invalid,
-                    Err(Error::InvalidArgument {
-                        what: "command id",
-                        ..
-                    })
-                ),
-                "{invalid:?}"
+            fails_as!(
+                invalid,
+                Error::InvalidArgument {
+                    what: "command id",
+                    ..
+                },
+                ErrorKind::InvalidArgument
             );
-            assert_eq!(kind(invalid, Error::kind), ErrorKind::InvalidArgument);
 
             let silent = scripted(Vec::new()).await;
             let client = within(
@@ -317,12 +313,10 @@ mod kinds {
             .await
             .unwrap();
             let r = within("width", client.width_mm()).await;
-            assert!(matches!(r, Err(Error::Timeout { .. })), "{r:?}");
-            assert_eq!(kind(r, Error::kind), ErrorKind::Timeout);
+            fails_as!(r, Error::Timeout { .. }, ErrorKind::Timeout);
 
             let io = within("refused", Client::connect_tcp(refused_addr().await)).await;
-            assert!(matches!(io, Err(Error::Io(_))), "{io:?}");
-            assert_eq!(kind(io, Error::kind), ErrorKind::Io);
+            fails_as!(io, Error::Io(_), ErrorKind::Io);
         }
     }
 
@@ -347,27 +341,22 @@ mod kinds {
         async fn every_kind_the_text_client_produces() {
             let g = fake("ERR HOME 16 E_ACCESS_DENIED\n").await;
             let r = within("HOME", g.home(HomingDirection::Positive)).await;
-            assert!(matches!(r, Err(Error::Device { .. })), "{r:?}");
-            assert_eq!(kind(r, Error::kind), ErrorKind::Device);
+            fails_as!(r, Error::Device { .. }, ErrorKind::Device);
 
             let g = fake("POS=nan\n").await;
             let r = within("POS?", g.position_mm()).await;
-            assert!(matches!(r, Err(Error::MalformedReply { .. })), "{r:?}");
-            assert_eq!(kind(r, Error::kind), ErrorKind::MalformedReply);
+            fails_as!(r, Error::MalformedReply { .. }, ErrorKind::MalformedReply);
 
             let g = fake("ACK POS\n").await;
             let r = within("POS?", g.position_mm()).await;
-            assert!(matches!(r, Err(Error::UnexpectedReply { .. })), "{r:?}");
-            assert_eq!(kind(r, Error::kind), ErrorKind::MalformedReply);
+            fails_as!(r, Error::UnexpectedReply { .. }, ErrorKind::MalformedReply);
 
             let g = fake("").await;
             let r = within("POS?", g.position_mm()).await;
-            assert!(matches!(r, Err(Error::Timeout { .. })), "{r:?}");
-            assert_eq!(kind(r, Error::kind), ErrorKind::Timeout);
+            fails_as!(r, Error::Timeout { .. }, ErrorKind::Timeout);
 
             let r = within("MOVE", g.move_to(f64::NAN, None)).await;
-            assert!(matches!(r, Err(Error::InvalidArgument { .. })), "{r:?}");
-            assert_eq!(kind(r, Error::kind), ErrorKind::InvalidArgument);
+            fails_as!(r, Error::InvalidArgument { .. }, ErrorKind::InvalidArgument);
 
             let sim = SimServer::bind("127.0.0.1:0", SimConfig::new(Model::Wsg50).text())
                 .await
@@ -377,19 +366,16 @@ mod kinds {
                 .unwrap();
             within("close", g.close()).await.unwrap();
             let r = within("after close", g.position_mm()).await;
-            assert!(matches!(r, Err(Error::Closed)), "{r:?}");
-            assert_eq!(kind(r, Error::kind), ErrorKind::Closed);
+            fails_as!(r, Error::Closed, ErrorKind::Closed);
 
             let r = within("refused", Client::connect(refused_addr().await)).await;
-            assert!(matches!(r, Err(Error::Io(_))), "{r:?}");
-            assert_eq!(kind(r, Error::kind), ErrorKind::Io);
+            fails_as!(r, Error::Io(_), ErrorKind::Io);
 
             // The reply cut off by the end of the connection.
             let addr = cutting_server(5, b"POS=12").await;
             let g = within("connect", Client::connect(addr)).await.unwrap();
             let r = within("POS?", g.position_mm()).await;
-            assert!(matches!(r, Err(Error::ConnectionLost { .. })), "{r:?}");
-            assert_eq!(kind(r, Error::kind), ErrorKind::ConnectionLost);
+            fails_as!(r, Error::ConnectionLost { .. }, ErrorKind::ConnectionLost);
         }
     }
 
@@ -409,32 +395,26 @@ mod kinds {
             // E_NOT_INITIALIZED (manual chapter 4).
             server.inject(Fault::RawReply(b"ERR 04\n".to_vec()));
             let r = within("ID?", client.id()).await;
-            assert!(matches!(r, Err(Error::Device { .. })), "{r:?}");
-            assert_eq!(kind(r, Error::kind), ErrorKind::Device);
+            fails_as!(r, Error::Device { .. }, ErrorKind::Device);
 
             server.inject(Fault::RawReply(b"ACK\n".to_vec()));
             let r = within("ID?", client.id()).await;
-            assert!(matches!(r, Err(Error::UnexpectedReply { .. })), "{r:?}");
-            assert_eq!(kind(r, Error::kind), ErrorKind::MalformedReply);
+            fails_as!(r, Error::UnexpectedReply { .. }, ErrorKind::MalformedReply);
 
             server.inject(Fault::RawReply(b"VALUE[0][0]=1e3\n".to_vec()));
             let r = within("VALUE", client.port(0).value(0)).await;
-            assert!(matches!(r, Err(Error::MalformedReply { .. })), "{r:?}");
-            assert_eq!(kind(r, Error::kind), ErrorKind::MalformedReply);
+            fails_as!(r, Error::MalformedReply { .. }, ErrorKind::MalformedReply);
 
             let held = server.hold_next_reply();
             let r = within("ID?", client.with_timeout(Duration::from_millis(50)).id()).await;
-            assert!(matches!(r, Err(Error::Timeout { .. })), "{r:?}");
-            assert_eq!(kind(r, Error::kind), ErrorKind::Timeout);
+            fails_as!(r, Error::Timeout { .. }, ErrorKind::Timeout);
             drop(held);
 
             let r = within("empty line", client.command("")).await;
-            assert!(matches!(r, Err(Error::InvalidArgument { .. })), "{r:?}");
-            assert_eq!(kind(r, Error::kind), ErrorKind::InvalidArgument);
+            fails_as!(r, Error::InvalidArgument { .. }, ErrorKind::InvalidArgument);
 
             let r = within("refused", Client::connect(refused_addr().await)).await;
-            assert!(matches!(r, Err(Error::Io(_))), "{r:?}");
-            assert_eq!(kind(r, Error::kind), ErrorKind::Io);
+            fails_as!(r, Error::Io(_), ErrorKind::Io);
         }
     }
 
@@ -462,8 +442,7 @@ mod kinds {
             let (server, client) = sim(SimConfig::default()).await;
             // ERROR: no such project.
             let r = within("SET_PROJECT", client.set_project(99)).await;
-            assert!(matches!(r, Err(Error::Device { .. })), "{r:?}");
-            assert_eq!(kind(r, Error::kind), ErrorKind::Device);
+            fails_as!(r, Error::Device { .. }, ErrorKind::Device);
 
             let request = GraspRequest {
                 grasp_mode: GraspMode::ActiveGrasp,
@@ -473,18 +452,13 @@ mod kinds {
                 pose_format: PoseFormat::Unknown(200),
             };
             let r = within("GET_GRASP", client.get_grasp(request)).await;
-            assert!(matches!(r, Err(Error::InvalidArgument { .. })), "{r:?}");
-            assert_eq!(kind(r, Error::kind), ErrorKind::InvalidArgument);
+            fails_as!(r, Error::InvalidArgument { .. }, ErrorKind::InvalidArgument);
 
             // Two requests in flight, the first one's response dropped: the counter skips.
             server.inject(Fault::DropReply);
             let (first, second) =
                 tokio::join!(client.get_protocol_version(), client.get_object_count(0));
-            assert!(
-                matches!(first, Err(Error::ResponseLost { .. })),
-                "{first:?}"
-            );
-            assert_eq!(kind(first, Error::kind), ErrorKind::ReplyLost);
+            fails_as!(first, Error::ResponseLost { .. }, ErrorKind::ReplyLost);
             second.unwrap();
 
             server.inject(Fault::DropReply);
@@ -493,13 +467,11 @@ mod kinds {
                 client.with_timeout(Duration::from_millis(50)).get_state(),
             )
             .await;
-            assert!(matches!(r, Err(Error::Timeout { .. })), "{r:?}");
-            assert_eq!(kind(r, Error::kind), ErrorKind::Timeout);
+            fails_as!(r, Error::Timeout { .. }, ErrorKind::Timeout);
 
             server.inject(Fault::CorruptLength(75));
             let r = within("GET_STATE", client.get_state()).await;
-            assert!(matches!(r, Err(Error::MalformedReply(_))), "{r:?}");
-            assert_eq!(kind(r, Error::kind), ErrorKind::MalformedReply);
+            fails_as!(r, Error::MalformedReply(_), ErrorKind::MalformedReply);
 
             let old = SimServer::bind(
                 "127.0.0.1:0",
@@ -515,16 +487,14 @@ mod kinds {
                 Client::connect(old.local_addr(), ClientConfig::default()),
             )
             .await;
-            assert!(matches!(r, Err(Error::ServerTooOld { .. })), "{r:?}");
-            assert_eq!(kind(r, Error::kind), ErrorKind::Incompatible);
+            fails_as!(r, Error::ServerTooOld { .. }, ErrorKind::Incompatible);
 
             let r = within(
                 "refused",
                 Client::connect(refused_addr().await, ClientConfig::default()),
             )
             .await;
-            assert!(matches!(r, Err(Error::Io(_))), "{r:?}");
-            assert_eq!(kind(r, Error::kind), ErrorKind::Io);
+            fails_as!(r, Error::Io(_), ErrorKind::Io);
         }
     }
 
