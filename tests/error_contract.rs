@@ -75,14 +75,20 @@ mod griplink {
         }
     }
 
-    #[tokio::test]
-    async fn calls_after_close_are_closed() {
+    /// A GRIPLINK simulator (motion costs no time) and a client connected to it.
+    pub(super) async fn connected_sim() -> (SimServer, Client) {
         let server = SimServer::bind("127.0.0.1:0", SimConfig::et4().time_scale(0.0))
             .await
             .unwrap();
         let client = within("connect", Client::connect(server.local_addr()))
             .await
             .unwrap();
+        (server, client)
+    }
+
+    #[tokio::test]
+    async fn calls_after_close_are_closed() {
+        let (_server, client) = connected_sim().await;
         let other = client.clone();
         within("close", client.close()).await.unwrap();
         for c in [&client, &other] {
@@ -381,17 +387,12 @@ mod kinds {
 
     mod griplink {
         use super::*;
-        use gripper::griplink::sim::{Fault, SimConfig, SimServer};
+        use gripper::griplink::sim::Fault;
         use gripper::griplink::{Client, Error};
 
         #[tokio::test]
         async fn every_kind_the_griplink_client_produces() {
-            let server = SimServer::bind("127.0.0.1:0", SimConfig::et4().time_scale(0.0))
-                .await
-                .unwrap();
-            let client = within("connect", Client::connect(server.local_addr()))
-                .await
-                .unwrap();
+            let (server, client) = crate::griplink::connected_sim().await;
             // E_NOT_INITIALIZED (manual chapter 4).
             server.inject(Fault::RawReply(b"ERR 04\n".to_vec()));
             let r = within("ID?", client.id()).await;
