@@ -33,7 +33,7 @@ pub fn error(e: Error) -> PyErr {
             command,
         ),
         Error::Timeout { timeout, .. } => errors::timeout(message, timeout.as_secs_f64()),
-        Error::ConnectionLost(_) => errors::connection_lost(message),
+        Error::ConnectionLost { .. } => errors::connection_lost(message),
         Error::Closed => errors::closed(message),
         Error::MalformedReply { .. } | Error::UnexpectedReply { .. } => errors::malformed(message),
         Error::InvalidArgument { .. } => errors::invalid_argument(message),
@@ -194,7 +194,7 @@ impl ToPy for AioClient {
 /// is already lost (the error was raised by the call that saw it), is fine to leave.
 async fn close_for_exit(c: griplink::Client) -> griplink::Result<()> {
     match c.close().await {
-        Err(Error::Closed | Error::ConnectionLost(_)) => Ok(()),
+        Err(Error::Closed | Error::ConnectionLost { .. }) => Ok(()),
         other => other,
     }
 }

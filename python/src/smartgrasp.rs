@@ -35,7 +35,7 @@ pub fn error(e: Error) -> PyErr {
         Error::ConnectionLost { .. } => errors::connection_lost(message),
         Error::Closed => errors::closed(message),
         Error::MalformedReply(_) => errors::malformed(message),
-        Error::InvalidArgument(_) | Error::Pose(_) | Error::Request(_) => {
+        Error::InvalidArgument { .. } | Error::Pose(_) | Error::Request(_) => {
             errors::invalid_argument(message)
         }
         Error::Io(_) => errors::transport(message),

@@ -29,10 +29,10 @@ pub fn error(e: Error) -> PyErr {
             command,
         ),
         Error::Timeout { timeout, .. } => errors::timeout(message, timeout.as_secs_f64()),
-        Error::ConnectionLost(_) => errors::connection_lost(message),
+        Error::ConnectionLost { .. } => errors::connection_lost(message),
         Error::Closed => errors::closed(message),
         Error::MalformedReply { .. } => errors::malformed(message),
-        Error::InvalidArgument(_) => errors::invalid_argument(message),
+        Error::InvalidArgument { .. } => errors::invalid_argument(message),
         Error::Io(_) => errors::transport(message),
         _ => errors::raise("GripperError", message, &[]),
     }
@@ -231,7 +231,10 @@ async fn resolve(addr: &str) -> wsg::Result<SocketAddr> {
     tokio::net::lookup_host(addr)
         .await?
         .next()
-        .ok_or_else(|| Error::InvalidArgument(format!("{addr:?} resolves to no address")))
+        .ok_or_else(|| Error::InvalidArgument {
+            what: "address",
+            reason: format!("{addr:?} resolves to no address"),
+        })
 }
 
 // ---- the clients ---------------------------------------------------------------------------
@@ -461,7 +464,7 @@ twins! {
 /// is already lost (the error was raised by the call that saw it), is fine to leave.
 async fn close_for_exit(c: wsg::Client) -> wsg::Result<()> {
     match c.close().await {
-        Err(Error::Closed | Error::ConnectionLost(_)) => Ok(()),
+        Err(Error::Closed | Error::ConnectionLost { .. }) => Ok(()),
         other => other,
     }
 }

@@ -30,7 +30,7 @@ pub fn error(e: Error) -> PyErr {
         ),
         Error::Device { command, .. } => errors::device(message, -1, None, None, command),
         Error::Timeout { timeout, .. } => errors::timeout(message, timeout.as_secs_f64()),
-        Error::ConnectionLost(_) => errors::connection_lost(message),
+        Error::ConnectionLost { .. } => errors::connection_lost(message),
         Error::Closed => errors::closed(message),
         Error::MalformedReply { .. } | Error::UnexpectedReply { .. } => errors::malformed(message),
         Error::InvalidArgument { .. } => errors::invalid_argument(message),
@@ -210,7 +210,7 @@ twins! {
 /// already lost, is fine to leave.
 async fn close_for_exit(c: text::Client) -> text::Result<()> {
     match c.close().await {
-        Err(Error::Closed | Error::ConnectionLost(_)) => Ok(()),
+        Err(Error::Closed | Error::ConnectionLost { .. }) => Ok(()),
         other => other,
     }
 }

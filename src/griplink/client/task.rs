@@ -151,9 +151,7 @@ impl Writer {
         match tokio::time::timeout_at(limit, self.half.write_all(&self.out)).await {
             Ok(Ok(())) => Ok(()),
             Ok(Err(e)) => Err(io_error(e)),
-            Err(_) => Err(Error::ConnectionLost(
-                "the controller stopped reading commands".into(),
-            )),
+            Err(_) => Err(Error::lost("the controller stopped reading commands")),
         }
     }
 }
@@ -246,7 +244,7 @@ pub(crate) fn timed_out(what: &str) -> Error {
 /// The controller ended the connection (EOF after it was open): the connection is lost, not
 /// closed by this client.
 fn controller_closed() -> Error {
-    Error::ConnectionLost("the controller closed the connection".into())
+    Error::lost("the controller closed the connection")
 }
 
 /// An I/O error on an open connection. The peer ending it — an EOF (the codec reports a line
@@ -256,7 +254,7 @@ fn io_error(e: std::io::Error) -> Error {
     use std::io::ErrorKind::{BrokenPipe, ConnectionAborted, ConnectionReset, UnexpectedEof};
     match e.kind() {
         UnexpectedEof | ConnectionReset | ConnectionAborted | BrokenPipe => {
-            Error::ConnectionLost(format!("the controller closed the connection: {e}"))
+            Error::lost(format!("the controller closed the connection: {e}"))
         }
         _ => Error::from(e),
     }
@@ -377,9 +375,9 @@ async fn serve(
                             break e;
                         }
                     }
-                    Delivery::Lost => break Error::ConnectionLost(
+                    Delivery::Lost => break Error::lost(
                         "a reply did not answer its command while others were on the wire; \
-                         replies can no longer be paired".into(),
+                         replies can no longer be paired",
                     ),
                     _ if closing && pipeline.is_empty() => break Error::Closed,
                     _ => {}
@@ -391,7 +389,7 @@ async fn serve(
             () = &mut give_up_timer, if give_up.is_some() => {
                 let command = pipeline.oldest().unwrap_or_default().to_owned();
                 tracing::error!(%command, "griplink: reply overdue, giving up on the connection");
-                break Error::ConnectionLost(format!(
+                break Error::lost(format!(
                     "no reply to {command} long after its timeout; replies can no longer be paired"
                 ));
             },
@@ -485,7 +483,7 @@ mod tests {
         };
         assert!(sent > 0);
         assert!(
-            matches!(&err, Error::ConnectionLost(why) if why.contains("stopped reading")),
+            matches!(&err, Error::ConnectionLost { reason: why } if why.contains("stopped reading")),
             "{err:?}"
         );
     }

@@ -190,7 +190,7 @@ impl Task {
                     });
                     // Calls in flight fail; nothing is sent again on its own (a move that was
                     // cut off must not start again without the program deciding so).
-                    self.fail_waiters(&Error::ConnectionLost(reason.clone()));
+                    self.fail_waiters(&Error::lost(reason.as_str()));
                     if self.reconnect_link().await {
                         continue;
                     }
@@ -200,7 +200,7 @@ impl Task {
             }
         };
         let e = match lost {
-            Some(reason) => Error::ConnectionLost(reason),
+            Some(reason) => Error::lost(reason),
             None => Error::Closed,
         };
         self.fail_waiters(&e);
@@ -222,11 +222,7 @@ impl Task {
     fn fail_waiters(&mut self, e: &Error) {
         for (_, w) in self.waiters.drain() {
             if let Waiter::Caller(tx) = w {
-                let again = match e {
-                    Error::ConnectionLost(reason) => Error::ConnectionLost(reason.clone()),
-                    _ => Error::Closed,
-                };
-                let _ = tx.send(Err(again));
+                let _ = tx.send(Err(e.clone()));
             }
         }
         self.pairing.drain();
@@ -719,7 +715,7 @@ impl Task {
                 })
                 .await
             {
-                return Err(Error::ConnectionLost(e.to_string()));
+                return Err(Error::lost(e.to_string()));
             }
             result = loop {
                 tokio::select! {
@@ -745,11 +741,11 @@ impl Task {
                                 Err(e) => Err(e),
                             };
                             if let Err(e) = paired {
-                                break Err(Error::ConnectionLost(e.to_string()));
+                                break Err(Error::lost(e.to_string()));
                             }
                         }
-                        Some(Err(e)) => break Err(Error::ConnectionLost(e.to_string())),
-                        None => break Err(Error::ConnectionLost("closed by the gripper".into())),
+                        Some(Err(e)) => break Err(Error::lost(e.to_string())),
+                        None => break Err(Error::lost("closed by the gripper")),
                     },
                 }
             };

@@ -108,10 +108,10 @@ impl Device {
         match cmd {
             Command::Loop(d) => out.push(data(session, id, d)),
             Command::AnnounceDisconnect => {
-                if self.sessions.get(&session) == Some(&SessionKind::Tcp) {
+                if self.sessions.kind(session) == Some(SessionKind::Tcp) {
                     // "All running finger movements are stopped immediately" (3.1.2).
                     out.extend(self.abort_motion());
-                    self.announced.insert(session);
+                    self.sessions.announce(session);
                     ok(out);
                 } else {
                     out.push(status(session, id, Status::NotAvailable));

@@ -133,9 +133,7 @@ impl<R, W: AsyncWrite + Unpin> Conn<R, W> {
         match write_all_by(&mut self.writer, &self.out, || limit).await {
             Ok(Ok(())) => Ok(()),
             Ok(Err(e)) => Err(io_error(e)),
-            Err(_) => Err(Error::ConnectionLost(
-                "the gripper stopped reading commands".into(),
-            )),
+            Err(_) => Err(Error::lost("the gripper stopped reading commands")),
         }
     }
 }
@@ -144,7 +142,7 @@ fn io_error(e: std::io::Error) -> Error {
     use std::io::ErrorKind::{BrokenPipe, ConnectionAborted, ConnectionReset, UnexpectedEof};
     match e.kind() {
         UnexpectedEof | ConnectionReset | ConnectionAborted | BrokenPipe => {
-            Error::ConnectionLost(format!("the gripper closed the connection: {e}"))
+            Error::lost(format!("the gripper closed the connection: {e}"))
         }
         _ => Error::from(e),
     }
@@ -331,7 +329,7 @@ pub(crate) async fn run<R, W>(
                     Err(why) => tracing::warn!(%why, "wsg text: reply line discarded"),
                 },
                 Some(Err(e)) => break io_error(e),
-                None => break Error::ConnectionLost("the gripper closed the connection".into()),
+                None => break Error::lost("the gripper closed the connection"),
             },
             () = &mut timer, if give_up.is_some() => {
                 let command = book
@@ -341,7 +339,7 @@ pub(crate) async fn run<R, W>(
                     .map(|s| s.line.clone())
                     .unwrap_or_default();
                 tracing::error!(%command, "wsg text: reply overdue, giving up on the connection");
-                break Error::ConnectionLost(format!(
+                break Error::lost(format!(
                     "no reply to {command} long after its timeout; replies can no longer be paired"
                 ));
             },

@@ -541,6 +541,6 @@ impl DocumentedErrors for Error {
     }
 
     fn is_connection_lost(&self) -> bool {
-        matches!(self, Error::ConnectionLost(_))
+        matches!(self, Error::ConnectionLost { .. })
     }
 }

@@ -485,7 +485,7 @@ async fn recovery(ctx: &Arc<ClientCtx>, log: &Arc<Log>, trace: &SharedTrace) -> 
     };
     match (&r, ctx.reconnect, lost) {
         (Ok(_), _, _) => {}
-        (Err(gripper::wsg::Error::ConnectionLost(_)), false, true) => {}
+        (Err(gripper::wsg::Error::ConnectionLost { .. }), false, true) => {}
         (Err(gripper::wsg::Error::Timeout { .. }), _, _) if too_long() => {}
         _ => v.push(format!(
             "5 (recovery): client {} (reconnect {}, lost before: {lost}): {:?} after the faults stopped, the next call (system_info) ended {r:?} {} {}",
@@ -682,7 +682,7 @@ impl DocumentedErrors for gripper::wsg::Error {
     }
 
     fn is_connection_lost(&self) -> bool {
-        matches!(self, gripper::wsg::Error::ConnectionLost(_))
+        matches!(self, gripper::wsg::Error::ConnectionLost { .. })
     }
 }
 

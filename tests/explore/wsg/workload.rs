@@ -200,10 +200,10 @@ pub fn classify(e: &Error) -> Res {
         Error::Device { command, status } => Res::Device(*command, *status),
         Error::Timeout { .. } => Res::Timeout,
         Error::ReplyLost { command } => Res::ReplyLost(*command),
-        Error::ConnectionLost(_) => Res::Lost,
+        Error::ConnectionLost { .. } => Res::Lost,
         Error::Closed => Res::Closed,
         Error::SubscriptionConflict { .. } => Res::Conflict,
-        Error::InvalidArgument(_) => Res::Invalid,
+        Error::InvalidArgument { .. } => Res::Invalid,
         other => Res::Other(format!("{other:?}")),
     }
 }

@@ -280,7 +280,7 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
         let r = c.close().await;
         note(&trace, format!("close client {}: {r:?}", ctx.index));
         let after = c.position_mm().await;
-        let lost = lost || matches!(r, Err(Error::ConnectionLost(_)));
+        let lost = lost || matches!(r, Err(Error::ConnectionLost { .. }));
         let stuck = if ctx.stuck.load(Ordering::SeqCst) {
             quiet::FULL
         } else {
@@ -483,6 +483,6 @@ impl DocumentedErrors for Error {
     }
 
     fn is_connection_lost(&self) -> bool {
-        matches!(self, Error::ConnectionLost(_))
+        matches!(self, Error::ConnectionLost { .. })
     }
 }

@@ -259,7 +259,7 @@ pub fn classify(e: &Error) -> Res {
     match e {
         Error::Device { line, .. } => Res::Device(line.clone()),
         Error::Closed => Res::Closed,
-        Error::ConnectionLost(why) => Res::Lost(why.clone()),
+        Error::ConnectionLost { reason } => Res::Lost(reason.to_string()),
         Error::Timeout { .. } => Res::Timeout,
         Error::MalformedReply { .. } | Error::UnexpectedReply { .. } => {
             Res::Malformed(e.to_string())
