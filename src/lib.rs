@@ -78,10 +78,13 @@ pub use error::ErrorKind;
 /// Fault-injecting TCP proxy for tests (feature `sim`).
 #[cfg(feature = "sim")]
 pub mod fault;
+mod give_up;
 pub mod griplink;
 mod int_map;
+mod line;
 /// Reconnecting after a lost connection: backoff policy and connection events, shared by the
 /// `smartgrasp`, `griplink` and `wsg` clients (wsg over TCP and serial; UDP has no connection).
 pub mod reconnect;
 pub mod smartgrasp;
+mod supervisor;
 pub mod wsg;

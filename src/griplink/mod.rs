@@ -78,7 +78,7 @@
 //! # fn main() {}
 //! ```
 pub mod client;
-pub mod codec;
+pub use crate::line::codec;
 pub mod command;
 pub mod error;
 pub mod reply;

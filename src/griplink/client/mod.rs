@@ -111,7 +111,6 @@ mod task;
 mod wait;
 mod watch;
 
-use std::net::SocketAddr;
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -125,8 +124,7 @@ pub use wait::{
 };
 pub use watch::Watch;
 
-use self::task::{Opener, Request, Shared, Task, TaskConfig};
-use super::codec::DEFAULT_MAX_LINE_LEN;
+use self::task::{Request, Shared, Task, TaskConfig};
 #[cfg(doc)]
 use super::command::Blocking;
 use super::command::{check_raw_line, Command, Duty, Expect, GripConfig, GripConfigF, PortNumber};
@@ -135,6 +133,8 @@ use super::reply::{Answer, Checked, Datum};
 use super::state::DeviceState;
 use super::value::Value;
 use crate::connection::Connection;
+use crate::line::codec::DEFAULT_MAX_LINE_LEN;
+use crate::line::Opener;
 use crate::reconnect::{
     BoxStream, ConnectionEvents, EventSender, EventSubscriber, ReconnectPolicy,
 };
@@ -328,20 +328,16 @@ impl Client {
     ///
     /// Cancel-safe: dropped, nothing is left running.
     pub async fn connect_with(addr: impl ToSocketAddrs, config: ClientConfig) -> Result<Client> {
-        let addrs: Vec<SocketAddr> =
-            tokio::time::timeout(config.connect_timeout, tokio::net::lookup_host(addr))
-                .await
-                .map_err(|_| task::timed_out("resolving the controller's address"))??
-                .collect();
-        let stream = task::connect_any(&addrs, config.connect_timeout).await?;
-        Ok(Client::spawn(Box::new(stream), Opener::Tcp(addrs), config))
+        let (stream, opener) =
+            Opener::resolve_and_connect::<Error>(addr, config.connect_timeout).await?;
+        Ok(Client::spawn(stream, opener, config))
     }
 
     /// Runs the client over an already connected stream. Must be called inside a tokio runtime.
     /// A reconnect ([`ClientConfig::reconnect`]) goes to the stream's peer address.
     pub fn from_stream(stream: TcpStream, config: ClientConfig) -> Client {
-        let addrs = stream.peer_addr().into_iter().collect();
-        Client::spawn(Box::new(stream), Opener::Tcp(addrs), config)
+        let (stream, opener) = Opener::from_tcp(stream);
+        Client::spawn(stream, opener, config)
     }
 
     /// Runs the client over the byte streams `open` opens: one now, and with
@@ -356,11 +352,9 @@ impl Client {
         Fut: std::future::Future<Output = std::io::Result<S>> + Send + 'static,
         S: tokio::io::AsyncRead + tokio::io::AsyncWrite + Send + Unpin + 'static,
     {
-        let (stream, open) =
-            tokio::time::timeout(config.connect_timeout, crate::reconnect::first_open(open))
-                .await
-                .map_err(|_| task::timed_out("opening the connection"))??;
-        Ok(Client::spawn(stream, Opener::Custom(open), config))
+        let (stream, opener) =
+            Opener::first::<Error, _, _, _>(open, config.connect_timeout).await?;
+        Ok(Client::spawn(stream, opener, config))
     }
 
     fn spawn(stream: BoxStream, opener: Opener, config: ClientConfig) -> Client {

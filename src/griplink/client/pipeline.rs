@@ -20,10 +20,11 @@ use std::time::Duration;
 use tokio::sync::oneshot;
 use tokio::time::Instant;
 
-use crate::griplink::codec::Discarded;
+use crate::give_up::GiveUp;
 use crate::griplink::command::Expect;
 use crate::griplink::error::{Error, Result};
 use crate::griplink::reply::{interpret_datum, Checked};
+use crate::line::codec::Discarded;
 
 /// Where a caller waits for its result.
 pub(crate) type Waiter = oneshot::Sender<Result<Checked>>;
@@ -37,8 +38,9 @@ pub(crate) struct Slot {
     pub expect: Expect,
     /// The caller, who may have gone away.
     pub waiter: Waiter,
-    /// When a missing reply means the pairing can no longer be trusted.
-    pub give_up_at: Instant,
+    /// When a missing reply means the pairing can no longer be trusted (counted again from
+    /// when the slot reaches the front, `crate::give_up`).
+    pub give_up: GiveUp,
     /// `Some` for a resynchronisation probe: lines that do not answer it are skipped (they are
     /// leftovers of the shift); when its answer comes, `waiter` (the caller whose reply was out
     /// of step) gets this error.
@@ -123,9 +125,10 @@ impl Pipeline {
     }
 
     /// When the oldest outstanding reply is so late that the connection must be given up.
-    /// Only the oldest counts: later replies cannot come before it.
-    pub(crate) fn give_up_at(&self) -> Option<Instant> {
-        self.slots.front().map(|s| s.give_up_at)
+    /// Only the oldest counts: later replies cannot come before it. `now` is read only when a
+    /// command has just reached the front behind another (its give-up clock starts then).
+    pub(crate) fn give_up_at(&mut self, now: impl FnOnce() -> Instant) -> Option<Instant> {
+        self.slots.front_mut().map(|s| s.give_up.at_front(now))
     }
 
     /// The line of the oldest outstanding command.
@@ -178,7 +181,10 @@ impl Pipeline {
                     line: probe.to_owned(),
                     expect,
                     waiter: slot.waiter,
-                    give_up_at: crate::deadline::after(Instant::now(), self.probe_timeout),
+                    give_up: GiveUp::fixed(crate::deadline::after(
+                        Instant::now(),
+                        self.probe_timeout,
+                    )),
                     probe: Some(error),
                 });
                 Delivery::Resync(probe)
@@ -213,7 +219,7 @@ mod tests {
                 line: line.into(),
                 expect,
                 waiter: tx,
-                give_up_at: Instant::now(),
+                give_up: GiveUp::fixed(Instant::now()),
                 probe: None,
             },
             rx,

@@ -21,10 +21,10 @@ use tokio_util::codec::FramedRead;
 
 use super::controller::{error_line, Controller, Outcome, Session, SimConfig, Wait};
 use super::parse::{clean_line, parse_command};
-use crate::griplink::codec::{Discarded, Line, LineCodec, DEFAULT_MAX_LINE_LEN};
 use crate::griplink::command::{Command, PortNumber};
 use crate::griplink::state::DeviceState;
 use crate::griplink::status::Status;
+use crate::line::codec::{Discarded, Line, LineCodec, DEFAULT_MAX_LINE_LEN};
 
 /// A fault injected into the handling of the next command line the server receives (on any
 /// connection), for testing how a client copes.

@@ -23,6 +23,7 @@ use super::shutdown::Shutdown;
 use super::{ClientConfig, Shared, Timeouts};
 use crate::client_stream::ClientStream;
 use crate::deadline::{after, move_timer, write_all_by};
+use crate::give_up::GiveUp;
 use crate::reconnect::Open;
 use crate::smartgrasp::codec::ClientCodec;
 use crate::smartgrasp::error::{Error, Malformed, Result};
@@ -56,9 +57,10 @@ pub(crate) struct Call {
 struct Waiting {
     request: RequestFrame,
     reply: oneshot::Sender<Result<ResponseFrame>>,
-    /// Its call's deadline plus [`ClientConfig::give_up_after`]: a server that has not answered
-    /// by then is not answering, and the connection is given up.
-    give_up_at: Instant,
+    /// Its call's deadline plus [`ClientConfig::give_up_after`], counted again from when it
+    /// reaches the front (`crate::give_up`): a server that has not answered by then is not
+    /// answering, and the connection is given up.
+    give_up: GiveUp,
 }
 
 /// What [`Link::serve`] tells its owner about each response it pairs: the request and its
@@ -208,7 +210,10 @@ impl Link {
         let mut shutdown = Shutdown::new(shutdown);
         let mut give_up = pin!(tokio::time::sleep_until(Instant::now()));
         let reason = loop {
-            let give_up_at = self.waiting.front().map(|w| w.give_up_at);
+            let give_up_at = self
+                .waiting
+                .front_mut()
+                .map(|w| w.give_up.at_front(Instant::now));
             if let Some(at) = give_up_at {
                 move_timer(give_up.as_mut(), at);
             }
@@ -291,8 +296,16 @@ impl Link {
         reply: oneshot::Sender<Result<ResponseFrame>>,
         deadline: Instant,
     ) -> Result<()> {
-        let give_up_at = after(deadline, self.give_up_after);
-        if let Err(error) = write_within(self.stream.get_mut(), give_up_at, &request.encode()).await
+        // Behind other requests its clock starts again when it reaches the front, with the
+        // time its caller had left when it was sent (`crate::give_up`).
+        let give_up = GiveUp::new(
+            deadline,
+            self.give_up_after,
+            self.waiting.is_empty(),
+            || deadline.saturating_duration_since(Instant::now()),
+        );
+        if let Err(error) =
+            write_within(self.stream.get_mut(), give_up.limit(), &request.encode()).await
         {
             let _ = reply.send(Err(error.clone()));
             return Err(error);
@@ -300,7 +313,7 @@ impl Link {
         self.waiting.push_back(Waiting {
             request,
             reply,
-            give_up_at,
+            give_up,
         });
         Ok(())
     }

@@ -14,8 +14,9 @@ use tokio_util::sync::CancellationToken;
 use super::link::{closed_error, Call, Link, Opener};
 use super::session::Session;
 use super::{ClientConfig, Shared};
-use crate::reconnect::{self, ConnectionEvent, EventSender};
+use crate::reconnect::{EventSender, ReconnectPolicy};
 use crate::smartgrasp::error::Error;
+use crate::supervisor::{supervise, Restore, Served, Session as Supervised};
 
 /// Everything the task needs besides the first connection.
 pub(crate) struct Task {
@@ -34,9 +35,77 @@ pub(crate) struct Task {
 }
 
 /// Runs until every handle is dropped, the program closes the client, or the connection is lost
-/// for good.
-pub(crate) async fn run(mut link: Link, mut task: Task) {
-    let reason = loop {
+/// for good (the loop is the shared supervisor's, `crate::supervisor`).
+pub(crate) async fn run(link: Link, task: Task) {
+    supervise(SmartGrasp {
+        task,
+        link: Some(link),
+    })
+    .await;
+}
+
+/// The SmartGrasp session the supervisor runs: restored by the opening sequence again
+/// (`session.rs`).
+struct SmartGrasp {
+    task: Task,
+    /// `None` from a loss until a reconnect: the lost connection is closed at once.
+    link: Option<Link>,
+}
+
+/// The reason a client ended, as its calls read it.
+fn reason(end: &Served<(), Error>) -> Error {
+    match end {
+        Served::Closed(()) => Error::Closed,
+        Served::Lost(reason) => reason.clone(),
+    }
+}
+
+impl Restore for Task {
+    type Link = Link;
+    type Error = Error;
+
+    fn events(&self) -> &EventSender {
+        &self.events
+    }
+
+    fn abandoned(&self) -> bool {
+        self.calls.is_closed()
+    }
+
+    fn close_requested(&self) -> bool {
+        self.shutdown.is_cancelled()
+    }
+
+    async fn closing(&self) {
+        self.shutdown.cancelled().await
+    }
+
+    async fn connect(&self) -> Result<Link, Error> {
+        Link::connect(&self.opener, &self.config, &self.shared).await
+    }
+
+    async fn restore(&self, link: &mut Link) -> Result<(), Error> {
+        let opened = self.session.open(link, &self.config).await?;
+        self.shared.set_opened(&opened);
+        Ok(())
+    }
+}
+
+impl Supervised for SmartGrasp {
+    type Restore<'a> = &'a Task;
+    type Link = Link;
+    type Error = Error;
+    type Request = Call;
+    type Close = ();
+
+    async fn serve(&mut self) -> Served<(), Error> {
+        let task = &mut self.task;
+        let Some(link) = self.link.as_mut() else {
+            // Not reached: the supervisor serves only after a connect or a reconnect.
+            return Served::Lost(Error::ConnectionLost {
+                reason: "not connected".into(),
+            });
+        };
         let session = &mut task.session;
         let served = link
             .serve(
@@ -45,64 +114,38 @@ pub(crate) async fn run(mut link: Link, mut task: Task) {
                 &task.shutdown,
             )
             .await;
-        let Some(reason) = served else {
-            return;
-        };
-        drop(link);
-        // Closed by the program: nothing to report or restore.
-        if matches!(reason, Error::Closed) {
-            break reason;
+        match served {
+            // `None`: every handle is gone. `Closed`: closed by the program.
+            None | Some(Error::Closed) => Served::Closed(()),
+            Some(reason) => Served::Lost(reason),
         }
-        task.events.send(ConnectionEvent::Lost {
-            reason: reason.to_string(),
-        });
-        let Some(policy) = task.config.reconnect else {
-            break reason;
-        };
-        // Calls made meanwhile wait in the channel, within their own timeouts.
-        let Task {
-            calls,
-            session,
-            config,
-            opener,
-            events,
-            shutdown,
-            shared,
-            ..
-        } = &task;
-        let retry = reconnect::retry(
-            &policy,
-            events,
-            || calls.is_closed(),
-            |_| async {
-                let mut link = Link::connect(opener, config, shared).await?;
-                events.send(ConnectionEvent::Connected);
-                let opened = session.open(&mut link, config).await?;
-                shared.set_opened(&opened);
-                Ok::<_, Error>(link)
-            },
-        );
-        // `close()` stops reconnecting, in a backoff wait or in the middle of an attempt.
-        let restored = tokio::select! {
-            // Fixed order (a seeded run replays exactly; unbiased select! draws from a
-            // per-process random seed): an attempt that completes at the same poll as the
-            // cancellation still counts, and `close()` is seen at the next poll either way.
-            biased;
-            restored = retry => restored,
-            () = shutdown.cancelled() => None,
-        };
-        match restored {
-            Some(restored) => link = restored,
-            None if shutdown.is_cancelled() => break Error::Closed,
-            None => break reason,
-        }
-    };
-    let _ = task.closed.set(reason.clone());
-    task.calls.close();
-    // `recv`, not `try_recv`: a call that took its place in the queue before it closed puts
-    // its request in afterwards, and `recv` waits for it where `try_recv` reports the queue
-    // empty; that request would then never be answered (its caller waited out its timeout).
-    while let Some(call) = task.calls.recv().await {
-        let _ = call.reply.send(Err(closed_error(Some(&reason))));
+    }
+
+    fn requests(&mut self) -> &mut mpsc::Receiver<Call> {
+        &mut self.task.calls
+    }
+
+    fn restorer(&self) -> &Task {
+        &self.task
+    }
+
+    fn policy(&self) -> Option<ReconnectPolicy> {
+        self.task.config.reconnect
+    }
+
+    fn lost(&mut self, _reason: &Error) {
+        self.link = None;
+    }
+
+    fn restored(&mut self, link: Link) {
+        self.link = Some(link);
+    }
+
+    fn ended(&mut self, end: &Served<(), Error>) {
+        let _ = self.task.closed.set(reason(end));
+    }
+
+    fn refuse(call: Call, end: &Served<(), Error>) {
+        let _ = call.reply.send(Err(closed_error(Some(&reason(end)))));
     }
 }

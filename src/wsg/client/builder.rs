@@ -11,7 +11,6 @@ use std::time::Duration;
 use tokio::net::{ToSocketAddrs, UdpSocket};
 use tokio::sync::mpsc;
 use tokio::time::{timeout_at, Instant};
-use tokio_util::codec::Framed;
 
 use super::connector::{self, Connector, ConnectorKind, Reconnect};
 use super::task::Task;
@@ -23,7 +22,7 @@ use crate::connection::Connection;
 use crate::deadline::after;
 use crate::reconnect::ReconnectPolicy;
 use crate::wsg::transport::{AsyncReadWrite, Link, TransportKind};
-use crate::wsg::{Result, WsgCodec};
+use crate::wsg::Result;
 
 /// Configures and opens a [`Client`].
 ///
@@ -274,7 +273,7 @@ impl ClientBuilder {
         kind: TransportKind,
         reconnect: Option<ConnectorKind>,
     ) -> Client {
-        let link = stream_link(io, self.max_payload_len);
+        let link = connector::stream_link(io, self.max_payload_len);
         self.start_link(link, kind, reconnect)
     }
 
@@ -338,8 +337,4 @@ impl ClientBuilder {
             motion_timeout: self.motion_timeout,
         }
     }
-}
-
-pub(super) fn stream_link(io: Box<dyn AsyncReadWrite>, max_payload_len: usize) -> Link {
-    Link::Stream(Framed::new(io, WsgCodec::for_replies(max_payload_len)))
 }

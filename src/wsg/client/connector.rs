@@ -1,14 +1,17 @@
 //! Opening a transport again, for reconnecting (TCP and serial; UDP has no connection to lose
-//! and an attached stream cannot be reopened).
+//! and an attached stream cannot be reopened), and the link over a byte stream the builder and
+//! a reconnect both make.
 
 use std::io;
 use std::net::SocketAddr;
 use std::time::Duration;
 
 use tokio::net::TcpStream;
+use tokio_util::codec::Framed;
 
 use crate::reconnect::ReconnectPolicy;
 use crate::wsg::transport::{AsyncReadWrite, Link};
+use crate::wsg::WsgCodec;
 
 /// What the task needs to reconnect.
 #[derive(Debug)]
@@ -84,7 +87,7 @@ impl Connector {
                 .await
                 .map_err(|_| timed_out())??,
         };
-        Ok(super::builder::stream_link(io, self.max_payload_len))
+        Ok(stream_link(io, self.max_payload_len))
     }
 }
 
@@ -117,4 +120,10 @@ pub(crate) fn serial(
         .exclusive(exclusive)
         .open_native_async()
         .map_err(io::Error::other)
+}
+
+/// The link over a byte stream (TCP, serial, the program's own): replies of up to
+/// `max_payload_len` bytes of payload decoded.
+pub(super) fn stream_link(io: Box<dyn AsyncReadWrite>, max_payload_len: usize) -> Link {
+    Link::Stream(Framed::new(io, WsgCodec::for_replies(max_payload_len)))
 }

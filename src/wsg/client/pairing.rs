@@ -94,8 +94,9 @@ use crate::int_map::IntMap;
 use crate::wsg::command::id;
 use crate::wsg::{Frame, Reply, Status};
 
-/// Identifies one request for the task.
-pub(crate) type Token = u64;
+/// Identifies one request for the task (defined with the stops, which hold tokens too and
+/// must not import the pairing that holds them).
+pub(crate) use super::stops::Token;
 
 /// Whether `id` is a motion command (manual 3.2.1, 3.2.2, 3.2.6, 3.2.7): asynchronous, refused
 /// by the device with E_ALREADY_RUNNING while another motion runs.

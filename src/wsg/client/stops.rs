@@ -36,8 +36,10 @@ use std::time::Duration;
 
 use tokio::time::Instant;
 
-use super::pairing::Token;
 use crate::deadline::after;
+
+/// Identifies one request for the task.
+pub(crate) type Token = u64;
 
 /// How long a waiting stop call goes without its reply before the stop is sent again: far
 /// above a stop's round trip on any transport (the device answers at once), far below a

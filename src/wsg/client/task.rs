@@ -18,7 +18,8 @@ use super::pairing::{Event, Observation, Pairing, Request, Submit, Token};
 use super::Reconnect;
 use crate::deadline::{after, move_timer};
 use crate::int_map::IntMap;
-use crate::reconnect::{self, ConnectionEvent, EventSender};
+use crate::reconnect::{EventSender, ReconnectPolicy};
+use crate::supervisor::{supervise, Restore, Served, Session};
 use crate::wsg::command::{id, Command, UpdateMode};
 use crate::wsg::subscription::{Subscriber, UpdateOptions};
 use crate::wsg::transport::Link;
@@ -119,6 +120,9 @@ pub(crate) struct Task {
     /// the device drops a corrupted request unanswered (its updates then look like the reply),
     /// so no answer proves that a request switching them off was received.
     device_streams: Vec<u8>,
+    /// From a loss until the reconnect: the frames that ask the new connection for the
+    /// auto-update streams again.
+    restore: Vec<Frame>,
 }
 
 /// Barriers of one fence answered with something other than their echo before the fenced id is
@@ -177,131 +181,47 @@ impl Task {
             ready: Vec::new(),
             ordered,
             device_streams: Vec::new(),
+            restore: Vec::new(),
         }
     }
 
-    pub(crate) async fn run(mut self) {
-        let (lost, done) = loop {
-            match self.serve().await {
-                Ok(done) => break (None, done),
-                Err(reason) => {
-                    self.events.send(ConnectionEvent::Lost {
-                        reason: self.loss_report(&reason),
-                    });
-                    // Calls in flight fail; nothing is sent again on its own (a move that was
-                    // cut off must not start again without the program deciding so).
-                    self.fail_waiters(&Error::lost(reason.as_str()));
-                    if self.reconnect_link().await {
-                        continue;
-                    }
-                    let _ = self.lost.set(reason.clone());
-                    break (Some(reason), None);
-                }
-            }
-        };
-        let e = match lost {
-            Some(reason) => Error::lost(reason),
-            None => Error::Closed,
-        };
-        self.fail_waiters(&e);
-        // Dropping the subscribers' senders ends their streams.
-        self.streams.clear();
-        // Close the queue and drop what is in it: its calls fail with the reason set above.
-        // `recv` waits for a call that took its place in the queue before it closed and puts
-        // its request in afterwards; dropping the queue as it is would leave that request
-        // unanswered (its caller waited out its timeout: one call in thousands on a
-        // multi-thread runtime, `tests/error_contract.rs`).
-        self.rx.close();
-        while self.rx.recv().await.is_some() {}
-        if let Some((done, result)) = done {
-            let _ = done.send(result);
-        }
+    /// Runs until closed, every handle is dropped, or the connection is lost for good (the
+    /// loop is the shared supervisor's, `crate::supervisor`).
+    pub(crate) async fn run(self) {
+        supervise(self).await;
     }
 
     /// Fails every call in flight or queued behind one (internal requests are forgotten).
     fn fail_waiters(&mut self, e: &Error) {
         for (_, w) in self.waiters.drain() {
             if let Waiter::Caller(tx) = w {
-                let _ = tx.send(Err(e.clone()));
+                let again = match e {
+                    Error::ConnectionLost { .. } => e.clone(),
+                    _ => Error::Closed,
+                };
+                let _ = tx.send(Err(again));
             }
         }
         self.pairing.drain();
         self.ready.clear();
     }
 
-    /// What the connection events say about a loss: on TCP, that the gripper is now in FAST
-    /// STOP, which the client never acknowledges on its own.
-    fn loss_report(&self, reason: &str) -> String {
-        if self.tcp {
-            format!(
-                "{reason}; the gripper goes into FAST STOP on an unannounced TCP close (manual \
-                 1.4.2): motion is refused until the program calls acknowledge_fast_stop"
-            )
-        } else {
-            reason.to_owned()
-        }
-    }
-
-    /// Reconnects with the policy's backoff (if there is one) and restores the auto-update
-    /// streams that still have subscribers. Returns false when the client gives up (or has
-    /// no policy): the task then ends.
-    async fn reconnect_link(&mut self) -> bool {
-        let Some(reconnect) = &self.reconnect else {
-            return false;
-        };
+    /// The auto-update streams that still have subscribers, and the frames that ask a new
+    /// connection for them again.
+    fn streams_to_restore(&mut self) -> Vec<Frame> {
         for st in self.streams.values_mut() {
             st.subscribers.retain(|s| !s.tx.is_closed());
         }
         self.streams.retain(|_, st| !st.subscribers.is_empty());
-        let restore: Vec<Frame> = self
-            .streams
+        self.streams
             .iter()
             .map(|(id, st)| stream_command(*id, st.mode))
-            .collect();
-        let (rx, closing, events) = (&self.rx, &self.closing, &self.events);
-        let write_timeout = self.write_timeout;
-        let link = reconnect::retry(
-            &reconnect.policy,
-            events,
-            || rx.is_closed() || closing.load(Ordering::Acquire),
-            |_| async {
-                let mut link = reconnect.connector.connect().await?;
-                events.send(ConnectionEvent::Connected);
-                // The new connection starts without auto-updates: ask for them again.
-                for frame in &restore {
-                    send_within(&mut link, frame, write_timeout).await?;
-                }
-                Ok::<_, io::Error>(link)
-            },
-        )
-        .await;
-        let Some(link) = link else {
-            return false;
-        };
-        self.link = link;
-        self.partial_since = None;
-        // A new connection streams only what was asked again on it.
-        self.device_streams = self.streams.keys().copied().collect();
-        // Their replies (the current values) go to the subscribers like any update.
-        let deadline = after(Instant::now(), self.query_timeout);
-        for frame in restore {
-            let token = self.waiter(Waiter::Internal);
-            // The ids are all free on a fresh connection: this only records what was sent.
-            let _ = self.pairing.submit(
-                Request {
-                    token,
-                    frame,
-                    deadline,
-                },
-                Instant::now(),
-            );
-        }
-        true
+            .collect()
     }
 
     /// Runs until closed (returns who to tell and how it went) or the connection breaks
     /// (returns the reason).
-    async fn serve(&mut self) -> std::result::Result<Closing, String> {
+    async fn serve_link(&mut self) -> std::result::Result<Closing, String> {
         // One timer each for the pairing's next due time and a stalled partial frame, kept
         // across iterations: a new `Sleep` per iteration costs a timer-wheel insert and removal
         // for every request and reply (issue 14). Unpolled, a timer costs nothing.
@@ -758,6 +678,157 @@ impl Task {
             tracing::warn!("WSG transport shutdown timed out; the connection is dropped");
         }
         result
+    }
+}
+
+/// What a WSG reconnect borrows of the task: the queue and the close flag (to stop), where
+/// events go, how to connect, and the streams to ask for again.
+pub(crate) struct Reopen<'a> {
+    rx: &'a mpsc::Receiver<Msg>,
+    closing: &'a AtomicBool,
+    events: &'a EventSender,
+    reconnect: Option<&'a Reconnect>,
+    restore: &'a [Frame],
+    write_timeout: Duration,
+}
+
+impl Restore for Reopen<'_> {
+    type Link = Link;
+    type Error = String;
+
+    fn events(&self) -> &EventSender {
+        self.events
+    }
+
+    fn abandoned(&self) -> bool {
+        self.rx.is_closed() || self.closing.load(Ordering::Acquire)
+    }
+
+    async fn connect(&self) -> std::result::Result<Link, String> {
+        let Some(reconnect) = self.reconnect else {
+            // Not reached: the supervisor reconnects only with a policy.
+            return Err("no reconnect policy".into());
+        };
+        reconnect
+            .connector
+            .connect()
+            .await
+            .map_err(|e| e.to_string())
+    }
+
+    async fn restore(&self, link: &mut Link) -> std::result::Result<(), String> {
+        // The new connection starts without auto-updates: ask for them again.
+        for frame in self.restore {
+            send_within(link, frame, self.write_timeout)
+                .await
+                .map_err(|e| e.to_string())?;
+        }
+        Ok(())
+    }
+}
+
+/// The WSG session the supervisor runs: restored by asking for the auto-update streams that
+/// still have subscribers again.
+impl Session for Task {
+    type Restore<'a> = Reopen<'a>;
+    type Link = Link;
+    type Error = String;
+    type Request = Msg;
+    type Close = Closing;
+
+    async fn serve(&mut self) -> Served<Closing, String> {
+        match self.serve_link().await {
+            Ok(done) => Served::Closed(done),
+            Err(reason) => Served::Lost(reason),
+        }
+    }
+
+    fn requests(&mut self) -> &mut mpsc::Receiver<Msg> {
+        &mut self.rx
+    }
+
+    fn restorer(&self) -> Reopen<'_> {
+        Reopen {
+            rx: &self.rx,
+            closing: &self.closing,
+            events: &self.events,
+            reconnect: self.reconnect.as_ref(),
+            restore: &self.restore,
+            write_timeout: self.write_timeout,
+        }
+    }
+
+    fn policy(&self) -> Option<ReconnectPolicy> {
+        self.reconnect.as_ref().map(|r| r.policy)
+    }
+
+    /// On TCP, that the gripper is now in FAST STOP, which the client never acknowledges on
+    /// its own.
+    fn loss_report(&self, reason: &String) -> String {
+        if self.tcp {
+            format!(
+                "{reason}; the gripper goes into FAST STOP on an unannounced TCP close (manual \
+                 1.4.2): motion is refused until the program calls acknowledge_fast_stop"
+            )
+        } else {
+            reason.to_owned()
+        }
+    }
+
+    fn lost(&mut self, reason: &String) {
+        // Calls in flight fail; nothing is sent again on its own (a move that was cut off must
+        // not start again without the program deciding so).
+        self.fail_waiters(&Error::lost(reason.clone()));
+        if self.reconnect.is_some() {
+            self.restore = self.streams_to_restore();
+        }
+    }
+
+    fn restored(&mut self, link: Link) {
+        self.link = link;
+        self.partial_since = None;
+        // A new connection streams only what was asked again on it.
+        self.device_streams = self.streams.keys().copied().collect();
+        // Their replies (the current values) go to the subscribers like any update.
+        let deadline = after(Instant::now(), self.query_timeout);
+        for frame in std::mem::take(&mut self.restore) {
+            let token = self.waiter(Waiter::Internal);
+            // The ids are all free on a fresh connection: this only records what was sent.
+            let _ = self.pairing.submit(
+                Request {
+                    token,
+                    frame,
+                    deadline,
+                },
+                Instant::now(),
+            );
+        }
+    }
+
+    fn ended(&mut self, end: &Served<Closing, String>) {
+        let e = match end {
+            Served::Lost(reason) => {
+                let _ = self.lost.set(reason.clone());
+                Error::lost(reason.clone())
+            }
+            Served::Closed(_) => Error::Closed,
+        };
+        self.fail_waiters(&e);
+        // Dropping the subscribers' senders ends their streams.
+        self.streams.clear();
+    }
+
+    /// A call still queued fails with the reason set in `ended` (its reply is dropped). The
+    /// supervisor's `recv` waits for a call that took its place in the queue before it closed
+    /// and puts its request in afterwards; dropping the queue as it is would leave that
+    /// request unanswered (its caller waited out its timeout: one call in thousands on a
+    /// multi-thread runtime, `tests/error_contract.rs`).
+    fn refuse(_request: Msg, _end: &Served<Closing, String>) {}
+
+    async fn finish(self, end: Served<Closing, String>) {
+        if let Served::Closed(Some((done, result))) = end {
+            let _ = done.send(result);
+        }
     }
 }
 

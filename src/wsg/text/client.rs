@@ -11,9 +11,16 @@ use tokio::time::Instant;
 use super::error::{Error, Result};
 use super::line::{encode_call, encode_set, parse_number, BadArgument, DEFAULT_MAX_LINE_LEN};
 use super::push::{Pushes, Quantity};
-use super::task::{self, after, Answer, Expect, Request, Shared, TaskConfig};
+use super::task::{self, after, Answer, Expect, Request, Shared, Task, TaskConfig};
 use crate::connection::Connection;
+use crate::line::Opener;
+use crate::reconnect::{
+    BoxStream, ConnectionEvents, EventSender, EventSubscriber, ReconnectPolicy,
+};
 use crate::wsg::{GripState, HomingDirection};
+
+/// Connection events each [`Client::connection_events`] stream buffers, at most.
+const EVENT_BUFFER: usize = 32;
 
 /// Client settings. `ClientConfig::default()` suits a gripper on a local network.
 #[derive(Debug, Clone)]
@@ -35,6 +42,30 @@ pub struct ClientConfig {
     pub queue_len: usize,
     /// Pushes each [`Pushes`] stream buffers. Default 64.
     pub push_buffer: usize,
+    /// Reconnect after a lost connection (`None`, the default: a lost connection stays closed
+    /// and every later call fails with the reason). Not for [`Client::from_io`], whose stream
+    /// cannot be opened again.
+    ///
+    /// With a policy, when the connection is lost (the gripper closed it, I/O failed, or the
+    /// client gave up on it, [`Error::ConnectionLost`]):
+    /// - the calls in flight, and those waiting behind a command of their name, fail with the
+    ///   reason; they are **never sent again** by the client: a GRIP may have run, and only the
+    ///   program can tell whether to repeat it;
+    /// - the client reconnects to the same address with the policy's backoff and restores what
+    ///   the program set up on the connection, in the order first set: the last
+    ///   [`Client::set_verbose`], [`Client::set_part_width_tolerance_mm`] and
+    ///   [`Client::set_clamping_travel_mm`] the gripper accepted, and each [`Client::autosend`]
+    ///   still on (its [`Pushes`] streams go on);
+    /// - calls still queued and calls made meanwhile **wait** in the queue within their own
+    ///   timeouts and go out once the session is restored; a call that times out while
+    ///   waiting was never sent;
+    /// - each step is reported through [`Client::connection_events`] and `tracing`.
+    ///
+    /// After [`Client::close`] (`BYE()`), or when every handle is dropped, nothing reconnects.
+    /// When the policy gives up, the client is closed like one without a policy. An unannounced
+    /// loss puts the gripper into FAST STOP (manual chapter 2, `BYE`): the client never
+    /// acknowledges it on its own.
+    pub reconnect: Option<ReconnectPolicy>,
 }
 
 impl Default for ClientConfig {
@@ -47,6 +78,7 @@ impl Default for ClientConfig {
             max_line_len: DEFAULT_MAX_LINE_LEN,
             queue_len: 64,
             push_buffer: 64,
+            reconnect: None,
         }
     }
 }
@@ -62,6 +94,7 @@ pub struct Client {
     connection: Connection,
     requests: mpsc::Sender<Request>,
     shared: Arc<Shared>,
+    events: EventSubscriber,
     config: Arc<ClientConfig>,
     timeout: Option<Duration>,
 }
@@ -83,63 +116,95 @@ impl Client {
         Client::connect_with(addr, ClientConfig::default()).await
     }
 
-    /// Connects with the given configuration.
+    /// Connects with the given configuration. A reconnect ([`ClientConfig::reconnect`]) goes
+    /// to the addresses `addr` resolved to now. A failure here is returned whatever the
+    /// reconnect policy says.
     ///
     /// Cancel-safe: dropped, nothing is left running.
     pub async fn connect_with(addr: impl ToSocketAddrs, config: ClientConfig) -> Result<Client> {
-        let timed_out = || {
-            Error::from(std::io::Error::new(
-                std::io::ErrorKind::TimedOut,
-                "connecting to the gripper timed out",
-            ))
-        };
-        let stream = tokio::time::timeout(config.connect_timeout, TcpStream::connect(addr))
-            .await
-            .map_err(|_| timed_out())??;
-        stream.set_nodelay(true)?;
-        Ok(Client::from_stream(stream, config))
+        let (stream, opener) =
+            Opener::resolve_and_connect::<Error>(addr, config.connect_timeout).await?;
+        Ok(Client::spawn(stream, Some(opener), config))
     }
 
     /// Runs the client over an already connected stream. Must be called inside a tokio runtime.
+    /// A reconnect ([`ClientConfig::reconnect`]) goes to the stream's peer address.
     pub fn from_stream(stream: TcpStream, config: ClientConfig) -> Client {
-        let (read, write) = stream.into_split();
-        Client::spawn(read, write, config)
+        let (stream, opener) = Opener::from_tcp(stream);
+        Client::spawn(stream, Some(opener), config)
     }
 
     /// Runs the client over any connected byte stream: one end of `tokio::io::duplex` (a
     /// simulator served in memory with [`SimServer::serve_stream`], as the explorer does), a
-    /// TLS stream, a tunnel. The stream is the whole session: this client does not reconnect,
-    /// so a lost stream fails every later call with [`Error::ConnectionLost`]. Must be called
-    /// inside a tokio runtime.
+    /// TLS stream, a tunnel. The stream is the whole session: this client does not reconnect
+    /// ([`ClientConfig::reconnect`] is ignored; [`Client::open_with`] reconnects), so a lost
+    /// stream fails every later call with [`Error::ConnectionLost`]. Must be called inside a
+    /// tokio runtime.
     ///
     /// [`SimServer::serve_stream`]: crate::wsg::sim::SimServer::serve_stream
     pub fn from_io<S>(io: S, config: ClientConfig) -> Client
     where
         S: AsyncRead + AsyncWrite + Send + 'static,
     {
-        let (read, write) = tokio::io::split(io);
-        Client::spawn(read, write, config)
+        let config = ClientConfig {
+            reconnect: None,
+            ..config
+        };
+        Client::spawn(Box::new(Box::pin(io)), None, config)
     }
 
-    fn spawn<R, W>(read: R, write: W, config: ClientConfig) -> Client
+    /// Runs the client over the byte streams `open` opens: one now, and with
+    /// [`ClientConfig::reconnect`] a new one after each loss, each attempt bounded by
+    /// [`ClientConfig::connect_timeout`] (e.g. a tunnel, or in-memory pipes to
+    /// [`SimServer::serve_stream`](crate::wsg::sim::SimServer::serve_stream)). A failure of the
+    /// first open is returned whatever the reconnect policy says. Must be called inside a tokio
+    /// runtime.
+    pub async fn open_with<F, Fut, S>(open: F, config: ClientConfig) -> Result<Client>
     where
-        R: AsyncRead + Unpin + Send + 'static,
-        W: AsyncWrite + Unpin + Send + 'static,
+        F: Fn() -> Fut + Send + Sync + 'static,
+        Fut: std::future::Future<Output = std::io::Result<S>> + Send + 'static,
+        S: AsyncRead + AsyncWrite + Send + Unpin + 'static,
     {
+        let (stream, opener) =
+            Opener::first::<Error, _, _, _>(open, config.connect_timeout).await?;
+        Ok(Client::spawn(stream, Some(opener), config))
+    }
+
+    fn spawn(stream: BoxStream, opener: Option<Opener>, config: ClientConfig) -> Client {
         let (requests, rx) = mpsc::channel(config.queue_len.max(1));
         let shared = Arc::new(Shared::default());
-        let task_config = TaskConfig {
-            give_up_after: config.give_up_after,
-            max_line_len: config.max_line_len,
-            waiting_len: config.queue_len.max(1),
+        let events = EventSender::new("wsg text", EVENT_BUFFER);
+        let task = Task {
+            requests: rx,
+            config: TaskConfig {
+                give_up_after: config.give_up_after,
+                max_line_len: config.max_line_len,
+                waiting_len: config.queue_len.max(1),
+                query_timeout: config.query_timeout,
+                connect_timeout: config.connect_timeout,
+            },
+            shared: shared.clone(),
+            events: events.clone(),
+            reconnect: config.reconnect,
+            opener,
         };
         Client {
-            connection: Connection::spawn(task::run(read, write, rx, task_config, shared.clone())),
+            connection: Connection::spawn(task::run(stream, task)),
             requests,
             shared,
+            events: events.subscriber(),
             config: Arc::new(config),
             timeout: None,
         }
+    }
+
+    /// The connection's events from now on: each loss, reconnect attempt and recovery (see
+    /// [`ClientConfig::reconnect`]); without a reconnect policy, only the loss. The stream ends
+    /// when the connection is closed for good. It buffers at most 32 events: a reader that falls
+    /// further behind loses the oldest and gets a
+    /// [`ConnectionEvent::Missed`](crate::reconnect::ConnectionEvent::Missed) instead.
+    pub fn connection_events(&self) -> ConnectionEvents {
+        self.events.subscribe()
     }
 
     /// Whether the connection is closed for good (every call fails).
@@ -322,7 +387,16 @@ impl Client {
     /// reading). Returns the mode the gripper reports back.
     pub async fn set_verbose(&self, on: bool) -> Result<bool> {
         let line = format!("VERBOSE={}", u8::from(on));
-        Ok(self.number("VERBOSE", line).await? != 0.0)
+        Ok(self.setting("VERBOSE", line).await? != 0.0)
+    }
+
+    /// A setter of this connection (`NAME=value`): sent, and remembered once the gripper
+    /// accepted it, for a reconnect to restore ([`ClientConfig::reconnect`]).
+    async fn setting(&self, name: &'static str, line: String) -> Result<f64> {
+        let value = self.number(name, line.clone()).await?;
+        self.shared
+            .remember(name.to_owned(), name, line, Expect::Value);
+        Ok(value)
     }
 
     /// `PWT?`: the part width tolerance of this connection's grips, mm.
@@ -334,7 +408,7 @@ impl Client {
     /// connection closes, manual chapter 2); returns the value the gripper reports back.
     pub async fn set_part_width_tolerance_mm(&self, mm: f64) -> Result<f64> {
         let line = encode_set("PWT", "part width tolerance", mm)?;
-        self.number("PWT", line).await
+        self.setting("PWT", line).await
     }
 
     /// `CLT?`: the clamping travel of this connection's grips, mm.
@@ -346,7 +420,7 @@ impl Client {
     /// connection closes); returns the value the gripper reports back.
     pub async fn set_clamping_travel_mm(&self, mm: f64) -> Result<f64> {
         let line = encode_set("CLT", "clamping travel", mm)?;
-        self.number("CLT", line).await
+        self.setting("CLT", line).await
     }
 
     /// `POS?`: the opening width, mm. Answered during motion too.
@@ -414,13 +488,21 @@ impl Client {
         let pushes = self.subscribe(Some(quantity));
         let flag = if only_on_change { ",true" } else { "" };
         let line = format!("AUTOSEND(\"{}\",{interval_ms}{flag})", quantity.name());
-        self.ack("AUTOSEND", line).await?;
+        self.ack("AUTOSEND", line.clone()).await?;
+        let key = format!("AUTOSEND {}", quantity.name());
+        if interval_ms == 0 {
+            self.shared.forget(&key);
+        } else {
+            self.shared.remember(key, "AUTOSEND", line, Expect::Ack);
+        }
         Ok(pushes)
     }
 
     /// `AUTOSEND("NAME",0)`: stops pushing `quantity` (interval 0 = off is our reading).
     pub async fn stop_autosend(&self, quantity: Quantity) -> Result<()> {
         let line = format!("AUTOSEND(\"{}\",0)", quantity.name());
-        self.ack("AUTOSEND", line).await
+        self.ack("AUTOSEND", line).await?;
+        self.shared.forget(&format!("AUTOSEND {}", quantity.name()));
+        Ok(())
     }
 }

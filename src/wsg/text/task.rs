@@ -9,23 +9,19 @@
 //! §6.2) would end whichever call came first.
 
 use std::collections::{BTreeMap, VecDeque};
-use std::future::poll_fn;
-use std::pin::Pin;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use bytes::BytesMut;
-use futures_core::Stream;
-use tokio::io::{AsyncRead, AsyncWrite, AsyncWriteExt};
 use tokio::sync::{mpsc, oneshot};
 use tokio::time::Instant;
-use tokio_util::codec::FramedRead;
 
 use super::error::Error;
 use super::line::{parse_number, parse_reply, ReplyLine};
 use super::push::{Push, PushSubscriber, Quantity};
-use crate::deadline::{move_timer, write_all_by};
-use crate::griplink::codec::{LineCodec, RawLine, RawLineCodec};
+use crate::deadline::move_timer;
+use crate::line::{io_error, peer_closed, Failure, LineConn, LineError, Opener};
+use crate::reconnect::{BoxStream, EventSender, ReconnectPolicy};
+use crate::supervisor::{supervise, Restore, Served, Session};
 use crate::wsg::Status;
 
 /// What a command's call waits for.
@@ -76,24 +72,60 @@ struct Slot {
 /// What the handles and the task share.
 #[derive(Debug, Default)]
 pub(crate) struct Shared {
-    failure: Mutex<Option<Error>>,
+    failure: Failure<Error>,
     pub(crate) subscribers: Mutex<Vec<PushSubscriber>>,
+    /// What the program set up on the connection that a reconnect restores, by what it sets
+    /// (`VERBOSE`, `PWT`, `CLT`, one `AUTOSEND` per quantity): the last line the gripper
+    /// accepted, in the order first set.
+    settings: Mutex<Vec<Setting>>,
+}
+
+/// A line the gripper accepted that a new connection needs again.
+#[derive(Debug, Clone)]
+struct Setting {
+    /// What it sets (`"VERBOSE"`, `"PWT"`, `"CLT"`, `"AUTOSEND GRIPSTATE"`).
+    key: String,
+    /// The command's name in the replies.
+    name: &'static str,
+    line: String,
+    expect: Expect,
 }
 
 impl Shared {
     /// Why the connection is gone ([`Error::Closed`] if no reason was recorded).
     pub(crate) fn failure(&self) -> Error {
-        self.failure
-            .lock()
-            .ok()
-            .and_then(|f| f.clone())
-            .unwrap_or(Error::Closed)
+        self.failure.get()
     }
 
     fn record(&self, error: &Error) {
-        if let Ok(mut f) = self.failure.lock() {
-            f.get_or_insert_with(|| error.clone());
+        self.failure.record(error);
+    }
+
+    /// Remembers `line` (accepted by the gripper) as what sets `key`, for a reconnect.
+    pub(crate) fn remember(&self, key: String, name: &'static str, line: String, expect: Expect) {
+        if let Ok(mut settings) = self.settings.lock() {
+            let setting = Setting {
+                key,
+                name,
+                line,
+                expect,
+            };
+            match settings.iter_mut().find(|s| s.key == setting.key) {
+                Some(old) => *old = setting,
+                None => settings.push(setting),
+            }
         }
+    }
+
+    /// Forgets what sets `key` (an `AUTOSEND` switched off).
+    pub(crate) fn forget(&self, key: &str) {
+        if let Ok(mut settings) = self.settings.lock() {
+            settings.retain(|s| s.key != key);
+        }
+    }
+
+    fn settings(&self) -> Vec<Setting> {
+        self.settings.lock().map(|s| s.clone()).unwrap_or_default()
     }
 
     fn deliver(&self, push: Push) {
@@ -110,48 +142,40 @@ pub(crate) struct TaskConfig {
     pub max_line_len: usize,
     /// Requests held while a command of their name is on the wire, at most.
     pub waiting_len: usize,
+    /// Timeout of each command that restores the session after a reconnect.
+    pub query_timeout: Duration,
+    pub connect_timeout: Duration,
 }
 
-/// `now + d`, or a far future where that overflows (`Duration::MAX` must not panic).
-pub(crate) fn after(from: Instant, d: Duration) -> Instant {
-    from.checked_add(d)
-        .or_else(|| from.checked_add(Duration::from_secs(86_400 * 365 * 30)))
-        .unwrap_or(from)
+/// Everything the task needs besides the first connection.
+pub(crate) struct Task {
+    pub requests: mpsc::Receiver<Request>,
+    pub config: TaskConfig,
+    pub shared: Arc<Shared>,
+    pub events: EventSender,
+    /// Reconnect with this backoff (`None`: a lost connection stays closed).
+    pub reconnect: Option<ReconnectPolicy>,
+    /// How to reconnect (`None`: a stream the program handed over, which cannot be opened
+    /// again).
+    pub opener: Option<Opener>,
 }
 
-struct Conn<R, W> {
-    reader: FramedRead<R, RawLineCodec>,
-    writer: W,
-    out: BytesMut,
-}
+pub(crate) use crate::deadline::after;
 
-impl<R, W: AsyncWrite + Unpin> Conn<R, W> {
-    async fn send(&mut self, line: &str, limit: Instant) -> Result<(), Error> {
-        self.out.clear();
-        self.out.extend_from_slice(line.as_bytes());
-        self.out.extend_from_slice(b"\n");
-        match write_all_by(&mut self.writer, &self.out, || limit).await {
-            Ok(Ok(())) => Ok(()),
-            Ok(Err(e)) => Err(io_error(e)),
-            Err(_) => Err(Error::lost("the gripper stopped reading commands")),
-        }
+impl LineError for Error {
+    const PEER: &'static str = "gripper";
+
+    fn connection_lost(why: String) -> Self {
+        Error::lost(why)
     }
-}
 
-fn io_error(e: std::io::Error) -> Error {
-    use std::io::ErrorKind::{BrokenPipe, ConnectionAborted, ConnectionReset, UnexpectedEof};
-    match e.kind() {
-        UnexpectedEof | ConnectionReset | ConnectionAborted | BrokenPipe => {
-            Error::lost(format!("the gripper closed the connection: {e}"))
-        }
-        _ => Error::from(e),
+    fn invalid_line(reason: String) -> Self {
+        Error::invalid("command line", reason)
     }
-}
 
-async fn next_line<R: AsyncRead + Unpin>(
-    reader: &mut FramedRead<R, RawLineCodec>,
-) -> Option<std::io::Result<RawLine>> {
-    poll_fn(|cx| Pin::new(&mut *reader).poll_next(cx)).await
+    fn closed() -> Self {
+        Error::Closed
+    }
 }
 
 /// The commands on the wire (one per name) and the requests waiting for their name.
@@ -281,24 +305,174 @@ fn usable(request: Request) -> Option<Request> {
     Some(request)
 }
 
-/// Runs one connection (its read and write halves) until every handle is dropped, `BYE()` is
-/// acknowledged, or it is lost.
-pub(crate) async fn run<R, W>(
-    read: R,
-    write: W,
-    mut requests: mpsc::Receiver<Request>,
-    config: TaskConfig,
-    shared: Arc<Shared>,
-) where
-    R: AsyncRead + Unpin,
-    W: AsyncWrite + Unpin,
-{
-    let codec = RawLineCodec(LineCodec::new(config.max_line_len).reject_unterminated());
-    let mut conn = Conn {
-        reader: FramedRead::new(read, codec),
-        writer: write,
-        out: BytesMut::new(),
+/// Runs until every handle is dropped, `BYE()` is acknowledged, or the connection is lost for
+/// good (the loop is the shared supervisor's, `crate::supervisor`).
+pub(crate) async fn run(stream: BoxStream, task: Task) {
+    let conn = LineConn::new(stream, task.config.max_line_len);
+    supervise(Text {
+        task,
+        conn: Some(conn),
+    })
+    .await;
+}
+
+/// The text session the supervisor runs: restored with the settings the gripper accepted
+/// (`VERBOSE`, `PWT`, `CLT`, `AUTOSEND`), in the order they were first set.
+struct Text {
+    task: Task,
+    /// `None` from a loss until a reconnect: the lost connection is closed at once.
+    conn: Option<LineConn>,
+}
+
+/// The reason a client ended, as its calls read it.
+fn reason(end: &Served<(), Error>) -> Error {
+    match end {
+        Served::Closed(()) => Error::Closed,
+        Served::Lost(reason) => reason.clone(),
+    }
+}
+
+impl Restore for Task {
+    type Link = LineConn;
+    type Error = Error;
+
+    fn events(&self) -> &EventSender {
+        &self.events
+    }
+
+    fn abandoned(&self) -> bool {
+        self.requests.is_closed()
+    }
+
+    async fn connect(&self) -> Result<LineConn, Error> {
+        let Some(opener) = &self.opener else {
+            // Not reached: `Client::from_io` takes no reconnect policy.
+            return Err(Error::lost("the stream cannot be opened again"));
+        };
+        let config = &self.config;
+        LineConn::open(opener, config.connect_timeout, config.max_line_len).await
+    }
+
+    async fn restore(&self, conn: &mut LineConn) -> Result<(), Error> {
+        for setting in self.shared.settings() {
+            exchange(conn, setting, self.config.query_timeout, &self.shared).await?;
+        }
+        Ok(())
+    }
+}
+
+impl Session for Text {
+    type Restore<'a> = &'a Task;
+    type Link = LineConn;
+    type Error = Error;
+    type Request = Request;
+    type Close = ();
+
+    async fn serve(&mut self) -> Served<(), Error> {
+        let task = &mut self.task;
+        let Some(conn) = self.conn.as_mut() else {
+            // Not reached: the supervisor serves only after a connect or a reconnect.
+            return Served::Lost(Error::lost("not connected"));
+        };
+        let reconnects = task.reconnect.is_some();
+        match serve(
+            conn,
+            &mut task.requests,
+            task.config,
+            &task.shared,
+            reconnects,
+        )
+        .await
+        {
+            Error::Closed => Served::Closed(()),
+            lost => Served::Lost(lost),
+        }
+    }
+
+    fn requests(&mut self) -> &mut mpsc::Receiver<Request> {
+        &mut self.task.requests
+    }
+
+    fn restorer(&self) -> &Task {
+        &self.task
+    }
+
+    fn policy(&self) -> Option<ReconnectPolicy> {
+        self.task.reconnect
+    }
+
+    fn lost(&mut self, _reason: &Error) {
+        self.conn = None;
+    }
+
+    fn restored(&mut self, conn: LineConn) {
+        self.conn = Some(conn);
+    }
+
+    fn ended(&mut self, end: &Served<(), Error>) {
+        self.task.shared.record(&reason(end));
+        if let Ok(mut subs) = self.task.shared.subscribers.lock() {
+            // Ends every push stream.
+            subs.clear();
+        }
+    }
+
+    fn refuse(request: Request, end: &Served<(), Error>) {
+        let _ = request.waiter.send(Err(reason(end)));
+    }
+}
+
+/// One setting sent again on a new connection, before any call is served on it: paired by the
+/// same rules as a call's reply (pushes that arrive meanwhile go to their subscribers).
+async fn exchange(
+    conn: &mut LineConn,
+    setting: Setting,
+    timeout: Duration,
+    shared: &Shared,
+) -> Result<(), Error> {
+    let deadline = after(Instant::now(), timeout);
+    let command = setting.line.clone();
+    conn.writer.send::<Error>(&setting.line, deadline).await?;
+    let (waiter, mut answer) = oneshot::channel();
+    let mut book = Book {
+        on_wire: BTreeMap::new(),
+        waiting: VecDeque::new(),
     };
+    book.on_wire.insert(
+        setting.name,
+        Slot {
+            line: setting.line,
+            expect: setting.expect,
+            waiter,
+            give_up_at: deadline,
+        },
+    );
+    loop {
+        let line = match tokio::time::timeout_at(deadline, conn.reader.next_line()).await {
+            Err(_) => return Err(Error::Timeout { command, timeout }),
+            Ok(None) => return Err(peer_closed()),
+            Ok(Some(line)) => line.map_err(io_error::<Error>)?,
+        };
+        let Ok(text) = line.text() else { continue };
+        book.on_line(text, shared);
+        if let Ok(result) = answer.try_recv() {
+            return result.map(drop);
+        }
+    }
+}
+
+/// Serves calls over one connection until it closes, fails or every handle is dropped; fails
+/// the calls in flight and those waiting for their name with the reason, which it returns.
+/// When the connection is over for good (closed, or lost with no reconnect to follow), the
+/// reason is recorded and the request queue closed before any caller hears why (as GRIPLINK's
+/// task does, issue 21).
+async fn serve(
+    conn: &mut LineConn,
+    requests: &mut mpsc::Receiver<Request>,
+    config: TaskConfig,
+    shared: &Shared,
+    reconnects: bool,
+) -> Error {
     let mut book = Book {
         on_wire: BTreeMap::new(),
         waiting: VecDeque::new(),
@@ -318,9 +492,9 @@ pub(crate) async fn run<R, W>(
         tokio::select! {
             // Replies first: they free names and callers.
             biased;
-            line = next_line(&mut conn.reader) => match line {
+            line = conn.reader.next_line() => match line {
                 Some(Ok(line)) => match line.text() {
-                    Ok(text) => match book.on_line(text, &shared) {
+                    Ok(text) => match book.on_line(text, shared) {
                         Handled::Bye => break Error::Closed,
                         // A name freed: its next waiting request goes out.
                         Handled::Freed(name) => to_send = book.next_waiting(name),
@@ -329,7 +503,7 @@ pub(crate) async fn run<R, W>(
                     Err(why) => tracing::warn!(%why, "wsg text: reply line discarded"),
                 },
                 Some(Err(e)) => break io_error(e),
-                None => break Error::lost("the gripper closed the connection"),
+                None => break peer_closed(),
             },
             () = &mut timer, if give_up.is_some() => {
                 let command = book
@@ -358,9 +532,18 @@ pub(crate) async fn run<R, W>(
         }
         if let Some(request) = to_send {
             let give_up_at = after(request.deadline, config.give_up_after);
-            if let Err(e) = conn.send(&request.line, give_up_at).await {
-                unsent = Some(request.waiter);
-                break 'serve e;
+            match conn.writer.send(&request.line, give_up_at).await {
+                Ok(()) => {}
+                // Refused by the codec, nothing sent (`Client::submit` checks the line first,
+                // so this is only a second guard).
+                Err(err @ Error::InvalidArgument { .. }) => {
+                    let _ = request.waiter.send(Err(err));
+                    continue;
+                }
+                Err(e) => {
+                    unsent = Some(request.waiter);
+                    break 'serve e;
+                }
             }
             tracing::trace!(command = %request.line, "wsg text: sent");
             closing |= request.name == "BYE";
@@ -375,8 +558,10 @@ pub(crate) async fn run<R, W>(
             );
         }
     };
-    shared.record(&end);
-    requests.close();
+    if closing || matches!(end, Error::Closed) || !reconnects {
+        shared.record(&end);
+        requests.close();
+    }
     if let Some(waiter) = unsent {
         let _ = waiter.send(Err(end.clone()));
     }
@@ -386,15 +571,12 @@ pub(crate) async fn run<R, W>(
     for request in book.waiting.drain(..) {
         let _ = request.waiter.send(Err(end.clone()));
     }
-    // `recv`, not `try_recv`: a call that took its place in the queue before it closed puts
-    // its request in afterwards, and `recv` waits for it where `try_recv` reports the queue
-    // empty; that request would then never be answered (its caller waited out its timeout).
-    while let Some(request) = requests.recv().await {
-        let _ = request.waiter.send(Err(end.clone()));
+    conn.writer.shutdown().await;
+    // After BYE() the program is done with the connection, however it ended: a loss then is
+    // not reconnected.
+    if closing && reconnects {
+        Error::Closed
+    } else {
+        end
     }
-    if let Ok(mut subs) = shared.subscribers.lock() {
-        // Ends every push stream.
-        subs.clear();
-    }
-    let _ = conn.writer.shutdown().await;
 }

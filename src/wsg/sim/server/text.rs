@@ -19,7 +19,7 @@ use tokio_util::codec::FramedRead;
 
 use super::actor::{Actor, Event, Outbox};
 use super::record::SimEvent;
-use crate::griplink::codec::{Line, LineCodec};
+use crate::line::codec::{Line, LineCodec};
 use crate::wsg::sim::device::{Out, SessionId, SessionKind};
 use crate::wsg::sim::text::{Emit, TextSession, MAX_LINE_LEN};
 

@@ -1,4 +1,5 @@
-//! LF-terminated lines (manual 2.1) as a tokio-util codec.
+//! LF-terminated lines as a tokio-util codec: the framing of both line protocols, GRIPLINK
+//! (GRIPLINK manual 2.1) and the WSG text interface (GCL, WSG-TEXT-INTERFACE.md §2).
 //!
 //! Decoding never fails on bad input: an over-long line or one with a non-ASCII byte is
 //! discarded (with a `tracing` event) and reported as [`Line::Discarded`], and decoding goes on
@@ -10,8 +11,10 @@
 use bytes::{Buf, BufMut, BytesMut};
 use tokio_util::codec::{Decoder, Encoder};
 
-/// Default longest line, in bytes without the LF. Replies are short (a GRIPCFGF recipe is the
-/// longest, around 200 bytes); this leaves room without letting a peer make us buffer much.
+/// Default longest line, in bytes without the LF (GRIPLINK's default; the WSG text client has its
+/// own, `wsg::text::line::DEFAULT_MAX_LINE_LEN`). GRIPLINK replies are short (a GRIPCFGF recipe
+/// is the longest, around 200 bytes); this leaves room without letting a peer make us buffer
+/// much.
 pub const DEFAULT_MAX_LINE_LEN: usize = 1024;
 
 /// One decoded line.
@@ -87,7 +90,7 @@ impl Decoder for RawLineCodec {
     }
 }
 
-/// The GRIPLINK line codec: decodes [`Line`]s, encodes `&str` lines (appending the LF).
+/// The LF line codec: decodes [`Line`]s, encodes `&str` lines (appending the LF).
 #[derive(Debug, Clone)]
 pub struct LineCodec {
     max_len: usize,
@@ -136,11 +139,11 @@ impl LineCodec {
             line.truncate(line.len() - 1);
         }
         if line.len() > self.max_len {
-            tracing::warn!(len = line.len(), "griplink: discarding over-long line");
+            tracing::warn!(len = line.len(), "line codec: discarding over-long line");
             return RawLine::Discarded(Discarded::TooLong);
         }
         if !line.is_ascii() {
-            tracing::warn!("griplink: discarding line with non-ASCII bytes");
+            tracing::warn!("line codec: discarding line with non-ASCII bytes");
             return RawLine::Discarded(Discarded::NotAscii);
         }
         RawLine::Text(line)
@@ -165,12 +168,14 @@ impl LineCodec {
                 Ok(Some(self.finish_line(line)))
             }
             None => {
-                // +1: the line may still end in a CR that does not count.
-                if buf.len() > self.max_len + 1 {
+                // +1: the line may still end in a CR that does not count. Subtracted from the
+                // buffer rather than added to the maximum: `usize::MAX` ("no limit") must not
+                // overflow (issue 29 O).
+                if buf.len().saturating_sub(1) > self.max_len {
                     if !self.discarding {
                         tracing::warn!(
                             max = self.max_len,
-                            "griplink: line exceeds the maximum length, skipping to its end"
+                            "line codec: line exceeds the maximum length, skipping to its end"
                         );
                     }
                     self.discarding = true;
@@ -236,7 +241,7 @@ impl Encoder<&str> for LineCodec {
         if line.bytes().any(|b| b == b'\n' || b == b'\r') {
             return Err(std::io::Error::new(
                 std::io::ErrorKind::InvalidInput,
-                "a GRIPLINK line must not contain LF or CR",
+                "a line must not contain LF or CR",
             ));
         }
         if line.len() > self.max_len {
@@ -347,6 +352,21 @@ mod tests {
         let err = c.decode_eof(&mut buf).unwrap_err();
         assert_eq!(err.kind(), std::io::ErrorKind::UnexpectedEof);
         assert_eq!(c.decode_eof(&mut BytesMut::new()).unwrap(), None);
+    }
+
+    /// `usize::MAX` means "no limit": the length check must not overflow (issue 29 O; it
+    /// panicked in a debug build as soon as a partial line was buffered).
+    #[test]
+    fn no_limit_does_not_overflow() {
+        let mut c = LineCodec::new(usize::MAX);
+        let mut buf = BytesMut::from(&b"ACK\nVALUE[0][0]=1"[..]);
+        assert_eq!(c.decode(&mut buf).unwrap(), Some(text("ACK")));
+        assert_eq!(c.decode(&mut buf).unwrap(), None);
+        buf.extend_from_slice(b"2\n");
+        assert_eq!(c.decode(&mut buf).unwrap(), Some(text("VALUE[0][0]=12")));
+        let mut dst = BytesMut::new();
+        c.encode("ID?", &mut dst).unwrap();
+        assert_eq!(&dst[..], b"ID?\n");
     }
 
     #[test]

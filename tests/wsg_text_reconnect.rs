@@ -1,0 +1,173 @@
+//! `text::ClientConfig::reconnect`: after a lost connection the text client reconnects with
+//! backoff (the shared supervisor, as the other clients), restores what the program set up on
+//! the connection (VERBOSE, PWT, CLT, AUTOSEND), reports each step through
+//! `connection_events()`, and never sends a call that was in flight again.
+#![cfg(feature = "sim")]
+
+use std::future::Future;
+use std::time::Duration;
+
+use futures_util::StreamExt as _;
+use gripper::fault::{FaultProxy, Framing, ProxyConfig};
+use gripper::reconnect::{ConnectionEvent, ConnectionEvents, ReconnectPolicy};
+use gripper::wsg::sim::{Model, SimConfig, SimServer};
+use gripper::wsg::text::{Client, ClientConfig, Error, Quantity};
+use gripper::wsg::HomingDirection;
+
+/// Upper bound for anything that should happen promptly; only reached when a test fails.
+const LIMIT: Duration = Duration::from_secs(20);
+
+async fn within<F: Future>(what: &str, future: F) -> F::Output {
+    tokio::time::timeout(LIMIT, future)
+        .await
+        .unwrap_or_else(|_| panic!("hung: {what}"))
+}
+
+fn policy(max_attempts: Option<u32>) -> ReconnectPolicy {
+    ReconnectPolicy {
+        initial_delay: Duration::from_millis(5),
+        max_delay: Duration::from_millis(20),
+        factor: 2.0,
+        max_attempts,
+    }
+}
+
+fn reconnecting(max_attempts: Option<u32>) -> ClientConfig {
+    ClientConfig {
+        reconnect: Some(policy(max_attempts)),
+        ..ClientConfig::default()
+    }
+}
+
+/// A text simulator, a proxy to pull the cable with, and a client through it.
+async fn proxied(config: ClientConfig) -> (SimServer, FaultProxy, Client) {
+    let sim = SimConfig::new(Model::Wsg50).with_part(40.0, 2.0).text();
+    let server = SimServer::bind("127.0.0.1:0", sim).await.unwrap();
+    let lines = ProxyConfig::new().framing(Framing::Delimited(b'\n'));
+    let proxy = FaultProxy::start_with(server.local_addr().expect("TCP"), lines)
+        .await
+        .unwrap();
+    let client = Client::connect_with(proxy.local_addr(), config)
+        .await
+        .unwrap();
+    (server, proxy, client)
+}
+
+/// The next events, up to and including the first that `last` accepts.
+async fn events_until(
+    events: &mut ConnectionEvents,
+    last: impl Fn(&ConnectionEvent) -> bool,
+) -> Vec<ConnectionEvent> {
+    let mut got = Vec::new();
+    while let Some(event) = within("event", events.next()).await {
+        let done = last(&event);
+        got.push(event);
+        if done {
+            return got;
+        }
+    }
+    panic!("the event stream ended after {got:?}");
+}
+
+#[tokio::test]
+async fn reconnects_after_a_cut_and_restores_the_connections_settings_and_pushes() {
+    let (_server, proxy, client) = proxied(reconnecting(None)).await;
+    // Per connection on the gripper (manual chapter 2): a new connection starts without them.
+    assert!(client.set_verbose(true).await.unwrap());
+    assert_eq!(client.set_part_width_tolerance_mm(7.0).await.unwrap(), 7.0);
+    assert_eq!(client.set_clamping_travel_mm(3.0).await.unwrap(), 3.0);
+    let mut positions = client
+        .autosend(Quantity::Position, 10, false)
+        .await
+        .unwrap();
+    within("a push", positions.next()).await.expect("a push");
+    let mut events = client.connection_events();
+    let sent = proxy.client_to_server().stats().frames;
+
+    proxy.cut_connections();
+    let got = events_until(&mut events, |e| {
+        matches!(e, ConnectionEvent::Restored { .. })
+    })
+    .await;
+    assert!(
+        matches!(got.first(), Some(ConnectionEvent::Lost { .. })),
+        "{got:?}"
+    );
+    assert!(got.contains(&ConnectionEvent::Connected), "{got:?}");
+    assert_eq!(got.last(), Some(&ConnectionEvent::Restored { attempts: 1 }));
+    // Restoring sent exactly the four settings, once each.
+    assert_eq!(proxy.client_to_server().stats().frames, sent + 4);
+    assert_eq!(proxy.stats().connections_accepted, 2);
+    assert!(!client.is_closed());
+
+    // The new connection has them: read back from the gripper, not from the client.
+    assert_eq!(client.part_width_tolerance_mm().await.unwrap(), 7.0);
+    assert_eq!(client.clamping_travel_mm().await.unwrap(), 3.0);
+    // And the push stream the program held goes on over the new connection.
+    let pushed_before = proxy.server_to_client().stats().frames;
+    within("a push after the reconnect", async {
+        loop {
+            positions.next().await.expect("the push stream ended");
+            if proxy.server_to_client().stats().frames > pushed_before {
+                break;
+            }
+        }
+    })
+    .await;
+    client.close().await.unwrap();
+}
+
+#[tokio::test]
+async fn a_call_in_flight_when_the_link_drops_fails_and_is_never_sent_again() {
+    let (_server, proxy, client) = proxied(reconnecting(None)).await;
+    let mut events = client.connection_events();
+    client.ack_fast_stop().await.unwrap();
+    // A HOME whose FIN is pending when the cable is pulled.
+    let slow = client.with_timeout(Duration::from_secs(10));
+    let home = tokio::spawn(async move { slow.home(HomingDirection::Default).await });
+    proxy.client_to_server().wait_for(|s| s.frames >= 2).await;
+    let homes_sent = proxy.client_to_server().stats().frames;
+    proxy.cut_connections();
+    let result = within("the HOME in flight", home).await.unwrap();
+    assert!(
+        matches!(result, Err(Error::ConnectionLost { .. })),
+        "{result:?}"
+    );
+    events_until(&mut events, |e| {
+        matches!(e, ConnectionEvent::Restored { .. })
+    })
+    .await;
+    // The new connection works, and the HOME was not sent again on it.
+    client.position_mm().await.unwrap();
+    assert_eq!(proxy.client_to_server().stats().frames, homes_sent + 1);
+}
+
+#[tokio::test]
+async fn without_a_policy_a_lost_connection_stays_closed() {
+    let (_server, proxy, client) = proxied(ClientConfig::default()).await;
+    let mut events = client.connection_events();
+    client.position_mm().await.unwrap();
+    proxy.cut_connections();
+    let got = events_until(&mut events, |e| matches!(e, ConnectionEvent::Lost { .. })).await;
+    assert_eq!(got.len(), 1, "{got:?}");
+    assert!(within("the stream's end", events.next()).await.is_none());
+    assert!(client.is_closed());
+    let err = client.position_mm().await.unwrap_err();
+    assert!(matches!(err, Error::ConnectionLost { .. }), "{err:?}");
+    assert_eq!(proxy.stats().connections_accepted, 1);
+}
+
+#[tokio::test]
+async fn a_policy_that_gives_up_closes_the_client_with_the_loss() {
+    let (_server, proxy, client) = proxied(reconnecting(Some(2))).await;
+    let mut events = client.connection_events();
+    client.position_mm().await.unwrap();
+    // Nothing to reconnect to: the proxy the client connects through is gone.
+    within("the proxy's shutdown", proxy.shutdown()).await;
+    let got = events_until(&mut events, |e| matches!(e, ConnectionEvent::GaveUp { .. })).await;
+    assert_eq!(got.last(), Some(&ConnectionEvent::GaveUp { attempts: 2 }));
+    assert!(within("the stream's end", events.next()).await.is_none());
+    assert!(client.is_closed());
+    let err = client.position_mm().await.unwrap_err();
+    assert!(matches!(err, Error::ConnectionLost { .. }), "{err:?}");
+}
