@@ -116,3 +116,47 @@ impl std::fmt::Display for ErrorKind {
         f.write_str(self.as_str())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::ErrorKind::{self, *};
+
+    const ALL: [ErrorKind; 9] = [
+        Device,
+        Incompatible,
+        Timeout,
+        ReplyLost,
+        MalformedReply,
+        InvalidArgument,
+        Io,
+        ConnectionLost,
+        Closed,
+    ];
+
+    #[test]
+    fn the_helpers_pick_the_documented_kinds() {
+        let disconnected: Vec<_> = ALL.into_iter().filter(|k| k.is_disconnected()).collect();
+        assert_eq!(disconnected, [ConnectionLost, Closed]);
+        let transport: Vec<_> = ALL.into_iter().filter(|k| k.is_transport()).collect();
+        assert_eq!(transport, [Io, ConnectionLost, Closed]);
+    }
+
+    #[test]
+    fn names_are_distinct_and_displayed() {
+        let mut names: Vec<_> = ALL.iter().map(|k| k.as_str()).collect();
+        names.sort_unstable();
+        names.dedup();
+        assert_eq!(names.len(), ALL.len());
+        assert_eq!(ConnectionLost.to_string(), "connection_lost");
+    }
+
+    #[test]
+    fn a_timed_out_io_error_is_a_timeout_any_other_is_io() {
+        let e = |kind| std::io::Error::new(kind, "x");
+        assert_eq!(ErrorKind::of_io(&e(std::io::ErrorKind::TimedOut)), Timeout);
+        assert_eq!(
+            ErrorKind::of_io(&e(std::io::ErrorKind::ConnectionRefused)),
+            Io
+        );
+    }
+}
