@@ -11,6 +11,7 @@ use gripper::griplink::{
 use pyo3::prelude::*;
 use pyo3::IntoPyObjectExt;
 
+use crate::args::Checked;
 use crate::convert::{enum_member, enum_value, field, record, ToPy};
 use crate::errors;
 use crate::runtime::{self, seconds};
@@ -190,7 +191,7 @@ impl ToPy for AioClient {
     }
 }
 
-/// `close()` for leaving a `with` block: a client that is already closed, or whose connection
+/// `close()` (and leaving a `with` block), idempotent (issue 32): a client that is already closed, or whose connection
 /// is already lost (the error was raised by the call that saw it), is fine to leave.
 async fn close_for_exit(c: griplink::Client) -> griplink::Result<()> {
     match c.close().await {
@@ -219,8 +220,8 @@ twins! {
         }
 
         /// The device on port `n` (0..=31).
-        fn port(&self, n: u8) -> PyResult<Port> {
-            Ok(Port { inner: self.inner.port(port_number(n)?) })
+        fn port(&self, n: Checked<u8>) -> PyResult<Port> {
+            Ok(Port { inner: self.inner.port(port_number(n.0)?) })
         }
 
         /// Whether the connection is closed for good.
@@ -256,8 +257,8 @@ twins! {
         }
 
         /// The device on port `n` (0..=31).
-        fn port(&self, n: u8) -> PyResult<AioPort> {
-            Ok(AioPort { inner: self.inner.port(port_number(n)?) })
+        fn port(&self, n: Checked<u8>) -> PyResult<AioPort> {
+            Ok(AioPort { inner: self.inner.port(port_number(n.0)?) })
         }
 
         /// A handle on the same connection whose calls use another timeout.
@@ -273,7 +274,7 @@ twins! {
     /// `PROTOCOL?`: the protocol identifier and version.
     fn protocol(&self) => |c| c.protocol();
     /// `PROTOCOL?` checked: `identifier` at version `min_version` or later.
-    fn protocol_assert(&self, identifier: String, min_version: u32) => |c| c.protocol_assert(&identifier, min_version);
+    fn protocol_assert(&self, identifier: String, min_version: Checked<u32>) [let min_version = min_version.0;] => |c| c.protocol_assert(&identifier, min_version);
     /// `SN?`: the controller's serial number.
     fn serial_number(&self) => |c| c.serial_number();
     /// `LABEL?`.
@@ -285,20 +286,18 @@ twins! {
     /// `VERBOSE=`: error replies with text.
     fn set_verbose(&self, on: bool) => |c| c.set_verbose(on);
     /// `BYE`, then closes the connection.
-    fn close(&self) => |c| c.close();
+    fn close(&self) => |c| close_for_exit(c.clone());
 }
 
 /// The polling task is spawned on the module's runtime.
 fn watch_state(port: &griplink::Port, interval_s: f64) -> PyResult<Stream> {
     let interval = seconds("interval_s", interval_s)?;
-    Ok(runtime::enter(|| Stream::new(port.watch_state(interval))))
+    runtime::enter(|| Stream::new(port.watch_state(interval)))
 }
 
-fn watch_value(port: &griplink::Port, index: u32, interval_s: f64) -> PyResult<Stream> {
+fn watch_value(port: &griplink::Port, index: Checked<u32>, interval_s: f64) -> PyResult<Stream> {
     let interval = seconds("interval_s", interval_s)?;
-    Ok(runtime::enter(|| {
-        Stream::new(port.watch_value(index, interval))
-    }))
+    runtime::enter(|| Stream::new(port.watch_value(index.0, interval)))
 }
 
 // ---- a port --------------------------------------------------------------------------------
@@ -335,7 +334,7 @@ twins! {
         }
 
         /// Polls VALUEF[index] every `interval_s`: a stream of values.
-        fn watch_value(&self, index: u32, interval_s: f64) -> PyResult<Stream> {
+        fn watch_value(&self, index: Checked<u32>, interval_s: f64) -> PyResult<Stream> {
             watch_value(&self.inner, index, interval_s)
         }
     }
@@ -357,7 +356,7 @@ twins! {
         }
 
         /// Polls VALUEF[index] every `interval_s`: an async stream of values.
-        fn watch_value(&self, index: u32, interval_s: f64) -> PyResult<Stream> {
+        fn watch_value(&self, index: Checked<u32>, interval_s: f64) -> PyResult<Stream> {
             watch_value(&self.inner, index, interval_s)
         }
     }
@@ -367,7 +366,7 @@ twins! {
     /// `PRODUCTID[p]?`.
     fn product_id(&self) => |c| c.product_id();
     /// Checks the device's vendor and product id.
-    fn assert_device(&self, vendor_id: u32, product_id: u32) => |c| c.assert_device(vendor_id, product_id);
+    fn assert_device(&self, vendor_id: Checked<u32>, product_id: Checked<u32>) [let vendor_id = vendor_id.0; let product_id = product_id.0;] => |c| c.assert_device(vendor_id, product_id);
     /// `DEVNAME[p]?`.
     fn name(&self) => |c| c.name();
     /// `DEVVENDOR[p]?`.
@@ -388,10 +387,10 @@ twins! {
     fn home(&self) => |c| c.home();
     /// `GRIP(p, index)` with recipe `index`; `until_done` holds the reply until the motion ends.
     #[pyo3(signature = (index, until_done=false))]
-    fn grip(&self, index: u32, until_done: bool) => |c| c.grip(index, blocking(until_done));
+    fn grip(&self, index: Checked<u32>, until_done: bool) [let index = index.0;] => |c| c.grip(index, blocking(until_done));
     /// `RELEASE(p, index)`.
     #[pyo3(signature = (index, until_done=false))]
-    fn release(&self, index: u32, until_done: bool) => |c| c.release(index, blocking(until_done));
+    fn release(&self, index: Checked<u32>, until_done: bool) [let index = index.0;] => |c| c.release(index, blocking(until_done));
     /// `FLEXGRIPF(p, ...)` in mm, N, mm/s, mm/s².
     #[pyo3(signature = (position_mm, force_n, speed_mm_per_s, acceleration_mm_per_s2, until_done=false))]
     fn flex_grip(&self, position_mm: f64, force_n: f64, speed_mm_per_s: f64, acceleration_mm_per_s2: f64, until_done: bool)
@@ -401,44 +400,44 @@ twins! {
     fn flex_release(&self, position_mm: f64, speed_mm_per_s: f64, acceleration_mm_per_s2: f64, until_done: bool)
         => |c| c.flex_release(FlexRelease { position_mm, speed_mm_per_s, acceleration_mm_per_s2 }, blocking(until_done));
     /// `LED(p, index)`.
-    fn led(&self, index: u32) => |c| c.led(index);
+    fn led(&self, index: Checked<u32>) [let index = index.0;] => |c| c.led(index);
     /// `CLAMP(p, enable)`.
     fn clamp(&self, enable: bool) => |c| c.clamp(enable);
     /// `WSTR[p]?`: the state after the next transition.
     fn wait_for_transition(&self) => |c| c.wait_for_transition();
     /// `SETVAL(p, index, value)`.
-    fn set_value(&self, index: u32, value: i32) => |c| c.set_value(index, value);
+    fn set_value(&self, index: Checked<u32>, value: Checked<i32>) [let index = index.0; let value = value.0;] => |c| c.set_value(index, value);
     /// `SETVALF(p, index, value)`.
     fn set_value_f(&self, index: u32, value: f64) => |c| c.set_value_f(index, value);
     /// `DEVSTATE[p]?`.
     fn state(&self) => |c| c.state();
     /// `VALUE[p][index]?`.
-    fn value(&self, index: u32) => |c| c.value(index);
+    fn value(&self, index: Checked<u32>) [let index = index.0;] => |c| c.value(index);
     /// `VALUEF[p][index]?`.
-    fn value_f(&self, index: u32) => |c| c.value_f(index);
+    fn value_f(&self, index: Checked<u32>) [let index = index.0;] => |c| c.value_f(index);
     /// The position, µm.
     fn position_um(&self) => |c| c.position_um();
     /// The position, mm.
     fn position_mm(&self) => |c| c.position_mm();
     /// `GRIPCFG[p][index]?`.
-    fn grip_config(&self, index: u32) => |c| c.grip_config(index);
+    fn grip_config(&self, index: Checked<u32>) [let index = index.0;] => |c| c.grip_config(index);
     /// `GRIPCFG[p][index]=`: returns the stored recipe.
-    fn set_grip_config(&self, index: u32, tag: String, params: Vec<i32>)
-        [let config = GripConfig { tag, params: self::params("GRIPCFG", params)? };]
+    fn set_grip_config(&self, index: Checked<u32>, tag: String, params: Checked<Vec<i32>>)
+        [let index = index.0; let config = GripConfig { tag, params: self::params("GRIPCFG", params.0)? };]
         => |c| c.set_grip_config(index, &config);
     /// `GRIPCFGF[p][index]?`.
-    fn grip_config_f(&self, index: u32) => |c| c.grip_config_f(index);
+    fn grip_config_f(&self, index: Checked<u32>) [let index = index.0;] => |c| c.grip_config_f(index);
     /// `GRIPCFGF[p][index]=`: returns the stored recipe.
-    fn set_grip_config_f(&self, index: u32, tag: String, params: Vec<f64>)
-        [let config = GripConfigF { tag, params: self::params("GRIPCFGF", params)? };]
+    fn set_grip_config_f(&self, index: Checked<u32>, tag: String, params: Checked<Vec<f64>>)
+        [let index = index.0; let config = GripConfigF { tag, params: self::params("GRIPCFGF", params.0)? };]
         => |c| c.set_grip_config_f(index, &config);
     /// GRIP with recipe `index`, then wait for its end: by the state transition (WSTR), or by
     /// polling DEVSTATE every `poll_interval_s`.
     #[pyo3(signature = (index, poll_interval_s=None))]
-    fn grip_and_wait(&self, index: u32, poll_interval_s: Option<f64>) [let by = wait_by(poll_interval_s)?;] => |c| c.grip_and_wait(index, by);
+    fn grip_and_wait(&self, index: Checked<u32>, poll_interval_s: Option<f64>) [let index = index.0; let by = wait_by(poll_interval_s)?;] => |c| c.grip_and_wait(index, by);
     /// RELEASE with recipe `index`, then wait for its end.
     #[pyo3(signature = (index, poll_interval_s=None))]
-    fn release_and_wait(&self, index: u32, poll_interval_s: Option<f64>) [let by = wait_by(poll_interval_s)?;] => |c| c.release_and_wait(index, by);
+    fn release_and_wait(&self, index: Checked<u32>, poll_interval_s: Option<f64>) [let index = index.0; let by = wait_by(poll_interval_s)?;] => |c| c.release_and_wait(index, by);
 }
 
 // ---- the simulator -------------------------------------------------------------------------
@@ -540,8 +539,8 @@ sim_pymethods! { SimServer, "gripper_rs.griplink.sim.SimServer";
     }
 
     /// The state of the device on `port` (None: no device).
-    fn device_state(&self, py: Python<'_>, port: u8) -> PyResult<Option<Py<PyAny>>> {
-        let port = port_number(port)?;
+    fn device_state(&self, py: Python<'_>, port: Checked<u8>) -> PyResult<Option<Py<PyAny>>> {
+        let port = port_number(port.0)?;
         self.with(|s| s.device_state(port))?
             .map(|state| state.to_py(py))
             .transpose()
@@ -549,20 +548,20 @@ sim_pymethods! { SimServer, "gripper_rs.griplink.sim.SimServer";
 
     /// Puts a part of `width_mm` between the fingers on `port` (None: takes it away).
     #[pyo3(signature = (port, width_mm))]
-    fn set_part(&self, port: u8, width_mm: Option<f64>) -> PyResult<()> {
-        let port = port_number(port)?;
+    fn set_part(&self, port: Checked<u8>, width_mm: Option<f64>) -> PyResult<()> {
+        let port = port_number(port.0)?;
         self.with(|s| s.set_part(port, width_mm))
     }
 
     /// The device on `port` goes into DS_FAULT now.
-    fn inject_device_fault(&self, port: u8) -> PyResult<()> {
-        let port = port_number(port)?;
+    fn inject_device_fault(&self, port: Checked<u8>) -> PyResult<()> {
+        let port = port_number(port.0)?;
         self.with(|s| s.inject_device_fault(port))
     }
 
     /// The next motion on `port` ends in DS_FAULT.
-    fn fault_next_motion(&self, port: u8) -> PyResult<()> {
-        let port = port_number(port)?;
+    fn fault_next_motion(&self, port: Checked<u8>) -> PyResult<()> {
+        let port = port_number(port.0)?;
         self.with(|s| s.fault_next_motion(port))
     }
 
@@ -578,9 +577,9 @@ sim_pymethods! { SimServer, "gripper_rs.griplink.sim.SimServer";
     }
 
     /// The next command is refused with `ERR <code>`.
-    fn fail_next(&self, code: u32) -> PyResult<()> {
+    fn fail_next(&self, code: Checked<u32>) -> PyResult<()> {
         self.inject(griplink::sim::Fault::Error(griplink::Status::from_code(
-            code,
+            code.0,
         )))
     }
 

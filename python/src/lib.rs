@@ -8,6 +8,7 @@
 mod sim;
 #[macro_use]
 mod twins;
+mod args;
 mod convert;
 mod errors;
 mod griplink;
@@ -25,6 +26,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = m.py();
     m.add_class::<stream::Stream>()?;
     m.add_function(wrap_pyfunction!(runtime::_quiesce, m)?)?;
+    m.add_function(wrap_pyfunction!(runtime::_set_future, m)?)?;
     m.add_submodule(&wsg::module(py)?)?;
     m.add_submodule(&wsg_text::module(py)?)?;
     m.add_submodule(&griplink::module(py)?)?;

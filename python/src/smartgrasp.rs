@@ -10,6 +10,7 @@ use gripper::smartgrasp::{
 use pyo3::prelude::*;
 use pyo3::IntoPyObjectExt;
 
+use crate::args::Checked;
 use crate::convert::{enum_member, enum_value, field, record, ToPy};
 use crate::errors;
 use crate::runtime::{self, seconds};
@@ -271,7 +272,7 @@ impl ToPy for AioClient {
     }
 }
 
-/// `close()` for leaving a `with` block: a client that is already closed, or whose connection
+/// `close()` (and leaving a `with` block), idempotent (issue 32): a client that is already closed, or whose connection
 /// is already lost (the error was raised by the call that saw it), is fine to leave.
 async fn close_for_exit(c: smartgrasp::Client) -> smartgrasp::Result<()> {
     match c.close().await {
@@ -377,28 +378,28 @@ twins! {
     /// GET_STATE.
     fn get_state(&self) => |c| c.get_state();
     /// REGISTER_CLIENT (a `RobotSystem`).
-    fn register_client(&self, robot: u8) [let robot = known("robot system", robot, |v| matches!(v, RobotSystem::Unknown(_)))?;] => |c| c.register_client(robot);
+    fn register_client(&self, robot: Checked<u8>) [let robot = robot.0; let robot = known("robot system", robot, |v| matches!(v, RobotSystem::Unknown(_)))?;] => |c| c.register_client(robot);
     /// SET_PROJECT (V3: the project index; V4: the project ID).
-    fn set_project(&self, project_index: u32) => |c| c.set_project(project_index);
+    fn set_project(&self, project_index: Checked<u32>) [let project_index = project_index.0;] => |c| c.set_project(project_index);
     /// SET_TOOL (V4 only): the tool ID seen in the web frontend.
-    fn set_tool(&self, tool_id: u16) => |c| c.set_tool(tool_id);
+    fn set_tool(&self, tool_id: Checked<u16>) [let tool_id = tool_id.0;] => |c| c.set_tool(tool_id);
     /// SET_WORKSPACE (V4 only): the workspace ID seen in the web frontend.
-    fn set_workspace(&self, workspace_id: u16) => |c| c.set_workspace(workspace_id);
+    fn set_workspace(&self, workspace_id: Checked<u16>) [let workspace_id = workspace_id.0;] => |c| c.set_workspace(workspace_id);
     /// GET_GRASP: a `GraspResult` (its `grasp` is None when the outcome is not GRASP).
     /// `tool` is sent in V3 only, `selection_criterion` in V4 only (its values are not public;
     /// SCHUNK's example sends 1 to 3).
-    #[pyo3(signature = (grasp_mode, object_class, tool, pose_format, selection_criterion=1))]
-    fn get_grasp(&self, grasp_mode: u8, object_class: u16, tool: u8, pose_format: u8, selection_criterion: u8)
-        [let request = grasp_request(grasp_mode, object_class, tool, pose_format, selection_criterion)?;]
+    #[pyo3(signature = (grasp_mode, object_class, tool, pose_format, selection_criterion=Checked(1)))]
+    fn get_grasp(&self, grasp_mode: Checked<u8>, object_class: Checked<u16>, tool: Checked<u8>, pose_format: Checked<u8>, selection_criterion: Checked<u8>)
+        [let request = grasp_request(grasp_mode.0, object_class.0, tool.0, pose_format.0, selection_criterion.0)?;]
         => |c| c.get_grasp(request);
     /// GRASP_FEEDBACK: whether the last grasp was fine.
     fn grasp_feedback(&self, ok: bool) => |c| c.grasp_feedback(feedback(ok));
     /// GET_OBJECT_COUNT (class 0: all).
-    fn get_object_count(&self, object_class: u16) => |c| c.get_object_count(object_class);
+    fn get_object_count(&self, object_class: Checked<u16>) [let object_class = object_class.0;] => |c| c.get_object_count(object_class);
     /// ROBOT_POSE: the robot's pose, in `format` with the seven wire values.
-    fn robot_pose(&self, format: u8, wire: [i32; 7]) [let p = pose(format, wire)?;] => |c| c.robot_pose(p);
+    fn robot_pose(&self, format: Checked<u8>, wire: Checked<[i32; 7]>) [let format = format.0; let wire = wire.0; let p = pose(format, wire)?;] => |c| c.robot_pose(p);
     /// Closes the connection.
-    fn close(&self) => |c| c.close();
+    fn close(&self) => |c| close_for_exit(c.clone());
 }
 
 // ---- the simulator -------------------------------------------------------------------------
@@ -468,8 +469,8 @@ sim_pymethods! { SimServer, "gripper_rs.smartgrasp.sim.SimServer";
     }
 
     /// The server goes into `state` (a `ServerState`).
-    fn set_server_state(&self, state: u8) -> PyResult<()> {
-        self.with(|s| s.with_state(|st| st.set_server_state(ServerState::from(state))))
+    fn set_server_state(&self, state: Checked<u8>) -> PyResult<()> {
+        self.with(|s| s.with_state(|st| st.set_server_state(ServerState::from(state.0))))
     }
 
     /// The next request is processed but not answered.
@@ -484,8 +485,8 @@ sim_pymethods! { SimServer, "gripper_rs.smartgrasp.sim.SimServer";
     }
 
     /// The next response has `length` in its length field.
-    fn corrupt_next_length(&self, length: u32) -> PyResult<()> {
-        self.inject(smartgrasp::sim::Fault::CorruptLength(length))
+    fn corrupt_next_length(&self, length: Checked<u32>) -> PyResult<()> {
+        self.inject(smartgrasp::sim::Fault::CorruptLength(length.0))
     }
 
     /// The connection is closed instead of the next response.

@@ -81,7 +81,7 @@ macro_rules! twins {
                 fn __aenter__(slf: Bound<'_, Self>) -> PyResult<Bound<'_, PyAny>> {
                     let py = slf.py();
                     let me = slf.unbind();
-                    pyo3_async_runtimes::tokio::future_into_py(py, async move { Ok(me) })
+                    $crate::runtime::awaitable_py(py, async move { Ok(me.into_any()) })
                 }
 
                 #[pyo3(signature = (*_exc))]

@@ -9,11 +9,12 @@ use gripper::wsg::{
 use pyo3::prelude::*;
 use pyo3::IntoPyObjectExt;
 
+use crate::args::Checked;
 use crate::convert::{enum_value, f32_to_f64, field, record, ToPy};
 use crate::errors;
 use crate::runtime::{self, seconds};
 use crate::sim::Slot;
-use crate::stream::Stream;
+use crate::stream::{ending_from_events, Ended, Stream};
 
 const PY: &str = "gripper_rs.wsg";
 
@@ -173,6 +174,15 @@ impl<T: ToPy> ToPy for Subscription<T> {
     }
 }
 
+/// A subscription whose stream tells a lost connection (`ConnectionLostError`) from a closed
+/// client: `events` is taken before the subscription is made, so that no loss is missed.
+async fn subscribed<T: ToPy>(
+    events: gripper::reconnect::ConnectionEvents,
+    subscribe: impl std::future::Future<Output = wsg::Result<Subscription<T>>>,
+) -> wsg::Result<Ended<Subscription<T>>> {
+    Ok(Ended(subscribe.await?, ending_from_events(events)))
+}
+
 // ---- arguments -----------------------------------------------------------------------------
 
 pub(crate) fn homing_direction(direction: u8) -> PyResult<HomingDirection> {
@@ -304,7 +314,7 @@ twins! {
             late_reply_grace_s: Option<f64>,
         ) -> PyResult<Client> {
             let b = builder(query_timeout_s, motion_timeout_s, None, late_reply_grace_s)?;
-            let inner = runtime::enter(|| b.open_serial(&path, baud_rate)).map_err(error)?;
+            let inner = runtime::enter(|| b.open_serial(&path, baud_rate))?.map_err(error)?;
             Ok(Client { inner })
         }
 
@@ -371,8 +381,8 @@ twins! {
 
     /// Command 0x20: reference the fingers (direction 0 = the device's default, 1 = positive,
     /// 2 = negative).
-    #[pyo3(signature = (direction=0))]
-    fn home(&self, direction: u8) [let direction = homing_direction(direction)?;] => |c| c.home(direction);
+    #[pyo3(signature = (direction=Checked(0)))]
+    fn home(&self, direction: Checked<u8>) [let direction = direction.0; let direction = homing_direction(direction)?;] => |c| c.home(direction);
     /// Command 0x21: move to `width_mm` at `speed_mm_per_s` (absolute, stop on block).
     fn pre_position(&self, width_mm: f32, speed_mm_per_s: f32) => |c| c.pre_position(width_mm, speed_mm_per_s);
     /// Command 0x21: move by `distance_mm` (relative, stop on block).
@@ -429,35 +439,35 @@ twins! {
     /// Command 0x53: the system limits.
     fn system_limits(&self) => |c| c.system_limits();
     /// Commands 0x60 / 0x70: finger 1 or 2's type and data size.
-    fn finger_info(&self, finger: u8) [let finger = self::finger(finger)?;] => |c| c.finger_info(finger);
+    fn finger_info(&self, finger: Checked<u8>) [let finger = finger.0; let finger = self::finger(finger)?;] => |c| c.finger_info(finger);
     /// Commands 0x61 / 0x71: finger 1 or 2's flags.
-    fn finger_flags(&self, finger: u8) [let finger = self::finger(finger)?;] => |c| c.finger_flags(finger);
+    fn finger_flags(&self, finger: Checked<u8>) [let finger = finger.0; let finger = self::finger(finger)?;] => |c| c.finger_flags(finger);
     /// Commands 0x62 / 0x72: finger 1 or 2's power.
-    fn set_finger_power(&self, finger: u8, on: bool) [let finger = self::finger(finger)?;] => |c| c.set_finger_power(finger, on);
+    fn set_finger_power(&self, finger: Checked<u8>, on: bool) [let finger = finger.0; let finger = self::finger(finger)?;] => |c| c.set_finger_power(finger, on);
     /// Commands 0x63 / 0x73: finger 1 or 2's data.
-    fn finger_data(&self, finger: u8) [let finger = self::finger(finger)?;] => |c| c.finger_data(finger);
+    fn finger_data(&self, finger: Checked<u8>) [let finger = finger.0; let finger = self::finger(finger)?;] => |c| c.finger_data(finger);
     /// Command 0x06: the device echoes `data`.
     fn loop_back(&self, data: Vec<u8>) => |c| c.loop_back(data);
     /// Stream of the system state flags (0x40 auto-update) every `period_s` (or on change).
     #[pyo3(signature = (period_s, on_change=false))]
-    fn subscribe_system_state(&self, period_s: f64, on_change: bool) [let o = update_options(period_s, on_change)?;] => |c| c.subscribe_system_state(o);
+    fn subscribe_system_state(&self, period_s: f64, on_change: bool) [let o = update_options(period_s, on_change)?;] => |c| subscribed(c.connection_events(), c.subscribe_system_state(o));
     /// Stream of the grip state (0x41 auto-update).
     #[pyo3(signature = (period_s, on_change=false))]
-    fn subscribe_grip_state(&self, period_s: f64, on_change: bool) [let o = update_options(period_s, on_change)?;] => |c| c.subscribe_grip_state(o);
+    fn subscribe_grip_state(&self, period_s: f64, on_change: bool) [let o = update_options(period_s, on_change)?;] => |c| subscribed(c.connection_events(), c.subscribe_grip_state(o));
     /// Stream of the opening width, mm (0x43 auto-update).
     #[pyo3(signature = (period_s, on_change=false))]
-    fn subscribe_width_mm(&self, period_s: f64, on_change: bool) [let o = update_options(period_s, on_change)?;] => |c| c.subscribe_width_mm(o);
+    fn subscribe_width_mm(&self, period_s: f64, on_change: bool) [let o = update_options(period_s, on_change)?;] => |c| subscribed(c.connection_events(), c.subscribe_width_mm(o));
     /// Stream of the finger speed, mm/s (0x44 auto-update).
     #[pyo3(signature = (period_s, on_change=false))]
-    fn subscribe_speed_mm_per_s(&self, period_s: f64, on_change: bool) [let o = update_options(period_s, on_change)?;] => |c| c.subscribe_speed_mm_per_s(o);
+    fn subscribe_speed_mm_per_s(&self, period_s: f64, on_change: bool) [let o = update_options(period_s, on_change)?;] => |c| subscribed(c.connection_events(), c.subscribe_speed_mm_per_s(o));
     /// Stream of the finger force, N (0x45 auto-update).
     #[pyo3(signature = (period_s, on_change=false))]
-    fn subscribe_force_n(&self, period_s: f64, on_change: bool) [let o = update_options(period_s, on_change)?;] => |c| c.subscribe_force_n(o);
+    fn subscribe_force_n(&self, period_s: f64, on_change: bool) [let o = update_options(period_s, on_change)?;] => |c| subscribed(c.connection_events(), c.subscribe_force_n(o));
     /// Closes the connection (TCP: announces the disconnect, 0x07, first).
-    fn close(&self) => |c| c.close();
+    fn close(&self) => |c| close_for_exit(c.clone());
 }
 
-/// `close()` for leaving a `with` block: a client that is already closed, or whose connection
+/// `close()` (and leaving a `with` block), idempotent (issue 32): a client that is already closed, or whose connection
 /// is already lost (the error was raised by the call that saw it), is fine to leave.
 async fn close_for_exit(c: wsg::Client) -> wsg::Result<()> {
     match c.close().await {
@@ -586,24 +596,24 @@ sim_pymethods! { SimServer, "gripper_rs.wsg.sim.SimServer";
     }
 
     /// The next reply to command `id` is not sent.
-    fn drop_next_reply(&self, id: u8) -> PyResult<()> {
-        self.with(|s| s.drop_next_reply(id))
+    fn drop_next_reply(&self, id: Checked<u8>) -> PyResult<()> {
+        self.with(|s| s.drop_next_reply(id.0))
     }
 
     /// The next reply to command `id` has a wrong checksum.
-    fn corrupt_next_reply(&self, id: u8) -> PyResult<()> {
-        self.with(|s| s.corrupt_next_reply(id))
+    fn corrupt_next_reply(&self, id: Checked<u8>) -> PyResult<()> {
+        self.with(|s| s.corrupt_next_reply(id.0))
     }
 
     /// The next reply to command `id` is sent `delay_s` late.
-    fn delay_next_reply(&self, id: u8, delay_s: f64) -> PyResult<()> {
+    fn delay_next_reply(&self, id: Checked<u8>, delay_s: f64) -> PyResult<()> {
         let d = seconds("delay_s", delay_s)?;
-        self.with(|s| s.delay_next_reply(id, d))
+        self.with(|s| s.delay_next_reply(id.0, d))
     }
 
     /// The next reply to command `id` carries status `code` instead.
-    fn force_status(&self, id: u8, code: u16) -> PyResult<()> {
-        self.with(|s| s.force_status(id, wsg::Status::from_code(code)))
+    fn force_status(&self, id: Checked<u8>, code: Checked<u16>) -> PyResult<()> {
+        self.with(|s| s.force_status(id.0, wsg::Status::from_code(code.0)))
     }
 
     /// The held part slips out of the fingers.

@@ -6,6 +6,7 @@ use gripper::wsg::text::{self, Error, Push, Pushes, Quantity};
 use pyo3::prelude::*;
 use pyo3::IntoPyObjectExt;
 
+use crate::args::Checked;
 use crate::convert::{field, record, ToPy};
 use crate::errors;
 use crate::runtime::{self, seconds};
@@ -155,8 +156,8 @@ twins! {
 
     /// `HOME()` (direction 0, the default), `HOME(1)` (1, positive) or `HOME(0)` (2, negative):
     /// the same numbers as `gripper_rs.wsg.HomingDirection`, written in GCL's form.
-    #[pyo3(signature = (direction=0))]
-    fn home(&self, direction: u8) [let direction = homing_direction(direction)?;] => |c| c.home(direction);
+    #[pyo3(signature = (direction=Checked(0)))]
+    fn home(&self, direction: Checked<u8>) [let direction = direction.0; let direction = homing_direction(direction)?;] => |c| c.home(direction);
     /// `MOVE(p[,v])`: move to `width_mm`, with an optional speed limit.
     #[pyo3(signature = (width_mm, speed_mm_per_s=None))]
     fn move_to(&self, width_mm: f64, speed_mm_per_s: Option<f64>) => |c| c.move_to(width_mm, speed_mm_per_s);
@@ -199,14 +200,14 @@ twins! {
     /// `AUTOSEND("NAME",ms[,true])`: a stream of `Push(quantity, value)` for `quantity` ("POS",
     /// "SPEED", "FORCE", "GRIPSTATE", "TEMP").
     #[pyo3(signature = (quantity, interval_ms, only_on_change=false))]
-    fn autosend(&self, quantity: &str, interval_ms: u16, only_on_change: bool) [let q = self::quantity(quantity)?;] => |c| c.autosend(q, interval_ms, only_on_change);
+    fn autosend(&self, quantity: &str, interval_ms: Checked<u16>, only_on_change: bool) [let interval_ms = interval_ms.0; let q = self::quantity(quantity)?;] => |c| c.autosend(q, interval_ms, only_on_change);
     /// `AUTOSEND("NAME",0)`: stop pushing `quantity`.
     fn stop_autosend(&self, quantity: &str) [let q = self::quantity(quantity)?;] => |c| c.stop_autosend(q);
     /// `BYE()`: announce the disconnect and close.
-    fn close(&self) => |c| c.close();
+    fn close(&self) => |c| close_for_exit(c.clone());
 }
 
-/// `close()` for leaving a `with` block: a client already closed, or whose connection is
+/// `close()` (and leaving a `with` block), idempotent (issue 32): a client already closed, or whose connection is
 /// already lost, is fine to leave.
 async fn close_for_exit(c: text::Client) -> text::Result<()> {
     match c.close().await {
