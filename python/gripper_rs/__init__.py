@@ -20,9 +20,9 @@ from gripper_rs.errors import (
     InvalidArgumentError,
     MalformedReplyError,
     ProtocolError,
-    TimeoutError,
     TransportError,
 )
+from gripper_rs.errors import TimeoutError as TimeoutError  # re-exported, not in __all__
 
 Stream = _native.Stream
 
@@ -32,6 +32,8 @@ atexit.register(_native._quiesce)
 
 from gripper_rs import griplink, smartgrasp, wsg  # noqa: E402  (they use the names above)
 
+# `TimeoutError` is importable by name but not in `__all__`: `from gripper_rs import *` would
+# shadow the builtin (ours is a subclass of it).
 __all__ = [
     "ClosedError",
     "ConnectionLostError",
@@ -41,7 +43,6 @@ __all__ = [
     "MalformedReplyError",
     "ProtocolError",
     "Stream",
-    "TimeoutError",
     "TransportError",
     "griplink",
     "smartgrasp",

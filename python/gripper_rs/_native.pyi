@@ -23,15 +23,61 @@ from gripper_rs.wsg.text import Push
 _T = TypeVar("_T")
 
 def _quiesce() -> None: ...
+def _set_future(fut: object, ok: bool, value: object) -> None: ...
 
 class Stream(Generic[_T]):
+    """A stream of values: ``for v in stream`` blocks for each (Ctrl-C ends the wait),
+    ``async for v in stream`` awaits each.
+
+    A lost connection ends it with ``ConnectionLostError`` (raised once; the stream is then
+    exhausted). ``close()`` (or leaving ``with`` / ``async with``) ends it at once, from any
+    thread or task: readers waiting on it get ``StopIteration`` / ``StopAsyncIteration``.
+    Closing the client ends it the same way. A reader that falls behind misses values
+    (``missed``): see ``buffer_size`` and ``latest_only``.
+    """
+
     def __iter__(self) -> Self: ...
-    def __next__(self) -> _T: ...
+    def __next__(self) -> _T:
+        """The next value; waits for it with the GIL released."""
     def __aiter__(self) -> Self: ...
-    def __anext__(self) -> Awaitable[_T]: ...
-    def close(self) -> None: ...
+    def __anext__(self) -> Awaitable[_T]:
+        """The next value, as an awaitable of the running event loop."""
+    def close(self) -> None:
+        """Ends the stream now: readers waiting on it get ``StopIteration`` /
+        ``StopAsyncIteration``, unread values are dropped, and the device is told to stop
+        sending (in the background). Never waits; calling it again does nothing."""
+    def aclose(self) -> Awaitable[None]:
+        """``close()`` as an awaitable (the async generator protocol's name)."""
+    @property
+    def is_closed(self) -> bool:
+        """Whether the stream has ended (closed, or its connection ended) and holds no unread
+        value."""
+    @property
+    def missed(self) -> int:
+        """Values dropped so far because the reader fell behind: the buffer was full (the
+        newest value was dropped), or with ``latest_only`` an unread value was replaced."""
+    @property
+    def buffer_size(self) -> int:
+        """How many unread values the stream keeps (default 64; at least 1). While it is full,
+        pushed values (WSG auto-updates, GCL pushes) are dropped and counted in ``missed``; a
+        polling watch (GRIPLINK) polls no faster than it is read."""
+    @buffer_size.setter
+    def buffer_size(self, size: int) -> None: ...
+    @property
+    def latest_only(self) -> bool:
+        """Keep only the newest unread value: a reader always gets the latest state, and each
+        value it never saw counts in ``missed``."""
+    @latest_only.setter
+    def latest_only(self, on: bool) -> None: ...
     def __enter__(self) -> Self: ...
     def __exit__(
+        self,
+        ty: type[BaseException] | None,
+        value: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None: ...
+    async def __aenter__(self) -> Self: ...
+    async def __aexit__(
         self,
         ty: type[BaseException] | None,
         value: BaseException | None,

@@ -13,7 +13,7 @@ use pyo3::IntoPyObjectExt;
 
 use crate::args::Checked;
 use crate::convert::{enum_member, enum_value, field, record, ToPy};
-use crate::errors;
+use crate::errors::{self, Kind};
 use crate::runtime::{self, seconds};
 use crate::sim::Slot;
 use crate::stream::Stream;
@@ -23,24 +23,27 @@ const PY: &str = "gripper_rs.griplink";
 /// A GRIPLINK error as the package's exception.
 pub fn error(e: Error) -> PyErr {
     let message = e.to_string();
-    match e {
+    let kind = match e {
         Error::Device {
             command, status, ..
-        } => errors::device(
-            message,
-            i64::from(status.code()),
-            status.identifier(),
-            status.description(),
-            command,
-        ),
-        Error::Timeout { timeout, .. } => errors::timeout(message, timeout.as_secs_f64()),
-        Error::ConnectionLost(_) => errors::connection_lost(message),
-        Error::Closed => errors::closed(message),
-        Error::MalformedReply { .. } | Error::UnexpectedReply { .. } => errors::malformed(message),
-        Error::InvalidArgument { .. } => errors::invalid_argument(message),
-        Error::Io(_) => errors::transport(message),
-        _ => errors::raise("GripperError", message, &[]),
-    }
+        } => {
+            let d = errors::Device::new(i64::from(status.code()), command).status(PY, "Status");
+            Kind::Device(match (status.identifier(), status.description()) {
+                (Some(name), Some(description)) => d.known(name, description),
+                _ => d,
+            })
+        }
+        Error::Timeout { timeout, .. } => Kind::Timeout {
+            timeout_s: timeout.as_secs_f64(),
+        },
+        Error::ConnectionLost(_) => Kind::ConnectionLost,
+        Error::Closed => Kind::Closed,
+        Error::MalformedReply { .. } | Error::UnexpectedReply { .. } => Kind::Malformed,
+        Error::InvalidArgument { .. } => Kind::InvalidArgument,
+        Error::Io(_) => Kind::Transport,
+        _ => Kind::Other,
+    };
+    errors::classify(kind, message)
 }
 
 // ---- results -------------------------------------------------------------------------------

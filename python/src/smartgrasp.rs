@@ -12,7 +12,7 @@ use pyo3::IntoPyObjectExt;
 
 use crate::args::Checked;
 use crate::convert::{enum_member, enum_value, field, record, ToPy};
-use crate::errors;
+use crate::errors::{self, Kind};
 use crate::runtime::{self, seconds};
 use crate::sim::Slot;
 
@@ -21,30 +21,38 @@ const PY: &str = "gripper_rs.smartgrasp";
 /// A SmartGrasp error as the package's exception.
 pub fn error(e: Error) -> PyErr {
     let message = e.to_string();
-    match e {
+    let kind = match e {
         Error::Device {
             message_type,
             status,
-        } => errors::device(
-            message,
-            i64::from(u8::from(status)),
-            Some(status.to_string().split(' ').next().unwrap_or_default()),
-            Some(status.to_string().as_str()),
-            message_type.to_string(),
-        ),
-        Error::Timeout { timeout, .. } => errors::timeout(message, timeout.as_secs_f64()),
-        Error::ConnectionLost { .. } => errors::connection_lost(message),
-        Error::Closed => errors::closed(message),
-        Error::MalformedReply(_) => errors::malformed(message),
-        Error::InvalidArgument(_) | Error::Pose(_) | Error::Request(_) => {
-            errors::invalid_argument(message)
+        } => {
+            let d = errors::Device::new(i64::from(u8::from(status)), message_type.to_string())
+                .status(PY, "ResponseCode");
+            Kind::Device(match status {
+                smartgrasp::ResponseCode::Unknown(_) => d,
+                known => {
+                    // Display is "SYMBOL (text)" (manual 3.2).
+                    let text = known.to_string();
+                    let (name, description) = text.split_once(' ').unwrap_or((&text, ""));
+                    let description = description.trim_start_matches('(').trim_end_matches(')');
+                    d.known(name, description)
+                }
+            })
         }
-        Error::Io(_) => errors::transport(message),
+        Error::Timeout { timeout, .. } => Kind::Timeout {
+            timeout_s: timeout.as_secs_f64(),
+        },
+        Error::ConnectionLost { .. } => Kind::ConnectionLost,
+        Error::Closed => Kind::Closed,
+        Error::MalformedReply(_) => Kind::Malformed,
+        Error::InvalidArgument(_) | Error::Pose(_) | Error::Request(_) => Kind::InvalidArgument,
+        Error::Io(_) => Kind::Transport,
         Error::ServerTooOld { .. } | Error::NotOperational { .. } | Error::ResponseLost { .. } => {
-            errors::raise("ProtocolError", message, &[])
+            Kind::Protocol
         }
-        _ => errors::raise("GripperError", message, &[]),
-    }
+        _ => Kind::Other,
+    };
+    errors::classify(kind, message)
 }
 
 // ---- results -------------------------------------------------------------------------------

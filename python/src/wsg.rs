@@ -11,7 +11,7 @@ use pyo3::IntoPyObjectExt;
 
 use crate::args::Checked;
 use crate::convert::{enum_value, f32_to_f64, field, record, ToPy};
-use crate::errors;
+use crate::errors::{self, Kind};
 use crate::runtime::{self, seconds};
 use crate::sim::Slot;
 use crate::stream::{ending_from_events, Ended, Stream};
@@ -21,21 +21,35 @@ const PY: &str = "gripper_rs.wsg";
 /// A WSG error as the package's exception.
 pub fn error(e: Error) -> PyErr {
     let message = e.to_string();
+    errors::classify(kind(e), message)
+}
+
+/// What kind of failure a WSG error is (see [`errors::Kind`]).
+fn kind(e: Error) -> Kind {
     match e {
-        Error::Device { command, status } => errors::device(
-            message,
-            i64::from(status.code()),
-            Some(status.symbol()),
-            Some(status.description()),
-            command,
-        ),
-        Error::Timeout { timeout, .. } => errors::timeout(message, timeout.as_secs_f64()),
-        Error::ConnectionLost(_) => errors::connection_lost(message),
-        Error::Closed => errors::closed(message),
-        Error::MalformedReply { .. } => errors::malformed(message),
-        Error::InvalidArgument(_) => errors::invalid_argument(message),
-        Error::Io(_) => errors::transport(message),
-        _ => errors::raise("GripperError", message, &[]),
+        Error::Device { command, status } => Kind::Device(device(command, status)),
+        Error::Timeout { timeout, .. } => Kind::Timeout {
+            timeout_s: timeout.as_secs_f64(),
+        },
+        Error::ConnectionLost(_) => Kind::ConnectionLost,
+        Error::Closed => Kind::Closed,
+        Error::MalformedReply { .. } => Kind::Malformed,
+        Error::InvalidArgument(_) => Kind::InvalidArgument,
+        Error::Io(_) => Kind::Transport,
+        _ => Kind::Other,
+    }
+}
+
+/// A WSG status code (binary and text interface: one table, manual Anhang A) as a refusal of
+/// `command`: `name` and `description` only for a code the manual lists.
+pub(crate) fn device<C>(command: C, status: wsg::Status) -> errors::Device
+where
+    C: for<'py> IntoPyObject<'py> + Send + 'static,
+{
+    let d = errors::Device::new(i64::from(status.code()), command).status(PY, "Status");
+    match status {
+        wsg::Status::Unknown(_) => d,
+        known => d.known(known.symbol(), known.description()),
     }
 }
 

@@ -8,7 +8,7 @@ use pyo3::IntoPyObjectExt;
 
 use crate::args::Checked;
 use crate::convert::{field, record, ToPy};
-use crate::errors;
+use crate::errors::{self, Kind};
 use crate::runtime::{self, seconds};
 use crate::stream::Stream;
 use crate::wsg::homing_direction;
@@ -17,27 +17,24 @@ use crate::wsg::homing_direction;
 /// has code -1 (the whole `ERR` line is in the message).
 pub fn error(e: Error) -> PyErr {
     let message = e.to_string();
-    match e {
+    let kind = match e {
         Error::Device {
             command,
             status: Some(status),
             ..
-        } => errors::device(
-            message,
-            i64::from(status.code()),
-            Some(status.symbol()),
-            Some(status.description()),
-            command,
-        ),
-        Error::Device { command, .. } => errors::device(message, -1, None, None, command),
-        Error::Timeout { timeout, .. } => errors::timeout(message, timeout.as_secs_f64()),
-        Error::ConnectionLost(_) => errors::connection_lost(message),
-        Error::Closed => errors::closed(message),
-        Error::MalformedReply { .. } | Error::UnexpectedReply { .. } => errors::malformed(message),
-        Error::InvalidArgument { .. } => errors::invalid_argument(message),
-        Error::Io(_) => errors::transport(message),
-        _ => errors::raise("GripperError", message, &[]),
-    }
+        } => Kind::Device(crate::wsg::device(command, status)),
+        Error::Device { command, .. } => Kind::Device(errors::Device::new(-1, command)),
+        Error::Timeout { timeout, .. } => Kind::Timeout {
+            timeout_s: timeout.as_secs_f64(),
+        },
+        Error::ConnectionLost(_) => Kind::ConnectionLost,
+        Error::Closed => Kind::Closed,
+        Error::MalformedReply { .. } | Error::UnexpectedReply { .. } => Kind::Malformed,
+        Error::InvalidArgument { .. } => Kind::InvalidArgument,
+        Error::Io(_) => Kind::Transport,
+        _ => Kind::Other,
+    };
+    errors::classify(kind, message)
 }
 
 impl ToPy for Push {

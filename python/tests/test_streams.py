@@ -7,6 +7,7 @@ from __future__ import annotations
 import asyncio
 import threading
 import time
+import typing
 
 import pytest
 
@@ -78,7 +79,8 @@ def test_close_from_a_thread_ends_an_async_wait(wsg_sim: wsg.sim.SimServer) -> N
         with pytest.raises(StopAsyncIteration):
             await asyncio.wait_for(waiter, 2.0)
         await client.close()
-        return stream.is_closed
+        closed: bool = stream.is_closed
+        return closed
 
     assert run_async(main)
 
@@ -155,8 +157,8 @@ def test_context_managers_and_aclose(wsg_client: wsg.Client) -> None:
 
 def test_stream_is_generic_at_run_time() -> None:
     alias = Stream[float]
-    assert alias.__origin__ is Stream
-    assert alias.__args__ == (float,)
+    assert typing.get_origin(alias) is Stream
+    assert typing.get_args(alias) == (float,)
 
 
 def test_a_slow_reader_misses_values_and_sees_the_count(wsg_client: wsg.Client) -> None:
