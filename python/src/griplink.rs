@@ -303,6 +303,16 @@ fn watch_value(port: &griplink::Port, index: Checked<u32>, interval_s: f64) -> P
     runtime::enter(|| Stream::new(port.watch_value(index.0, interval)))
 }
 
+/// Any `Mapping` (not only a `dict`) as a Rust map; a port number out of range is an
+/// `InvalidArgumentError`.
+fn mapping<T>(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<T>
+where
+    T: for<'py> pyo3::conversion::FromPyObjectOwned<'py>,
+{
+    let dict = obj.py().import("builtins")?.getattr("dict")?.call1((obj,))?;
+    crate::args::extract(&dict, name)
+}
+
 // ---- a port --------------------------------------------------------------------------------
 
 /// The device on one port of a GRIPLINK controller (blocking API).
@@ -491,12 +501,15 @@ sim_pymethods! { SimServer, "gripper_rs.griplink.sim.SimServer";
     fn new(
         py: Python<'_>,
         preset: &str,
-        devices: Option<HashMap<u8, Option<String>>>,
-        parts: Option<HashMap<u8, f64>>,
+        devices: Option<Bound<'_, PyAny>>,
+        parts: Option<Bound<'_, PyAny>>,
         time_scale: f64,
         addr: &str,
     ) -> PyResult<Self> {
         use griplink::sim::SimConfig;
+        let devices: Option<HashMap<u8, Option<String>>> =
+            devices.map(|m| mapping(&m, "devices")).transpose()?;
+        let parts: Option<HashMap<u8, f64>> = parts.map(|m| mapping(&m, "parts")).transpose()?;
         if !(time_scale.is_finite() && time_scale >= 0.0) {
             return Err(errors::invalid_argument(format!(
                 "time_scale must be finite and non-negative, not {time_scale}"

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import copy
 import pickle
+import types
 from collections.abc import Callable
 
 import pytest
@@ -139,3 +140,17 @@ def test_timeout_error_stays_out_of_star_imports() -> None:
     exec("from gripper_rs.errors import *", namespace)
     assert "TimeoutError" not in namespace
     assert issubclass(gripper_rs.TimeoutError, TimeoutError)
+
+
+def test_simulator_options_take_any_mapping() -> None:
+    # The stub says Mapping: a read-only mapping is accepted, not only a dict.
+    parts = types.MappingProxyType({0: 12.0})
+    with griplink.sim.SimServer(time_scale=0.0, parts=parts) as sim, griplink.Client.connect(
+        sim.address
+    ) as client:
+        port = client.port(0)
+        port.home()
+        port.set_grip_config_f(1, "part", [5.0, 18.0, 50.0, 0, 0, 0, 0, 0])
+        assert port.grip_and_wait(1) is griplink.GripOutcome.HOLDING
+    with pytest.raises(gripper_rs.InvalidArgumentError):
+        griplink.sim.SimServer(parts={300: 12.0})
