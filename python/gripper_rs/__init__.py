@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import atexit
 
-from gripper_rs import _native
+from gripper_rs import _lifecycle, _native
 from gripper_rs.errors import (
     ClosedError,
     ConnectionLostError,
@@ -26,9 +26,15 @@ from gripper_rs.errors import TimeoutError as TimeoutError  # re-exported, not i
 
 Stream = _native.Stream
 
+__version__: str = _native.__version__
+"""The package's version (the Rust crate's: one number for both)."""
+
 # Before the interpreter is finalized, let the runtime's last completions reach Python (see
 # `_quiesce` in python/src/runtime.rs): one that arrives during finalization crashes the process.
 atexit.register(_native._quiesce)
+# Registered after `_quiesce`, so run before it (atexit runs last-in, first-out): the clients
+# still open are closed, announcing the disconnect (see gripper_rs/_lifecycle.py).
+atexit.register(_lifecycle.close_all)
 
 from gripper_rs import griplink, smartgrasp, wsg  # noqa: E402  (they use the names above)
 
@@ -44,6 +50,7 @@ __all__ = [
     "ProtocolError",
     "Stream",
     "TransportError",
+    "__version__",
     "griplink",
     "smartgrasp",
     "wsg",

@@ -22,6 +22,8 @@ from gripper_rs.wsg.text import Push
 
 _T = TypeVar("_T")
 
+__version__: str
+
 def _quiesce() -> None: ...
 def _set_future(fut: object, ok: bool, value: object) -> None: ...
 
@@ -99,7 +101,14 @@ class _SimBase:
     ) -> None: ...
 
 class _Blocking:
-    def __enter__(self) -> Self: ...
+    """A blocking client: every call waits with the GIL released (Ctrl-C ends the wait)."""
+
+    @property
+    def is_closed(self) -> bool:
+        """Whether the connection is closed for good (``close()`` was called, or it was lost
+        and is not being restored): every call fails."""
+    def __enter__(self) -> Self:
+        """The client itself; leaving the block closes it (``close()``)."""
     def __exit__(
         self,
         ty: type[BaseException] | None,
@@ -108,7 +117,15 @@ class _Blocking:
     ) -> None: ...
 
 class _Async:
-    def __aenter__(self) -> Awaitable[Self]: ...
+    """An asyncio client: every call is an awaitable of the running event loop; cancelling one
+    abandons the wait (the command may still run on the device: see the README)."""
+
+    @property
+    def is_closed(self) -> bool:
+        """Whether the connection is closed for good (``close()`` was called, or it was lost
+        and is not being restored): every call fails."""
+    def __aenter__(self) -> Awaitable[Self]:
+        """The client itself; leaving the block closes it (``close()``)."""
     def __aexit__(
         self,
         ty: type[BaseException] | None,
@@ -376,8 +393,6 @@ class griplink:
         ) -> griplink.Client: ...
         def port(self, n: int) -> griplink.Port: ...
         @property
-        def is_closed(self) -> bool: ...
-        @property
         def aio(self) -> griplink.AioClient: ...
         def with_timeout(self, timeout_s: float) -> griplink.Client: ...
         def id(self) -> str: ...
@@ -528,8 +543,6 @@ class smartgrasp:
             tool_id: int | None = None,
             workspace_id: int | None = None,
         ) -> smartgrasp.Client: ...
-        @property
-        def is_closed(self) -> bool: ...
         @property
         def aio(self) -> smartgrasp.AioClient: ...
         def with_timeout(self, timeout_s: float) -> smartgrasp.Client: ...

@@ -177,20 +177,20 @@ fn config(
 
 /// A GRIPLINK controller (blocking API). `client.port(n)` is the device on port n. `with`
 /// closes the connection (BYE).
-#[pyclass(module = "gripper_rs.griplink", name = "Client", frozen)]
+#[pyclass(module = "gripper_rs.griplink", name = "Client", frozen, weakref)]
 pub struct Client {
     inner: griplink::Client,
 }
 
 /// A GRIPLINK controller (asyncio API): the methods of `gripper_rs.griplink.Client` as awaitables.
-#[pyclass(module = "gripper_rs.aio.griplink", name = "Client", frozen)]
+#[pyclass(module = "gripper_rs.aio.griplink", name = "Client", frozen, weakref)]
 pub struct AioClient {
     inner: griplink::Client,
 }
 
 impl ToPy for AioClient {
     fn to_py(self, py: Python<'_>) -> PyResult<Py<PyAny>> {
-        self.into_py_any(py)
+        Ok(crate::lifecycle::track(py, self)?.into_any())
     }
 }
 
@@ -216,21 +216,15 @@ twins! {
             query_timeout_s: Option<f64>,
             motion_timeout_s: Option<f64>,
             connect_timeout_s: Option<f64>,
-        ) -> PyResult<Client> {
+        ) -> PyResult<Py<Client>> {
             let c = config(query_timeout_s, motion_timeout_s, connect_timeout_s)?;
             let inner = runtime::block_on(py, griplink::Client::connect_with(addr, c), error)?;
-            Ok(Client { inner })
+            crate::lifecycle::track(py, Client { inner })
         }
 
         /// The device on port `n` (0..=31).
         fn port(&self, n: Checked<u8>) -> PyResult<Port> {
             Ok(Port { inner: self.inner.port(port_number(n.0)?) })
-        }
-
-        /// Whether the connection is closed for good.
-        #[getter]
-        fn is_closed(&self) -> bool {
-            self.inner.is_closed()
         }
 
 
@@ -309,7 +303,11 @@ fn mapping<T>(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<T>
 where
     T: for<'py> pyo3::conversion::FromPyObjectOwned<'py>,
 {
-    let dict = obj.py().import("builtins")?.getattr("dict")?.call1((obj,))?;
+    let dict = obj
+        .py()
+        .import("builtins")?
+        .getattr("dict")?
+        .call1((obj,))?;
     crate::args::extract(&dict, name)
 }
 

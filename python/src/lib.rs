@@ -12,6 +12,7 @@ mod args;
 mod convert;
 mod errors;
 mod griplink;
+mod lifecycle;
 mod runtime;
 mod smartgrasp;
 mod stream;
@@ -24,6 +25,7 @@ use pyo3::prelude::*;
 #[pymodule]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = m.py();
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add_class::<stream::Stream>()?;
     m.add_function(wrap_pyfunction!(runtime::_quiesce, m)?)?;
     m.add_function(wrap_pyfunction!(runtime::_set_future, m)?)?;

@@ -8,7 +8,6 @@ use gripper::smartgrasp::{
     PoseFormat, RobotSystem, SelectionCriterion, ServerState, Tool,
 };
 use pyo3::prelude::*;
-use pyo3::IntoPyObjectExt;
 
 use crate::args::Checked;
 use crate::convert::{enum_member, enum_value, field, record, ToPy};
@@ -263,20 +262,20 @@ fn pose(format: u8, wire: [i32; 7]) -> PyResult<Pose> {
 // ---- the client ----------------------------------------------------------------------------
 
 /// A SCHUNK 2D Grasping-Kit (blocking API). `with` closes the connection.
-#[pyclass(module = "gripper_rs.smartgrasp", name = "Client", frozen)]
+#[pyclass(module = "gripper_rs.smartgrasp", name = "Client", frozen, weakref)]
 pub struct Client {
     inner: smartgrasp::Client,
 }
 
 /// A SCHUNK 2D Grasping-Kit (asyncio API).
-#[pyclass(module = "gripper_rs.aio.smartgrasp", name = "Client", frozen)]
+#[pyclass(module = "gripper_rs.aio.smartgrasp", name = "Client", frozen, weakref)]
 pub struct AioClient {
     inner: smartgrasp::Client,
 }
 
 impl ToPy for AioClient {
     fn to_py(self, py: Python<'_>) -> PyResult<Py<PyAny>> {
-        self.into_py_any(py)
+        Ok(crate::lifecycle::track(py, self)?.into_any())
     }
 }
 
@@ -305,22 +304,18 @@ twins! {
             query_timeout_s: Option<f64>,
             detection_timeout_s: Option<f64>,
             connect_timeout_s: Option<f64>,
-            robot_system: Option<u8>,
-            project_index: Option<u32>,
-            protocol_version: Option<u16>,
-            tool_id: Option<u16>,
-            workspace_id: Option<u16>,
-        ) -> PyResult<Client> {
+            robot_system: Option<Checked<u8>>,
+            project_index: Option<Checked<u32>>,
+            protocol_version: Option<Checked<u16>>,
+            tool_id: Option<Checked<u16>>,
+            workspace_id: Option<Checked<u16>>,
+        ) -> PyResult<Py<Client>> {
+            let (robot_system, project_index) = (robot_system.map(|v| v.0), project_index.map(|v| v.0));
+            let (protocol_version, tool_id, workspace_id) = (protocol_version.map(|v| v.0), tool_id.map(|v| v.0), workspace_id.map(|v| v.0));
             let v4 = V4Options { protocol_version, tool_id, workspace_id };
             let c = config(query_timeout_s, detection_timeout_s, connect_timeout_s, robot_system, project_index, v4)?;
             let inner = runtime::block_on(py, smartgrasp::Client::connect(addr, c), error)?;
-            Ok(Client { inner })
-        }
-
-        /// Whether the connection is closed for good.
-        #[getter]
-        fn is_closed(&self) -> bool {
-            self.inner.is_closed()
+            crate::lifecycle::track(py, Client { inner })
         }
 
 
@@ -342,12 +337,14 @@ twins! {
             query_timeout_s: Option<f64>,
             detection_timeout_s: Option<f64>,
             connect_timeout_s: Option<f64>,
-            robot_system: Option<u8>,
-            project_index: Option<u32>,
-            protocol_version: Option<u16>,
-            tool_id: Option<u16>,
-            workspace_id: Option<u16>,
+            robot_system: Option<Checked<u8>>,
+            project_index: Option<Checked<u32>>,
+            protocol_version: Option<Checked<u16>>,
+            tool_id: Option<Checked<u16>>,
+            workspace_id: Option<Checked<u16>>,
         ) -> PyResult<Bound<'py, PyAny>> {
+            let (robot_system, project_index) = (robot_system.map(|v| v.0), project_index.map(|v| v.0));
+            let (protocol_version, tool_id, workspace_id) = (protocol_version.map(|v| v.0), tool_id.map(|v| v.0), workspace_id.map(|v| v.0));
             let v4 = V4Options { protocol_version, tool_id, workspace_id };
             let c = config(query_timeout_s, detection_timeout_s, connect_timeout_s, robot_system, project_index, v4)?;
             runtime::awaitable(

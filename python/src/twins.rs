@@ -43,6 +43,13 @@ macro_rules! twins {
                     $Aio { inner: self.inner.clone() }
                 }
 
+                /// Whether the connection is closed for good (closed, or lost and not being
+                /// restored): every call fails.
+                #[getter]
+                fn is_closed(&self) -> bool {
+                    self.inner.is_closed()
+                }
+
                 fn __enter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {
                     slf
                 }
@@ -76,6 +83,13 @@ macro_rules! twins {
                 #[getter]
                 fn blocking(&self) -> $Blocking {
                     $Blocking { inner: self.inner.clone() }
+                }
+
+                /// Whether the connection is closed for good (closed, or lost and not being
+                /// restored): every call fails.
+                #[getter]
+                fn is_closed(&self) -> bool {
+                    self.inner.is_closed()
                 }
 
                 fn __aenter__(slf: Bound<'_, Self>) -> PyResult<Bound<'_, PyAny>> {

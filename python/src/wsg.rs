@@ -263,21 +263,21 @@ async fn resolve(addr: &str) -> wsg::Result<SocketAddr> {
 /// A WSG gripper (blocking API): every method waits for the device's reply with the GIL
 /// released; any number of threads may share one client. `with` closes it (announcing the
 /// disconnect, command 0x07, so the gripper does not FAST STOP).
-#[pyclass(module = "gripper_rs.wsg", name = "Client", frozen)]
+#[pyclass(module = "gripper_rs.wsg", name = "Client", frozen, weakref)]
 pub struct Client {
     inner: wsg::Client,
 }
 
 /// A WSG gripper (asyncio API): the same methods as `gripper_rs.wsg.Client`, as awaitables.
 /// Cancelling one leaves the client usable and its replies correctly paired.
-#[pyclass(module = "gripper_rs.aio.wsg", name = "Client", frozen)]
+#[pyclass(module = "gripper_rs.aio.wsg", name = "Client", frozen, weakref)]
 pub struct AioClient {
     inner: wsg::Client,
 }
 
 impl ToPy for AioClient {
     fn to_py(self, py: Python<'_>) -> PyResult<Py<PyAny>> {
-        self.into_py_any(py)
+        Ok(crate::lifecycle::track(py, self)?.into_any())
     }
 }
 
@@ -295,10 +295,10 @@ twins! {
             motion_timeout_s: Option<f64>,
             connect_timeout_s: Option<f64>,
             late_reply_grace_s: Option<f64>,
-        ) -> PyResult<Client> {
+        ) -> PyResult<Py<Client>> {
             let b = builder(query_timeout_s, motion_timeout_s, connect_timeout_s, late_reply_grace_s)?;
             let inner = runtime::block_on(py, b.connect_tcp(addr), error)?;
-            Ok(Client { inner })
+            crate::lifecycle::track(py, Client { inner })
         }
 
         /// Talks UDP to "host:port" (one frame per datagram).
@@ -310,26 +310,27 @@ twins! {
             query_timeout_s: Option<f64>,
             motion_timeout_s: Option<f64>,
             late_reply_grace_s: Option<f64>,
-        ) -> PyResult<Client> {
+        ) -> PyResult<Py<Client>> {
             let b = builder(query_timeout_s, motion_timeout_s, None, late_reply_grace_s)?;
             let connect = async move { b.connect_udp(resolve(&addr).await?).await };
             let inner = runtime::block_on(py, connect, error)?;
-            Ok(Client { inner })
+            crate::lifecycle::track(py, Client { inner })
         }
 
         /// Opens the serial port `path` (RS-232) at `baud_rate`.
         #[staticmethod]
-        #[pyo3(signature = (path, baud_rate=115200, *, query_timeout_s=None, motion_timeout_s=None, late_reply_grace_s=None))]
+        #[pyo3(signature = (path, baud_rate=Checked(115200), *, query_timeout_s=None, motion_timeout_s=None, late_reply_grace_s=None))]
         fn open_serial(
+            py: Python<'_>,
             path: String,
-            baud_rate: u32,
+            baud_rate: Checked<u32>,
             query_timeout_s: Option<f64>,
             motion_timeout_s: Option<f64>,
             late_reply_grace_s: Option<f64>,
-        ) -> PyResult<Client> {
+        ) -> PyResult<Py<Client>> {
             let b = builder(query_timeout_s, motion_timeout_s, None, late_reply_grace_s)?;
-            let inner = runtime::enter(|| b.open_serial(&path, baud_rate))?.map_err(error)?;
-            Ok(Client { inner })
+            let inner = runtime::enter(|| b.open_serial(&path, baud_rate.0))?.map_err(error)?;
+            crate::lifecycle::track(py, Client { inner })
         }
 
 

@@ -86,21 +86,21 @@ fn config(
 /// A WSG in text mode (blocking API): every method waits for the gripper's reply with the GIL
 /// released; any number of threads may share one client. `with` closes it with `BYE()`, so
 /// the gripper does not FAST STOP.
-#[pyclass(module = "gripper_rs.wsg.text", name = "Client", frozen)]
+#[pyclass(module = "gripper_rs.wsg.text", name = "Client", frozen, weakref)]
 pub struct Client {
     inner: text::Client,
 }
 
 /// A WSG in text mode (asyncio API): the same methods as `gripper_rs.wsg.text.Client`, as
 /// awaitables.
-#[pyclass(module = "gripper_rs.wsg.text", name = "AioClient", frozen)]
+#[pyclass(module = "gripper_rs.wsg.text", name = "AioClient", frozen, weakref)]
 pub struct AioClient {
     inner: text::Client,
 }
 
 impl ToPy for AioClient {
     fn to_py(self, py: Python<'_>) -> PyResult<Py<PyAny>> {
-        self.into_py_any(py)
+        Ok(crate::lifecycle::track(py, self)?.into_any())
     }
 }
 
@@ -117,10 +117,10 @@ twins! {
             query_timeout_s: Option<f64>,
             motion_timeout_s: Option<f64>,
             connect_timeout_s: Option<f64>,
-        ) -> PyResult<Client> {
+        ) -> PyResult<Py<Client>> {
             let c = config(query_timeout_s, motion_timeout_s, connect_timeout_s)?;
             let inner = runtime::block_on(py, text::Client::connect_with(addr, c), error)?;
-            Ok(Client { inner })
+            crate::lifecycle::track(py, Client { inner })
         }
 
         fn __repr__(&self) -> String {
