@@ -36,22 +36,29 @@ atexit.register(_native._quiesce)
 # still open are closed, announcing the disconnect (see gripper_rs/_lifecycle.py).
 atexit.register(_lifecycle.close_all)
 
-from gripper_rs import griplink, smartgrasp, wsg  # noqa: E402  (they use the names above)
+from gripper_rs import griplink, reconnect, smartgrasp, wsg  # noqa: E402  (they use the names above)
+from gripper_rs.reconnect import ConnectionEvent, ReconnectPolicy  # noqa: E402
+
+reset_logging_cache = _native.reset_logging_cache
 
 # `TimeoutError` is importable by name but not in `__all__`: `from gripper_rs import *` would
 # shadow the builtin (ours is a subclass of it).
 __all__ = [
     "ClosedError",
+    "ConnectionEvent",
     "ConnectionLostError",
     "DeviceError",
     "GripperError",
     "InvalidArgumentError",
     "MalformedReplyError",
     "ProtocolError",
+    "ReconnectPolicy",
     "Stream",
     "TransportError",
     "__version__",
     "griplink",
+    "reconnect",
+    "reset_logging_cache",
     "smartgrasp",
     "wsg",
 ]

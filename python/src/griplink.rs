@@ -14,6 +14,7 @@ use pyo3::IntoPyObjectExt;
 use crate::args::Checked;
 use crate::convert::{enum_member, enum_value, field, record, ToPy};
 use crate::errors::{self, Kind};
+use crate::events;
 use crate::runtime::{self, seconds};
 use crate::sim::Slot;
 use crate::stream::Stream;
@@ -102,6 +103,39 @@ impl ToPy for GripConfigF {
                 ("params", field(py, params)?),
             ],
         )
+    }
+}
+
+impl ToPy for griplink::reply::Answer {
+    fn to_py(self, py: Python<'_>) -> PyResult<Py<PyAny>> {
+        match self {
+            griplink::reply::Answer::Ack => Ok(py.None()),
+            griplink::reply::Answer::Data(d) => {
+                let indices = pyo3::types::PyTuple::new(py, d.indices)?.into_any();
+                record(
+                    py,
+                    PY,
+                    "Answer",
+                    &[
+                        ("key", field(py, d.key)?),
+                        ("indices", indices),
+                        ("value", d.value.to_py(py)?.into_bound(py)),
+                    ],
+                )
+            }
+        }
+    }
+}
+
+impl ToPy for griplink::value::Value {
+    fn to_py(self, py: Python<'_>) -> PyResult<Py<PyAny>> {
+        use griplink::value::Value;
+        match self {
+            Value::Int(v) => v.to_py(py),
+            Value::Float(v) => v.to_py(py),
+            Value::Str(v) => v.to_py(py),
+            Value::List(v) => v.to_py(py),
+        }
     }
 }
 
@@ -199,6 +233,10 @@ impl ToPy for AioClient {
 async fn close_for_exit(c: griplink::Client) -> griplink::Result<()> {
     match c.close().await {
         Err(Error::Closed | Error::ConnectionLost(_)) => Ok(()),
+        Ok(()) => {
+            crate::lifecycle::closed(|| c.is_closed()).await;
+            Ok(())
+        }
         other => other,
     }
 }
@@ -209,15 +247,17 @@ twins! {
     blocking {
         /// Connects to "host:port".
         #[staticmethod]
-        #[pyo3(signature = (addr, *, query_timeout_s=None, motion_timeout_s=None, connect_timeout_s=None))]
+        #[pyo3(signature = (addr, *, query_timeout_s=None, motion_timeout_s=None, connect_timeout_s=None, reconnect=None))]
         fn connect(
             py: Python<'_>,
             addr: String,
             query_timeout_s: Option<f64>,
             motion_timeout_s: Option<f64>,
             connect_timeout_s: Option<f64>,
+            reconnect: Option<Bound<'_, PyAny>>,
         ) -> PyResult<Py<Client>> {
-            let c = config(query_timeout_s, motion_timeout_s, connect_timeout_s)?;
+            let mut c = config(query_timeout_s, motion_timeout_s, connect_timeout_s)?;
+            c.reconnect = events::policy(reconnect)?;
             let inner = runtime::block_on(py, griplink::Client::connect_with(addr, c), error)?;
             crate::lifecycle::track(py, Client { inner })
         }
@@ -237,15 +277,17 @@ twins! {
     aio {
         /// Connects to "host:port".
         #[staticmethod]
-        #[pyo3(signature = (addr, *, query_timeout_s=None, motion_timeout_s=None, connect_timeout_s=None))]
+        #[pyo3(signature = (addr, *, query_timeout_s=None, motion_timeout_s=None, connect_timeout_s=None, reconnect=None))]
         fn connect<'py>(
             py: Python<'py>,
             addr: String,
             query_timeout_s: Option<f64>,
             motion_timeout_s: Option<f64>,
             connect_timeout_s: Option<f64>,
+            reconnect: Option<Bound<'py, PyAny>>,
         ) -> PyResult<Bound<'py, PyAny>> {
-            let c = config(query_timeout_s, motion_timeout_s, connect_timeout_s)?;
+            let mut c = config(query_timeout_s, motion_timeout_s, connect_timeout_s)?;
+            c.reconnect = events::policy(reconnect)?;
             runtime::awaitable(
                 py,
                 async move { griplink::Client::connect_with(addr, c).await.map(|inner| AioClient { inner }) },
@@ -262,10 +304,19 @@ twins! {
         fn with_timeout(&self, timeout_s: f64) -> PyResult<AioClient> {
             Ok(AioClient { inner: self.inner.with_timeout(seconds("timeout_s", timeout_s)?) })
         }
-
-
+    }
+    both {
+        /// The connection's events from now on (`gripper_rs.reconnect.ConnectionEvent`): each
+        /// loss, and with a reconnect policy each attempt and recovery. The stream ends when the
+        /// connection is closed for good.
+        fn connection_events(&self) -> PyResult<Stream> {
+            events::stream(self.inner.connection_events())
+        }
     }
 
+    /// A raw command line (printable ASCII, without LF) the package has no method for: None for
+    /// `ACK`, an `Answer` for `KEY[…]=value`; `ERR` raises `DeviceError` (Rust: `Client::command`).
+    fn command(&self, line: String) => |c| c.command(&line);
     /// `ID?`: the controller's identifier.
     fn id(&self) => |c| c.id();
     /// `PROTOCOL?`: the protocol identifier and version.

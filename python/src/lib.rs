@@ -11,8 +11,10 @@ mod twins;
 mod args;
 mod convert;
 mod errors;
+mod events;
 mod griplink;
 mod lifecycle;
+mod logging;
 mod runtime;
 mod smartgrasp;
 mod stream;
@@ -25,7 +27,9 @@ use pyo3::prelude::*;
 #[pymodule]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = m.py();
+    logging::install(py)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    m.add_function(wrap_pyfunction!(logging::reset_logging_cache, m)?)?;
     m.add_class::<stream::Stream>()?;
     m.add_function(wrap_pyfunction!(runtime::_quiesce, m)?)?;
     m.add_function(wrap_pyfunction!(runtime::_set_future, m)?)?;

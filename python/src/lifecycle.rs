@@ -17,3 +17,13 @@ where
         .call_method1("track", (obj.clone_ref(py),))?;
     Ok(obj)
 }
+
+/// After a successful `close()`: waits, briefly, until the client's task has ended and
+/// `is_closed()` says so. GRIPLINK's and GCL's `close()` return on the `ACK` of `BYE`, and the
+/// task ends a moment later; Python's `is_closed` right after `close()` must not say False.
+pub async fn closed(is_closed: impl Fn() -> bool) {
+    let deadline = tokio::time::Instant::now() + std::time::Duration::from_secs(2);
+    while !is_closed() && tokio::time::Instant::now() < deadline {
+        tokio::time::sleep(std::time::Duration::from_millis(1)).await;
+    }
+}

@@ -169,6 +169,11 @@ static PENDING: AtomicUsize = AtomicUsize::new(0);
 /// being finalized.
 static FINALIZING: AtomicBool = AtomicBool::new(false);
 
+/// Whether the interpreter is exiting (see [`_quiesce`]): nothing may take the GIL any more.
+pub fn finalizing() -> bool {
+    FINALIZING.load(Ordering::Acquire)
+}
+
 /// Hands `job` to the delivery thread (started on first use).
 fn deliver(job: Job) {
     static QUEUE: OnceLock<std::sync::Mutex<std::sync::mpsc::Sender<Job>>> = OnceLock::new();

@@ -12,8 +12,10 @@ use pyo3::prelude::*;
 use crate::args::Checked;
 use crate::convert::{enum_member, enum_value, field, record, ToPy};
 use crate::errors::{self, Kind};
+use crate::events;
 use crate::runtime::{self, seconds};
 use crate::sim::Slot;
+use crate::stream::Stream;
 
 const PY: &str = "gripper_rs.smartgrasp";
 
@@ -284,6 +286,10 @@ impl ToPy for AioClient {
 async fn close_for_exit(c: smartgrasp::Client) -> smartgrasp::Result<()> {
     match c.close().await {
         Err(Error::Closed | Error::ConnectionLost { .. }) => Ok(()),
+        Ok(()) => {
+            crate::lifecycle::closed(|| c.is_closed()).await;
+            Ok(())
+        }
         other => other,
     }
 }
@@ -297,7 +303,7 @@ twins! {
         #[staticmethod]
         // Python's keyword-only arguments mirror the fields of the Rust `ClientConfig`.
         #[allow(clippy::too_many_arguments)]
-        #[pyo3(signature = (addr, *, query_timeout_s=None, detection_timeout_s=None, connect_timeout_s=None, robot_system=None, project_index=None, protocol_version=None, tool_id=None, workspace_id=None))]
+        #[pyo3(signature = (addr, *, query_timeout_s=None, detection_timeout_s=None, connect_timeout_s=None, robot_system=None, project_index=None, protocol_version=None, tool_id=None, workspace_id=None, reconnect=None))]
         fn connect(
             py: Python<'_>,
             addr: String,
@@ -309,11 +315,13 @@ twins! {
             protocol_version: Option<Checked<u16>>,
             tool_id: Option<Checked<u16>>,
             workspace_id: Option<Checked<u16>>,
+            reconnect: Option<Bound<'_, PyAny>>,
         ) -> PyResult<Py<Client>> {
             let (robot_system, project_index) = (robot_system.map(|v| v.0), project_index.map(|v| v.0));
             let (protocol_version, tool_id, workspace_id) = (protocol_version.map(|v| v.0), tool_id.map(|v| v.0), workspace_id.map(|v| v.0));
             let v4 = V4Options { protocol_version, tool_id, workspace_id };
-            let c = config(query_timeout_s, detection_timeout_s, connect_timeout_s, robot_system, project_index, v4)?;
+            let mut c = config(query_timeout_s, detection_timeout_s, connect_timeout_s, robot_system, project_index, v4)?;
+            c.reconnect = events::policy(reconnect)?;
             let inner = runtime::block_on(py, smartgrasp::Client::connect(addr, c), error)?;
             crate::lifecycle::track(py, Client { inner })
         }
@@ -330,7 +338,7 @@ twins! {
         #[staticmethod]
         // Python's keyword-only arguments mirror the fields of the Rust `ClientConfig`.
         #[allow(clippy::too_many_arguments)]
-        #[pyo3(signature = (addr, *, query_timeout_s=None, detection_timeout_s=None, connect_timeout_s=None, robot_system=None, project_index=None, protocol_version=None, tool_id=None, workspace_id=None))]
+        #[pyo3(signature = (addr, *, query_timeout_s=None, detection_timeout_s=None, connect_timeout_s=None, robot_system=None, project_index=None, protocol_version=None, tool_id=None, workspace_id=None, reconnect=None))]
         fn connect<'py>(
             py: Python<'py>,
             addr: String,
@@ -342,11 +350,13 @@ twins! {
             protocol_version: Option<Checked<u16>>,
             tool_id: Option<Checked<u16>>,
             workspace_id: Option<Checked<u16>>,
+            reconnect: Option<Bound<'py, PyAny>>,
         ) -> PyResult<Bound<'py, PyAny>> {
             let (robot_system, project_index) = (robot_system.map(|v| v.0), project_index.map(|v| v.0));
             let (protocol_version, tool_id, workspace_id) = (protocol_version.map(|v| v.0), tool_id.map(|v| v.0), workspace_id.map(|v| v.0));
             let v4 = V4Options { protocol_version, tool_id, workspace_id };
-            let c = config(query_timeout_s, detection_timeout_s, connect_timeout_s, robot_system, project_index, v4)?;
+            let mut c = config(query_timeout_s, detection_timeout_s, connect_timeout_s, robot_system, project_index, v4)?;
+            c.reconnect = events::policy(reconnect)?;
             runtime::awaitable(
                 py,
                 async move { smartgrasp::Client::connect(addr, c).await.map(|inner| AioClient { inner }) },
@@ -362,6 +372,13 @@ twins! {
 
     }
     both {
+        /// The connection's events from now on (`gripper_rs.reconnect.ConnectionEvent`): each
+        /// loss, and with a reconnect policy each attempt and recovery. The stream ends when the
+        /// connection is closed for good.
+        fn connection_events(&self) -> PyResult<Stream> {
+            events::stream(self.inner.connection_events())
+        }
+
         /// The protocol version this connection speaks (3 or 4).
         fn protocol_version(&self) -> u16 {
             self.inner.protocol_version()

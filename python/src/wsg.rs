@@ -12,6 +12,7 @@ use pyo3::IntoPyObjectExt;
 use crate::args::Checked;
 use crate::convert::{enum_value, f32_to_f64, field, record, ToPy};
 use crate::errors::{self, Kind};
+use crate::events;
 use crate::runtime::{self, seconds};
 use crate::sim::Slot;
 use crate::stream::{ending_from_events, Ended, Stream};
@@ -287,7 +288,7 @@ twins! {
     blocking {
         /// Connects over TCP to "host:port".
         #[staticmethod]
-        #[pyo3(signature = (addr, *, query_timeout_s=None, motion_timeout_s=None, connect_timeout_s=None, late_reply_grace_s=None))]
+        #[pyo3(signature = (addr, *, query_timeout_s=None, motion_timeout_s=None, connect_timeout_s=None, late_reply_grace_s=None, reconnect=None))]
         fn connect_tcp(
             py: Python<'_>,
             addr: String,
@@ -295,8 +296,12 @@ twins! {
             motion_timeout_s: Option<f64>,
             connect_timeout_s: Option<f64>,
             late_reply_grace_s: Option<f64>,
+            reconnect: Option<Bound<'_, PyAny>>,
         ) -> PyResult<Py<Client>> {
-            let b = builder(query_timeout_s, motion_timeout_s, connect_timeout_s, late_reply_grace_s)?;
+            let mut b = builder(query_timeout_s, motion_timeout_s, connect_timeout_s, late_reply_grace_s)?;
+            if let Some(p) = events::policy(reconnect)? {
+                b = b.reconnect(p);
+            }
             let inner = runtime::block_on(py, b.connect_tcp(addr), error)?;
             crate::lifecycle::track(py, Client { inner })
         }
@@ -349,7 +354,7 @@ twins! {
     aio {
         /// Connects over TCP to "host:port".
         #[staticmethod]
-        #[pyo3(signature = (addr, *, query_timeout_s=None, motion_timeout_s=None, connect_timeout_s=None, late_reply_grace_s=None))]
+        #[pyo3(signature = (addr, *, query_timeout_s=None, motion_timeout_s=None, connect_timeout_s=None, late_reply_grace_s=None, reconnect=None))]
         fn connect_tcp<'py>(
             py: Python<'py>,
             addr: String,
@@ -357,8 +362,12 @@ twins! {
             motion_timeout_s: Option<f64>,
             connect_timeout_s: Option<f64>,
             late_reply_grace_s: Option<f64>,
+            reconnect: Option<Bound<'py, PyAny>>,
         ) -> PyResult<Bound<'py, PyAny>> {
-            let b = builder(query_timeout_s, motion_timeout_s, connect_timeout_s, late_reply_grace_s)?;
+            let mut b = builder(query_timeout_s, motion_timeout_s, connect_timeout_s, late_reply_grace_s)?;
+            if let Some(p) = events::policy(reconnect)? {
+                b = b.reconnect(p);
+            }
             runtime::awaitable(py, async move { b.connect_tcp(addr).await.map(|inner| AioClient { inner }) }, error)
         }
 
@@ -393,15 +402,30 @@ twins! {
             format!("<gripper_rs.aio.wsg.Client over {:?}>", self.inner.transport())
         }
     }
+    both {
+        /// The connection's events from now on (`gripper_rs.reconnect.ConnectionEvent`): each
+        /// loss, and with a reconnect policy each attempt and recovery. The stream ends when the
+        /// client has closed or given up.
+        fn connection_events(&self) -> PyResult<Stream> {
+            events::stream(self.inner.connection_events())
+        }
+    }
 
     /// Command 0x20: reference the fingers (direction 0 = the device's default, 1 = positive,
     /// 2 = negative).
     #[pyo3(signature = (direction=Checked(0)))]
     fn home(&self, direction: Checked<u8>) [let direction = direction.0; let direction = homing_direction(direction)?;] => |c| c.home(direction);
-    /// Command 0x21: move to `width_mm` at `speed_mm_per_s` (absolute, stop on block).
-    fn pre_position(&self, width_mm: f32, speed_mm_per_s: f32) => |c| c.pre_position(width_mm, speed_mm_per_s);
-    /// Command 0x21: move by `distance_mm` (relative, stop on block).
-    fn pre_position_relative(&self, distance_mm: f32, speed_mm_per_s: f32) => |c| c.pre_position_relative(distance_mm, speed_mm_per_s);
+    /// Command 0x21: move to `width_mm` at `speed_mm_per_s` (absolute). Blocked on the way, the
+    /// fingers stop, or with `clamp_on_block` clamp with 50 % of the nominal force (flag D1).
+    #[pyo3(signature = (width_mm, speed_mm_per_s, *, clamp_on_block=false))]
+    fn pre_position(&self, width_mm: f32, speed_mm_per_s: f32, clamp_on_block: bool) => |c| pre_position(c, false, clamp_on_block, width_mm, speed_mm_per_s);
+    /// Command 0x21: move by `distance_mm` (relative); `clamp_on_block` as for `pre_position`.
+    #[pyo3(signature = (distance_mm, speed_mm_per_s, *, clamp_on_block=false))]
+    fn pre_position_relative(&self, distance_mm: f32, speed_mm_per_s: f32, clamp_on_block: bool) => |c| pre_position(c, true, clamp_on_block, distance_mm, speed_mm_per_s);
+    /// Any command by id (0x00..=0xFF) with `payload`: its final reply, whatever its status
+    /// (`Reply`), within the query timeout or `timeout_s` (Rust: `Client::request`).
+    #[pyo3(signature = (id, payload=Vec::new(), *, timeout_s=None))]
+    fn request(&self, id: Checked<u8>, payload: Vec<u8>, timeout_s: Option<f64>) [let id = id.0; let timeout = timeout_s.map(|s| seconds("timeout_s", s)).transpose()?;] => |c| request(c, id, payload, timeout);
     /// Command 0x22: stop the current motion.
     fn stop(&self) => |c| c.stop();
     /// Command 0x23: FAST STOP (must be acknowledged before the next motion).
@@ -480,6 +504,54 @@ twins! {
     fn subscribe_force_n(&self, period_s: f64, on_change: bool) [let o = update_options(period_s, on_change)?;] => |c| subscribed(c.connection_events(), c.subscribe_force_n(o));
     /// Closes the connection (TCP: announces the disconnect, 0x07, first).
     fn close(&self) => |c| close_for_exit(c.clone());
+}
+
+/// Command 0x21 with the stop-on-block flag (D1) as asked; the typed `pre_position` always
+/// stops.
+async fn pre_position(
+    c: &wsg::Client,
+    relative: bool,
+    clamp_on_block: bool,
+    width_mm: f32,
+    speed_mm_per_s: f32,
+) -> wsg::Result<()> {
+    c.command(wsg::Command::PrePosition {
+        relative,
+        stop_on_block: !clamp_on_block,
+        width_mm,
+        speed_mm_per_s,
+    })
+    .await
+    .map(drop)
+}
+
+/// A raw request with the client's query timeout or `timeout`.
+async fn request(
+    c: &wsg::Client,
+    id: u8,
+    payload: Vec<u8>,
+    timeout: Option<std::time::Duration>,
+) -> wsg::Result<wsg::Reply> {
+    match timeout {
+        Some(t) => c.request_with_timeout(id, payload, t).await,
+        None => c.request(id, payload).await,
+    }
+}
+
+impl ToPy for wsg::Reply {
+    fn to_py(self, py: Python<'_>) -> PyResult<Py<PyAny>> {
+        let status = enum_value(py, PY, "Status", i64::from(self.status.code()))?;
+        record(
+            py,
+            PY,
+            "Reply",
+            &[
+                ("id", field(py, self.id)?),
+                ("status", status.into_bound(py)),
+                ("data", self.data.to_py(py)?.into_bound(py)),
+            ],
+        )
+    }
 }
 
 /// `close()` (and leaving a `with` block), idempotent (issue 32): a client that is already closed, or whose connection

@@ -209,6 +209,10 @@ twins! {
 async fn close_for_exit(c: text::Client) -> text::Result<()> {
     match c.close().await {
         Err(Error::Closed | Error::ConnectionLost(_)) => Ok(()),
+        Ok(()) => {
+            crate::lifecycle::closed(|| c.is_closed()).await;
+            Ok(())
+        }
         other => other,
     }
 }

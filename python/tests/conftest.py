@@ -54,7 +54,8 @@ def kit(kit_sim: smartgrasp.sim.SimServer) -> Iterator[smartgrasp.Client]:
 
 class Relay:
     """A TCP relay on a free loopback port in front of ``target`` ("host:port"): the test's
-    cable, which ``cut()`` pulls (every relayed connection is closed, both ways)."""
+    cable, which ``cut()`` pulls (every relayed connection is closed, both ways). ``sent`` holds
+    every byte the clients sent, in order."""
 
     def __init__(self, target: str) -> None:
         host, port = target.rsplit(":", 1)
@@ -64,6 +65,7 @@ class Relay:
         self._lock = threading.Lock()
         self._sockets: list[socket.socket] = []
         self._closed = False
+        self.sent = bytearray()
         threading.Thread(target=self._accept, daemon=True).start()
 
     def _accept(self) -> None:
@@ -79,13 +81,15 @@ class Relay:
                     far.close()
                     continue
                 self._sockets += [near, far]
-            for a, b in ((near, far), (far, near)):
-                threading.Thread(target=self._pipe, args=(a, b), daemon=True).start()
+            for a, b, log in ((near, far, self.sent), (far, near, None)):
+                threading.Thread(target=self._pipe, args=(a, b, log), daemon=True).start()
 
-    @staticmethod
-    def _pipe(src: socket.socket, dst: socket.socket) -> None:
+    def _pipe(self, src: socket.socket, dst: socket.socket, log: bytearray | None) -> None:
         try:
             while data := src.recv(65536):
+                if log is not None:
+                    with self._lock:
+                        log += data
                 dst.sendall(data)
         except OSError:
             pass
@@ -108,8 +112,14 @@ class Relay:
             s.close()
 
     def close(self) -> None:
+        """Cuts every relayed connection and refuses new ones (the device is gone)."""
         with self._lock:
             self._closed = True
+        # shutdown first: on Linux, close() alone leaves a thread blocked in accept() accepting.
+        try:
+            self._listener.shutdown(socket.SHUT_RDWR)
+        except OSError:
+            pass
         self._listener.close()
         self.cut()
 
