@@ -237,15 +237,20 @@ pub fn check_fork() -> PyResult<()> {
 /// How long [`quiesce`] waits at most for the runtime's tasks to end.
 const QUIESCE_LIMIT: Duration = Duration::from_millis(500);
 
-/// Called at interpreter exit (`atexit`, registered by `gripper_rs/__init__.py`), while Python is
-/// still whole: waits, with the GIL released, until no task is left on the runtime (or
-/// [`QUIESCE_LIMIT`] passed), then a moment more for the completions those tasks handed to
-/// the blocking pool. An asyncio call's completion attaches to Python from a runtime thread
-/// (pyo3-async-runtimes sets the future's result there, even for a cancelled one); one that
-/// attaches while the interpreter is being finalized crashes the process (seen: about one exit
-/// in four of `examples/cell.py`, which cancels a stream's pending `__anext__`).
+/// Called at interpreter exit (`atexit`, registered by `gripper_rs/__init__.py`, after the
+/// clients were closed), while Python is still whole: waits, with the GIL released, until no
+/// task is left on the runtime and the delivery thread has handed over what it holds (or
+/// [`QUIESCE_LIMIT`] passed); from then on nothing takes the GIL ([`finalizing`]): a thread that
+/// attaches to an interpreter being finalized crashes the process (seen before the delivery
+/// thread: about one exit in four of `examples/cell.py`, which cancels a stream's pending
+/// `__anext__`). A process that never used the runtime (or a forked child, whose copy of it has
+/// no threads) has nothing to wait for.
 #[pyfunction]
 pub fn _quiesce(py: Python<'_>) {
+    if RUNTIME_PID.get() != Some(&std::process::id()) {
+        FINALIZING.store(true, Ordering::Release);
+        return;
+    }
     let metrics = runtime().metrics();
     py.detach(|| {
         let start = std::time::Instant::now();

@@ -10,6 +10,8 @@
 //! streams the value).
 
 use std::collections::VecDeque;
+use std::future::Future;
+use std::pin::Pin;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 
@@ -103,13 +105,18 @@ impl Shared {
 }
 
 /// Tells, once the Rust stream ended, whether the connection was lost (its reason) or closed.
-pub type Ending = Box<dyn FnOnce() -> Option<String> + Send>;
+pub type Ending = Box<dyn FnOnce() -> Pin<Box<dyn Future<Output = Option<String>> + Send>> + Send>;
 
 /// An [`Ending`] from a client's connection events, taken when the stream was made: the clients
 /// send `Lost` (and, with a reconnect policy, `GaveUp`) before they end their streams, so the
 /// events are in the buffer when the stream ends, and reading them never waits.
 pub fn ending_from_events(mut events: ConnectionEvents) -> Ending {
-    Box::new(move || {
+    Box::new(move || Box::pin(std::future::ready(lost_from_events(&mut events))))
+}
+
+/// The loss the buffered events tell of, if the connection did not come back.
+fn lost_from_events(events: &mut ConnectionEvents) -> Option<String> {
+    {
         let mut lost = None;
         while let Some(Some(event)) = events.next().now_or_never() {
             match event {
@@ -125,7 +132,7 @@ pub fn ending_from_events(mut events: ConnectionEvents) -> Ending {
             }
         }
         lost
-    })
+    }
 }
 
 /// A Rust stream with its [`Ending`], on its way to becoming a [`Stream`].
@@ -157,7 +164,7 @@ impl Stream {
         S: Source,
         S::Item: ToPy,
     {
-        Self::with_ending(stream, Box::new(|| None))
+        Self::with_ending(stream, Box::new(|| Box::pin(std::future::ready(None))))
     }
 
     /// Wraps a Rust stream; when it ends, `ending` tells whether the connection was lost.
@@ -200,7 +207,7 @@ where
             .source_missed
             .store(stream.missed(), Ordering::Relaxed);
         let Some(item) = next else {
-            let end = match ending() {
+            let end = match ending().await {
                 Some(reason) => End::Lost(reason),
                 None => End::Finished,
             };

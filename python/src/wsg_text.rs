@@ -10,7 +10,7 @@ use crate::args::Checked;
 use crate::convert::{field, record, ToPy};
 use crate::errors::{self, Kind};
 use crate::runtime::{self, seconds};
-use crate::stream::Stream;
+use crate::stream::{Ended, Ending, Stream};
 use crate::wsg::homing_direction;
 
 /// A text-interface error as the package's exception; a device error without a numeral code
@@ -197,11 +197,33 @@ twins! {
     /// `AUTOSEND("NAME",ms[,true])`: a stream of `Push(quantity, value)` for `quantity` ("POS",
     /// "SPEED", "FORCE", "GRIPSTATE", "TEMP").
     #[pyo3(signature = (quantity, interval_ms, only_on_change=false))]
-    fn autosend(&self, quantity: &str, interval_ms: Checked<u16>, only_on_change: bool) [let interval_ms = interval_ms.0; let q = self::quantity(quantity)?;] => |c| c.autosend(q, interval_ms, only_on_change);
+    fn autosend(&self, quantity: &str, interval_ms: Checked<u16>, only_on_change: bool) [let interval_ms = interval_ms.0; let q = self::quantity(quantity)?;] => |c| autosend(c, q, interval_ms, only_on_change);
     /// `AUTOSEND("NAME",0)`: stop pushing `quantity`.
     fn stop_autosend(&self, quantity: &str) [let q = self::quantity(quantity)?;] => |c| c.stop_autosend(q);
     /// `BYE()`: announce the disconnect and close.
     fn close(&self) => |c| close_for_exit(c.clone());
+}
+
+/// `AUTOSEND`, its stream telling a lost connection (`ConnectionLostError`) from a closed client:
+/// the pushes end when the connection does, and a call then fails at once, unsent, with
+/// `ConnectionLost` or `Closed`, which tells which.
+async fn autosend(
+    c: &text::Client,
+    q: Quantity,
+    interval_ms: u16,
+    only_on_change: bool,
+) -> text::Result<Ended<Pushes>> {
+    let pushes = c.autosend(q, interval_ms, only_on_change).await?;
+    let c = c.clone();
+    let ending: Ending = Box::new(move || {
+        Box::pin(async move {
+            match c.part_width_tolerance_mm().await {
+                Err(Error::ConnectionLost(reason)) => Some(reason),
+                _ => None,
+            }
+        })
+    });
+    Ok(Ended(pushes, ending))
 }
 
 /// `close()` (and leaving a `with` block), idempotent (issue 32): a client already closed, or whose connection is

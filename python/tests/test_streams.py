@@ -184,3 +184,28 @@ def test_latest_only_keeps_the_newest_value(wsg_client: wsg.Client) -> None:
     wait_until(lambda: stream.missed >= missed + 3)
     assert next(stream) == 50.0  # the newest, not the 110.0 sent first
     stream.close()
+
+
+def test_a_lost_connection_ends_gcl_pushes_with_connection_lost() -> None:
+    with wsg.sim.SimServer(text=True) as sim:
+        relay = Relay(sim.address)
+        try:
+            client = wsg.text.Client.connect(relay.address)
+            pushes = client.autosend("POS", 10)
+            next(pushes)
+            relay.cut()
+            with pytest.raises(gripper_rs.ConnectionLostError):
+                for _ in pushes:
+                    pass
+            client.close()
+        finally:
+            relay.close()
+
+
+def test_closing_a_gcl_client_ends_its_pushes_without_error() -> None:
+    with wsg.sim.SimServer(text=True) as sim, wsg.text.Client.connect(sim.address) as client:
+        pushes = client.autosend("POS", 10)
+        next(pushes)
+        client.close()
+        for _ in pushes:  # buffered pushes, then the end: no error
+            pass
