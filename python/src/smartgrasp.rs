@@ -194,8 +194,8 @@ fn config(
     query_timeout_s: Option<f64>,
     detection_timeout_s: Option<f64>,
     connect_timeout_s: Option<f64>,
-    robot_system: Option<u8>,
-    project_index: Option<u32>,
+    robot_system: Option<Checked<u8>>,
+    project_index: Option<Checked<u32>>,
     v4: V4Options,
 ) -> PyResult<smartgrasp::ClientConfig> {
     let mut c = smartgrasp::ClientConfig::default();
@@ -209,21 +209,25 @@ fn config(
         c.connect_timeout = seconds("connect_timeout_s", s)?;
     }
     c.robot_system = robot_system
-        .map(|n| known("robot system", n, |v| matches!(v, RobotSystem::Unknown(_))))
+        .map(|n| {
+            known("robot system", n.0, |v| {
+                matches!(v, RobotSystem::Unknown(_))
+            })
+        })
         .transpose()?;
-    c.project_index = project_index;
-    c.protocol_version = v4.protocol_version;
-    c.tool_id = v4.tool_id;
-    c.workspace_id = v4.workspace_id;
+    c.project_index = project_index.map(|v| v.0);
+    c.protocol_version = v4.protocol_version.map(|v| v.0);
+    c.tool_id = v4.tool_id.map(|v| v.0);
+    c.workspace_id = v4.workspace_id.map(|v| v.0);
     Ok(c)
 }
 
 /// The connect options protocol V4 added: a pinned version (3 or 4; None negotiates), and the
 /// tool and workspace IDs to choose after opening (V4 only).
 struct V4Options {
-    protocol_version: Option<u16>,
-    tool_id: Option<u16>,
-    workspace_id: Option<u16>,
+    protocol_version: Option<Checked<u16>>,
+    tool_id: Option<Checked<u16>>,
+    workspace_id: Option<Checked<u16>>,
 }
 
 fn grasp_request(
@@ -317,8 +321,6 @@ twins! {
             workspace_id: Option<Checked<u16>>,
             reconnect: Option<Bound<'_, PyAny>>,
         ) -> PyResult<Py<Client>> {
-            let (robot_system, project_index) = (robot_system.map(|v| v.0), project_index.map(|v| v.0));
-            let (protocol_version, tool_id, workspace_id) = (protocol_version.map(|v| v.0), tool_id.map(|v| v.0), workspace_id.map(|v| v.0));
             let v4 = V4Options { protocol_version, tool_id, workspace_id };
             let mut c = config(query_timeout_s, detection_timeout_s, connect_timeout_s, robot_system, project_index, v4)?;
             c.reconnect = events::policy(reconnect)?;
@@ -352,8 +354,6 @@ twins! {
             workspace_id: Option<Checked<u16>>,
             reconnect: Option<Bound<'py, PyAny>>,
         ) -> PyResult<Bound<'py, PyAny>> {
-            let (robot_system, project_index) = (robot_system.map(|v| v.0), project_index.map(|v| v.0));
-            let (protocol_version, tool_id, workspace_id) = (protocol_version.map(|v| v.0), tool_id.map(|v| v.0), workspace_id.map(|v| v.0));
             let v4 = V4Options { protocol_version, tool_id, workspace_id };
             let mut c = config(query_timeout_s, detection_timeout_s, connect_timeout_s, robot_system, project_index, v4)?;
             c.reconnect = events::policy(reconnect)?;
