@@ -191,6 +191,14 @@ impl Stream {
     }
 }
 
+impl Drop for Stream {
+    /// A stream Python forgot ends like a closed one: the pump stops and drops the Rust stream,
+    /// which ends it on the device (as dropping the Rust stream itself would).
+    fn drop(&mut self) {
+        self.shared.stop.cancel();
+    }
+}
+
 /// Moves the Rust stream's items into the queue until it ends or `close()` stops it.
 async fn pump<S>(mut stream: S, ending: Ending, shared: Arc<Shared>)
 where

@@ -5,6 +5,7 @@ count and the latest-value-only option."""
 from __future__ import annotations
 
 import asyncio
+import gc
 import threading
 import time
 import typing
@@ -209,3 +210,14 @@ def test_closing_a_gcl_client_ends_its_pushes_without_error() -> None:
         client.close()
         for _ in pushes:  # buffered pushes, then the end: no error
             pass
+
+
+def test_a_stream_python_forgets_ends_on_the_device(
+    wsg_client: wsg.Client, wsg_sim: wsg.sim.SimServer
+) -> None:
+    stream = wsg_client.subscribe_width_mm(0.01)
+    next(stream)
+    assert wsg_sim.snapshot().streams == 1
+    del stream
+    gc.collect()
+    wait_until(lambda: wsg_sim.snapshot().streams == 0)
