@@ -161,7 +161,7 @@ impl AbortOnCancel {
 }
 
 /// A value on its way to Python, for the delivery thread.
-type Job = Box<dyn FnOnce(Python<'_>) -> PyResult<()> + Send>;
+pub type Job = Box<dyn FnOnce(Python<'_>) -> PyResult<()> + Send>;
 
 /// Jobs handed over and not yet run (so that [`_quiesce`] can wait for them).
 static PENDING: AtomicUsize = AtomicUsize::new(0);
@@ -174,8 +174,8 @@ pub fn finalizing() -> bool {
     FINALIZING.load(Ordering::Acquire)
 }
 
-/// Hands `job` to the delivery thread (started on first use).
-fn deliver(job: Job) {
+/// Hands `job` to the delivery thread (started on first use), which runs the jobs in order.
+pub fn deliver(job: Job) {
     static QUEUE: OnceLock<std::sync::Mutex<std::sync::mpsc::Sender<Job>>> = OnceLock::new();
     let queue = QUEUE.get_or_init(|| {
         let (tx, rx) = std::sync::mpsc::channel::<Job>();

@@ -145,6 +145,15 @@ def test_invalid_policies_are_refused(wsg_sim: wsg.sim.SimServer) -> None:
 def test_tracing_reaches_logging(wsg_relay: Relay, caplog: pytest.LogCaptureFixture) -> None:
     caplog.set_level(logging.INFO, logger="gripper")
     gripper_rs.reset_logging_cache()
+    # Which thread hands each record to `logging` (Linux: the thread's OS name).
+    emitters: list[str] = []
+
+    def note(record: logging.LogRecord) -> bool:
+        if sys.platform == "linux":
+            emitters.append(native_thread_name())
+        return True
+
+    logging.getLogger("gripper.reconnect").addFilter(note)
     client = wsg.Client.connect_tcp(wsg_relay.address)
     client.width_mm()
     wsg_relay.cut()
@@ -154,6 +163,10 @@ def test_tracing_reaches_logging(wsg_relay: Relay, caplog: pytest.LogCaptureFixt
     assert record.levelno == logging.WARNING
     assert "connection lost" in record.getMessage()
     client.close()
+    logging.getLogger("gripper.reconnect").removeFilter(note)
+    # Handed over by the delivery thread, never by a tokio worker (which would take the GIL).
+    if sys.platform == "linux":
+        assert emitters and set(emitters) == {"gripper-rs-deli"}
 
 
 def native_thread_name() -> str:
