@@ -16,8 +16,8 @@
 /// ```
 /// Both classes have a field `inner` holding the (cheaply cloned) Rust client handle. With
 /// `closing close_fn;` (an `async fn(Client) -> Result<()>`), the classes also get `with` /
-/// `async with` (leaving closes the connection with `close_fn`) and the `aio` / `blocking`
-/// views of one connection.
+/// `async with` (leaving closes the connection with `close_fn`), `is_closed` (the Rust
+/// client's) and the `aio` / `blocking` views of one connection.
 macro_rules! twins {
     (
         $Blocking:ident, $Aio:ident, $err:path;
