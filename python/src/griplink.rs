@@ -470,7 +470,7 @@ twins! {
     /// `SETVAL(p, index, value)`.
     fn set_value(&self, index: Checked<u32>, value: Checked<i32>) [let index = index.0; let value = value.0;] => |c| c.set_value(index, value);
     /// `SETVALF(p, index, value)`.
-    fn set_value_f(&self, index: u32, value: f64) => |c| c.set_value_f(index, value);
+    fn set_value_f(&self, index: Checked<u32>, value: f64) [let index = index.0;] => |c| c.set_value_f(index, value);
     /// `DEVSTATE[p]?`.
     fn state(&self) => |c| c.state();
     /// `VALUE[p][index]?`.

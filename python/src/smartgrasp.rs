@@ -452,16 +452,16 @@ sim_pymethods! { SimServer, "gripper_rs.smartgrasp.sim.SimServer";
     #[pyo3(signature = (*, server_state=None, max_version=None, addr="127.0.0.1:0"))]
     fn new(
         py: Python<'_>,
-        server_state: Option<u8>,
-        max_version: Option<u16>,
+        server_state: Option<Checked<u8>>,
+        max_version: Option<Checked<u16>>,
         addr: &str,
     ) -> PyResult<Self> {
         let mut config = smartgrasp::sim::SimConfig::default();
         if let Some(s) = server_state {
-            config.server_state = ServerState::from(s);
+            config.server_state = ServerState::from(s.0);
         }
         if let Some(v) = max_version {
-            config.max_version = v;
+            config.max_version = v.0;
         }
         let addr = addr.to_owned();
         let server = runtime::block_on(py, smartgrasp::sim::SimServer::bind(addr, config), |e| {

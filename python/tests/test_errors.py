@@ -42,6 +42,10 @@ def test_griplink_integers_out_of_range(griplink_client: griplink.Client) -> Non
         port.value(-1)
     with pytest.raises(gripper_rs.InvalidArgumentError):
         port.set_grip_config(1, "part", [2**40, 0, 0, 0, 0, 0, 0, 0])
+    with pytest.raises(gripper_rs.InvalidArgumentError):
+        port.set_value_f(-1, 1.0)
+    with pytest.raises(gripper_rs.InvalidArgumentError):
+        smartgrasp.sim.SimServer(max_version=70000)
 
 
 def test_smartgrasp_integers_and_sequences(kit: smartgrasp.Client) -> None:
