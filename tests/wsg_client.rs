@@ -60,7 +60,9 @@ async fn pick(client: &Client) {
 async fn pick_over_tcp_and_close_gracefully() {
     let (sim, client) = tcp(with_part()).await;
     pick(&client).await;
+    assert!(!client.is_closed());
     client.close().await.unwrap();
+    assert!(client.is_closed(), "closed once close() returned");
     assert_eq!(sim.received_ids().last(), Some(&id::ANNOUNCE_DISCONNECT));
     // Once the simulator has seen the close, it did not go into FAST STOP.
     let client2 = Client::connect_tcp(sim.local_addr().unwrap())

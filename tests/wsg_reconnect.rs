@@ -232,6 +232,7 @@ async fn close_while_reconnecting_gives_up() {
         next_event(&mut events).await,
         ConnectionEvent::Lost { .. }
     ));
+    assert!(!client.is_closed(), "a reconnecting client is not closed");
     let closed = tokio::time::timeout(LIMIT, client.close()).await.unwrap();
     assert!(
         matches!(closed, Err(Error::ConnectionLost { .. })),

@@ -287,6 +287,15 @@ impl Client {
         self.shared.events.subscribe()
     }
 
+    /// Whether the connection is closed for good: [`Client::close`] was called, the last
+    /// handle's task ended, or the connection was lost and no reconnect policy brings it back
+    /// (every call fails with [`Error::Closed`] or [`Error::ConnectionLost`]). While the client
+    /// reconnects it is not closed. The same as the other protocols' `is_closed`.
+    pub fn is_closed(&self) -> bool {
+        // The task closes its queue when it ends (see `task::run`).
+        self.shared.tx.is_closed()
+    }
+
     /// The transport this client uses.
     pub fn transport(&self) -> TransportKind {
         self.shared.kind
