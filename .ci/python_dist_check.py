@@ -50,7 +50,15 @@ def check_wheel(path: str) -> None:
         def text(member: str) -> str:
             return wheel.read(member).decode() if member in files else ""
 
-        for member in ("__init__.py", "_native.pyi", "py.typed", "errors.py", "wsg/__init__.py"):
+        for member in (
+            "__init__.py",
+            "_native.pyi",
+            "py.typed",
+            "errors.py",
+            "reconnect.py",
+            "_lifecycle.py",
+            "wsg/__init__.py",
+        ):
             check(f"{PACKAGE}/{member}" in files, f"wheel holds {PACKAGE}/{member}")
         natives = sorted(f for f in files if f.startswith(f"{PACKAGE}/_native"))
         check(

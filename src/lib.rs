@@ -73,6 +73,8 @@
 mod client_stream;
 mod connection;
 mod deadline;
+pub mod error;
+pub use error::ErrorKind;
 /// Fault-injecting TCP proxy for tests (feature `sim`).
 #[cfg(feature = "sim")]
 pub mod fault;

@@ -189,7 +189,7 @@ mod wsg {
         async fn query(&self) -> Outcome {
             match self.width_mm().await {
                 Ok(_) => Outcome::Ok,
-                Err(Error::ConnectionLost(_)) => Outcome::ConnectionLost,
+                Err(Error::ConnectionLost { .. }) => Outcome::ConnectionLost,
                 Err(other) => Outcome::Other(format!("{other:?}")),
             }
         }
@@ -233,7 +233,7 @@ mod wsg_text {
         async fn query(&self) -> Outcome {
             match self.position_mm().await {
                 Ok(_) => Outcome::Ok,
-                Err(Error::ConnectionLost(_)) => Outcome::ConnectionLost,
+                Err(Error::ConnectionLost { .. }) => Outcome::ConnectionLost,
                 Err(other) => Outcome::Other(format!("{other:?}")),
             }
         }
@@ -277,7 +277,7 @@ mod griplink {
         async fn query(&self) -> Outcome {
             match self.id().await {
                 Ok(_) => Outcome::Ok,
-                Err(Error::ConnectionLost(_)) => Outcome::ConnectionLost,
+                Err(Error::ConnectionLost { .. }) => Outcome::ConnectionLost,
                 Err(other) => Outcome::Other(format!("{other:?}")),
             }
         }

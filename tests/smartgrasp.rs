@@ -246,7 +246,7 @@ async fn every_response_code() {
                 PoseFormat::Unknown(5)
             ))
             .await,
-        Err(Error::InvalidArgument(_))
+        Err(Error::InvalidArgument { .. })
     ));
     // The connection survived all of it.
     assert_eq!(client.get_state().await.unwrap(), ServerState::Stopped);

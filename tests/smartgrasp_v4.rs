@@ -243,7 +243,7 @@ async fn pinning_the_version() {
     let err = Client::connect(v4.local_addr(), pinned(5))
         .await
         .unwrap_err();
-    assert!(matches!(err, Error::InvalidArgument(_)), "{err}");
+    assert!(matches!(err, Error::InvalidArgument { .. }), "{err}");
 }
 
 #[tokio::test]

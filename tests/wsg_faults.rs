@@ -135,7 +135,7 @@ fn assert_timeout(result: Result<impl std::fmt::Debug, Error>, command: u8) {
 
 fn assert_lost<T: std::fmt::Debug>(result: Result<T, Error>) {
     assert!(
-        matches!(result, Err(Error::ConnectionLost(_))),
+        matches!(result, Err(Error::ConnectionLost { .. })),
         "expected ConnectionLost, got {result:?}"
     );
 }

@@ -460,11 +460,11 @@ async fn a_lost_connection_fails_the_calls_in_flight() {
     let (server, g, mover) = slow_move().await;
     server.unplug();
     let lost = within("the move", mover).await.unwrap().unwrap_err();
-    assert!(matches!(lost, Error::ConnectionLost(_)), "{lost}");
+    assert!(matches!(lost, Error::ConnectionLost { .. }), "{lost}");
     assert!(g.is_closed());
     assert!(matches!(
         g.position_mm().await,
-        Err(Error::ConnectionLost(_))
+        Err(Error::ConnectionLost { .. })
     ));
 }
 

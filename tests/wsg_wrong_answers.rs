@@ -167,6 +167,7 @@ async fn a_lost_final_reply_does_not_make_the_client_invent_already_running() {
         ),
         "{first}"
     );
+    assert_eq!(first.kind(), gripper::ErrorKind::ReplyLost);
 }
 
 /// Issue 20.2 #1: "stop, then start another" when the move's E_CMD_ABORTED arrives after the

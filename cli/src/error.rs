@@ -1,9 +1,11 @@
 //! The one error of `gripctl`: a one-line message for stderr, a kind for scripts, and — when the
 //! device said no — its status code with the manual's name and description.
 //!
-//! Each protocol module turns its library error into a [`CliError`] (see `classify` in
-//! `smartgrasp.rs`, `wsg.rs`, `griplink.rs`), so `main` prints every failure the same way.
+//! Every protocol's library error becomes a [`CliError`] in one place, [`classify`], through the
+//! library's own classification ([`gripper::ErrorKind`]); each protocol module only tells how its
+//! device's code is named ([`Classify`]). So `main` prints every failure the same way.
 
+use gripper::ErrorKind;
 use serde_json::{json, Value};
 
 /// What kind of failure, for the exit path and for `--json` readers.
@@ -126,6 +128,61 @@ impl CliError {
 impl std::fmt::Display for CliError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(&self.message)
+    }
+}
+
+/// A library error `gripctl` reports: the library classifies it; the protocol module names the
+/// device's code, when the device gave one.
+pub trait Classify: std::error::Error + 'static {
+    /// The library's classification (each protocol's `Error::kind`).
+    fn kind(&self) -> ErrorKind;
+    /// The device's code, when the device said no.
+    fn code(&self) -> Option<DeviceCode>;
+}
+
+impl Classify for gripper::wsg::Error {
+    fn kind(&self) -> ErrorKind {
+        gripper::wsg::Error::kind(self)
+    }
+    fn code(&self) -> Option<DeviceCode> {
+        self.status().map(crate::wsg::device_code)
+    }
+}
+
+impl Classify for gripper::wsg::text::Error {
+    fn kind(&self) -> ErrorKind {
+        gripper::wsg::text::Error::kind(self)
+    }
+    fn code(&self) -> Option<DeviceCode> {
+        self.status().map(crate::wsg::device_code)
+    }
+}
+
+/// The library's error as a `gripctl` error: its kind, and the device's code where it gave one.
+pub fn classify<E: Classify>(e: E) -> CliError {
+    let kind = match e.kind() {
+        ErrorKind::Device | ErrorKind::Incompatible => Kind::Device,
+        ErrorKind::Timeout => Kind::Timeout,
+        ErrorKind::MalformedReply => Kind::Malformed,
+        ErrorKind::InvalidArgument => Kind::Argument,
+        // The link failed, or the device's answer was lost on it (and `ErrorKind` is
+        // non-exhaustive: a kind added later still gets its message through).
+        _ => Kind::Connection,
+    };
+    // A transport failure (connecting, or a connect timeout) says what the system said: the
+    // protocol's "I/O error:" in front adds nothing to the "cannot connect" the caller puts
+    // there. A protocol's own timeout has no source and keeps its message (the command, the
+    // time).
+    let message = match (e.kind(), std::error::Error::source(&e)) {
+        (ErrorKind::Io | ErrorKind::Timeout, Some(io)) => io.to_string(),
+        _ => e.to_string(),
+    };
+    match e.code() {
+        Some(code) => CliError {
+            code: Some(code),
+            ..CliError::new(kind, message)
+        },
+        None => CliError::new(kind, message),
     }
 }
 

@@ -19,7 +19,7 @@ use gripper::griplink::{
 use serde_json::{json, Value};
 
 use crate::common::{parse_duration, with_default_port};
-use crate::error::{CliError, DeviceCode, Kind};
+use crate::error::{classify, CliError, DeviceCode, Kind};
 use crate::output::Out;
 use trace::{Motion, Tracer};
 
@@ -515,30 +515,17 @@ fn optional<T>(reading: gripper::griplink::Result<T>) -> Result<Option<T>, CliEr
     }
 }
 
-/// The library's error as a `gripctl` error: the controller's status code where it gave one.
-fn classify(e: Error) -> CliError {
-    let message = e.to_string();
-    match e {
-        Error::Device { status, .. } => CliError::device(
-            message,
-            DeviceCode {
-                number: status.code(),
-                name: status.identifier().unwrap_or("unknown").to_owned(),
-                description: status.description().unwrap_or_default().to_owned(),
-            },
-        ),
-        Error::Timeout { .. } => CliError::new(Kind::Timeout, message),
-        Error::Io(io) if io.kind() == std::io::ErrorKind::TimedOut => {
-            CliError::new(Kind::Timeout, io.to_string())
-        }
-        Error::Io(io) => CliError::new(Kind::Connection, io.to_string()),
-        Error::Closed | Error::ConnectionLost(_) => CliError::new(Kind::Connection, message),
-        Error::MalformedReply { .. } | Error::UnexpectedReply { .. } => {
-            CliError::new(Kind::Malformed, message)
-        }
-        Error::InvalidArgument { .. } => CliError::argument(message),
-        // `griplink::Error` is non-exhaustive: a kind added later still gets its message through.
-        _ => CliError::new(Kind::Connection, message),
+impl crate::error::Classify for Error {
+    fn kind(&self) -> gripper::ErrorKind {
+        Error::kind(self)
+    }
+    /// The controller's status code, with the manual's identifier and description.
+    fn code(&self) -> Option<DeviceCode> {
+        self.status().map(|status| DeviceCode {
+            number: status.code(),
+            name: status.identifier().unwrap_or("unknown").to_owned(),
+            description: status.description().unwrap_or_default().to_owned(),
+        })
     }
 }
 

@@ -10,13 +10,13 @@ use clap::{Args as ClapArgs, Subcommand, ValueEnum};
 use gripper::smartgrasp::frame::{v4, PROTOCOL_VERSION};
 use gripper::smartgrasp::{
     Client, ClientConfig, Error, GetGraspOutcome, Grasp, GraspFeedback, GraspMode, GraspRequest,
-    ObjectCount, Pose, PoseFormat, RobotSystem, SelectionCriterion, ServerState, Tool,
-    DEFAULT_PORT,
+    Malformed, ObjectCount, Pose, PoseError, PoseFormat, RobotSystem, SelectionCriterion,
+    ServerState, Tool, DEFAULT_PORT,
 };
 use serde_json::{json, Value};
 
 use crate::common::{split_name, with_default_port};
-use crate::error::{CliError, DeviceCode, Kind};
+use crate::error::{classify, CliError, DeviceCode};
 use crate::output::Out;
 
 /// Options of `gripctl smartgrasp`.
@@ -466,31 +466,24 @@ async fn check_operational(client: &Client) -> Result<(), CliError> {
     Ok(())
 }
 
-/// The library's error as a `gripctl` error: the device's code where it gave one.
-fn classify(e: Error) -> CliError {
-    let message = e.to_string();
-    match e {
-        Error::Device { status, .. } => CliError::device(
-            message,
-            DeviceCode::from_display(u8::from(status).into(), &status.to_string()),
-        ),
-        Error::NotOperational { state } => CliError::device(
-            message,
-            DeviceCode::from_display(u8::from(state).into(), &state.to_string()),
-        ),
-        Error::ServerTooOld { .. } => CliError::new(Kind::Device, message),
-        Error::Timeout { .. } => CliError::new(Kind::Timeout, message),
-        Error::Io(io) if io.kind() == std::io::ErrorKind::TimedOut => {
-            CliError::new(Kind::Timeout, io.to_string())
+impl crate::error::Classify for Error {
+    fn kind(&self) -> gripper::ErrorKind {
+        Error::kind(self)
+    }
+    /// The response code the server refused with, or the state it is in instead of
+    /// OPERATIONAL.
+    fn code(&self) -> Option<DeviceCode> {
+        match self {
+            Error::Device { status, .. } => Some(DeviceCode::from_display(
+                u8::from(*status).into(),
+                &status.to_string(),
+            )),
+            Error::NotOperational { state } => Some(DeviceCode::from_display(
+                u8::from(*state).into(),
+                &state.to_string(),
+            )),
+            _ => None,
         }
-        Error::Io(io) => CliError::new(Kind::Connection, io.to_string()),
-        Error::ConnectionLost { .. } | Error::Closed | Error::ResponseLost { .. } => {
-            CliError::new(Kind::Connection, message)
-        }
-        Error::MalformedReply(_) | Error::Pose(_) => CliError::new(Kind::Malformed, message),
-        Error::InvalidArgument(_) | Error::Request(_) => CliError::argument(message),
-        // `smartgrasp::Error` is non-exhaustive: a kind added later still gets its message through.
-        _ => CliError::new(Kind::Connection, message),
     }
 }
 
@@ -502,7 +495,7 @@ fn named(number: u8, value: impl std::fmt::Display) -> Value {
 }
 
 fn grasp_report(g: &Grasp) -> Result<(String, Value), CliError> {
-    let si = g.pose.to_si().map_err(|e| classify(e.into()))?;
+    let si = g.pose.to_si().map_err(malformed_pose)?;
     let [x, y, z] = metres(g.pose.position_um());
     let [qx, qy, qz, qw] = si.orientation.xyzw();
     let mm = |um: i32| f64::from(um) / 1000.0;
@@ -576,9 +569,14 @@ fn grasp_report(g: &Grasp) -> Result<(String, Value), CliError> {
     Ok((human, json))
 }
 
+/// A pose the server sent that cannot be read: a malformed reply.
+fn malformed_pose(e: PoseError) -> CliError {
+    classify(Error::MalformedReply(Malformed::Pose(e)))
+}
+
 /// A pose as JSON: in metres with a unit quaternion, and in its own format, exact on the wire.
 fn pose_json(pose: &Pose) -> Result<Value, CliError> {
-    let si = pose.to_si().map_err(|e| classify(e.into()))?;
+    let si = pose.to_si().map_err(malformed_pose)?;
     Ok(json!({
         "position_m": metres(pose.position_um()),
         "orientation_xyzw": si.orientation.xyzw(),

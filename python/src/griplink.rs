@@ -11,8 +11,10 @@ use gripper::griplink::{
 use pyo3::prelude::*;
 use pyo3::IntoPyObjectExt;
 
+use crate::args::Checked;
 use crate::convert::{enum_member, enum_value, field, record, ToPy};
-use crate::errors;
+use crate::errors::{self, Kind};
+use crate::events;
 use crate::runtime::{self, seconds};
 use crate::sim::Slot;
 use crate::stream::Stream;
@@ -22,24 +24,27 @@ const PY: &str = "gripper_rs.griplink";
 /// A GRIPLINK error as the package's exception.
 pub fn error(e: Error) -> PyErr {
     let message = e.to_string();
-    match e {
+    let kind = match e {
         Error::Device {
             command, status, ..
-        } => errors::device(
-            message,
-            i64::from(status.code()),
-            status.identifier(),
-            status.description(),
-            command,
-        ),
-        Error::Timeout { timeout, .. } => errors::timeout(message, timeout.as_secs_f64()),
-        Error::ConnectionLost(_) => errors::connection_lost(message),
-        Error::Closed => errors::closed(message),
-        Error::MalformedReply { .. } | Error::UnexpectedReply { .. } => errors::malformed(message),
-        Error::InvalidArgument { .. } => errors::invalid_argument(message),
-        Error::Io(_) => errors::transport(message),
-        _ => errors::raise("GripperError", message, &[]),
-    }
+        } => {
+            let d = errors::Device::new(i64::from(status.code()), command).status(PY, "Status");
+            Kind::Device(match (status.identifier(), status.description()) {
+                (Some(name), Some(description)) => d.known(name, description),
+                _ => d,
+            })
+        }
+        Error::Timeout { timeout, .. } => Kind::Timeout {
+            timeout_s: timeout.as_secs_f64(),
+        },
+        Error::ConnectionLost { .. } => Kind::ConnectionLost,
+        Error::Closed => Kind::Closed,
+        Error::MalformedReply { .. } | Error::UnexpectedReply { .. } => Kind::Malformed,
+        Error::InvalidArgument { .. } => Kind::InvalidArgument,
+        Error::Io(_) => Kind::Transport,
+        _ => Kind::Other,
+    };
+    errors::classify(kind, message)
 }
 
 // ---- results -------------------------------------------------------------------------------
@@ -98,6 +103,39 @@ impl ToPy for GripConfigF {
                 ("params", field(py, params)?),
             ],
         )
+    }
+}
+
+impl ToPy for griplink::reply::Answer {
+    fn to_py(self, py: Python<'_>) -> PyResult<Py<PyAny>> {
+        match self {
+            griplink::reply::Answer::Ack => Ok(py.None()),
+            griplink::reply::Answer::Data(d) => {
+                let indices = pyo3::types::PyTuple::new(py, d.indices)?.into_any();
+                record(
+                    py,
+                    PY,
+                    "Answer",
+                    &[
+                        ("key", field(py, d.key)?),
+                        ("indices", indices),
+                        ("value", d.value.to_py(py)?.into_bound(py)),
+                    ],
+                )
+            }
+        }
+    }
+}
+
+impl ToPy for griplink::value::Value {
+    fn to_py(self, py: Python<'_>) -> PyResult<Py<PyAny>> {
+        use griplink::value::Value;
+        match self {
+            Value::Int(v) => v.to_py(py),
+            Value::Float(v) => v.to_py(py),
+            Value::Str(v) => v.to_py(py),
+            Value::List(v) => v.to_py(py),
+        }
     }
 }
 
@@ -173,28 +211,32 @@ fn config(
 
 /// A GRIPLINK controller (blocking API). `client.port(n)` is the device on port n. `with`
 /// closes the connection (BYE).
-#[pyclass(module = "gripper_rs.griplink", name = "Client", frozen)]
+#[pyclass(module = "gripper_rs.griplink", name = "Client", frozen, weakref)]
 pub struct Client {
     inner: griplink::Client,
 }
 
 /// A GRIPLINK controller (asyncio API): the methods of `gripper_rs.griplink.Client` as awaitables.
-#[pyclass(module = "gripper_rs.aio.griplink", name = "Client", frozen)]
+#[pyclass(module = "gripper_rs.aio.griplink", name = "Client", frozen, weakref)]
 pub struct AioClient {
     inner: griplink::Client,
 }
 
 impl ToPy for AioClient {
     fn to_py(self, py: Python<'_>) -> PyResult<Py<PyAny>> {
-        self.into_py_any(py)
+        Ok(crate::lifecycle::track(py, self)?.into_any())
     }
 }
 
-/// `close()` for leaving a `with` block: a client that is already closed, or whose connection
+/// `close()` (and leaving a `with` block), idempotent (issue 32): a client that is already closed, or whose connection
 /// is already lost (the error was raised by the call that saw it), is fine to leave.
 async fn close_for_exit(c: griplink::Client) -> griplink::Result<()> {
     match c.close().await {
-        Err(Error::Closed | Error::ConnectionLost(_)) => Ok(()),
+        Err(Error::Closed | Error::ConnectionLost { .. }) => Ok(()),
+        Ok(()) => {
+            crate::lifecycle::closed(|| c.is_closed()).await;
+            Ok(())
+        }
         other => other,
     }
 }
@@ -205,28 +247,24 @@ twins! {
     blocking {
         /// Connects to "host:port".
         #[staticmethod]
-        #[pyo3(signature = (addr, *, query_timeout_s=None, motion_timeout_s=None, connect_timeout_s=None))]
+        #[pyo3(signature = (addr, *, query_timeout_s=None, motion_timeout_s=None, connect_timeout_s=None, reconnect=None))]
         fn connect(
             py: Python<'_>,
             addr: String,
             query_timeout_s: Option<f64>,
             motion_timeout_s: Option<f64>,
             connect_timeout_s: Option<f64>,
-        ) -> PyResult<Client> {
-            let c = config(query_timeout_s, motion_timeout_s, connect_timeout_s)?;
+            reconnect: Option<Bound<'_, PyAny>>,
+        ) -> PyResult<Py<Client>> {
+            let mut c = config(query_timeout_s, motion_timeout_s, connect_timeout_s)?;
+            c.reconnect = events::policy(reconnect)?;
             let inner = runtime::block_on(py, griplink::Client::connect_with(addr, c), error)?;
-            Ok(Client { inner })
+            crate::lifecycle::track(py, Client { inner })
         }
 
         /// The device on port `n` (0..=31).
-        fn port(&self, n: u8) -> PyResult<Port> {
-            Ok(Port { inner: self.inner.port(port_number(n)?) })
-        }
-
-        /// Whether the connection is closed for good.
-        #[getter]
-        fn is_closed(&self) -> bool {
-            self.inner.is_closed()
+        fn port(&self, n: Checked<u8>) -> PyResult<Port> {
+            Ok(Port { inner: self.inner.port(port_number(n.0)?) })
         }
 
 
@@ -239,15 +277,17 @@ twins! {
     aio {
         /// Connects to "host:port".
         #[staticmethod]
-        #[pyo3(signature = (addr, *, query_timeout_s=None, motion_timeout_s=None, connect_timeout_s=None))]
+        #[pyo3(signature = (addr, *, query_timeout_s=None, motion_timeout_s=None, connect_timeout_s=None, reconnect=None))]
         fn connect<'py>(
             py: Python<'py>,
             addr: String,
             query_timeout_s: Option<f64>,
             motion_timeout_s: Option<f64>,
             connect_timeout_s: Option<f64>,
+            reconnect: Option<Bound<'py, PyAny>>,
         ) -> PyResult<Bound<'py, PyAny>> {
-            let c = config(query_timeout_s, motion_timeout_s, connect_timeout_s)?;
+            let mut c = config(query_timeout_s, motion_timeout_s, connect_timeout_s)?;
+            c.reconnect = events::policy(reconnect)?;
             runtime::awaitable(
                 py,
                 async move { griplink::Client::connect_with(addr, c).await.map(|inner| AioClient { inner }) },
@@ -256,24 +296,33 @@ twins! {
         }
 
         /// The device on port `n` (0..=31).
-        fn port(&self, n: u8) -> PyResult<AioPort> {
-            Ok(AioPort { inner: self.inner.port(port_number(n)?) })
+        fn port(&self, n: Checked<u8>) -> PyResult<AioPort> {
+            Ok(AioPort { inner: self.inner.port(port_number(n.0)?) })
         }
 
         /// A handle on the same connection whose calls use another timeout.
         fn with_timeout(&self, timeout_s: f64) -> PyResult<AioClient> {
             Ok(AioClient { inner: self.inner.with_timeout(seconds("timeout_s", timeout_s)?) })
         }
-
-
+    }
+    both {
+        /// The connection's events from now on (`gripper_rs.reconnect.ConnectionEvent`): each
+        /// loss, and with a reconnect policy each attempt and recovery. The stream ends when the
+        /// connection is closed for good.
+        fn connection_events(&self) -> PyResult<Stream> {
+            events::stream(self.inner.connection_events())
+        }
     }
 
+    /// A raw command line (printable ASCII, without LF) the package has no method for: None for
+    /// `ACK`, an `Answer` for `KEY[…]=value`; `ERR` raises `DeviceError` (Rust: `Client::command`).
+    fn command(&self, line: String) => |c| c.command(&line);
     /// `ID?`: the controller's identifier.
     fn id(&self) => |c| c.id();
     /// `PROTOCOL?`: the protocol identifier and version.
     fn protocol(&self) => |c| c.protocol();
     /// `PROTOCOL?` checked: `identifier` at version `min_version` or later.
-    fn protocol_assert(&self, identifier: String, min_version: u32) => |c| c.protocol_assert(&identifier, min_version);
+    fn protocol_assert(&self, identifier: String, min_version: Checked<u32>) [let min_version = min_version.0;] => |c| c.protocol_assert(&identifier, min_version);
     /// `SN?`: the controller's serial number.
     fn serial_number(&self) => |c| c.serial_number();
     /// `LABEL?`.
@@ -285,20 +334,32 @@ twins! {
     /// `VERBOSE=`: error replies with text.
     fn set_verbose(&self, on: bool) => |c| c.set_verbose(on);
     /// `BYE`, then closes the connection.
-    fn close(&self) => |c| c.close();
+    fn close(&self) => |c| close_for_exit(c.clone());
 }
 
 /// The polling task is spawned on the module's runtime.
 fn watch_state(port: &griplink::Port, interval_s: f64) -> PyResult<Stream> {
     let interval = seconds("interval_s", interval_s)?;
-    Ok(runtime::enter(|| Stream::new(port.watch_state(interval))))
+    runtime::enter(|| Stream::new(port.watch_state(interval)))
 }
 
-fn watch_value(port: &griplink::Port, index: u32, interval_s: f64) -> PyResult<Stream> {
+fn watch_value(port: &griplink::Port, index: Checked<u32>, interval_s: f64) -> PyResult<Stream> {
     let interval = seconds("interval_s", interval_s)?;
-    Ok(runtime::enter(|| {
-        Stream::new(port.watch_value(index, interval))
-    }))
+    runtime::enter(|| Stream::new(port.watch_value(index.0, interval)))
+}
+
+/// Any `Mapping` (not only a `dict`) as a Rust map; a port number out of range is an
+/// `InvalidArgumentError`.
+fn mapping<T>(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<T>
+where
+    T: for<'py> pyo3::conversion::FromPyObjectOwned<'py>,
+{
+    let dict = obj
+        .py()
+        .import("builtins")?
+        .getattr("dict")?
+        .call1((obj,))?;
+    crate::args::extract(&dict, name)
 }
 
 // ---- a port --------------------------------------------------------------------------------
@@ -335,7 +396,7 @@ twins! {
         }
 
         /// Polls VALUEF[index] every `interval_s`: a stream of values.
-        fn watch_value(&self, index: u32, interval_s: f64) -> PyResult<Stream> {
+        fn watch_value(&self, index: Checked<u32>, interval_s: f64) -> PyResult<Stream> {
             watch_value(&self.inner, index, interval_s)
         }
     }
@@ -357,7 +418,7 @@ twins! {
         }
 
         /// Polls VALUEF[index] every `interval_s`: an async stream of values.
-        fn watch_value(&self, index: u32, interval_s: f64) -> PyResult<Stream> {
+        fn watch_value(&self, index: Checked<u32>, interval_s: f64) -> PyResult<Stream> {
             watch_value(&self.inner, index, interval_s)
         }
     }
@@ -367,7 +428,7 @@ twins! {
     /// `PRODUCTID[p]?`.
     fn product_id(&self) => |c| c.product_id();
     /// Checks the device's vendor and product id.
-    fn assert_device(&self, vendor_id: u32, product_id: u32) => |c| c.assert_device(vendor_id, product_id);
+    fn assert_device(&self, vendor_id: Checked<u32>, product_id: Checked<u32>) [let vendor_id = vendor_id.0; let product_id = product_id.0;] => |c| c.assert_device(vendor_id, product_id);
     /// `DEVNAME[p]?`.
     fn name(&self) => |c| c.name();
     /// `DEVVENDOR[p]?`.
@@ -388,10 +449,10 @@ twins! {
     fn home(&self) => |c| c.home();
     /// `GRIP(p, index)` with recipe `index`; `until_done` holds the reply until the motion ends.
     #[pyo3(signature = (index, until_done=false))]
-    fn grip(&self, index: u32, until_done: bool) => |c| c.grip(index, blocking(until_done));
+    fn grip(&self, index: Checked<u32>, until_done: bool) [let index = index.0;] => |c| c.grip(index, blocking(until_done));
     /// `RELEASE(p, index)`.
     #[pyo3(signature = (index, until_done=false))]
-    fn release(&self, index: u32, until_done: bool) => |c| c.release(index, blocking(until_done));
+    fn release(&self, index: Checked<u32>, until_done: bool) [let index = index.0;] => |c| c.release(index, blocking(until_done));
     /// `FLEXGRIPF(p, ...)` in mm, N, mm/s, mm/s².
     #[pyo3(signature = (position_mm, force_n, speed_mm_per_s, acceleration_mm_per_s2, until_done=false))]
     fn flex_grip(&self, position_mm: f64, force_n: f64, speed_mm_per_s: f64, acceleration_mm_per_s2: f64, until_done: bool)
@@ -401,44 +462,44 @@ twins! {
     fn flex_release(&self, position_mm: f64, speed_mm_per_s: f64, acceleration_mm_per_s2: f64, until_done: bool)
         => |c| c.flex_release(FlexRelease { position_mm, speed_mm_per_s, acceleration_mm_per_s2 }, blocking(until_done));
     /// `LED(p, index)`.
-    fn led(&self, index: u32) => |c| c.led(index);
+    fn led(&self, index: Checked<u32>) [let index = index.0;] => |c| c.led(index);
     /// `CLAMP(p, enable)`.
     fn clamp(&self, enable: bool) => |c| c.clamp(enable);
     /// `WSTR[p]?`: the state after the next transition.
     fn wait_for_transition(&self) => |c| c.wait_for_transition();
     /// `SETVAL(p, index, value)`.
-    fn set_value(&self, index: u32, value: i32) => |c| c.set_value(index, value);
+    fn set_value(&self, index: Checked<u32>, value: Checked<i32>) [let index = index.0; let value = value.0;] => |c| c.set_value(index, value);
     /// `SETVALF(p, index, value)`.
-    fn set_value_f(&self, index: u32, value: f64) => |c| c.set_value_f(index, value);
+    fn set_value_f(&self, index: Checked<u32>, value: f64) [let index = index.0;] => |c| c.set_value_f(index, value);
     /// `DEVSTATE[p]?`.
     fn state(&self) => |c| c.state();
     /// `VALUE[p][index]?`.
-    fn value(&self, index: u32) => |c| c.value(index);
+    fn value(&self, index: Checked<u32>) [let index = index.0;] => |c| c.value(index);
     /// `VALUEF[p][index]?`.
-    fn value_f(&self, index: u32) => |c| c.value_f(index);
+    fn value_f(&self, index: Checked<u32>) [let index = index.0;] => |c| c.value_f(index);
     /// The position, µm.
     fn position_um(&self) => |c| c.position_um();
     /// The position, mm.
     fn position_mm(&self) => |c| c.position_mm();
     /// `GRIPCFG[p][index]?`.
-    fn grip_config(&self, index: u32) => |c| c.grip_config(index);
+    fn grip_config(&self, index: Checked<u32>) [let index = index.0;] => |c| c.grip_config(index);
     /// `GRIPCFG[p][index]=`: returns the stored recipe.
-    fn set_grip_config(&self, index: u32, tag: String, params: Vec<i32>)
-        [let config = GripConfig { tag, params: self::params("GRIPCFG", params)? };]
+    fn set_grip_config(&self, index: Checked<u32>, tag: String, params: Checked<Vec<i32>>)
+        [let index = index.0; let config = GripConfig { tag, params: self::params("GRIPCFG", params.0)? };]
         => |c| c.set_grip_config(index, &config);
     /// `GRIPCFGF[p][index]?`.
-    fn grip_config_f(&self, index: u32) => |c| c.grip_config_f(index);
+    fn grip_config_f(&self, index: Checked<u32>) [let index = index.0;] => |c| c.grip_config_f(index);
     /// `GRIPCFGF[p][index]=`: returns the stored recipe.
-    fn set_grip_config_f(&self, index: u32, tag: String, params: Vec<f64>)
-        [let config = GripConfigF { tag, params: self::params("GRIPCFGF", params)? };]
+    fn set_grip_config_f(&self, index: Checked<u32>, tag: String, params: Checked<Vec<f64>>)
+        [let index = index.0; let config = GripConfigF { tag, params: self::params("GRIPCFGF", params.0)? };]
         => |c| c.set_grip_config_f(index, &config);
     /// GRIP with recipe `index`, then wait for its end: by the state transition (WSTR), or by
     /// polling DEVSTATE every `poll_interval_s`.
     #[pyo3(signature = (index, poll_interval_s=None))]
-    fn grip_and_wait(&self, index: u32, poll_interval_s: Option<f64>) [let by = wait_by(poll_interval_s)?;] => |c| c.grip_and_wait(index, by);
+    fn grip_and_wait(&self, index: Checked<u32>, poll_interval_s: Option<f64>) [let index = index.0; let by = wait_by(poll_interval_s)?;] => |c| c.grip_and_wait(index, by);
     /// RELEASE with recipe `index`, then wait for its end.
     #[pyo3(signature = (index, poll_interval_s=None))]
-    fn release_and_wait(&self, index: u32, poll_interval_s: Option<f64>) [let by = wait_by(poll_interval_s)?;] => |c| c.release_and_wait(index, by);
+    fn release_and_wait(&self, index: Checked<u32>, poll_interval_s: Option<f64>) [let index = index.0; let by = wait_by(poll_interval_s)?;] => |c| c.release_and_wait(index, by);
 }
 
 // ---- the simulator -------------------------------------------------------------------------
@@ -489,12 +550,15 @@ sim_pymethods! { SimServer, "gripper_rs.griplink.sim.SimServer";
     fn new(
         py: Python<'_>,
         preset: &str,
-        devices: Option<HashMap<u8, Option<String>>>,
-        parts: Option<HashMap<u8, f64>>,
+        devices: Option<Bound<'_, PyAny>>,
+        parts: Option<Bound<'_, PyAny>>,
         time_scale: f64,
         addr: &str,
     ) -> PyResult<Self> {
         use griplink::sim::SimConfig;
+        let devices: Option<HashMap<u8, Option<String>>> =
+            devices.map(|m| mapping(&m, "devices")).transpose()?;
+        let parts: Option<HashMap<u8, f64>> = parts.map(|m| mapping(&m, "parts")).transpose()?;
         if !(time_scale.is_finite() && time_scale >= 0.0) {
             return Err(errors::invalid_argument(format!(
                 "time_scale must be finite and non-negative, not {time_scale}"
@@ -540,8 +604,8 @@ sim_pymethods! { SimServer, "gripper_rs.griplink.sim.SimServer";
     }
 
     /// The state of the device on `port` (None: no device).
-    fn device_state(&self, py: Python<'_>, port: u8) -> PyResult<Option<Py<PyAny>>> {
-        let port = port_number(port)?;
+    fn device_state(&self, py: Python<'_>, port: Checked<u8>) -> PyResult<Option<Py<PyAny>>> {
+        let port = port_number(port.0)?;
         self.with(|s| s.device_state(port))?
             .map(|state| state.to_py(py))
             .transpose()
@@ -549,20 +613,20 @@ sim_pymethods! { SimServer, "gripper_rs.griplink.sim.SimServer";
 
     /// Puts a part of `width_mm` between the fingers on `port` (None: takes it away).
     #[pyo3(signature = (port, width_mm))]
-    fn set_part(&self, port: u8, width_mm: Option<f64>) -> PyResult<()> {
-        let port = port_number(port)?;
+    fn set_part(&self, port: Checked<u8>, width_mm: Option<f64>) -> PyResult<()> {
+        let port = port_number(port.0)?;
         self.with(|s| s.set_part(port, width_mm))
     }
 
     /// The device on `port` goes into DS_FAULT now.
-    fn inject_device_fault(&self, port: u8) -> PyResult<()> {
-        let port = port_number(port)?;
+    fn inject_device_fault(&self, port: Checked<u8>) -> PyResult<()> {
+        let port = port_number(port.0)?;
         self.with(|s| s.inject_device_fault(port))
     }
 
     /// The next motion on `port` ends in DS_FAULT.
-    fn fault_next_motion(&self, port: u8) -> PyResult<()> {
-        let port = port_number(port)?;
+    fn fault_next_motion(&self, port: Checked<u8>) -> PyResult<()> {
+        let port = port_number(port.0)?;
         self.with(|s| s.fault_next_motion(port))
     }
 
@@ -578,9 +642,9 @@ sim_pymethods! { SimServer, "gripper_rs.griplink.sim.SimServer";
     }
 
     /// The next command is refused with `ERR <code>`.
-    fn fail_next(&self, code: u32) -> PyResult<()> {
+    fn fail_next(&self, code: Checked<u32>) -> PyResult<()> {
         self.inject(griplink::sim::Fault::Error(griplink::Status::from_code(
-            code,
+            code.0,
         )))
     }
 

@@ -8,9 +8,13 @@
 mod sim;
 #[macro_use]
 mod twins;
+mod args;
 mod convert;
 mod errors;
+mod events;
 mod griplink;
+mod lifecycle;
+mod logging;
 mod runtime;
 mod smartgrasp;
 mod stream;
@@ -23,8 +27,12 @@ use pyo3::prelude::*;
 #[pymodule]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = m.py();
+    logging::install(py)?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    m.add_function(wrap_pyfunction!(logging::reset_logging_cache, m)?)?;
     m.add_class::<stream::Stream>()?;
     m.add_function(wrap_pyfunction!(runtime::_quiesce, m)?)?;
+    m.add_function(wrap_pyfunction!(runtime::_set_future, m)?)?;
     m.add_submodule(&wsg::module(py)?)?;
     m.add_submodule(&wsg_text::module(py)?)?;
     m.add_submodule(&griplink::module(py)?)?;

@@ -36,7 +36,7 @@ impl<T> Slot<T> {
             .lock()
             .map_err(|_| errors::closed("the simulator's lock is poisoned".into()))?
             .take();
-        runtime::enter(|| drop(taken));
+        runtime::enter(|| drop(taken))?;
         Ok(())
     }
 }

@@ -8,42 +8,52 @@ use gripper::smartgrasp::{
     PoseFormat, RobotSystem, SelectionCriterion, ServerState, Tool,
 };
 use pyo3::prelude::*;
-use pyo3::IntoPyObjectExt;
 
+use crate::args::Checked;
 use crate::convert::{enum_member, enum_value, field, record, ToPy};
-use crate::errors;
+use crate::errors::{self, Kind};
+use crate::events;
 use crate::runtime::{self, seconds};
 use crate::sim::Slot;
+use crate::stream::Stream;
 
 const PY: &str = "gripper_rs.smartgrasp";
 
 /// A SmartGrasp error as the package's exception.
 pub fn error(e: Error) -> PyErr {
     let message = e.to_string();
-    match e {
+    let kind = match e {
         Error::Device {
             message_type,
             status,
-        } => errors::device(
-            message,
-            i64::from(u8::from(status)),
-            Some(status.to_string().split(' ').next().unwrap_or_default()),
-            Some(status.to_string().as_str()),
-            message_type.to_string(),
-        ),
-        Error::Timeout { timeout, .. } => errors::timeout(message, timeout.as_secs_f64()),
-        Error::ConnectionLost { .. } => errors::connection_lost(message),
-        Error::Closed => errors::closed(message),
-        Error::MalformedReply(_) => errors::malformed(message),
-        Error::InvalidArgument(_) | Error::Pose(_) | Error::Request(_) => {
-            errors::invalid_argument(message)
+        } => {
+            let d = errors::Device::new(i64::from(u8::from(status)), message_type.to_string())
+                .status(PY, "ResponseCode");
+            Kind::Device(match status {
+                smartgrasp::ResponseCode::Unknown(_) => d,
+                known => {
+                    // Display is "SYMBOL (text)" (manual 3.2).
+                    let text = known.to_string();
+                    let (name, description) = text.split_once(' ').unwrap_or((&text, ""));
+                    let description = description.trim_start_matches('(').trim_end_matches(')');
+                    d.known(name, description)
+                }
+            })
         }
-        Error::Io(_) => errors::transport(message),
+        Error::Timeout { timeout, .. } => Kind::Timeout {
+            timeout_s: timeout.as_secs_f64(),
+        },
+        Error::ConnectionLost { .. } => Kind::ConnectionLost,
+        Error::Closed => Kind::Closed,
+        Error::MalformedReply(_) => Kind::Malformed,
+        Error::InvalidArgument { .. } | Error::Pose(_) | Error::Request(_) => Kind::InvalidArgument,
+        Error::Io(_) => Kind::Transport,
         Error::ServerTooOld { .. } | Error::NotOperational { .. } | Error::ResponseLost { .. } => {
-            errors::raise("ProtocolError", message, &[])
+            Kind::Protocol
         }
-        _ => errors::raise("GripperError", message, &[]),
-    }
+        _ => Kind::Other,
+    };
+    errors::classify(kind, message)
 }
 
 // ---- results -------------------------------------------------------------------------------
@@ -184,8 +194,8 @@ fn config(
     query_timeout_s: Option<f64>,
     detection_timeout_s: Option<f64>,
     connect_timeout_s: Option<f64>,
-    robot_system: Option<u8>,
-    project_index: Option<u32>,
+    robot_system: Option<Checked<u8>>,
+    project_index: Option<Checked<u32>>,
     v4: V4Options,
 ) -> PyResult<smartgrasp::ClientConfig> {
     let mut c = smartgrasp::ClientConfig::default();
@@ -199,21 +209,25 @@ fn config(
         c.connect_timeout = seconds("connect_timeout_s", s)?;
     }
     c.robot_system = robot_system
-        .map(|n| known("robot system", n, |v| matches!(v, RobotSystem::Unknown(_))))
+        .map(|n| {
+            known("robot system", n.0, |v| {
+                matches!(v, RobotSystem::Unknown(_))
+            })
+        })
         .transpose()?;
-    c.project_index = project_index;
-    c.protocol_version = v4.protocol_version;
-    c.tool_id = v4.tool_id;
-    c.workspace_id = v4.workspace_id;
+    c.project_index = project_index.map(|v| v.0);
+    c.protocol_version = v4.protocol_version.map(|v| v.0);
+    c.tool_id = v4.tool_id.map(|v| v.0);
+    c.workspace_id = v4.workspace_id.map(|v| v.0);
     Ok(c)
 }
 
 /// The connect options protocol V4 added: a pinned version (3 or 4; None negotiates), and the
 /// tool and workspace IDs to choose after opening (V4 only).
 struct V4Options {
-    protocol_version: Option<u16>,
-    tool_id: Option<u16>,
-    workspace_id: Option<u16>,
+    protocol_version: Option<Checked<u16>>,
+    tool_id: Option<Checked<u16>>,
+    workspace_id: Option<Checked<u16>>,
 }
 
 fn grasp_request(
@@ -254,28 +268,32 @@ fn pose(format: u8, wire: [i32; 7]) -> PyResult<Pose> {
 // ---- the client ----------------------------------------------------------------------------
 
 /// A SCHUNK 2D Grasping-Kit (blocking API). `with` closes the connection.
-#[pyclass(module = "gripper_rs.smartgrasp", name = "Client", frozen)]
+#[pyclass(module = "gripper_rs.smartgrasp", name = "Client", frozen, weakref)]
 pub struct Client {
     inner: smartgrasp::Client,
 }
 
 /// A SCHUNK 2D Grasping-Kit (asyncio API).
-#[pyclass(module = "gripper_rs.aio.smartgrasp", name = "Client", frozen)]
+#[pyclass(module = "gripper_rs.aio.smartgrasp", name = "Client", frozen, weakref)]
 pub struct AioClient {
     inner: smartgrasp::Client,
 }
 
 impl ToPy for AioClient {
     fn to_py(self, py: Python<'_>) -> PyResult<Py<PyAny>> {
-        self.into_py_any(py)
+        Ok(crate::lifecycle::track(py, self)?.into_any())
     }
 }
 
-/// `close()` for leaving a `with` block: a client that is already closed, or whose connection
+/// `close()` (and leaving a `with` block), idempotent (issue 32): a client that is already closed, or whose connection
 /// is already lost (the error was raised by the call that saw it), is fine to leave.
 async fn close_for_exit(c: smartgrasp::Client) -> smartgrasp::Result<()> {
     match c.close().await {
         Err(Error::Closed | Error::ConnectionLost { .. }) => Ok(()),
+        Ok(()) => {
+            crate::lifecycle::closed(|| c.is_closed()).await;
+            Ok(())
+        }
         other => other,
     }
 }
@@ -289,29 +307,25 @@ twins! {
         #[staticmethod]
         // Python's keyword-only arguments mirror the fields of the Rust `ClientConfig`.
         #[allow(clippy::too_many_arguments)]
-        #[pyo3(signature = (addr, *, query_timeout_s=None, detection_timeout_s=None, connect_timeout_s=None, robot_system=None, project_index=None, protocol_version=None, tool_id=None, workspace_id=None))]
+        #[pyo3(signature = (addr, *, query_timeout_s=None, detection_timeout_s=None, connect_timeout_s=None, robot_system=None, project_index=None, protocol_version=None, tool_id=None, workspace_id=None, reconnect=None))]
         fn connect(
             py: Python<'_>,
             addr: String,
             query_timeout_s: Option<f64>,
             detection_timeout_s: Option<f64>,
             connect_timeout_s: Option<f64>,
-            robot_system: Option<u8>,
-            project_index: Option<u32>,
-            protocol_version: Option<u16>,
-            tool_id: Option<u16>,
-            workspace_id: Option<u16>,
-        ) -> PyResult<Client> {
+            robot_system: Option<Checked<u8>>,
+            project_index: Option<Checked<u32>>,
+            protocol_version: Option<Checked<u16>>,
+            tool_id: Option<Checked<u16>>,
+            workspace_id: Option<Checked<u16>>,
+            reconnect: Option<Bound<'_, PyAny>>,
+        ) -> PyResult<Py<Client>> {
             let v4 = V4Options { protocol_version, tool_id, workspace_id };
-            let c = config(query_timeout_s, detection_timeout_s, connect_timeout_s, robot_system, project_index, v4)?;
+            let mut c = config(query_timeout_s, detection_timeout_s, connect_timeout_s, robot_system, project_index, v4)?;
+            c.reconnect = events::policy(reconnect)?;
             let inner = runtime::block_on(py, smartgrasp::Client::connect(addr, c), error)?;
-            Ok(Client { inner })
-        }
-
-        /// Whether the connection is closed for good.
-        #[getter]
-        fn is_closed(&self) -> bool {
-            self.inner.is_closed()
+            crate::lifecycle::track(py, Client { inner })
         }
 
 
@@ -326,21 +340,23 @@ twins! {
         #[staticmethod]
         // Python's keyword-only arguments mirror the fields of the Rust `ClientConfig`.
         #[allow(clippy::too_many_arguments)]
-        #[pyo3(signature = (addr, *, query_timeout_s=None, detection_timeout_s=None, connect_timeout_s=None, robot_system=None, project_index=None, protocol_version=None, tool_id=None, workspace_id=None))]
+        #[pyo3(signature = (addr, *, query_timeout_s=None, detection_timeout_s=None, connect_timeout_s=None, robot_system=None, project_index=None, protocol_version=None, tool_id=None, workspace_id=None, reconnect=None))]
         fn connect<'py>(
             py: Python<'py>,
             addr: String,
             query_timeout_s: Option<f64>,
             detection_timeout_s: Option<f64>,
             connect_timeout_s: Option<f64>,
-            robot_system: Option<u8>,
-            project_index: Option<u32>,
-            protocol_version: Option<u16>,
-            tool_id: Option<u16>,
-            workspace_id: Option<u16>,
+            robot_system: Option<Checked<u8>>,
+            project_index: Option<Checked<u32>>,
+            protocol_version: Option<Checked<u16>>,
+            tool_id: Option<Checked<u16>>,
+            workspace_id: Option<Checked<u16>>,
+            reconnect: Option<Bound<'py, PyAny>>,
         ) -> PyResult<Bound<'py, PyAny>> {
             let v4 = V4Options { protocol_version, tool_id, workspace_id };
-            let c = config(query_timeout_s, detection_timeout_s, connect_timeout_s, robot_system, project_index, v4)?;
+            let mut c = config(query_timeout_s, detection_timeout_s, connect_timeout_s, robot_system, project_index, v4)?;
+            c.reconnect = events::policy(reconnect)?;
             runtime::awaitable(
                 py,
                 async move { smartgrasp::Client::connect(addr, c).await.map(|inner| AioClient { inner }) },
@@ -356,6 +372,13 @@ twins! {
 
     }
     both {
+        /// The connection's events from now on (`gripper_rs.reconnect.ConnectionEvent`): each
+        /// loss, and with a reconnect policy each attempt and recovery. The stream ends when the
+        /// connection is closed for good.
+        fn connection_events(&self) -> PyResult<Stream> {
+            events::stream(self.inner.connection_events())
+        }
+
         /// The protocol version this connection speaks (3 or 4).
         fn protocol_version(&self) -> u16 {
             self.inner.protocol_version()
@@ -377,28 +400,28 @@ twins! {
     /// GET_STATE.
     fn get_state(&self) => |c| c.get_state();
     /// REGISTER_CLIENT (a `RobotSystem`).
-    fn register_client(&self, robot: u8) [let robot = known("robot system", robot, |v| matches!(v, RobotSystem::Unknown(_)))?;] => |c| c.register_client(robot);
+    fn register_client(&self, robot: Checked<u8>) [let robot = robot.0; let robot = known("robot system", robot, |v| matches!(v, RobotSystem::Unknown(_)))?;] => |c| c.register_client(robot);
     /// SET_PROJECT (V3: the project index; V4: the project ID).
-    fn set_project(&self, project_index: u32) => |c| c.set_project(project_index);
+    fn set_project(&self, project_index: Checked<u32>) [let project_index = project_index.0;] => |c| c.set_project(project_index);
     /// SET_TOOL (V4 only): the tool ID seen in the web frontend.
-    fn set_tool(&self, tool_id: u16) => |c| c.set_tool(tool_id);
+    fn set_tool(&self, tool_id: Checked<u16>) [let tool_id = tool_id.0;] => |c| c.set_tool(tool_id);
     /// SET_WORKSPACE (V4 only): the workspace ID seen in the web frontend.
-    fn set_workspace(&self, workspace_id: u16) => |c| c.set_workspace(workspace_id);
+    fn set_workspace(&self, workspace_id: Checked<u16>) [let workspace_id = workspace_id.0;] => |c| c.set_workspace(workspace_id);
     /// GET_GRASP: a `GraspResult` (its `grasp` is None when the outcome is not GRASP).
     /// `tool` is sent in V3 only, `selection_criterion` in V4 only (its values are not public;
     /// SCHUNK's example sends 1 to 3).
-    #[pyo3(signature = (grasp_mode, object_class, tool, pose_format, selection_criterion=1))]
-    fn get_grasp(&self, grasp_mode: u8, object_class: u16, tool: u8, pose_format: u8, selection_criterion: u8)
-        [let request = grasp_request(grasp_mode, object_class, tool, pose_format, selection_criterion)?;]
+    #[pyo3(signature = (grasp_mode, object_class, tool, pose_format, selection_criterion=Checked(1)))]
+    fn get_grasp(&self, grasp_mode: Checked<u8>, object_class: Checked<u16>, tool: Checked<u8>, pose_format: Checked<u8>, selection_criterion: Checked<u8>)
+        [let request = grasp_request(grasp_mode.0, object_class.0, tool.0, pose_format.0, selection_criterion.0)?;]
         => |c| c.get_grasp(request);
     /// GRASP_FEEDBACK: whether the last grasp was fine.
     fn grasp_feedback(&self, ok: bool) => |c| c.grasp_feedback(feedback(ok));
     /// GET_OBJECT_COUNT (class 0: all).
-    fn get_object_count(&self, object_class: u16) => |c| c.get_object_count(object_class);
+    fn get_object_count(&self, object_class: Checked<u16>) [let object_class = object_class.0;] => |c| c.get_object_count(object_class);
     /// ROBOT_POSE: the robot's pose, in `format` with the seven wire values.
-    fn robot_pose(&self, format: u8, wire: [i32; 7]) [let p = pose(format, wire)?;] => |c| c.robot_pose(p);
+    fn robot_pose(&self, format: Checked<u8>, wire: Checked<[i32; 7]>) [let format = format.0; let wire = wire.0; let p = pose(format, wire)?;] => |c| c.robot_pose(p);
     /// Closes the connection.
-    fn close(&self) => |c| c.close();
+    fn close(&self) => |c| close_for_exit(c.clone());
 }
 
 // ---- the simulator -------------------------------------------------------------------------
@@ -429,16 +452,16 @@ sim_pymethods! { SimServer, "gripper_rs.smartgrasp.sim.SimServer";
     #[pyo3(signature = (*, server_state=None, max_version=None, addr="127.0.0.1:0"))]
     fn new(
         py: Python<'_>,
-        server_state: Option<u8>,
-        max_version: Option<u16>,
+        server_state: Option<Checked<u8>>,
+        max_version: Option<Checked<u16>>,
         addr: &str,
     ) -> PyResult<Self> {
         let mut config = smartgrasp::sim::SimConfig::default();
         if let Some(s) = server_state {
-            config.server_state = ServerState::from(s);
+            config.server_state = ServerState::from(s.0);
         }
         if let Some(v) = max_version {
-            config.max_version = v;
+            config.max_version = v.0;
         }
         let addr = addr.to_owned();
         let server = runtime::block_on(py, smartgrasp::sim::SimServer::bind(addr, config), |e| {
@@ -468,8 +491,8 @@ sim_pymethods! { SimServer, "gripper_rs.smartgrasp.sim.SimServer";
     }
 
     /// The server goes into `state` (a `ServerState`).
-    fn set_server_state(&self, state: u8) -> PyResult<()> {
-        self.with(|s| s.with_state(|st| st.set_server_state(ServerState::from(state))))
+    fn set_server_state(&self, state: Checked<u8>) -> PyResult<()> {
+        self.with(|s| s.with_state(|st| st.set_server_state(ServerState::from(state.0))))
     }
 
     /// The next request is processed but not answered.
@@ -484,8 +507,8 @@ sim_pymethods! { SimServer, "gripper_rs.smartgrasp.sim.SimServer";
     }
 
     /// The next response has `length` in its length field.
-    fn corrupt_next_length(&self, length: u32) -> PyResult<()> {
-        self.inject(smartgrasp::sim::Fault::CorruptLength(length))
+    fn corrupt_next_length(&self, length: Checked<u32>) -> PyResult<()> {
+        self.inject(smartgrasp::sim::Fault::CorruptLength(length.0))
     }
 
     /// The connection is closed instead of the next response.

@@ -16,8 +16,8 @@
 /// ```
 /// Both classes have a field `inner` holding the (cheaply cloned) Rust client handle. With
 /// `closing close_fn;` (an `async fn(Client) -> Result<()>`), the classes also get `with` /
-/// `async with` (leaving closes the connection with `close_fn`) and the `aio` / `blocking`
-/// views of one connection.
+/// `async with` (leaving closes the connection with `close_fn`), `is_closed` (the Rust
+/// client's) and the `aio` / `blocking` views of one connection.
 macro_rules! twins {
     (
         $Blocking:ident, $Aio:ident, $err:path;
@@ -41,6 +41,13 @@ macro_rules! twins {
                 #[getter]
                 fn aio(&self) -> $Aio {
                     $Aio { inner: self.inner.clone() }
+                }
+
+                /// Whether the connection is closed for good (closed, or lost and not being
+                /// restored): every call fails.
+                #[getter]
+                fn is_closed(&self) -> bool {
+                    self.inner.is_closed()
                 }
 
                 fn __enter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {
@@ -78,10 +85,17 @@ macro_rules! twins {
                     $Blocking { inner: self.inner.clone() }
                 }
 
+                /// Whether the connection is closed for good (closed, or lost and not being
+                /// restored): every call fails.
+                #[getter]
+                fn is_closed(&self) -> bool {
+                    self.inner.is_closed()
+                }
+
                 fn __aenter__(slf: Bound<'_, Self>) -> PyResult<Bound<'_, PyAny>> {
                     let py = slf.py();
                     let me = slf.unbind();
-                    pyo3_async_runtimes::tokio::future_into_py(py, async move { Ok(me) })
+                    $crate::runtime::awaitable_py(py, async move { Ok(me.into_any()) })
                 }
 
                 #[pyo3(signature = (*_exc))]

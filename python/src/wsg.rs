@@ -9,32 +9,48 @@ use gripper::wsg::{
 use pyo3::prelude::*;
 use pyo3::IntoPyObjectExt;
 
+use crate::args::Checked;
 use crate::convert::{enum_value, f32_to_f64, field, record, ToPy};
-use crate::errors;
+use crate::errors::{self, Kind};
+use crate::events;
 use crate::runtime::{self, seconds};
 use crate::sim::Slot;
-use crate::stream::Stream;
+use crate::stream::{ending_from_events, Ended, Stream};
 
 const PY: &str = "gripper_rs.wsg";
 
 /// A WSG error as the package's exception.
 pub fn error(e: Error) -> PyErr {
     let message = e.to_string();
+    errors::classify(kind(e), message)
+}
+
+/// What kind of failure a WSG error is (see [`errors::Kind`]).
+fn kind(e: Error) -> Kind {
     match e {
-        Error::Device { command, status } => errors::device(
-            message,
-            i64::from(status.code()),
-            Some(status.symbol()),
-            Some(status.description()),
-            command,
-        ),
-        Error::Timeout { timeout, .. } => errors::timeout(message, timeout.as_secs_f64()),
-        Error::ConnectionLost(_) => errors::connection_lost(message),
-        Error::Closed => errors::closed(message),
-        Error::MalformedReply { .. } => errors::malformed(message),
-        Error::InvalidArgument(_) => errors::invalid_argument(message),
-        Error::Io(_) => errors::transport(message),
-        _ => errors::raise("GripperError", message, &[]),
+        Error::Device { command, status } => Kind::Device(device(command, status)),
+        Error::Timeout { timeout, .. } => Kind::Timeout {
+            timeout_s: timeout.as_secs_f64(),
+        },
+        Error::ConnectionLost { .. } => Kind::ConnectionLost,
+        Error::Closed => Kind::Closed,
+        Error::MalformedReply { .. } => Kind::Malformed,
+        Error::InvalidArgument { .. } => Kind::InvalidArgument,
+        Error::Io(_) => Kind::Transport,
+        _ => Kind::Other,
+    }
+}
+
+/// A WSG status code (binary and text interface: one table, manual Anhang A) as a refusal of
+/// `command`: `name` and `description` only for a code the manual lists.
+pub(crate) fn device<C>(command: C, status: wsg::Status) -> errors::Device
+where
+    C: for<'py> IntoPyObject<'py> + Send + 'static,
+{
+    let d = errors::Device::new(i64::from(status.code()), command).status(PY, "Status");
+    match status {
+        wsg::Status::Unknown(_) => d,
+        known => d.known(known.symbol(), known.description()),
     }
 }
 
@@ -173,6 +189,15 @@ impl<T: ToPy> ToPy for Subscription<T> {
     }
 }
 
+/// A subscription whose stream tells a lost connection (`ConnectionLostError`) from a closed
+/// client: `events` is taken before the subscription is made, so that no loss is missed.
+async fn subscribed<T: ToPy>(
+    events: gripper::reconnect::ConnectionEvents,
+    subscribe: impl std::future::Future<Output = wsg::Result<Subscription<T>>>,
+) -> wsg::Result<Ended<Subscription<T>>> {
+    Ok(Ended(subscribe.await?, ending_from_events(events)))
+}
+
 // ---- arguments -----------------------------------------------------------------------------
 
 pub(crate) fn homing_direction(direction: u8) -> PyResult<HomingDirection> {
@@ -231,7 +256,10 @@ async fn resolve(addr: &str) -> wsg::Result<SocketAddr> {
     tokio::net::lookup_host(addr)
         .await?
         .next()
-        .ok_or_else(|| Error::InvalidArgument(format!("{addr:?} resolves to no address")))
+        .ok_or_else(|| Error::InvalidArgument {
+            what: "address",
+            reason: format!("{addr:?} resolves to no address"),
+        })
 }
 
 // ---- the clients ---------------------------------------------------------------------------
@@ -239,21 +267,21 @@ async fn resolve(addr: &str) -> wsg::Result<SocketAddr> {
 /// A WSG gripper (blocking API): every method waits for the device's reply with the GIL
 /// released; any number of threads may share one client. `with` closes it (announcing the
 /// disconnect, command 0x07, so the gripper does not FAST STOP).
-#[pyclass(module = "gripper_rs.wsg", name = "Client", frozen)]
+#[pyclass(module = "gripper_rs.wsg", name = "Client", frozen, weakref)]
 pub struct Client {
     inner: wsg::Client,
 }
 
 /// A WSG gripper (asyncio API): the same methods as `gripper_rs.wsg.Client`, as awaitables.
 /// Cancelling one leaves the client usable and its replies correctly paired.
-#[pyclass(module = "gripper_rs.aio.wsg", name = "Client", frozen)]
+#[pyclass(module = "gripper_rs.aio.wsg", name = "Client", frozen, weakref)]
 pub struct AioClient {
     inner: wsg::Client,
 }
 
 impl ToPy for AioClient {
     fn to_py(self, py: Python<'_>) -> PyResult<Py<PyAny>> {
-        self.into_py_any(py)
+        Ok(crate::lifecycle::track(py, self)?.into_any())
     }
 }
 
@@ -263,7 +291,7 @@ twins! {
     blocking {
         /// Connects over TCP to "host:port".
         #[staticmethod]
-        #[pyo3(signature = (addr, *, query_timeout_s=None, motion_timeout_s=None, connect_timeout_s=None, late_reply_grace_s=None))]
+        #[pyo3(signature = (addr, *, query_timeout_s=None, motion_timeout_s=None, connect_timeout_s=None, late_reply_grace_s=None, reconnect=None))]
         fn connect_tcp(
             py: Python<'_>,
             addr: String,
@@ -271,10 +299,14 @@ twins! {
             motion_timeout_s: Option<f64>,
             connect_timeout_s: Option<f64>,
             late_reply_grace_s: Option<f64>,
-        ) -> PyResult<Client> {
-            let b = builder(query_timeout_s, motion_timeout_s, connect_timeout_s, late_reply_grace_s)?;
+            reconnect: Option<Bound<'_, PyAny>>,
+        ) -> PyResult<Py<Client>> {
+            let mut b = builder(query_timeout_s, motion_timeout_s, connect_timeout_s, late_reply_grace_s)?;
+            if let Some(p) = events::policy(reconnect)? {
+                b = b.reconnect(p);
+            }
             let inner = runtime::block_on(py, b.connect_tcp(addr), error)?;
-            Ok(Client { inner })
+            crate::lifecycle::track(py, Client { inner })
         }
 
         /// Talks UDP to "host:port" (one frame per datagram).
@@ -286,26 +318,27 @@ twins! {
             query_timeout_s: Option<f64>,
             motion_timeout_s: Option<f64>,
             late_reply_grace_s: Option<f64>,
-        ) -> PyResult<Client> {
+        ) -> PyResult<Py<Client>> {
             let b = builder(query_timeout_s, motion_timeout_s, None, late_reply_grace_s)?;
             let connect = async move { b.connect_udp(resolve(&addr).await?).await };
             let inner = runtime::block_on(py, connect, error)?;
-            Ok(Client { inner })
+            crate::lifecycle::track(py, Client { inner })
         }
 
         /// Opens the serial port `path` (RS-232) at `baud_rate`.
         #[staticmethod]
-        #[pyo3(signature = (path, baud_rate=115200, *, query_timeout_s=None, motion_timeout_s=None, late_reply_grace_s=None))]
+        #[pyo3(signature = (path, baud_rate=Checked(115200), *, query_timeout_s=None, motion_timeout_s=None, late_reply_grace_s=None))]
         fn open_serial(
+            py: Python<'_>,
             path: String,
-            baud_rate: u32,
+            baud_rate: Checked<u32>,
             query_timeout_s: Option<f64>,
             motion_timeout_s: Option<f64>,
             late_reply_grace_s: Option<f64>,
-        ) -> PyResult<Client> {
+        ) -> PyResult<Py<Client>> {
             let b = builder(query_timeout_s, motion_timeout_s, None, late_reply_grace_s)?;
-            let inner = runtime::enter(|| b.open_serial(&path, baud_rate)).map_err(error)?;
-            Ok(Client { inner })
+            let inner = runtime::enter(|| b.open_serial(&path, baud_rate.0))?.map_err(error)?;
+            crate::lifecycle::track(py, Client { inner })
         }
 
 
@@ -324,7 +357,7 @@ twins! {
     aio {
         /// Connects over TCP to "host:port".
         #[staticmethod]
-        #[pyo3(signature = (addr, *, query_timeout_s=None, motion_timeout_s=None, connect_timeout_s=None, late_reply_grace_s=None))]
+        #[pyo3(signature = (addr, *, query_timeout_s=None, motion_timeout_s=None, connect_timeout_s=None, late_reply_grace_s=None, reconnect=None))]
         fn connect_tcp<'py>(
             py: Python<'py>,
             addr: String,
@@ -332,8 +365,12 @@ twins! {
             motion_timeout_s: Option<f64>,
             connect_timeout_s: Option<f64>,
             late_reply_grace_s: Option<f64>,
+            reconnect: Option<Bound<'py, PyAny>>,
         ) -> PyResult<Bound<'py, PyAny>> {
-            let b = builder(query_timeout_s, motion_timeout_s, connect_timeout_s, late_reply_grace_s)?;
+            let mut b = builder(query_timeout_s, motion_timeout_s, connect_timeout_s, late_reply_grace_s)?;
+            if let Some(p) = events::policy(reconnect)? {
+                b = b.reconnect(p);
+            }
             runtime::awaitable(py, async move { b.connect_tcp(addr).await.map(|inner| AioClient { inner }) }, error)
         }
 
@@ -368,15 +405,30 @@ twins! {
             format!("<gripper_rs.aio.wsg.Client over {:?}>", self.inner.transport())
         }
     }
+    both {
+        /// The connection's events from now on (`gripper_rs.reconnect.ConnectionEvent`): each
+        /// loss, and with a reconnect policy each attempt and recovery. The stream ends when the
+        /// client has closed or given up.
+        fn connection_events(&self) -> PyResult<Stream> {
+            events::stream(self.inner.connection_events())
+        }
+    }
 
     /// Command 0x20: reference the fingers (direction 0 = the device's default, 1 = positive,
     /// 2 = negative).
-    #[pyo3(signature = (direction=0))]
-    fn home(&self, direction: u8) [let direction = homing_direction(direction)?;] => |c| c.home(direction);
-    /// Command 0x21: move to `width_mm` at `speed_mm_per_s` (absolute, stop on block).
-    fn pre_position(&self, width_mm: f32, speed_mm_per_s: f32) => |c| c.pre_position(width_mm, speed_mm_per_s);
-    /// Command 0x21: move by `distance_mm` (relative, stop on block).
-    fn pre_position_relative(&self, distance_mm: f32, speed_mm_per_s: f32) => |c| c.pre_position_relative(distance_mm, speed_mm_per_s);
+    #[pyo3(signature = (direction=Checked(0)))]
+    fn home(&self, direction: Checked<u8>) [let direction = direction.0; let direction = homing_direction(direction)?;] => |c| c.home(direction);
+    /// Command 0x21: move to `width_mm` at `speed_mm_per_s` (absolute). Blocked on the way, the
+    /// fingers stop, or with `clamp_on_block` clamp with 50 % of the nominal force (flag D1).
+    #[pyo3(signature = (width_mm, speed_mm_per_s, *, clamp_on_block=false))]
+    fn pre_position(&self, width_mm: f32, speed_mm_per_s: f32, clamp_on_block: bool) => |c| pre_position(c, false, clamp_on_block, width_mm, speed_mm_per_s);
+    /// Command 0x21: move by `distance_mm` (relative); `clamp_on_block` as for `pre_position`.
+    #[pyo3(signature = (distance_mm, speed_mm_per_s, *, clamp_on_block=false))]
+    fn pre_position_relative(&self, distance_mm: f32, speed_mm_per_s: f32, clamp_on_block: bool) => |c| pre_position(c, true, clamp_on_block, distance_mm, speed_mm_per_s);
+    /// Any command by id (0x00..=0xFF) with `payload`: its final reply, whatever its status
+    /// (`Reply`), within the query timeout or `timeout_s` (Rust: `Client::request`).
+    #[pyo3(signature = (id, payload=Vec::new(), *, timeout_s=None))]
+    fn request(&self, id: Checked<u8>, payload: Vec<u8>, timeout_s: Option<f64>) [let id = id.0; let timeout = timeout_s.map(|s| seconds("timeout_s", s)).transpose()?;] => |c| request(c, id, payload, timeout);
     /// Command 0x22: stop the current motion.
     fn stop(&self) => |c| c.stop();
     /// Command 0x23: FAST STOP (must be acknowledged before the next motion).
@@ -429,39 +481,87 @@ twins! {
     /// Command 0x53: the system limits.
     fn system_limits(&self) => |c| c.system_limits();
     /// Commands 0x60 / 0x70: finger 1 or 2's type and data size.
-    fn finger_info(&self, finger: u8) [let finger = self::finger(finger)?;] => |c| c.finger_info(finger);
+    fn finger_info(&self, finger: Checked<u8>) [let finger = finger.0; let finger = self::finger(finger)?;] => |c| c.finger_info(finger);
     /// Commands 0x61 / 0x71: finger 1 or 2's flags.
-    fn finger_flags(&self, finger: u8) [let finger = self::finger(finger)?;] => |c| c.finger_flags(finger);
+    fn finger_flags(&self, finger: Checked<u8>) [let finger = finger.0; let finger = self::finger(finger)?;] => |c| c.finger_flags(finger);
     /// Commands 0x62 / 0x72: finger 1 or 2's power.
-    fn set_finger_power(&self, finger: u8, on: bool) [let finger = self::finger(finger)?;] => |c| c.set_finger_power(finger, on);
+    fn set_finger_power(&self, finger: Checked<u8>, on: bool) [let finger = finger.0; let finger = self::finger(finger)?;] => |c| c.set_finger_power(finger, on);
     /// Commands 0x63 / 0x73: finger 1 or 2's data.
-    fn finger_data(&self, finger: u8) [let finger = self::finger(finger)?;] => |c| c.finger_data(finger);
+    fn finger_data(&self, finger: Checked<u8>) [let finger = finger.0; let finger = self::finger(finger)?;] => |c| c.finger_data(finger);
     /// Command 0x06: the device echoes `data`.
     fn loop_back(&self, data: Vec<u8>) => |c| c.loop_back(data);
     /// Stream of the system state flags (0x40 auto-update) every `period_s` (or on change).
     #[pyo3(signature = (period_s, on_change=false))]
-    fn subscribe_system_state(&self, period_s: f64, on_change: bool) [let o = update_options(period_s, on_change)?;] => |c| c.subscribe_system_state(o);
+    fn subscribe_system_state(&self, period_s: f64, on_change: bool) [let o = update_options(period_s, on_change)?;] => |c| subscribed(c.connection_events(), c.subscribe_system_state(o));
     /// Stream of the grip state (0x41 auto-update).
     #[pyo3(signature = (period_s, on_change=false))]
-    fn subscribe_grip_state(&self, period_s: f64, on_change: bool) [let o = update_options(period_s, on_change)?;] => |c| c.subscribe_grip_state(o);
+    fn subscribe_grip_state(&self, period_s: f64, on_change: bool) [let o = update_options(period_s, on_change)?;] => |c| subscribed(c.connection_events(), c.subscribe_grip_state(o));
     /// Stream of the opening width, mm (0x43 auto-update).
     #[pyo3(signature = (period_s, on_change=false))]
-    fn subscribe_width_mm(&self, period_s: f64, on_change: bool) [let o = update_options(period_s, on_change)?;] => |c| c.subscribe_width_mm(o);
+    fn subscribe_width_mm(&self, period_s: f64, on_change: bool) [let o = update_options(period_s, on_change)?;] => |c| subscribed(c.connection_events(), c.subscribe_width_mm(o));
     /// Stream of the finger speed, mm/s (0x44 auto-update).
     #[pyo3(signature = (period_s, on_change=false))]
-    fn subscribe_speed_mm_per_s(&self, period_s: f64, on_change: bool) [let o = update_options(period_s, on_change)?;] => |c| c.subscribe_speed_mm_per_s(o);
+    fn subscribe_speed_mm_per_s(&self, period_s: f64, on_change: bool) [let o = update_options(period_s, on_change)?;] => |c| subscribed(c.connection_events(), c.subscribe_speed_mm_per_s(o));
     /// Stream of the finger force, N (0x45 auto-update).
     #[pyo3(signature = (period_s, on_change=false))]
-    fn subscribe_force_n(&self, period_s: f64, on_change: bool) [let o = update_options(period_s, on_change)?;] => |c| c.subscribe_force_n(o);
+    fn subscribe_force_n(&self, period_s: f64, on_change: bool) [let o = update_options(period_s, on_change)?;] => |c| subscribed(c.connection_events(), c.subscribe_force_n(o));
     /// Closes the connection (TCP: announces the disconnect, 0x07, first).
-    fn close(&self) => |c| c.close();
+    fn close(&self) => |c| close_for_exit(c.clone());
 }
 
-/// `close()` for leaving a `with` block: a client that is already closed, or whose connection
+/// Command 0x21 with the stop-on-block flag (D1) as asked; the typed `pre_position` always
+/// stops.
+async fn pre_position(
+    c: &wsg::Client,
+    relative: bool,
+    clamp_on_block: bool,
+    width_mm: f32,
+    speed_mm_per_s: f32,
+) -> wsg::Result<()> {
+    c.command(wsg::Command::PrePosition {
+        relative,
+        stop_on_block: !clamp_on_block,
+        width_mm,
+        speed_mm_per_s,
+    })
+    .await
+    .map(drop)
+}
+
+/// A raw request with the client's query timeout or `timeout`.
+async fn request(
+    c: &wsg::Client,
+    id: u8,
+    payload: Vec<u8>,
+    timeout: Option<std::time::Duration>,
+) -> wsg::Result<wsg::Reply> {
+    match timeout {
+        Some(t) => c.request_with_timeout(id, payload, t).await,
+        None => c.request(id, payload).await,
+    }
+}
+
+impl ToPy for wsg::Reply {
+    fn to_py(self, py: Python<'_>) -> PyResult<Py<PyAny>> {
+        let status = enum_value(py, PY, "Status", i64::from(self.status.code()))?;
+        record(
+            py,
+            PY,
+            "Reply",
+            &[
+                ("id", field(py, self.id)?),
+                ("status", status.into_bound(py)),
+                ("data", self.data.to_py(py)?.into_bound(py)),
+            ],
+        )
+    }
+}
+
+/// `close()` (and leaving a `with` block), idempotent (issue 32): a client that is already closed, or whose connection
 /// is already lost (the error was raised by the call that saw it), is fine to leave.
 async fn close_for_exit(c: wsg::Client) -> wsg::Result<()> {
     match c.close().await {
-        Err(Error::Closed | Error::ConnectionLost(_)) => Ok(()),
+        Err(Error::Closed | Error::ConnectionLost { .. }) => Ok(()),
         other => other,
     }
 }
@@ -586,24 +686,24 @@ sim_pymethods! { SimServer, "gripper_rs.wsg.sim.SimServer";
     }
 
     /// The next reply to command `id` is not sent.
-    fn drop_next_reply(&self, id: u8) -> PyResult<()> {
-        self.with(|s| s.drop_next_reply(id))
+    fn drop_next_reply(&self, id: Checked<u8>) -> PyResult<()> {
+        self.with(|s| s.drop_next_reply(id.0))
     }
 
     /// The next reply to command `id` has a wrong checksum.
-    fn corrupt_next_reply(&self, id: u8) -> PyResult<()> {
-        self.with(|s| s.corrupt_next_reply(id))
+    fn corrupt_next_reply(&self, id: Checked<u8>) -> PyResult<()> {
+        self.with(|s| s.corrupt_next_reply(id.0))
     }
 
     /// The next reply to command `id` is sent `delay_s` late.
-    fn delay_next_reply(&self, id: u8, delay_s: f64) -> PyResult<()> {
+    fn delay_next_reply(&self, id: Checked<u8>, delay_s: f64) -> PyResult<()> {
         let d = seconds("delay_s", delay_s)?;
-        self.with(|s| s.delay_next_reply(id, d))
+        self.with(|s| s.delay_next_reply(id.0, d))
     }
 
     /// The next reply to command `id` carries status `code` instead.
-    fn force_status(&self, id: u8, code: u16) -> PyResult<()> {
-        self.with(|s| s.force_status(id, wsg::Status::from_code(code)))
+    fn force_status(&self, id: Checked<u8>, code: Checked<u16>) -> PyResult<()> {
+        self.with(|s| s.force_status(id.0, wsg::Status::from_code(code.0)))
     }
 
     /// The held part slips out of the fingers.

@@ -6,37 +6,35 @@ use gripper::wsg::text::{self, Error, Push, Pushes, Quantity};
 use pyo3::prelude::*;
 use pyo3::IntoPyObjectExt;
 
+use crate::args::Checked;
 use crate::convert::{field, record, ToPy};
-use crate::errors;
+use crate::errors::{self, Kind};
 use crate::runtime::{self, seconds};
-use crate::stream::Stream;
+use crate::stream::{Ended, Ending, Stream};
 use crate::wsg::homing_direction;
 
 /// A text-interface error as the package's exception; a device error without a numeral code
 /// has code -1 (the whole `ERR` line is in the message).
 pub fn error(e: Error) -> PyErr {
     let message = e.to_string();
-    match e {
+    let kind = match e {
         Error::Device {
             command,
             status: Some(status),
             ..
-        } => errors::device(
-            message,
-            i64::from(status.code()),
-            Some(status.symbol()),
-            Some(status.description()),
-            command,
-        ),
-        Error::Device { command, .. } => errors::device(message, -1, None, None, command),
-        Error::Timeout { timeout, .. } => errors::timeout(message, timeout.as_secs_f64()),
-        Error::ConnectionLost(_) => errors::connection_lost(message),
-        Error::Closed => errors::closed(message),
-        Error::MalformedReply { .. } | Error::UnexpectedReply { .. } => errors::malformed(message),
-        Error::InvalidArgument { .. } => errors::invalid_argument(message),
-        Error::Io(_) => errors::transport(message),
-        _ => errors::raise("GripperError", message, &[]),
-    }
+        } => Kind::Device(crate::wsg::device(command, status)),
+        Error::Device { command, .. } => Kind::Device(errors::Device::new(-1, command)),
+        Error::Timeout { timeout, .. } => Kind::Timeout {
+            timeout_s: timeout.as_secs_f64(),
+        },
+        Error::ConnectionLost { .. } => Kind::ConnectionLost,
+        Error::Closed => Kind::Closed,
+        Error::MalformedReply { .. } | Error::UnexpectedReply { .. } => Kind::Malformed,
+        Error::InvalidArgument { .. } => Kind::InvalidArgument,
+        Error::Io(_) => Kind::Transport,
+        _ => Kind::Other,
+    };
+    errors::classify(kind, message)
 }
 
 impl ToPy for Push {
@@ -88,21 +86,21 @@ fn config(
 /// A WSG in text mode (blocking API): every method waits for the gripper's reply with the GIL
 /// released; any number of threads may share one client. `with` closes it with `BYE()`, so
 /// the gripper does not FAST STOP.
-#[pyclass(module = "gripper_rs.wsg.text", name = "Client", frozen)]
+#[pyclass(module = "gripper_rs.wsg.text", name = "Client", frozen, weakref)]
 pub struct Client {
     inner: text::Client,
 }
 
 /// A WSG in text mode (asyncio API): the same methods as `gripper_rs.wsg.text.Client`, as
 /// awaitables.
-#[pyclass(module = "gripper_rs.wsg.text", name = "AioClient", frozen)]
+#[pyclass(module = "gripper_rs.wsg.text", name = "AioClient", frozen, weakref)]
 pub struct AioClient {
     inner: text::Client,
 }
 
 impl ToPy for AioClient {
     fn to_py(self, py: Python<'_>) -> PyResult<Py<PyAny>> {
-        self.into_py_any(py)
+        Ok(crate::lifecycle::track(py, self)?.into_any())
     }
 }
 
@@ -119,10 +117,10 @@ twins! {
             query_timeout_s: Option<f64>,
             motion_timeout_s: Option<f64>,
             connect_timeout_s: Option<f64>,
-        ) -> PyResult<Client> {
+        ) -> PyResult<Py<Client>> {
             let c = config(query_timeout_s, motion_timeout_s, connect_timeout_s)?;
             let inner = runtime::block_on(py, text::Client::connect_with(addr, c), error)?;
-            Ok(Client { inner })
+            crate::lifecycle::track(py, Client { inner })
         }
 
         fn __repr__(&self) -> String {
@@ -155,8 +153,8 @@ twins! {
 
     /// `HOME()` (direction 0, the default), `HOME(1)` (1, positive) or `HOME(0)` (2, negative):
     /// the same numbers as `gripper_rs.wsg.HomingDirection`, written in GCL's form.
-    #[pyo3(signature = (direction=0))]
-    fn home(&self, direction: u8) [let direction = homing_direction(direction)?;] => |c| c.home(direction);
+    #[pyo3(signature = (direction=Checked(0)))]
+    fn home(&self, direction: Checked<u8>) [let direction = direction.0; let direction = homing_direction(direction)?;] => |c| c.home(direction);
     /// `MOVE(p[,v])`: move to `width_mm`, with an optional speed limit.
     #[pyo3(signature = (width_mm, speed_mm_per_s=None))]
     fn move_to(&self, width_mm: f64, speed_mm_per_s: Option<f64>) => |c| c.move_to(width_mm, speed_mm_per_s);
@@ -199,18 +197,44 @@ twins! {
     /// `AUTOSEND("NAME",ms[,true])`: a stream of `Push(quantity, value)` for `quantity` ("POS",
     /// "SPEED", "FORCE", "GRIPSTATE", "TEMP").
     #[pyo3(signature = (quantity, interval_ms, only_on_change=false))]
-    fn autosend(&self, quantity: &str, interval_ms: u16, only_on_change: bool) [let q = self::quantity(quantity)?;] => |c| c.autosend(q, interval_ms, only_on_change);
+    fn autosend(&self, quantity: &str, interval_ms: Checked<u16>, only_on_change: bool) [let interval_ms = interval_ms.0; let q = self::quantity(quantity)?;] => |c| autosend(c, q, interval_ms, only_on_change);
     /// `AUTOSEND("NAME",0)`: stop pushing `quantity`.
     fn stop_autosend(&self, quantity: &str) [let q = self::quantity(quantity)?;] => |c| c.stop_autosend(q);
     /// `BYE()`: announce the disconnect and close.
-    fn close(&self) => |c| c.close();
+    fn close(&self) => |c| close_for_exit(c.clone());
 }
 
-/// `close()` for leaving a `with` block: a client already closed, or whose connection is
+/// `AUTOSEND`, its stream telling a lost connection (`ConnectionLostError`) from a closed client:
+/// the pushes end when the connection does, and a call then fails at once, unsent, with
+/// `ConnectionLost` or `Closed`, which tells which.
+async fn autosend(
+    c: &text::Client,
+    q: Quantity,
+    interval_ms: u16,
+    only_on_change: bool,
+) -> text::Result<Ended<Pushes>> {
+    let pushes = c.autosend(q, interval_ms, only_on_change).await?;
+    let c = c.clone();
+    let ending: Ending = Box::new(move || {
+        Box::pin(async move {
+            match c.part_width_tolerance_mm().await {
+                Err(Error::ConnectionLost { reason }) => Some(reason.to_string()),
+                _ => None,
+            }
+        })
+    });
+    Ok(Ended(pushes, ending))
+}
+
+/// `close()` (and leaving a `with` block), idempotent (issue 32): a client already closed, or whose connection is
 /// already lost, is fine to leave.
 async fn close_for_exit(c: text::Client) -> text::Result<()> {
     match c.close().await {
-        Err(Error::Closed | Error::ConnectionLost(_)) => Ok(()),
+        Err(Error::Closed | Error::ConnectionLost { .. }) => Ok(()),
+        Ok(()) => {
+            crate::lifecycle::closed(|| c.is_closed()).await;
+            Ok(())
+        }
         other => other,
     }
 }

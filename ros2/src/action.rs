@@ -10,8 +10,16 @@
 //!   STATUS_UNKNOWN for a goal id never seen (as rclcpp_action does);
 //! - cancel requests are read all the time, and a cancel of the running goal sends the device's
 //!   stop at once, never queued behind the motion;
-//! - a goal that arrives while another runs is **rejected** (the running goal is not disturbed;
-//!   cancel it first). MoveIt sends one gripper goal at a time and waits for its result.
+//! - a new goal **preempts** the running one, as ros2_controllers' gripper_action_controller
+//!   does (`preempt_active_goal`): the running goal ends CANCELED at once, the new one is
+//!   accepted; its motion starts once the device has stopped the old one (a WSG refuses a motion
+//!   while another runs, E_ALREADY_RUNNING, manual 3.2.2). A goal the device cannot carry out
+//!   is rejected without disturbing the running one, as rclcpp_action rejects it before the
+//!   controller's `accepted_callback` preempts;
+//! - a goal ends as the controller's `check_for_success` ends it: SUCCEEDED when the position
+//!   was reached; when the fingers stalled short of it (a part held, a blocked axis),
+//!   SUCCEEDED with `allow_stalling` and ABORTED without (the controller's parameter and
+//!   default); ABORTED when the device failed the command.
 //!
 //! ros2-client's servers hand out requests through `&mut` accessors or non-blocking reads, so
 //! the three services are read every [`POLL_PERIOD`].
@@ -27,11 +35,11 @@ use ros2_client::action::{
 };
 use ros2_client::action_msgs::{CancelGoalResponseEnum, GoalStatus, GoalStatusArray};
 use ros2_client::builtin_interfaces::Time;
-use ros2_client::{ActionServer, RmwRequestId};
+use ros2_client::{ActionServer, RmwRequestId, ServiceMapping};
 use tokio::sync::{oneshot, watch};
 
 use crate::msgs::{GripperCommandFeedback, GripperCommandGoal, GripperCommandResult};
-use crate::qos;
+use crate::{qos, rpc};
 
 /// How often the goal, cancel and result services are read.
 pub const POLL_PERIOD: Duration = Duration::from_millis(10);
@@ -52,6 +60,22 @@ pub const RESULT_WAITERS_MAX: usize = 64;
 pub type GripperActionServer =
     ActionServer<GripperCommandGoal, GripperCommandResult, GripperCommandFeedback>;
 
+/// The action's servers, one per request/reply mapping served (see [`crate::rpc`]); a request
+/// is answered through the server that received it. Feedback and statuses, plain topics, are
+/// published through the first.
+pub type Servers = [(ServiceMapping, GripperActionServer)];
+
+/// At most this many requests of one kind are read from one server in a round: a reader that
+/// keeps failing must not hold the loop.
+const READS_PER_ROUND: usize = 64;
+
+/// A request's return address: the server that received it and its id.
+#[derive(Clone, Copy, Debug)]
+struct Caller {
+    server: usize,
+    id: RmwRequestId,
+}
+
 /// The QoS of the action's services and topics: rcl_action's defaults (services reliable and
 /// volatile, keep last 10; status transient-local keep last 1, so a late client sees it).
 pub fn action_qos() -> ActionServerQosPolicies {
@@ -67,12 +91,28 @@ pub fn action_qos() -> ActionServerQosPolicies {
 /// How a goal ended on the device.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Outcome {
-    /// Whether the goal succeeded (else: aborted).
-    pub succeeded: bool,
+    /// The device failed the goal (a fault, an error reply, a lost link): ABORTED whatever the
+    /// result says. Otherwise [`verdict`] decides from the result.
+    pub failed: bool,
     /// The result to send.
     pub result: GripperCommandResult,
     /// Why, for the log.
     pub message: String,
+}
+
+/// The status a goal ends with, as gripper_action_controller's `check_for_success` gives it:
+/// the position reached is SUCCEEDED; fingers that stalled before it (a part held, a blocked
+/// axis) are SUCCEEDED with `allow_stalling`, ABORTED without; anything else, or a device
+/// failure, is ABORTED.
+pub fn verdict(outcome: &Outcome, allow_stalling: bool) -> GoalStatusEnum {
+    let r = &outcome.result;
+    if outcome.failed {
+        GoalStatusEnum::Aborted
+    } else if r.reached_goal || (r.stalled && allow_stalling) {
+        GoalStatusEnum::Succeeded
+    } else {
+        GoalStatusEnum::Aborted
+    }
 }
 
 /// The checks every device makes before accepting a goal: a position that is an opening
@@ -100,17 +140,39 @@ pub trait Actuator: Send + Sync + 'static {
     fn feedback(&self) -> GripperCommandFeedback;
 }
 
+/// A goal's task, aborted when dropped: a motion abandoned after a cancel or a preemption must
+/// not go on polling the device.
+struct Motion(tokio::task::JoinHandle<()>);
+
+impl Drop for Motion {
+    fn drop(&mut self) {
+        self.0.abort();
+    }
+}
+
+impl Motion {
+    /// Waits up to [`CANCEL_GRACE`] for a stopped motion to end, else abandons it.
+    async fn end_within_grace(mut self) {
+        if tokio::time::timeout(CANCEL_GRACE, &mut self.0)
+            .await
+            .is_err()
+        {
+            tracing::warn!("a stopped motion did not end within {CANCEL_GRACE:?}: abandoned");
+        }
+    }
+}
+
 struct Active {
     info: GoalInfo,
     status: GoalStatusEnum,
     done: oneshot::Receiver<Outcome>,
     /// The task running the motion (aborted when a cancelled motion does not end by itself).
-    task: tokio::task::JoinHandle<()>,
+    task: Motion,
     /// The stop of a cancel, while it runs.
     stopping: Option<oneshot::Receiver<Result<(), String>>>,
     /// After a successful stop: when to stop waiting for the motion to report its end.
     give_up_at: Option<tokio::time::Instant>,
-    waiters: Vec<RmwRequestId>,
+    waiters: Vec<Caller>,
 }
 
 /// What happened to the running goal.
@@ -156,15 +218,22 @@ struct Finished {
 /// The goal bookkeeping of one action server.
 pub struct GoalKeeper {
     actuator: Arc<dyn Actuator>,
+    /// gripper_action_controller's `allow_stalling`: a stall is SUCCEEDED, not ABORTED.
+    allow_stalling: Arc<std::sync::atomic::AtomicBool>,
     active: Option<Active>,
     finished: VecDeque<Finished>,
 }
 
 impl GoalKeeper {
-    /// A keeper for goals that `actuator` carries out.
-    pub fn new(actuator: Arc<dyn Actuator>) -> Self {
+    /// A keeper for goals that `actuator` carries out; `allow_stalling` is read when a goal
+    /// ends (the parameter can be set while the node runs).
+    pub fn new(
+        actuator: Arc<dyn Actuator>,
+        allow_stalling: Arc<std::sync::atomic::AtomicBool>,
+    ) -> Self {
         GoalKeeper {
             actuator,
+            allow_stalling,
             active: None,
             finished: VecDeque::new(),
         }
@@ -172,26 +241,27 @@ impl GoalKeeper {
 
     /// Serves the action until `shutdown` turns true (or its sender is dropped); a goal still
     /// running then is stopped and aborted.
-    pub async fn serve(mut self, server: GripperActionServer, mut shutdown: watch::Receiver<bool>) {
+    pub async fn serve(
+        mut self,
+        servers: Vec<(ServiceMapping, GripperActionServer)>,
+        mut shutdown: watch::Receiver<bool>,
+    ) {
+        let server = &servers[..];
         let mut poll = tokio::time::interval(POLL_PERIOD);
         poll.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
         let mut feedback = tokio::time::interval(FEEDBACK_PERIOD);
         feedback.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
         loop {
             tokio::select! {
-                _ = poll.tick() => self.poll(&server),
-                _ = feedback.tick() => self.publish_feedback(&server),
+                _ = poll.tick() => self.poll(server),
+                _ = feedback.tick() => self.publish_feedback(server),
                 // Lazy: select! builds every branch's future, disabled ones too.
                 event = async { self.active.as_mut().expect("guarded").next_event().await },
                     if self.active.is_some() => match event {
-                    GoalEvent::Ended(outcome) => self.finish(&server, outcome),
+                    GoalEvent::Ended(outcome) => self.finish(server, outcome),
                     GoalEvent::Stopped(result) => self.stopped(result),
-                    GoalEvent::GaveUp => {
-                        if let Some(active) = &self.active {
-                            active.task.abort();
-                        }
-                        self.finish(&server, None);
-                    }
+                    // Finishing drops the motion's task, which aborts it.
+                    GoalEvent::GaveUp => self.finish(server, None),
                 },
                 _ = shutdown.wait_for(|stop| *stop) => break,
             }
@@ -201,40 +271,52 @@ impl GoalKeeper {
             if let Err(e) = self.actuator.stop().await {
                 tracing::warn!("stop at shutdown failed: {e}");
             }
-            self.finish(&server, None);
+            self.finish(server, None);
         }
     }
 
-    fn poll(&mut self, server: &GripperActionServer) {
+    fn poll(&mut self, servers: &Servers) {
         // Cancels first: a cancel and a goal read in the same round must not see the goal
         // started after the cancel was handled.
-        loop {
-            match server.receive_cancel_request() {
-                Ok(Some((id, req))) => self.cancel(server, id, req),
-                Ok(None) => break,
-                Err(e) => {
-                    tracing::warn!("reading a cancel request failed: {e:?}");
-                    break;
-                }
-            }
-        }
-        loop {
-            match server.receive_goal() {
-                Ok(Some((id, req))) => self.goal(server, id, req.goal_id, req.goal),
-                Ok(None) => break,
-                Err(e) => {
-                    tracing::warn!("reading a goal failed: {e:?}");
-                    break;
-                }
-            }
-        }
-        loop {
-            match server.receive_result_request() {
-                Ok(Some((id, req))) => self.result_request(server, id, req.goal_id),
-                Ok(None) => break,
-                Err(e) => {
-                    tracing::warn!("reading a result request failed: {e:?}");
-                    break;
+        self.read_all(
+            servers,
+            "a cancel request",
+            |s| s.receive_cancel_request(),
+            Self::cancel,
+        );
+        self.read_all(
+            servers,
+            "a goal",
+            |s| s.receive_goal(),
+            |k, servers, caller, req| k.goal(servers, caller, req.goal_id, req.goal),
+        );
+        self.read_all(
+            servers,
+            "a result request",
+            |s| s.receive_result_request(),
+            |k, servers, caller, req| k.result_request(servers, caller, req.goal_id),
+        );
+    }
+
+    /// Reads the requests `read` takes from each server (at most [`READS_PER_ROUND`] each) and
+    /// hands those this node answers (see [`rpc::answers`]) to `handle`.
+    fn read_all<T>(
+        &mut self,
+        servers: &Servers,
+        what: &str,
+        read: impl Fn(&GripperActionServer) -> ros2_client::ReadResult<Option<(RmwRequestId, T)>>,
+        mut handle: impl FnMut(&mut Self, &Servers, Caller, T),
+    ) {
+        for (i, (mapping, server)) in servers.iter().enumerate() {
+            for _ in 0..READS_PER_ROUND {
+                match read(server) {
+                    Ok(Some((id, x))) if rpc::answers(*mapping, servers.len(), &id) => {
+                        handle(self, servers, Caller { server: i, id }, x)
+                    }
+                    Ok(Some(_)) => {}
+                    Ok(None) => break,
+                    // With two mappings served, each request fails to decode in one of them.
+                    Err(e) => tracing::debug!("{what} not read: {e:?}"),
                 }
             }
         }
@@ -242,18 +324,13 @@ impl GoalKeeper {
 
     fn goal(
         &mut self,
-        server: &GripperActionServer,
-        req_id: RmwRequestId,
+        server: &Servers,
+        caller: Caller,
         goal_id: GoalId,
         goal: GripperCommandGoal,
     ) {
         let stamp = Time::now();
-        let verdict = if let Some(a) = &self.active {
-            Err(format!(
-                "goal {:?} still runs (one goal at a time: cancel it first)",
-                a.info.goal_id
-            ))
-        } else if self.known(&goal_id) {
+        let verdict = if self.known(&goal_id) {
             Err("a goal with this id was already received".to_owned())
         } else {
             self.actuator.check(&goal)
@@ -263,17 +340,30 @@ impl GoalKeeper {
             Ok(()) => tracing::info!(?goal_id, ?goal, "goal accepted"),
             Err(why) => tracing::warn!(?goal_id, ?goal, "goal rejected: {why}"),
         }
-        if let Err(e) = server.send_goal_response(req_id, SendGoalResponse { accepted, stamp }) {
+        let response = SendGoalResponse { accepted, stamp };
+        if let Err(e) = server[caller.server]
+            .1
+            .send_goal_response(caller.id, response)
+        {
             tracing::warn!("answering a goal failed: {e:?}");
         }
         if !accepted {
             return;
         }
+        let previous = self.preempt(server);
         let (tx, done) = oneshot::channel();
         let run = self.actuator.execute(goal);
-        let task = tokio::spawn(async move {
+        let task = Motion(tokio::spawn(async move {
+            if let Some((stop, motion)) = previous {
+                // The device first stops the preempted motion (a WSG refuses a new one while it
+                // runs, E_ALREADY_RUNNING, manual 3.2.2), which then reports its end.
+                if let Err(e) = stop.await {
+                    tracing::error!("the stop of a preempted goal failed: {e}");
+                }
+                motion.end_within_grace().await;
+            }
             let _ = tx.send(run.await);
-        });
+        }));
         // ACCEPTED and EXECUTING at once: the motion starts now.
         self.active = Some(Active {
             info: GoalInfo { goal_id, stamp },
@@ -287,6 +377,22 @@ impl GoalKeeper {
         self.publish_statuses(server);
     }
 
+    /// A goal was accepted while another runs: that one ends CANCELED now, with where the
+    /// fingers are as its result (gripper_action_controller's `preempt_active_goal` cancels it
+    /// with an empty result). Returns the stop to send and the motion to wait for, if it still
+    /// runs.
+    fn preempt(
+        &mut self,
+        server: &Servers,
+    ) -> Option<(BoxFuture<'static, Result<(), String>>, Motion)> {
+        let active = self.active.take()?;
+        tracing::info!(goal = ?active.info.goal_id, "goal preempted by a new goal: canceled");
+        let result = self.actuator.feedback();
+        let still_runs = !active.task.0.is_finished();
+        let motion = self.conclude(server, active, GoalStatusEnum::Canceled, result);
+        still_runs.then(|| (self.actuator.stop(), motion))
+    }
+
     fn known(&self, goal_id: &GoalId) -> bool {
         self.active
             .as_ref()
@@ -294,12 +400,7 @@ impl GoalKeeper {
             || self.finished.iter().any(|f| f.info.goal_id == *goal_id)
     }
 
-    fn cancel(
-        &mut self,
-        server: &GripperActionServer,
-        req_id: RmwRequestId,
-        req: CancelGoalRequest,
-    ) {
+    fn cancel(&mut self, server: &Servers, caller: Caller, req: CancelGoalRequest) {
         let response = match cancel_target(&req) {
             Err(e) => {
                 tracing::warn!("cancel request not understood: {e}");
@@ -307,16 +408,15 @@ impl GoalKeeper {
             }
             Ok(target) => self.cancel_matching(server, &target),
         };
-        if let Err(e) = server.send_cancel_response(req_id, response) {
+        if let Err(e) = server[caller.server]
+            .1
+            .send_cancel_response(caller.id, response)
+        {
             tracing::warn!("answering a cancel request failed: {e:?}");
         }
     }
 
-    fn cancel_matching(
-        &mut self,
-        server: &GripperActionServer,
-        target: &GoalInfo,
-    ) -> CancelGoalResponse {
+    fn cancel_matching(&mut self, server: &Servers, target: &GoalInfo) -> CancelGoalResponse {
         let matches = |info: &GoalInfo| cancel_matches(target, info);
         if let Some(active) = self.active.as_mut().filter(|a| matches(&a.info)) {
             if active.status != GoalStatusEnum::Canceling {
@@ -368,15 +468,10 @@ impl GoalKeeper {
         }
     }
 
-    fn result_request(
-        &mut self,
-        server: &GripperActionServer,
-        req_id: RmwRequestId,
-        goal_id: GoalId,
-    ) {
+    fn result_request(&mut self, server: &Servers, caller: Caller, goal_id: GoalId) {
         if let Some(active) = self.active.as_mut().filter(|a| a.info.goal_id == goal_id) {
             if active.waiters.len() < RESULT_WAITERS_MAX {
-                active.waiters.push(req_id);
+                active.waiters.push(caller);
                 return;
             }
             tracing::warn!(
@@ -388,15 +483,18 @@ impl GoalKeeper {
             Some(f) => (f.status, f.result),
             None => (GoalStatusEnum::Unknown, GripperCommandResult::default()),
         };
-        send_result(server, req_id, status, result);
+        send_result(server, caller, status, result);
     }
 
     /// The running goal ended: `outcome` is `None` when it did not report (shutdown, or its
     /// task ended without an answer).
-    fn finish(&mut self, server: &GripperActionServer, outcome: Option<Outcome>) {
+    fn finish(&mut self, server: &Servers, outcome: Option<Outcome>) {
         let Some(active) = self.active.take() else {
             return;
         };
+        let allow_stalling = self
+            .allow_stalling
+            .load(std::sync::atomic::Ordering::Relaxed);
         let (status, result) = match (active.status, outcome) {
             (GoalStatusEnum::Canceling, o) => {
                 // The result of a cancelled goal is where the fingers stopped.
@@ -404,11 +502,7 @@ impl GoalKeeper {
                 (GoalStatusEnum::Canceled, result)
             }
             (_, Some(o)) => {
-                let status = if o.succeeded {
-                    GoalStatusEnum::Succeeded
-                } else {
-                    GoalStatusEnum::Aborted
-                };
+                let status = verdict(&o, allow_stalling);
                 tracing::info!(goal = ?active.info.goal_id, ?status, result = ?o.result, "{}", o.message);
                 (status, o.result)
             }
@@ -417,6 +511,19 @@ impl GoalKeeper {
         if status == GoalStatusEnum::Canceled {
             tracing::info!(goal = ?active.info.goal_id, ?result, "goal cancelled");
         }
+        // Dropped: the motion's task, if it still runs, is aborted.
+        drop(self.conclude(server, active, status, result));
+    }
+
+    /// `active` ended with `status` and `result`: its result requests are answered, it is kept
+    /// for late ones, and the statuses are published. Returns its motion's task.
+    fn conclude(
+        &mut self,
+        server: &Servers,
+        active: Active,
+        status: GoalStatusEnum,
+        result: GripperCommandResult,
+    ) -> Motion {
         for waiter in active.waiters {
             send_result(server, waiter, status, result);
         }
@@ -429,17 +536,19 @@ impl GoalKeeper {
             result,
         });
         self.publish_statuses(server);
+        active.task
     }
 
-    fn publish_feedback(&self, server: &GripperActionServer) {
+    fn publish_feedback(&self, server: &Servers) {
         if let Some(active) = &self.active {
-            if let Err(e) = server.send_feedback(active.info.goal_id, self.actuator.feedback()) {
+            let feedback = self.actuator.feedback();
+            if let Err(e) = server[0].1.send_feedback(active.info.goal_id, feedback) {
                 tracing::debug!("feedback not sent: {e:?}");
             }
         }
     }
 
-    fn publish_statuses(&self, server: &GripperActionServer) {
+    fn publish_statuses(&self, server: &Servers) {
         let finished = self.finished.iter().map(|f| GoalStatus {
             goal_info: f.info.clone(),
             status: f.status,
@@ -449,19 +558,23 @@ impl GoalKeeper {
             status: a.status,
         });
         let status_list = finished.chain(active).collect();
-        if let Err(e) = server.send_goal_statuses(GoalStatusArray { status_list }) {
+        if let Err(e) = server[0]
+            .1
+            .send_goal_statuses(GoalStatusArray { status_list })
+        {
             tracing::debug!("goal statuses not sent: {e:?}");
         }
     }
 }
 
 fn send_result(
-    server: &GripperActionServer,
-    req_id: RmwRequestId,
+    server: &Servers,
+    caller: Caller,
     status: GoalStatusEnum,
     result: GripperCommandResult,
 ) {
-    if let Err(e) = server.send_result(req_id, GetResultResponse { status, result }) {
+    let response = GetResultResponse { status, result };
+    if let Err(e) = server[caller.server].1.send_result(caller.id, response) {
         tracing::warn!("sending a result failed: {e:?}");
     }
 }
@@ -509,6 +622,29 @@ mod tests {
             },
             stamp: Time::new(stamp_s, 0),
         }
+    }
+
+    #[test]
+    fn verdicts_of_gripper_action_controller() {
+        let ended = |reached_goal, stalled, failed| Outcome {
+            failed,
+            result: GripperCommandResult {
+                position: 0.04,
+                effort: 20.0,
+                stalled,
+                reached_goal,
+            },
+            message: String::new(),
+        };
+        use GoalStatusEnum::{Aborted, Succeeded};
+        for allow in [false, true] {
+            assert_eq!(verdict(&ended(true, false, false), allow), Succeeded);
+            assert_eq!(verdict(&ended(true, true, false), allow), Succeeded);
+            assert_eq!(verdict(&ended(false, false, false), allow), Aborted);
+            assert_eq!(verdict(&ended(true, false, true), allow), Aborted);
+        }
+        assert_eq!(verdict(&ended(false, true, false), true), Succeeded);
+        assert_eq!(verdict(&ended(false, true, false), false), Aborted);
     }
 
     #[test]

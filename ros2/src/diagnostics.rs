@@ -67,10 +67,10 @@ fn kv(key: &str, value: String) -> KeyValue {
     }
 }
 
-fn publisher(node: &mut Node) -> Result<Publisher<DiagnosticArray>, String> {
+fn publisher(node: &mut Node, params: &Params) -> Result<Publisher<DiagnosticArray>, String> {
     let topic = node
         .create_topic(
-            &ros::global_name("diagnostics")?,
+            &ros::global_name(params, "diagnostics")?,
             diagnostic_array_type(),
             &qos::topic(),
         )
@@ -86,7 +86,7 @@ pub fn spawn(
     telemetry: &Shared,
     shutdown: &watch::Receiver<bool>,
 ) -> Result<(), String> {
-    let publisher = publisher(node)?;
+    let publisher = publisher(node, params)?;
     let node_name = params.fully_qualified_name();
     let telemetry = telemetry.clone();
     tokio::spawn(periodic::every(PERIOD, shutdown.clone(), move || {

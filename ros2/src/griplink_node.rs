@@ -1,15 +1,22 @@
 //! One port of a Weiss GRIPLINK controller (ASCII over TCP) as a ROS 2 gripper node.
 //!
 //! - Goals: a goal that closes is `FLEXGRIPF` with the goal's opening as the no-part limit and
-//!   `max_effort` (or `default_effort_n`) as the force (manual 3.4.6); one that opens is
-//!   `FLEXRELEASEF` to that opening (3.4.7). Both are waited for by polling (`DEVSTATE`,
-//!   `VALUE`), which keeps the connection free for other commands. A grip ends HOLDING
-//!   (stalled, the commanded force as effort: the controller reads no force) or NO PART (the
-//!   fingers at the limit: reached); DS_FAULT aborts.
-//! - GRIPLINK has no stop command: a cancel and `~/stop` send `DISABLE(p)`, which aborts the
-//!   motion and **frees the fingers** (3.4.2). It goes out behind at most the one command on
-//!   the wire (the client keeps one unanswered command at a time). `~/acknowledge` sends
-//!   `ENABLE(p)` (3.4.1); GRIP, RELEASE and HOME re-enable a Weiss gripper too.
+//!   `max_effort` (or `default_effort_n`) as the force (manual 3.4.6): the device's own
+//!   part-agnostic grip, which closes until contact whatever the part's width (MoveIt's
+//!   "close", 0 m, included). One that opens is `FLEXRELEASEF` to that opening (3.4.7). Both
+//!   are waited for by polling (`DEVSTATE`, `VALUE`), which keeps the connection free for other
+//!   commands. A grip ends HOLDING (`stalled`, the commanded force as `effort`: the controller
+//!   reads no force; SUCCEEDED with `allow_stalling`, else ABORTED, as gripper_action_controller
+//!   decides) or NO PART (the fingers at the limit: `reached_goal`, SUCCEEDED); DS_FAULT aborts.
+//! - A cancel or a preemption: GRIPLINK has no stop command; `DISABLE(p)` aborts a motion and
+//!   **frees the fingers** (3.4.2: "disable the actuator thus allowing to move the fingers by
+//!   hand"). So a cancel sends it only while a motion runs: during a grip that already holds
+//!   (DEVSTATE DS_HOLDING) it sends nothing and the part stays held; during a grip still
+//!   closing (no part clamped yet) or a release (letting go anyway) it sends `DISABLE`. The
+//!   state is read just before: a grip that clamps within that one round trip is let go. It
+//!   goes out behind at most the one command on the wire (the client keeps one unanswered
+//!   command at a time). `~/stop` always sends `DISABLE(p)`; `~/acknowledge` sends `ENABLE(p)`
+//!   (3.4.1); GRIP, RELEASE and HOME re-enable a Weiss gripper too.
 //! - `joint_states` and the diagnostics poll `VALUEF[p][0]` (position) and `DEVSTATE` at the
 //!   `joint_states` rate (at most 50 Hz).
 //! - A lost link reconnects (the crate's `ReconnectPolicy`): no homing, no goal resumed. At
@@ -59,6 +66,7 @@ pub async fn start(
     node: &mut Node,
     params: &Params,
     client: Client,
+    live: &crate::params::Live,
     shutdown: &watch::Receiver<bool>,
 ) -> Result<(), String> {
     let port = client.port(params.griplink_port);
@@ -105,6 +113,7 @@ pub async fn start(
         params: params.clone(),
         target_mm: Mutex::new(None),
         force_n: Mutex::new(0.0),
+        gripping: Mutex::new(false),
     }));
     let services = Services {
         home: handler(&griplink, |p| Box::pin(async move { p.home().await })),
@@ -117,6 +126,7 @@ pub async fn start(
         &telemetry,
         Arc::new(griplink),
         services,
+        live,
         shutdown,
     )
 }
@@ -210,6 +220,8 @@ struct Inner {
     target_mm: Mutex<Option<f64>>,
     /// The force of the last grip, N (the effort while it holds).
     force_n: Mutex<f64>,
+    /// The running goal is a grip (not a release): a cancel finding DS_HOLDING leaves it held.
+    gripping: Mutex<bool>,
 }
 
 impl Griplink {
@@ -240,7 +252,18 @@ impl Griplink {
             Err(e) => return self.failed(e),
         };
         let tolerance = inner.params.goal_tolerance_m * 1000.0;
-        let (succeeded, stalled, what) = if target < width - tolerance {
+        let closing = target < width - tolerance;
+        *inner.gripping.lock().unwrap_or_else(|e| e.into_inner()) = closing;
+        // A grip in DS_HOLDING is a state conflict (3.4.4 GRIP, 3.4.6 FLEXGRIP): a close of a
+        // part already held is that stall, reported without a command.
+        let held = closing
+            && match inner.port.state().await {
+                Ok(s) => s == DeviceState::Holding,
+                Err(e) => return self.failed(e),
+            };
+        let (ok, stalled, what) = if held {
+            (true, true, "grip: the part is already held")
+        } else if closing {
             let force = self.force(&goal);
             *inner.force_n.lock().unwrap_or_else(|e| e.into_inner()) = force;
             let grip = FlexGrip {
@@ -274,11 +297,11 @@ impl Griplink {
         let force = *inner.force_n.lock().unwrap_or_else(|e| e.into_inner());
         let reached_goal = (width - target).abs() <= tolerance;
         Outcome {
-            succeeded: succeeded && (reached_goal || stalled),
+            failed: !ok,
             result: GripperCommandResult {
                 position: conv.from_width_mm(width),
                 effort: if stalled { force } else { 0.0 },
-                stalled,
+                stalled: stalled && !reached_goal,
                 reached_goal,
             },
             message: format!("{what}; {width:.2} mm for {target:.2} mm"),
@@ -288,7 +311,7 @@ impl Griplink {
     fn failed(&self, e: Error) -> Outcome {
         let message = self.record::<()>(Err(e)).err().unwrap_or_default();
         Outcome {
-            succeeded: false,
+            failed: true,
             result: self.feedback(),
             message,
         }
@@ -324,6 +347,14 @@ impl Actuator for Griplink {
     fn stop(&self) -> BoxFuture<'static, Result<(), String>> {
         let this = self.clone();
         Box::pin(async move {
+            let gripping = *this.0.gripping.lock().unwrap_or_else(|e| e.into_inner());
+            if gripping {
+                let state = this.0.port.state().await;
+                if this.record(state)? == DeviceState::Holding {
+                    tracing::info!("stop: the grip holds a part; nothing sent, it stays held");
+                    return Ok(());
+                }
+            }
             let r = this.0.port.disable().await;
             this.record(r)
         })
@@ -335,11 +366,12 @@ impl Actuator for Griplink {
         let target = *self.0.target_mm.lock().unwrap_or_else(|e| e.into_inner());
         let force = *self.0.force_n.lock().unwrap_or_else(|e| e.into_inner());
         let tolerance = self.0.params.goal_tolerance_m * 1000.0;
+        let reached_goal = target.is_some_and(|g| (width - g).abs() <= tolerance);
         GripperCommandFeedback {
             position: self.0.params.position_convention.from_width_mm(width),
             effort: if t.holding { force } else { 0.0 },
-            stalled: t.holding,
-            reached_goal: target.is_some_and(|g| (width - g).abs() <= tolerance),
+            stalled: t.holding && !reached_goal,
+            reached_goal,
         }
     }
 }

@@ -8,7 +8,7 @@ use tokio::sync::watch;
 
 use crate::action::{action_qos, Actuator, GoalKeeper};
 use crate::msgs::gripper_command_type;
-use crate::params::{Mapping, Params};
+use crate::params::{Live, Params};
 use crate::telemetry::Shared;
 use crate::trigger::{self, Handler};
 use crate::{diagnostics, joint_states, ros};
@@ -30,21 +30,21 @@ pub fn serve(
     telemetry: &Shared,
     actuator: Arc<dyn Actuator>,
     services: Services,
+    live: &Live,
     shutdown: &watch::Receiver<bool>,
 ) -> Result<(), String> {
-    let mapping = params
-        .service_mapping
-        .unwrap_or(Mapping::Enhanced)
-        .to_ros2();
-    let server = node
-        .create_action_server(
-            mapping,
-            &ros::private_name(params, "gripper_cmd")?,
-            &gripper_command_type(),
-            action_qos(),
-        )
-        .map_err(|e| format!("action ~/gripper_cmd: {e:?}"))?;
-    tokio::spawn(GoalKeeper::new(actuator).serve(server, shutdown.clone()));
+    let name = ros::private_name(params, "gripper_cmd")?;
+    let servers = crate::rpc::mappings(params)
+        .into_iter()
+        .map(|m| {
+            node.create_action_server(m, &name, &gripper_command_type(), action_qos())
+                .map(|s| (m, s))
+                .map_err(|e| format!("action ~/gripper_cmd: {e:?}"))
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    tokio::spawn(
+        GoalKeeper::new(actuator, live.allow_stalling.clone()).serve(servers, shutdown.clone()),
+    );
 
     joint_states::spawn(node, params, telemetry, shutdown)?;
     diagnostics::spawn(node, params, telemetry, shutdown)?;
@@ -54,7 +54,7 @@ pub fn serve(
         ("stop", services.stop),
         ("acknowledge", services.acknowledge),
     ] {
-        trigger::spawn(node, params, mapping, name, handler, shutdown.clone())?;
+        trigger::spawn(node, params, name, handler, shutdown.clone())?;
     }
     Ok(())
 }

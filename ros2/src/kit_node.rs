@@ -30,7 +30,7 @@ use tokio::sync::watch;
 use crate::msgs::{
     pose_stamped_type, Float64, Header, Point, Pose, PoseStamped, Quaternion, UInt16,
 };
-use crate::params::{Mapping, Params};
+use crate::params::Params;
 use crate::telemetry::Shared;
 use crate::{diagnostics, periodic, qos, ros, trigger};
 
@@ -114,10 +114,6 @@ pub fn start(
             MessageTypeName::new("std_msgs", "UInt16"),
         )?,
     });
-    let mapping = params
-        .service_mapping
-        .unwrap_or(Mapping::Enhanced)
-        .to_ros2();
     let next = {
         let (client, params, telemetry) = (client.clone(), params.clone(), telemetry.clone());
         let handler: trigger::Handler = Arc::new(move || {
@@ -131,7 +127,7 @@ pub fn start(
         });
         handler
     };
-    trigger::spawn(node, params, mapping, "next_grasp", next, shutdown.clone())?;
+    trigger::spawn(node, params, "next_grasp", next, shutdown.clone())?;
     for (name, feedback) in [
         ("grasp_ok", GraspFeedback::Ok),
         ("grasp_bad", GraspFeedback::Bad),
@@ -147,7 +143,7 @@ pub fn start(
                 Ok(format!("GRASP_FEEDBACK {feedback:?} sent"))
             })
         });
-        trigger::spawn(node, params, mapping, name, handler, shutdown.clone())?;
+        trigger::spawn(node, params, name, handler, shutdown.clone())?;
     }
     Ok(())
 }

@@ -10,18 +10,23 @@ pub mod action;
 pub mod diagnostics;
 pub mod griplink_node;
 pub mod gripper_node;
+pub mod joint_map;
 pub mod joint_states;
 pub mod kit_node;
 pub mod link;
+pub mod logging;
 pub mod msgs;
+pub mod param_services;
 pub mod params;
 pub mod periodic;
 pub mod qos;
 pub mod ros;
+pub mod rpc;
 pub mod sim;
 pub mod telemetry;
 pub mod trigger;
 pub mod wsg_node;
+pub mod wsg_text_node;
 
 use std::future::Future;
 use std::time::Duration;
@@ -37,6 +42,7 @@ pub const SHUTDOWN_GRACE: Duration = Duration::from_secs(3);
 /// The device link to close at shutdown.
 enum Link {
     Wsg(gripper::wsg::Client),
+    WsgText(gripper::wsg::text::Client),
     Griplink(gripper::griplink::Client),
     SmartGrasp(gripper::smartgrasp::Client),
 }
@@ -51,16 +57,24 @@ pub async fn run(cli: Cli, stop: impl Future<Output = ()>) -> Result<(), String>
         None => None,
     };
     let context = ros::context(&params)?;
-    let mut node = ros::node(&context, &params)?;
+    let mut node = ros::node(&context, &params, cli.rosout_logs)?;
+    logging::attach(&node, &params);
+    let live = params::Live::new(&params);
+    param_services::spawn(&context, &mut node, &params, &live, &shutdown)?;
     let link = match params.device {
+        DeviceKind::Wsg if params.transport == "text" => {
+            let client = wsg_text_node::connect(&params).await?;
+            wsg_text_node::start(&mut node, &params, client.clone(), &live, &shutdown).await?;
+            Link::WsgText(client)
+        }
         DeviceKind::Wsg => {
             let client = wsg_node::connect(&params).await?;
-            wsg_node::start(&mut node, &params, client.clone(), &shutdown).await?;
+            wsg_node::start(&mut node, &params, client.clone(), &live, &shutdown).await?;
             Link::Wsg(client)
         }
         DeviceKind::Griplink => {
             let client = griplink_node::connect(&params).await?;
-            griplink_node::start(&mut node, &params, client.clone(), &shutdown).await?;
+            griplink_node::start(&mut node, &params, client.clone(), &live, &shutdown).await?;
             Link::Griplink(client)
         }
         DeviceKind::SmartGrasp => {
@@ -69,11 +83,14 @@ pub async fn run(cli: Cli, stop: impl Future<Output = ()>) -> Result<(), String>
             Link::SmartGrasp(client)
         }
     };
+    let mapping = match params.service_mapping {
+        Some(m) => format!("{m:?} service mapping"),
+        None => "each peer's service mapping".to_owned(),
+    };
     tracing::info!(
-        "ready: node {} on ROS domain {}, {:?} service mapping",
+        "ready: node {} on ROS domain {}, {mapping}",
         params.fully_qualified_name(),
         params.domain_id,
-        params.service_mapping.unwrap_or(params::Mapping::Enhanced),
     );
     stop.await;
     tracing::info!("shutting down");
@@ -92,6 +109,12 @@ pub async fn run(cli: Cli, stop: impl Future<Output = ()>) -> Result<(), String>
             .await
             .map_err(|_| "closing the WSG link timed out".to_owned())
             .and_then(|r| r.map_err(|e| format!("closing the WSG link: {e}"))),
+        // BYE(): announces the disconnect, so the WSG does not go into FAST STOP (GCL manual,
+        // chapter 2).
+        Link::WsgText(client) => tokio::time::timeout(SHUTDOWN_GRACE, client.close())
+            .await
+            .map_err(|_| "closing the WSG text link timed out".to_owned())
+            .and_then(|r| r.map_err(|e| format!("closing the WSG text link: {e}"))),
         // BYE(): ends the session (manual 3.3.1).
         Link::Griplink(client) => tokio::time::timeout(SHUTDOWN_GRACE, client.close())
             .await

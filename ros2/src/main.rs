@@ -6,16 +6,6 @@ use std::process::ExitCode;
 use gripper_ros2::params::{Cli, USAGE};
 
 fn main() -> ExitCode {
-    tracing_subscriber::fmt()
-        .with_writer(std::io::stderr)
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env()
-                // RustDDS warns about every peer locator it cannot use, many times a second.
-                .unwrap_or_else(|_| {
-                    tracing_subscriber::EnvFilter::new("info,rustdds=error,ros2_client=warn")
-                }),
-        )
-        .init();
     let args: Vec<String> = std::env::args().skip(1).collect();
     if args.iter().any(|a| a == "-h" || a == "--help") {
         println!("{USAGE}");
@@ -32,6 +22,8 @@ fn main() -> ExitCode {
             return ExitCode::from(2);
         }
     };
+    // After the parse: --log-level and the log destinations are arguments.
+    gripper_ros2::logging::init(&cli);
     let runtime = match tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()

@@ -24,11 +24,17 @@ pub fn context(params: &Params) -> Result<Context, String> {
 
 /// The node, with its spinner (discovery, the graph, parameter services) running on the
 /// current tokio runtime.
-pub fn node(context: &Context, params: &Params) -> Result<Node, String> {
+/// `rosout`: whether the node publishes its log on `/rosout`. ros2-client's parameter
+/// services are off: the node serves its own ([`crate::param_services`]), with descriptors,
+/// ranges and the request/reply mapping of each peer.
+pub fn node(context: &Context, params: &Params, rosout: bool) -> Result<Node, String> {
     let name = NodeName::new(&params.namespace, &params.node_name)
         .map_err(|e| format!("node name: {e}"))?;
+    let options = NodeOptions::new()
+        .enable_rosout(rosout)
+        .start_parameter_services(false);
     let mut node = context
-        .new_node(name, NodeOptions::new().enable_rosout(true))
+        .new_node(name, options)
         .map_err(|e| format!("node: {e:?}"))?;
     let spinner = node.spinner().map_err(|e| format!("spinner: {e:?}"))?;
     tokio::spawn(async move {
@@ -39,19 +45,33 @@ pub fn node(context: &Context, params: &Params) -> Result<Node, String> {
     Ok(node)
 }
 
-/// `~/base`: a name under the node's own name (`/gripper/home`). Built absolute: ros2-client
-/// 0.12.1 expands neither `~` nor, correctly, a relative name in the root namespace (it would
-/// give `rq//home...`).
+/// `~/base`: a name under the node's own name (`/gripper/home`), after the remapping rules.
+/// Built absolute: ros2-client 0.12.1 expands neither `~` nor, correctly, a relative name in
+/// the root namespace (it would give `rq//home...`).
 pub fn private_name(params: &Params, base: &str) -> Result<Name, String> {
-    Name::new(&params.fully_qualified_name(), base).map_err(|e| format!("name ~/{base}: {e}"))
+    resolved(params, &format!("~/{base}"))
 }
 
-/// `base` in the node's namespace (`/joint_states`, `/left/joint_states`).
+/// `base` in the node's namespace (`/joint_states`, `/left/joint_states`), after the
+/// remapping rules (`-r joint_states:=/joint_states`).
 pub fn namespaced_name(params: &Params, base: &str) -> Result<Name, String> {
-    Name::new(&params.namespace, base).map_err(|e| format!("name {base}: {e}"))
+    resolved(params, base)
 }
 
-/// `/base`: a global name (`/diagnostics`, which the diagnostic aggregator reads).
-pub fn global_name(base: &str) -> Result<Name, String> {
-    Name::new("/", base).map_err(|e| format!("name /{base}: {e}"))
+/// `/base`: a global name (`/diagnostics`, which the diagnostic aggregator reads), after the
+/// remapping rules.
+pub fn global_name(params: &Params, base: &str) -> Result<Name, String> {
+    resolved(params, &format!("/{base}"))
+}
+
+/// `name` expanded and remapped as rcl resolves a topic or service name, as a ros2-client
+/// name (its namespace, its last token).
+fn resolved(params: &Params, name: &str) -> Result<Name, String> {
+    let full = params.expand(name).map_err(|e| e.0)?;
+    let full = params.remap(&full);
+    let (ns, base) = full
+        .rsplit_once('/')
+        .ok_or_else(|| format!("name {full}: not absolute"))?;
+    let ns = if ns.is_empty() { "/" } else { ns };
+    Name::new(ns, base).map_err(|e| format!("name {full}: {e}"))
 }

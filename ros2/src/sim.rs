@@ -32,15 +32,26 @@ pub async fn start(
 ) -> Result<Sim, String> {
     match kind {
         DeviceKind::Wsg => {
-            // A WSG 50 with a 40 mm part (±2 mm), moving in real time.
-            let server = SimServer::bind("127.0.0.1:0", SimConfig::standalone())
+            // A WSG 50 with a 40 mm part (±2 mm) between its fingers, which stops a closing
+            // move (E_AXIS_BLOCKED), moving in real time; over its text interface (GCL) with
+            // `transport: text`, else over the binary protocol on TCP.
+            let text = params.transport == "text";
+            let mut config = SimConfig::standalone().with_blocking_part();
+            if text {
+                config = config.text();
+            }
+            let server = SimServer::bind("127.0.0.1:0", config)
                 .await
                 .map_err(|e| format!("WSG simulator: {e}"))?;
             let addr = server
                 .local_addr()
                 .ok_or("the WSG simulator has no address")?;
-            tracing::info!("WSG simulator (WSG 50, 40 mm part, real time) on {addr}");
-            params.transport = "tcp".into();
+            tracing::info!(
+                "WSG simulator (WSG 50, a 40 mm part between the fingers, real time) on {addr}"
+            );
+            if !text {
+                params.transport = "tcp".into();
+            }
             params.address = addr.to_string();
             let server = Arc::new(server);
             tokio::spawn(log_wsg(server.clone(), shutdown));

@@ -4,15 +4,12 @@
 use std::sync::Arc;
 
 use futures::future::BoxFuture;
-use ros2_client::{Node, ServiceMapping};
+use ros2_client::Node;
 use tokio::sync::watch;
 
 use crate::msgs::{trigger_type, TriggerRequest, TriggerResponse};
 use crate::params::Params;
-use crate::{qos, ros};
-
-/// The pause after a failed read of a request.
-const ERROR_BACKOFF: std::time::Duration = std::time::Duration::from_millis(100);
+use crate::{ros, rpc};
 
 /// What a service does: `Ok(message)` or `Err(why)`.
 pub type Handler = Arc<dyn Fn() -> BoxFuture<'static, Result<String, String>> + Send + Sync>;
@@ -21,35 +18,22 @@ pub type Handler = Arc<dyn Fn() -> BoxFuture<'static, Result<String, String>> + 
 pub fn spawn(
     node: &mut Node,
     params: &Params,
-    mapping: ServiceMapping,
     name: &str,
     handler: Handler,
     mut shutdown: watch::Receiver<bool>,
 ) -> Result<(), String> {
-    let server = node
-        .create_server::<TriggerRequest, TriggerResponse>(
-            mapping,
-            &ros::private_name(params, name)?,
-            &trigger_type(),
-            qos::services(),
-            qos::services(),
-        )
-        .map_err(|e| format!("service ~/{name}: {e:?}"))?;
+    let server = rpc::Service::<TriggerRequest, TriggerResponse>::create(
+        node,
+        params,
+        &ros::private_name(params, name)?,
+        &trigger_type(),
+    )?;
     let name = name.to_owned();
     tokio::spawn(async move {
         loop {
             let request = tokio::select! {
-                r = server.async_receive_request() => r,
+                r = server.receive() => r,
                 _ = shutdown.wait_for(|s| *s) => return,
-            };
-            let id = match request {
-                Ok((id, _)) => id,
-                Err(e) => {
-                    tracing::warn!("~/{name}: reading a request failed: {e:?}");
-                    // A reader that keeps failing must not spin the runtime.
-                    tokio::time::sleep(ERROR_BACKOFF).await;
-                    continue;
-                }
             };
             tracing::info!("~/{name} called");
             let response = match handler().await {
@@ -65,8 +49,8 @@ pub fn spawn(
                     }
                 }
             };
-            if let Err(e) = server.send_response(id, response) {
-                tracing::warn!("~/{name}: answering failed: {e:?}");
+            if let Err(e) = server.respond(request.server, request.id, response) {
+                tracing::warn!("{e}");
             }
         }
     });

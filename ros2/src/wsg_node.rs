@@ -1,13 +1,18 @@
 //! A WSG gripper (binary protocol over TCP, UDP or serial) as a ROS 2 gripper node.
 //!
 //! - Goals: opening (the goal's position, see `position_convention`) within the stroke, and
-//!   `max_effort` 0 (keep the grasping force) or within the gripper's force limits (0x30 sets
-//!   it before the move). A goal that opens, or closes by less than the goal tolerance, is a
-//!   pre-position (0x21), or a release (0x26) while a part is held; a goal that closes is a
-//!   grasp (0x25) of a part of that nominal width: it ends holding (stalled, with the grasping
-//!   force as effort) or with E_CMD_FAILED, "no part found" (aborted). Set the goal's position
-//!   to the part's width, as the WSG's grasp command expects. With `grasp_on_close: false`
-//!   a closing goal is a pre-position too (stalled when blocked, E_AXIS_BLOCKED).
+//!   `max_effort` 0 (keep the grasping force) or within the gripper's force limits (the
+//!   grasping force, 0x32, is set before the move). A goal that opens, or closes by less than
+//!   the goal tolerance, is a pre-position (0x21), or a release (0x26) while a part is held.
+//! - A goal that closes **closes until contact**, whatever the part's width (MoveIt's "close" is
+//!   0 m): a pre-position with "stop on block" (0x21, flag D1, manual 3.2.2) towards the goal;
+//!   a part in the way stops it with E_AXIS_BLOCKED, and a grasp (0x25) at the width measured
+//!   there then holds the part with the grasping force (`max_effort`). The result is the
+//!   controller's: `stalled`, `reached_goal: false`, the position of the contact, the measured
+//!   force as `effort`; the `allow_stalling` parameter makes that SUCCEEDED (else ABORTED, as
+//!   gripper_action_controller does). With no part in the way the fingers reach the goal
+//!   (`reached_goal`, SUCCEEDED). With `grasp_on_close: false` the blocked fingers are left
+//!   where they stopped, without the grasp.
 //! - `joint_states` and the diagnostics come from the WSG's auto-update streams (manual 3.4.1):
 //!   width, speed and force at the `joint_states` rate, system and grip state on change, and
 //!   the temperature once a second.
@@ -15,6 +20,7 @@
 //!   resumed. An unannounced TCP loss leaves the WSG in FAST STOP (manual 1.4.2), which the
 //!   diagnostics report; `auto_acknowledge_fast_stop` acknowledges it after a reconnect.
 
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
@@ -57,7 +63,11 @@ pub async fn connect(params: &Params) -> Result<Client, String> {
             builder.connect_udp(addr).await
         }
         "serial" => builder.open_serial(&params.serial_port, params.baud_rate),
-        other => return Err(format!("transport {other:?}: expected tcp, udp or serial")),
+        other => {
+            return Err(format!(
+                "transport {other:?}: expected tcp, udp, serial or text"
+            ))
+        }
     };
     client.map_err(|e| format!("{what}: {e}"))
 }
@@ -67,6 +77,7 @@ pub async fn start(
     node: &mut Node,
     params: &Params,
     client: Client,
+    live: &crate::params::Live,
     shutdown: &watch::Receiver<bool>,
 ) -> Result<(), String> {
     let info = client
@@ -103,6 +114,7 @@ pub async fn start(
         params: params.clone(),
         limits,
         target_mm: Mutex::new(None),
+        stops: AtomicU64::new(0),
     }));
     let services = Services {
         home: handler(&wsg, |c| {
@@ -113,7 +125,15 @@ pub async fn start(
             Box::pin(async move { c.acknowledge_fast_stop().await })
         }),
     };
-    gripper_node::serve(node, params, &telemetry, Arc::new(wsg), services, shutdown)
+    gripper_node::serve(
+        node,
+        params,
+        &telemetry,
+        Arc::new(wsg),
+        services,
+        live,
+        shutdown,
+    )
 }
 
 fn where_(params: &Params) -> String {
@@ -295,6 +315,9 @@ struct Inner {
     limits: SystemLimits,
     /// The running goal's opening, mm (for the feedback's `reached_goal`).
     target_mm: Mutex<Option<f64>>,
+    /// Stops sent for a cancel or a preemption: a goal that sees this change sends no further
+    /// motion (no grasp after its closing move was stopped).
+    stops: AtomicU64,
 }
 
 impl Wsg {
@@ -320,7 +343,7 @@ impl Wsg {
                 let r = self.record::<()>(Err(e));
                 let message = r.err().map(|e| e.to_string()).unwrap_or_default();
                 Outcome {
-                    succeeded: false,
+                    failed: true,
                     result: self.feedback(),
                     message,
                 }
@@ -331,6 +354,7 @@ impl Wsg {
     async fn motion(&self, goal: GripperCommandGoal) -> gripper::wsg::Result<Outcome> {
         let inner = &self.0;
         let client = &inner.client;
+        let stops = inner.stops.load(Ordering::SeqCst);
         let target = inner
             .params
             .position_convention
@@ -348,9 +372,10 @@ impl Wsg {
         }
         let width = f64::from(client.width_mm().await?);
         let holding = client.grip_state().await? == GripState::Holding;
-        let closing = target < width - self.tolerance_mm() && inner.params.grasp_on_close;
+        let closing = target < width - self.tolerance_mm();
         let (kind, moved) = if closing {
-            ("grasp", client.grasp(target as f32, speed).await)
+            // Stops on a part in the way (stop on block), wherever it is.
+            ("close", client.pre_position(target as f32, speed).await)
         } else if holding {
             ("release", client.release(target as f32, speed).await)
         } else {
@@ -359,50 +384,68 @@ impl Wsg {
                 client.pre_position(target as f32, speed).await,
             )
         };
+        let blocked = matches!(&moved, Err(e) if e.status() == Some(Status::AxisBlocked));
+        // Contact: grasp the part where the fingers stopped, so that it is held with the
+        // grasping force (a blocked pre-position does not keep pressing, 3.2.2) and the WSG
+        // watches it (grip state HOLDING, PART LOST). Not after a stop of this goal.
+        let mut grasped = None;
+        if closing
+            && blocked
+            && inner.params.grasp_on_close
+            && inner.stops.load(Ordering::SeqCst) == stops
+        {
+            let contact = client.width_mm().await?;
+            grasped = Some((contact, client.grasp(contact, speed).await));
+        }
         // Where the fingers ended, whatever the motion's status.
         let width = f64::from(client.width_mm().await?);
         let force = f64::from(client.force_n().await?);
         let holding = client.grip_state().await? == GripState::Holding;
         let reached_goal = (width - target).abs() <= self.tolerance_mm();
-        let mut result = GripperCommandResult {
+        let result = GripperCommandResult {
             position: self.position(width),
             effort: force,
-            stalled: holding,
+            stalled: (holding || blocked) && !reached_goal,
             reached_goal,
         };
-        let (succeeded, message) = match moved {
-            Ok(()) => (
-                reached_goal || holding,
+        let (failed, message) = match (moved, grasped) {
+            (Ok(()), _) => (
+                false,
                 format!("{kind} to {target:.2} mm ended at {width:.2} mm"),
             ),
-            Err(e) if closing && e.status() == Some(Status::CmdFailed) => (
+            (Err(_), Some((contact, Ok(())))) => (
                 false,
-                format!("grasp at {target:.2} mm: no part found (E_CMD_FAILED)"),
+                format!("{kind} to {target:.2} mm: contact at {contact:.2} mm, holding with {force:.1} N"),
             ),
-            Err(e) if e.status() == Some(Status::AxisBlocked) => {
-                result.stalled = true;
-                (
-                    false,
-                    format!("{kind} to {target:.2} mm blocked at {width:.2} mm"),
-                )
-            }
-            Err(e) => {
+            (Err(_), Some((contact, Err(e)))) => {
                 let _ = self.record::<()>(Err(e));
-                let why = self
-                    .0
-                    .telemetry
-                    .lock()
-                    .last_error
-                    .clone()
-                    .unwrap_or_default();
-                (false, format!("{kind} to {target:.2} mm: {why}"))
+                let why = self.last_error();
+                (true, format!("{kind} to {target:.2} mm: grasp at the contact, {contact:.2} mm: {why}"))
+            }
+            (Err(_), None) if blocked => (
+                false,
+                format!("{kind} to {target:.2} mm blocked at {width:.2} mm"),
+            ),
+            (Err(e), None) => {
+                let _ = self.record::<()>(Err(e));
+                let why = self.last_error();
+                (true, format!("{kind} to {target:.2} mm: {why}"))
             }
         };
         Ok(Outcome {
-            succeeded,
+            failed,
             result,
             message,
         })
+    }
+
+    fn last_error(&self) -> String {
+        self.0
+            .telemetry
+            .lock()
+            .last_error
+            .clone()
+            .unwrap_or_default()
     }
 }
 
@@ -438,6 +481,7 @@ impl Actuator for Wsg {
 
     fn stop(&self) -> BoxFuture<'static, Result<(), String>> {
         let this = self.clone();
+        this.0.stops.fetch_add(1, Ordering::SeqCst);
         Box::pin(async move {
             let r = this.0.client.stop().await;
             this.record(r).map_err(|e| e.to_string())
@@ -448,11 +492,12 @@ impl Actuator for Wsg {
         let t = self.0.telemetry.get();
         let width = t.width_mm.unwrap_or(0.0);
         let target = *self.0.target_mm.lock().unwrap_or_else(|e| e.into_inner());
+        let reached_goal = target.is_some_and(|g| (width - g).abs() <= self.tolerance_mm());
         GripperCommandFeedback {
             position: self.position(width),
             effort: t.force_n.unwrap_or(0.0),
-            stalled: t.holding,
-            reached_goal: target.is_some_and(|g| (width - g).abs() <= self.tolerance_mm()),
+            stalled: t.holding && !reached_goal,
+            reached_goal,
         }
     }
 }

@@ -25,20 +25,32 @@ async fn sim(time_scale: f64) -> (SimServer, String) {
 async fn grip_on_a_part_release_and_a_grip_without_force_rejected() {
     let (sim, addr) = sim(0.0).await;
     sim.set_part(0, Some(10.0));
-    let (node, _me, gripper) = homed_gripper(params(
-        DeviceKind::Griplink,
-        addr,
-        domain(),
-        Mapping::Enhanced,
-    ))
-    .await;
+    let mut p = params(DeviceKind::Griplink, addr, domain(), Mapping::Enhanced);
+    p.allow_stalling = true;
+    let (node, _me, gripper) = homed_gripper(p).await;
 
-    let (_, status, result) = run_goal(&gripper, 0.005, 15.0).await;
+    // "Close" (0 m) on a part the goal does not know: the grip stops on it and holds it,
+    // a stall that allow_stalling makes SUCCEEDED.
+    let (_, status, result) = run_goal(&gripper, 0.0, 15.0).await;
     assert_eq!(status, GoalStatusEnum::Succeeded, "{result:?}");
     assert!(result.stalled && !result.reached_goal, "{result:?}");
     assert_eq!(result.effort, 15.0);
     assert!((result.position - 0.010).abs() < 0.0005, "{result:?}");
     assert_eq!(sim.device_state(0), Some(DeviceState::Holding));
+
+    // "Close" again: the part is already held (a grip now would be a state conflict): the
+    // same stall, nothing sent.
+    sim.start_recording(1024);
+    let (_, status, again) = run_goal(&gripper, 0.0, 15.0).await;
+    assert_eq!(status, GoalStatusEnum::Succeeded, "{again:?}");
+    assert!(
+        again.stalled && (again.position - 0.010).abs() < 0.0005,
+        "{again:?}"
+    );
+    assert!(!sim
+        .recording()
+        .iter()
+        .any(|x| x.request.starts_with("FLEXGRIP")));
 
     // Closing needs a force: max_effort 0 with no default_effort_n is rejected, unsent.
     let (_, response) = bounded("send_goal", gripper.async_send_goal(goal(0.002, 0.0)))
@@ -81,5 +93,62 @@ async fn a_cancel_disables_the_port_and_the_goal_ends_canceled() {
     assert_eq!(status, GoalStatusEnum::Canceled, "{result:?}");
     assert!(!result.reached_goal && !result.stalled, "{result:?}");
     assert_eq!(sim.device_state(0), Some(DeviceState::Disabled));
+    node.stop().await.unwrap();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_cancel_of_a_grip_that_already_holds_leaves_the_part_held() {
+    // Real time: 20 -> 10 mm at 20 mm/s takes 0.5 s.
+    let (sim, addr) = sim(1.0).await;
+    sim.set_part(0, Some(10.0));
+    let mut p = params(DeviceKind::Griplink, addr, domain(), Mapping::Enhanced);
+    p.speed_m_per_s = 0.02;
+    p.default_effort_n = 10.0;
+    let (node, _me, gripper) = homed_gripper(p).await;
+    sim.start_recording(4096);
+    let (id, accepted) = bounded("send_goal", gripper.async_send_goal(goal(0.0, 0.0)))
+        .await
+        .unwrap();
+    assert!(accepted.accepted);
+    bounded("the grip sent", async {
+        while !sim
+            .recording()
+            .iter()
+            .any(|x| x.request.starts_with("FLEXGRIP"))
+        {
+            tokio::time::sleep(POLL).await;
+        }
+    })
+    .await;
+    // The node sees nothing of the device until the gate opens: the goal still runs when the
+    // part is clamped.
+    let gate = sim.hold_next_reply();
+    bounded("the part held", async {
+        while sim.device_state(0) != Some(DeviceState::Holding) {
+            tokio::time::sleep(POLL).await;
+        }
+    })
+    .await;
+    let response = bounded("cancel", gripper.async_cancel_goal(id, Time::ZERO))
+        .await
+        .unwrap();
+    assert_eq!(response.return_code, CancelGoalResponseEnum::None);
+    gate.release();
+    let (status, result) = bounded("get_result", gripper.async_request_result(id))
+        .await
+        .unwrap();
+    assert_eq!(status, GoalStatusEnum::Canceled, "{result:?}");
+    // No DISABLE, which would have let go of it (manual 3.4.2).
+    assert_eq!(sim.device_state(0), Some(DeviceState::Holding));
+    assert!(
+        !sim.recording()
+            .iter()
+            .any(|x| x.request.starts_with("DISABLE")),
+        "DISABLE sent"
+    );
+    assert!(
+        result.stalled && (result.position - 0.010).abs() < 0.0005,
+        "{result:?}"
+    );
     node.stop().await.unwrap();
 }

@@ -26,6 +26,7 @@ async fn next_grasp_publishes_pose_stroke_and_class_until_the_bin_is_empty() {
         Mapping::Enhanced,
     );
     p.frame_id = "bin_camera".into();
+    p.service_mapping = None;
     let node = Running::start(p);
     let mut me = TestNode::new(d, "test_client");
     let pose_topic = me

@@ -18,16 +18,45 @@ async fn sim(config: SimConfig) -> (SimServer, String) {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn goals_results_and_a_late_result_request_with_the_enhanced_mapping() {
-    // Instant motion: the moves cost no wall time.
-    let (wsg, addr) = sim(SimConfig::default().with_part(40.0, 2.0)).await;
-    let (node, _me, gripper) =
-        homed_gripper(params(DeviceKind::Wsg, addr, domain(), Mapping::Enhanced)).await;
+async fn close_until_contact_on_a_part_of_unknown_width_and_a_late_result_request() {
+    // Instant motion: the moves cost no wall time. The 40 mm part sits between the fingers.
+    let (wsg, addr) = sim(SimConfig::default()
+        .with_part(40.0, 2.0)
+        .with_blocking_part())
+    .await;
+    let mut p = params(DeviceKind::Wsg, addr, domain(), Mapping::Enhanced);
+    // auto, the default: this RustDDS peer is answered in the Enhanced mapping (a Cyclone DDS
+    // peer in the Cyclone one: .ci/ros2_peer.py).
+    p.service_mapping = None;
+    p.allow_stalling = true;
+    let (node, _me, gripper) = homed_gripper(p).await;
 
-    let (id, status, result) = run_goal(&gripper, 0.04, 30.0).await;
-    assert_eq!(status, GoalStatusEnum::Succeeded);
-    assert!(result.stalled && result.reached_goal, "{result:?}");
+    // MoveIt's "close": 0 m. The fingers stop on the part (E_AXIS_BLOCKED), grasp it there and
+    // hold it with the goal's force; reported as gripper_action_controller reports a stall,
+    // SUCCEEDED with allow_stalling.
+    let (id, status, result) = run_goal(&gripper, 0.0, 30.0).await;
+    assert_eq!(status, GoalStatusEnum::Succeeded, "{result:?}");
+    assert!(result.stalled && !result.reached_goal, "{result:?}");
     assert_eq!((result.position, result.effort), (0.04, 30.0));
+    let ids = wsg.received_ids();
+    let pre = ids
+        .iter()
+        .rposition(|&i| i == 0x21)
+        .expect("a pre-position");
+    assert!(
+        ids[pre..].contains(&0x25),
+        "no grasp after the contact: {ids:02x?}"
+    );
+    assert_eq!(
+        wsg.snapshot().grip_state,
+        gripper::wsg::GripState::Holding,
+        "the part is held"
+    );
+
+    // "Close" again while holding it: the fingers are on the part, blocked at once, and hold.
+    let (_, status, again) = run_goal(&gripper, 0.0, 30.0).await;
+    assert_eq!(status, GoalStatusEnum::Succeeded, "{again:?}");
+    assert!(again.stalled && again.position == 0.04, "{again:?}");
 
     // Asked again long after the goal ended: answered from the kept results (ros2-client's
     // AsyncActionServer never answers this one).
@@ -36,15 +65,10 @@ async fn goals_results_and_a_late_result_request_with_the_enhanced_mapping() {
         .unwrap();
     assert_eq!((status, again), (GoalStatusEnum::Succeeded, result));
 
-    // Open (a release, the part is held), then close where no part is: the grasp finds none
-    // (E_CMD_FAILED) and the goal is ABORTED, its result answered all the same (ros2-client's
-    // abort_*_goal never answers a pending get_result).
+    // Open (a release, the part is held): the position is reached.
     let (_, status, result) = run_goal(&gripper, 0.07, 0.0).await;
     assert_eq!(status, GoalStatusEnum::Succeeded);
     assert!(result.reached_goal && !result.stalled, "{result:?}");
-    let (_, status, result) = run_goal(&gripper, 0.02, 0.0).await;
-    assert_eq!(status, GoalStatusEnum::Aborted, "{result:?}");
-    assert!(!result.stalled && !result.reached_goal, "{result:?}");
 
     // A goal id never sent: STATUS_UNKNOWN, as rclcpp_action answers.
     let (status, _) = bounded(
@@ -77,25 +101,53 @@ async fn goals_results_and_a_late_result_request_with_the_enhanced_mapping() {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn a_cancel_stops_the_fingers_and_a_second_goal_is_rejected_meanwhile() {
-    let (sim, addr) = sim(SimConfig::default()).await;
+async fn a_new_goal_preempts_the_running_one_and_a_cancel_stops_the_fingers() {
+    let (sim, addr) = sim(SimConfig::default()
+        .with_part(40.0, 2.0)
+        .with_blocking_part())
+    .await;
     let mut p = params(DeviceKind::Wsg, addr, domain(), Mapping::Cyclone);
-    p.speed_m_per_s = 0.01;
+    p.speed_m_per_s = 0.05;
     let (node, _me, gripper) = homed_gripper(p).await;
-    // Real time from here: a 100 mm move at 10 mm/s takes 10 s, so the cancel finds it running.
+    // Real time from here: 110 -> 60 mm at 50 mm/s takes 1 s, so the second goal finds the
+    // first one running.
     sim.set_time_scale(1.0);
-    let (id, accepted) = bounded("send_goal", gripper.async_send_goal(goal(0.005, 0.0)))
+    let (first, accepted) = bounded("send_goal", gripper.async_send_goal(goal(0.06, 0.0)))
         .await
         .unwrap();
     assert!(accepted.accepted);
-    let (_, second) = bounded("second goal", gripper.async_send_goal(goal(0.05, 0.0)))
+    let (second, accepted) = bounded("second goal", gripper.async_send_goal(goal(0.09, 0.0)))
         .await
         .unwrap();
+    assert!(accepted.accepted, "a new goal preempts, it is not rejected");
+    // The first ends CANCELED (as gripper_action_controller's preempt_active_goal ends it),
+    // short of its position; the second runs to its own.
+    let (status, result) = bounded("first result", gripper.async_request_result(first))
+        .await
+        .unwrap();
+    assert_eq!(status, GoalStatusEnum::Canceled, "{result:?}");
     assert!(
-        !second.accepted,
-        "a goal while another runs must be rejected"
+        !result.reached_goal && result.position > 0.061,
+        "{result:?}"
     );
+    let (status, result) = bounded("second result", gripper.async_request_result(second))
+        .await
+        .unwrap();
+    assert_eq!(status, GoalStatusEnum::Succeeded, "{result:?}");
+    assert!(
+        result.reached_goal && (result.position - 0.09).abs() < 1e-3,
+        "{result:?}"
+    );
+    // The device stopped the first motion (0x22) before the second started.
+    let ids = sim.received_ids();
+    let stop = ids.iter().position(|&i| i == 0x22).expect("a stop");
+    assert!(ids[stop..].contains(&0x21), "{ids:02x?}");
 
+    // A cancel: the fingers stop where they are (90 -> 20 mm takes 1.4 s).
+    let (id, accepted) = bounded("send_goal", gripper.async_send_goal(goal(0.1, 0.0)))
+        .await
+        .unwrap();
+    assert!(accepted.accepted);
     let response = bounded("cancel", gripper.async_cancel_goal(id, Time::ZERO))
         .await
         .unwrap();
@@ -106,15 +158,21 @@ async fn a_cancel_stops_the_fingers_and_a_second_goal_is_rejected_meanwhile() {
         .unwrap();
     assert_eq!(status, GoalStatusEnum::Canceled);
     assert!(
-        result.position > 0.006 && !result.reached_goal,
+        result.position < 0.099 && !result.reached_goal,
         "{result:?}"
     );
-    // The stop (0x22) reached the gripper.
-    assert!(sim.received_ids().contains(&0x22));
     assert!(sim
         .snapshot()
         .system_state
         .contains(gripper::wsg::SystemState::AXIS_STOPPED));
+
+    // Without allow_stalling (the controller's default), closing on the part is a stall that
+    // ABORTS, reported all the same: stalled at the part, holding it.
+    sim.set_time_scale(0.0);
+    let (_, status, result) = run_goal(&gripper, 0.0, 0.0).await;
+    assert_eq!(status, GoalStatusEnum::Aborted, "{result:?}");
+    assert!(result.stalled && !result.reached_goal, "{result:?}");
+    assert_eq!(result.position, 0.04);
     node.stop().await.unwrap();
 }
 
@@ -212,4 +270,79 @@ async fn auto_acknowledge_clears_the_fast_stop_after_a_reconnect() {
     })
     .await;
     node.stop().await.unwrap();
+}
+
+/// The parameter services of a node with `service_mapping: auto` answer this RustDDS peer in
+/// the Enhanced mapping (.ci/ros2_peer.py checks the Cyclone one against the same default),
+/// and a set of `allow_stalling` changes how the next stall ends.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn parameter_services_and_a_live_allow_stalling() {
+    use ros2_client::parameters::{raw, ParameterValue};
+    use ros2_client::rcl_interfaces::{
+        ListParametersRequest, ListParametersResponse, SetParametersRequest, SetParametersResponse,
+    };
+
+    let (_wsg, addr) = sim(SimConfig::default()
+        .with_part(40.0, 2.0)
+        .with_blocking_part())
+    .await;
+    let mut p = params(DeviceKind::Wsg, addr, domain(), Mapping::Enhanced);
+    p.service_mapping = None;
+    let (node, mut me, gripper) = homed_gripper(p).await;
+    let list = param_client::<ListParametersRequest, ListParametersResponse>(
+        &mut me,
+        "list_parameters",
+        "ListParameters",
+    );
+    let set = param_client::<SetParametersRequest, SetParametersResponse>(
+        &mut me,
+        "set_parameters",
+        "SetParameters",
+    );
+    me.wait_for_service("gripper/list_parameters").await;
+    me.wait_for_service("gripper/set_parameters").await;
+    let listed = ping("list_parameters", || {
+        list.async_call_service(ListParametersRequest {
+            prefixes: Vec::new(),
+            depth: 0,
+        })
+    })
+    .await;
+    assert!(listed.result.names.contains(&"allow_stalling".to_owned()));
+
+    // The default, false: a stall on the part ABORTS.
+    let (_, status, _) = run_goal(&gripper, 0.0, 0.0).await;
+    assert_eq!(status, GoalStatusEnum::Aborted);
+    let (_, status, _) = run_goal(&gripper, 0.07, 0.0).await;
+    assert_eq!(status, GoalStatusEnum::Succeeded);
+    let set_to = |v: bool| SetParametersRequest {
+        parameter: vec![raw::Parameter {
+            name: "allow_stalling".into(),
+            value: ParameterValue::Boolean(v).into(),
+        }],
+    };
+    // Idempotent: repeated until answered.
+    let r = ping("set_parameters", || set.async_call_service(set_to(true))).await;
+    assert!(r.results[0].successful, "{:?}", r.results);
+    let (_, status, result) = run_goal(&gripper, 0.0, 0.0).await;
+    assert_eq!(status, GoalStatusEnum::Succeeded, "{result:?}");
+    assert!(result.stalled);
+    node.stop().await.unwrap();
+}
+
+/// A client (Enhanced mapping) of the node's parameter service `/gripper/<name>`.
+fn param_client<Q, P>(me: &mut TestNode, name: &str, type_name: &str) -> ros2_client::Client<Q, P>
+where
+    Q: ros2_client::Message + Clone + 'static,
+    P: ros2_client::Message + 'static,
+{
+    me.node
+        .create_client::<Q, P>(
+            ServiceMapping::Enhanced,
+            &ros2_client::Name::new("/gripper", name).unwrap(),
+            &ros2_client::ServiceTypeName::new("rcl_interfaces", type_name),
+            gripper_ros2::qos::services(),
+            gripper_ros2::qos::services(),
+        )
+        .unwrap()
 }

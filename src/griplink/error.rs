@@ -5,6 +5,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use super::status::Status;
+use crate::ErrorKind;
 
 /// `Result` with [`Error`].
 pub type Result<T> = std::result::Result<T, Error>;
@@ -14,7 +15,8 @@ pub type Result<T> = std::result::Result<T, Error>;
 /// The variants keep apart who said no: the controller ([`Error::Device`]), the connection
 /// ([`Error::Io`], [`Error::ConnectionLost`], [`Error::Closed`]), the clock ([`Error::Timeout`]), the
 /// bytes on the wire ([`Error::MalformedReply`], [`Error::UnexpectedReply`]) and this crate
-/// before anything was sent ([`Error::InvalidArgument`]).
+/// before anything was sent ([`Error::InvalidArgument`]). [`Error::kind`] classifies them the
+/// same way as the other protocols' errors.
 #[derive(Debug, Clone, thiserror::Error)]
 #[non_exhaustive]
 pub enum Error {
@@ -68,19 +70,22 @@ pub enum Error {
     },
     /// Connecting failed (refused, or timed out), or reading or writing failed for another
     /// reason than the controller ending the connection.
-    #[error("connection error: {0}")]
+    #[error("I/O error: {0}")]
     Io(#[source] Arc<io::Error>),
     /// The connection is closed by this side: `close()` was called, or every handle was
     /// dropped.
-    #[error("connection closed")]
+    #[error("the client was closed")]
     Closed,
     /// The connection was lost after it was open: the controller closed or reset it (possibly
     /// in the middle of a reply line), or the client gave up on it because the in-order pairing of
     /// replies can no longer be trusted (a reply stayed away far past its timeout, the
     /// controller stopped reading, or a reply did not answer its command while other commands
     /// were on the wire). Every later call gets it too, unless the client reconnects.
-    #[error("connection lost: {0}")]
-    ConnectionLost(String),
+    #[error("connection lost: {reason}")]
+    ConnectionLost {
+        /// Why, as far as known.
+        reason: Arc<str>,
+    },
 }
 
 /// `ERR 19 E_STATE_CONFLICT: Invalid state`, plus the controller's own text when verbose mode
@@ -104,6 +109,29 @@ impl Error {
         match self {
             Error::Device { status, .. } => Some(*status),
             _ => None,
+        }
+    }
+
+    /// What kind of failure this is, in the classification every protocol shares.
+    pub fn kind(&self) -> ErrorKind {
+        match self {
+            Error::Device { .. } => ErrorKind::Device,
+            Error::InvalidArgument { .. } => ErrorKind::InvalidArgument,
+            Error::Timeout { .. } => ErrorKind::Timeout,
+            // A reply that does not answer its command is as untrustworthy as one that does
+            // not parse.
+            Error::MalformedReply { .. } | Error::UnexpectedReply { .. } => {
+                ErrorKind::MalformedReply
+            }
+            Error::Io(e) => ErrorKind::of_io(e),
+            Error::Closed => ErrorKind::Closed,
+            Error::ConnectionLost { .. } => ErrorKind::ConnectionLost,
+        }
+    }
+
+    pub(crate) fn lost(reason: impl Into<Arc<str>>) -> Error {
+        Error::ConnectionLost {
+            reason: reason.into(),
         }
     }
 

@@ -7,7 +7,12 @@ use std::time::Duration;
 
 use super::message::RequestError;
 use super::pose::PoseError;
-use super::types::{CommunicationType, MessageType, ResponseCode, ServerState};
+use super::types::{MessageType, ResponseCode, ServerState};
+// `Malformed` has a room of its own, below `message` (which decodes responses into it) and this
+// file (whose `Error` wraps it); it is re-exported here, where it has always been public.
+#[doc(inline)]
+pub use super::malformed::Malformed;
+use crate::ErrorKind;
 
 /// Result of this module.
 pub type Result<T> = std::result::Result<T, Error>;
@@ -18,7 +23,8 @@ pub type Result<T> = std::result::Result<T, Error>;
 /// [`Error::NotOperational`]), the connection ([`Error::Io`], [`Error::ConnectionLost`],
 /// [`Error::Closed`], [`Error::ResponseLost`]), the clock ([`Error::Timeout`]), the bytes on the
 /// wire ([`Error::MalformedReply`]) and this crate before anything was sent
-/// ([`Error::InvalidArgument`], [`Error::Pose`]).
+/// ([`Error::InvalidArgument`], [`Error::Pose`]). [`Error::kind`] classifies them the same way
+/// as the other protocols' errors.
 ///
 /// `Clone`, so the reason a connection broke can be handed to every call that was waiting on it.
 #[derive(Debug, Clone, thiserror::Error)]
@@ -79,11 +85,11 @@ pub enum Error {
     MalformedReply(#[from] Malformed),
     /// Reading from or writing to the socket failed, or connecting failed.
     #[error("I/O error: {0}")]
-    Io(Arc<std::io::Error>),
+    Io(#[source] Arc<std::io::Error>),
     /// The connection was lost: the server closed it, it stopped reading requests, or an earlier
     /// error broke it. Without [`ClientConfig::reconnect`](super::ClientConfig::reconnect) (or
     /// once its policy gave up) every later call gets this too.
-    #[error("the connection is lost: {reason}")]
+    #[error("connection lost: {reason}")]
     ConnectionLost {
         /// Why, as far as known.
         reason: Arc<str>,
@@ -98,8 +104,13 @@ pub enum Error {
     #[error("cannot send: {0}")]
     Request(#[from] RequestError),
     /// An argument was refused before anything was sent.
-    #[error("invalid argument: {0}")]
-    InvalidArgument(&'static str),
+    #[error("invalid {what}: {reason}")]
+    InvalidArgument {
+        /// Which argument.
+        what: &'static str,
+        /// Why.
+        reason: String,
+    },
     /// A pose could not be converted.
     #[error("pose: {0}")]
     Pose(#[from] PoseError),
@@ -115,63 +126,36 @@ impl Error {
     }
 }
 
+impl Error {
+    /// What kind of failure this is, in the classification every protocol shares.
+    pub fn kind(&self) -> ErrorKind {
+        match self {
+            // The server's state is its answer that it cannot serve the call.
+            Error::Device { .. } | Error::NotOperational { .. } => ErrorKind::Device,
+            Error::ServerTooOld { .. } => ErrorKind::Incompatible,
+            Error::ResponseLost { .. } => ErrorKind::ReplyLost,
+            Error::Timeout { .. } => ErrorKind::Timeout,
+            Error::MalformedReply(_) => ErrorKind::MalformedReply,
+            Error::Io(e) => ErrorKind::of_io(e),
+            Error::ConnectionLost { .. } => ErrorKind::ConnectionLost,
+            Error::Closed => ErrorKind::Closed,
+            // Nothing was sent: the request (or its pose) cannot be put on the wire.
+            Error::Request(_) | Error::InvalidArgument { .. } | Error::Pose(_) => {
+                ErrorKind::InvalidArgument
+            }
+        }
+    }
+
+    pub(crate) fn invalid(what: &'static str, reason: impl Into<String>) -> Error {
+        Error::InvalidArgument {
+            what,
+            reason: reason.into(),
+        }
+    }
+}
+
 impl From<std::io::Error> for Error {
     fn from(e: std::io::Error) -> Self {
         Error::Io(Arc::new(e))
     }
-}
-
-/// A reply that breaks the protocol's rules.
-#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-pub enum Malformed {
-    /// The prefix's length field is neither 74 (a V3 or V4 frame) nor 0 (the "too old" answer). The
-    /// stream cannot be resynchronised, so the connection is reported broken; the length is not
-    /// allocated.
-    #[error("frame length {length} (a V3 or V4 frame has 74 bytes after the prefix)")]
-    FrameLength {
-        /// The length field as received.
-        length: u32,
-    },
-    /// A response carried another version in its prefix than its request (a server answers
-    /// with the version the request used, manual 1.3).
-    #[error("protocol version {version} in the response to a request of another version")]
-    Version {
-        /// The version as received.
-        version: u16,
-    },
-    /// The header's communication type is not "response".
-    #[error("communication type {0} where a response was expected")]
-    CommunicationType(CommunicationType),
-    /// The response's message type differs from the request's: the pairing of requests and
-    /// responses cannot be trusted any more, so the connection is closed.
-    #[error("response of type {received} to a {expected} request")]
-    MessageType {
-        /// The request's message type.
-        expected: MessageType,
-        /// The response's message type.
-        received: MessageType,
-    },
-    /// A SUCCESS response does not repeat a field of the request it was paired with, as the
-    /// manual says it does (GET_GRASP: tool, pose format and a non-zero object class, 3.3.3.1;
-    /// GET_OBJECT_COUNT: object class, 3.3.4.1). It answers another request (or was corrupted):
-    /// the connection is closed rather than hand it to this caller.
-    #[error("the response to {request} does not repeat the request's {field}")]
-    Echo {
-        /// The request's message type.
-        request: MessageType,
-        /// The field that differs.
-        field: &'static str,
-    },
-    /// A response arrived while no request was waiting.
-    #[error("unsolicited response (counter {counter})")]
-    Unsolicited {
-        /// Its response counter.
-        counter: u8,
-    },
-    /// A SUCCESS response without the body its message type has.
-    #[error("a SUCCESS response without its body")]
-    MissingBody,
-    /// A successful GET_GRASP response carried a pose that cannot be read.
-    #[error("grasp pose: {0}")]
-    Pose(PoseError),
 }

@@ -4,8 +4,8 @@
 //! works with either; what only one version carries is an `Option` (responses) or is ignored by
 //! the other version's frame (requests, documented per field). Pure: no I/O.
 
-use super::error::Malformed;
 use super::frame::{v4, AnyRequestFrame, AnyResponseFrame, RequestFrame, ResponseFrame};
+use super::malformed::Malformed;
 use super::pose::{Pose, PoseError};
 use super::types::{
     CommunicationType, GraspFeedback, GraspMode, MessageType, PoseFormat, ReferenceFrame,

@@ -142,6 +142,7 @@ mod client;
 pub mod codec;
 pub mod error;
 pub mod frame;
+mod malformed;
 pub mod message;
 pub mod pose;
 #[cfg(feature = "sim")]

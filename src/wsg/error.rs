@@ -1,8 +1,10 @@
 //! The one error type of [`crate::wsg`].
 
+use std::sync::Arc;
 use std::time::Duration;
 
 use super::{Status, UpdateOptions};
+use crate::ErrorKind;
 
 /// Everything a WSG call can fail with.
 ///
@@ -10,8 +12,11 @@ use super::{Status, UpdateOptions};
 /// connection ([`Error::Io`], [`Error::ConnectionLost`], [`Error::Closed`]), no answer in time
 /// ([`Error::Timeout`]), a reply that does not parse ([`Error::MalformedReply`]), and arguments
 /// refused before anything was sent ([`Error::InvalidArgument`],
-/// [`Error::SubscriptionConflict`]).
-#[derive(Debug, thiserror::Error)]
+/// [`Error::SubscriptionConflict`]). [`Error::kind`] classifies them the same way as the other
+/// protocols' errors.
+///
+/// `Clone`, so the reason a connection broke can be handed to every call that was waiting on it.
+#[derive(Debug, Clone, thiserror::Error)]
 #[non_exhaustive]
 pub enum Error {
     /// The device answered the command with a status other than E_SUCCESS.
@@ -22,13 +27,17 @@ pub enum Error {
         /// The status code of the (final) reply.
         status: Status,
     },
-    /// Opening or configuring the transport failed.
+    /// Opening or configuring the transport failed (a connect that ran out of its timeout is
+    /// an error of kind [`std::io::ErrorKind::TimedOut`]).
     #[error("I/O error: {0}")]
-    Io(#[from] std::io::Error),
+    Io(#[source] Arc<std::io::Error>),
     /// The connection broke: the call was in progress, or the client had already lost its
     /// connection (every later call gets this too).
-    #[error("connection to the gripper lost: {0}")]
-    ConnectionLost(String),
+    #[error("connection lost: {reason}")]
+    ConnectionLost {
+        /// Why, as far as known.
+        reason: Arc<str>,
+    },
     /// The client was closed with [`Client::close`](super::Client::close).
     #[error("the client was closed")]
     Closed,
@@ -58,8 +67,13 @@ pub enum Error {
         reason: String,
     },
     /// The arguments were refused before sending (out of the protocol's range).
-    #[error("invalid argument: {0}")]
-    InvalidArgument(String),
+    #[error("invalid {what}: {reason}")]
+    InvalidArgument {
+        /// Which argument.
+        what: &'static str,
+        /// Why.
+        reason: String,
+    },
     /// A subscription asked for other update options than the value's stream already has.
     /// The device sends one stream per value (manual 3.4.1), so serving the new options would
     /// change the stream under the subscribers it has: subscribe with `active`, or drop the
@@ -80,6 +94,43 @@ impl Error {
             Error::Device { status, .. } => Some(*status),
             _ => None,
         }
+    }
+
+    /// What kind of failure this is, in the classification every protocol shares.
+    pub fn kind(&self) -> ErrorKind {
+        match self {
+            Error::Device { .. } => ErrorKind::Device,
+            Error::Io(e) => ErrorKind::of_io(e),
+            Error::ConnectionLost { .. } => ErrorKind::ConnectionLost,
+            Error::Closed => ErrorKind::Closed,
+            Error::Timeout { .. } => ErrorKind::Timeout,
+            Error::ReplyLost { .. } => ErrorKind::ReplyLost,
+            Error::MalformedReply { .. } => ErrorKind::MalformedReply,
+            // Refused before sending, as an out-of-range argument is: the caller changes the
+            // options (or drops the other subscriptions) and asks again.
+            Error::InvalidArgument { .. } | Error::SubscriptionConflict { .. } => {
+                ErrorKind::InvalidArgument
+            }
+        }
+    }
+
+    pub(crate) fn invalid(what: &'static str, reason: impl Into<String>) -> Error {
+        Error::InvalidArgument {
+            what,
+            reason: reason.into(),
+        }
+    }
+
+    pub(crate) fn lost(reason: impl Into<Arc<str>>) -> Error {
+        Error::ConnectionLost {
+            reason: reason.into(),
+        }
+    }
+}
+
+impl From<std::io::Error> for Error {
+    fn from(e: std::io::Error) -> Self {
+        Error::Io(Arc::new(e))
     }
 }
 

@@ -5,8 +5,13 @@
 # and how many of RUNS fresh runs per variant show the bug's violation (`--kind`; a known,
 # tagged finding does not count: a residual risk is no catch).
 # Usage: [BUGS=N] tests/explore/plant.sh [RUNS] [--only VARIANT]   (BUGS=1: only bug 1)
+#        tests/explore/plant.sh --check   (does each bug still apply? no build, seconds)
 set -euo pipefail
 root=$(git rev-parse --show-toplevel)
+# `plant.sh --check`: only whether every bug still applies to this tree (no build; CI runs it).
+if [ "${1:-}" = --check ]; then
+  exec python3 "$root/tests/explore/planted/_plant.py" --check "$root"
+fi
 runs=${1:-3000}
 shift || true
 tree=$(mktemp -d /tmp/gripper-plant.XXXXXX)
@@ -25,7 +30,9 @@ explorer() {
 # the copy, each bug's "without" row would run the previous bug's build.
 cp "$(explorer)" "$tree.baseline"
 baseline="$tree.baseline"
-for bug in "$root"/tests/explore/planted/${BUGS:-[0-9]}*.py; do
+# BUGS=3 is bug 3 alone, not 30-39 too (bugs are numbered past 9 since issue 29).
+pattern=${BUGS:+${BUGS}_*.py}
+for bug in "$root"/tests/explore/planted/${pattern:-[0-9]*.py}; do
   name=$(basename "$bug" .py)
   kind=$(sed -n 's/^KIND = "\(.*\)"$/\1/p' "$bug")
   echo "== $name (violation: $kind)"

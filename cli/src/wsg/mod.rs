@@ -24,7 +24,7 @@ use gripper::wsg::{Client, ClientBuilder, Error, HomingDirection, SoftLimits, St
 use serde_json::json;
 
 use crate::common::{parse_duration, parse_hex, with_default_port};
-use crate::error::{CliError, DeviceCode, Kind};
+use crate::error::{classify, CliError, DeviceCode, Kind};
 use crate::output::Out;
 use show::{decode_reply, grip_json, grip_name, num, soft_limits_json, status_json, to_hex};
 
@@ -285,7 +285,7 @@ async fn open(args: &Args, builder: ClientBuilder, addr: &str) -> Result<Client,
     if args.udp {
         let remote = tokio::net::lookup_host(addr)
             .await
-            .map_err(|e| cannot(Error::Io(e)))?
+            .map_err(|e| cannot(Error::from(e)))?
             .next()
             .ok_or_else(|| CliError::argument(format!("{addr} resolves to no address")))?;
         return match args.local {
@@ -540,34 +540,15 @@ pub(super) fn optional<T>(reply: gripper::wsg::Result<T>) -> Result<Option<T>, C
     }
 }
 
-/// The library's error as a `gripctl` error: the gripper's status code where it gave one.
-pub(super) fn classify(e: Error) -> CliError {
-    let message = e.to_string();
-    match e {
-        Error::Device { status, .. } => device_error(message, status),
-        Error::Timeout { .. } => CliError::new(Kind::Timeout, message),
-        Error::Io(io) if io.kind() == std::io::ErrorKind::TimedOut => {
-            CliError::new(Kind::Timeout, io.to_string())
-        }
-        Error::Io(io) => CliError::new(Kind::Connection, io.to_string()),
-        Error::ConnectionLost(_) | Error::Closed => CliError::new(Kind::Connection, message),
-        Error::MalformedReply { .. } => CliError::new(Kind::Malformed, message),
-        // Options that clash with a live auto-update stream are the caller's to change.
-        Error::InvalidArgument(_) | Error::SubscriptionConflict { .. } => {
-            CliError::argument(message)
-        }
-        // `wsg::Error` is non-exhaustive: a kind added later still gets its message through.
-        _ => CliError::new(Kind::Connection, message),
-    }
+pub(super) fn device_error(message: String, status: Status) -> CliError {
+    CliError::device(message, device_code(status))
 }
 
-pub(super) fn device_error(message: String, status: Status) -> CliError {
-    CliError::device(
-        message,
-        DeviceCode {
-            number: status.code().into(),
-            name: status.symbol().to_owned(),
-            description: status.description().to_owned(),
-        },
-    )
+/// A WSG status code (binary and text interface share the table) as `gripctl` reports it.
+pub(crate) fn device_code(status: Status) -> DeviceCode {
+    DeviceCode {
+        number: status.code().into(),
+        name: status.symbol().to_owned(),
+        description: status.description().to_owned(),
+    }
 }

@@ -7,35 +7,18 @@
 
 use std::time::Duration;
 
-use gripper::wsg::text::{Client, ClientConfig, Error, Quantity};
+use gripper::wsg::text::{Client, ClientConfig, Quantity};
 use gripper::wsg::{GripState, HomingDirection};
 use serde_json::json;
 
 use super::show::{grip_json, grip_name};
-use super::{device_error, report_motion, Command, Direction};
-use crate::error::{CliError, Kind};
+use super::{report_motion, Command, Direction};
+use crate::error::{classify, CliError, Kind};
 use crate::output::Out;
 
 /// The force of `grasp` without `--force`, N: GCL's `GRIP` takes the force first, so one is
 /// always sent (half a WSG 50's nominal force, as the simulator's default).
 const DEFAULT_FORCE_N: f32 = 40.0;
-
-fn classify(e: Error) -> CliError {
-    let message = e.to_string();
-    match e {
-        Error::Device {
-            status: Some(status),
-            ..
-        } => device_error(message, status),
-        Error::Device { .. } => CliError::new(Kind::Device, message),
-        Error::Timeout { .. } => CliError::new(Kind::Timeout, message),
-        Error::MalformedReply { .. } | Error::UnexpectedReply { .. } => {
-            CliError::new(Kind::Malformed, message)
-        }
-        Error::InvalidArgument { .. } => CliError::argument(message),
-        _ => CliError::new(Kind::Connection, message),
-    }
-}
 
 /// Connects, runs `command`, and says `BYE()` in every case.
 pub(super) async fn run(

@@ -10,11 +10,13 @@ from __future__ import annotations
 
 import enum
 from dataclasses import dataclass
+from typing import Any
 
 from gripper_rs import _native
 from gripper_rs._enum import OpenIntEnum
 
 __all__ = [
+    "Answer",
     "Client",
     "DEFAULT_PORT",
     "DeviceState",
@@ -141,3 +143,16 @@ class GripConfigF:
 
 
 from gripper_rs.griplink import sim  # noqa: E402
+
+
+@dataclass(frozen=True)
+class Answer:
+    """The data reply of a raw ``Client.command`` line: ``KEY[indices]=value`` (an ``ACK`` is
+    None)."""
+
+    key: str
+    """The key, as received (``VALUEF``)."""
+    indices: tuple[int, ...]
+    """The indices in brackets, in order (port, then value or recipe index)."""
+    value: int | float | str | list[Any]
+    """The value after ``=``: an integer, a number, a string (without quotes) or a list."""

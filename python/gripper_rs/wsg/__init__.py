@@ -25,6 +25,7 @@ __all__ = [
     "GraspingStatistics",
     "GripState",
     "HomingDirection",
+    "Reply",
     "SoftLimits",
     "Status",
     "SystemInfo",
@@ -237,3 +238,15 @@ class FingerInfo:
 
 from gripper_rs.wsg import sim  # noqa: E402  (sim builds on the records above)
 from gripper_rs.wsg import text  # noqa: E402  (the text interface's client, GCL)
+
+
+@dataclass(frozen=True)
+class Reply:
+    """The final reply to a raw ``Client.request``, whatever its status."""
+
+    id: int
+    """The id of the command answered."""
+    status: Status
+    """The status code (``Status.SUCCESS``, or the device's refusal)."""
+    data: bytes
+    """The data after the status code (empty unless the status is ``SUCCESS``)."""

@@ -56,8 +56,12 @@ pub struct Running {
 impl Running {
     /// Starts the node.
     pub fn start(params: Params) -> Self {
+        Running::start_cli(Cli::for_params(params))
+    }
+
+    /// Starts the node of a command line (e.g. one with `--sim`).
+    pub fn start_cli(cli: Cli) -> Self {
         let (stop, stopped) = oneshot::channel::<()>();
-        let cli = Cli { params, sim: None };
         let task = tokio::spawn(gripper_ros2::run(cli, async {
             let _ = stopped.await;
         }));
@@ -160,10 +164,18 @@ pub async fn ping<T, E: std::fmt::Debug, F: Future<Output = Result<T, E>>>(
 pub type GripperClient =
     ActionClient<GripperCommandGoal, GripperCommandResult, GripperCommandFeedback>;
 
+/// The mapping a test's clients use with a node of `params`: its own, or with `auto` (each
+/// peer's), the Enhanced one, which the node answers a RustDDS peer in.
+pub fn client_mapping(params: &Params) -> ServiceMapping {
+    params
+        .service_mapping
+        .map_or(ServiceMapping::Enhanced, Mapping::to_ros2)
+}
+
 /// Starts the node for `params`, a test node beside it, homes the gripper through `~/home` and
-/// returns an action client (all with the parameters' service mapping).
+/// returns an action client (all with [`client_mapping`]).
 pub async fn homed_gripper(params: Params) -> (Running, TestNode, GripperClient) {
-    let mapping = params.service_mapping.expect("a mapping").to_ros2();
+    let mapping = client_mapping(&params);
     let domain = params.domain_id;
     let node = Running::start(params);
     let mut me = TestNode::new(domain, "test_client");

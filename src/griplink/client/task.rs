@@ -96,7 +96,7 @@ impl LineError for Error {
     const PEER: &'static str = "controller";
 
     fn connection_lost(why: String) -> Self {
-        Error::ConnectionLost(why)
+        Error::lost(why)
     }
 
     fn invalid_line(reason: String) -> Self {
@@ -247,10 +247,8 @@ async fn serve(
                             break e;
                         }
                     }
-                    Delivery::Lost => break Error::ConnectionLost(
-                        "a reply did not answer its command while others were on the wire; \
-                         replies can no longer be paired".into(),
-                    ),
+                    Delivery::Lost => break Error::lost("a reply did not answer its command while others were on the wire; \
+                         replies can no longer be paired"),
                     _ if closing && pipeline.is_empty() => break Error::Closed,
                     _ => {}
                 },
@@ -261,7 +259,7 @@ async fn serve(
             () = &mut give_up_timer, if give_up.is_some() => {
                 let command = pipeline.oldest().unwrap_or_default().to_owned();
                 tracing::error!(%command, "griplink: reply overdue, giving up on the connection");
-                break Error::ConnectionLost(format!(
+                break Error::lost(format!(
                     "no reply to {command} long after its timeout; replies can no longer be paired"
                 ));
             },

@@ -61,7 +61,7 @@ impl<T: Send + 'static> Watch<T> {
                 // A lost connection that is being restored is not the end.
                 let gone = matches!(
                     reading,
-                    Err(Error::Closed | Error::ConnectionLost(_) | Error::Io(_))
+                    Err(Error::Closed | Error::ConnectionLost { .. } | Error::Io(_))
                 ) && client.is_closed();
                 if tx.send(reading).await.is_err() || gone {
                     break;

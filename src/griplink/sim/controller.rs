@@ -1,12 +1,15 @@
 //! The simulated controller: a pure state machine (no I/O, no clock). The server passes the
 //! current time in; motion takes simulated time, scaled by [`SimConfig::time_scale`].
 //!
-//! The behaviour is split by concern:
+//! The behaviour is split by concern, each file importing only those below it:
+//! - what a command does with its reply: answered at once, held back ([`Wait`]) or the end of
+//!   the connection ([`Outcome`], `reply.rs`);
 //! - [`SimDevice`] and its default recipes (`device.rs`), [`SimConfig`] (`config.rs`);
-//! - one port's device state, transitions and WSTR bookkeeping (`port.rs`);
-//! - finger motion: HOME, GRIP, RELEASE, FLEX…, SETVAL and the states they end in
-//!   (`motion.rs`);
-//! - replies held back: blocking motions, WSTR, WAITVAL ([`Wait`], `wait.rs`);
+//! - one port's device state, transitions and WSTR bookkeeping (`port.rs`), and the motion in
+//!   progress it holds (`motion.rs`);
+//! - the commands that move the fingers: HOME, GRIP, RELEASE, FLEX…, SETVAL and the states they
+//!   end in (`moves.rs`);
+//! - replies held back: blocking motions, WSTR, WAITVAL (`wait.rs`);
 //! - command dispatch: every command of chapter 3 (`dispatch.rs`).
 //!
 //! Device states follow chapter 5. These devices are Weiss grippers: `ENABLE` leaves or puts
@@ -30,27 +33,8 @@ pub use super::config::{
     Role, SimConfig, DEFAULT_ENABLE_TIME, DEFAULT_WSTR_TIMEOUT, MIN_MOTION_TIME,
 };
 pub use super::device::{SimDevice, DEFAULT_FORCE_PERCENT, RECIPES, WEISS_VENDOR_ID};
-pub use super::wait::{Approach, Wait, VALUE_POLL};
-
-/// Per-connection settings.
-#[derive(Debug, Clone, Default)]
-pub struct Session {
-    /// `VERBOSE=1`: `ERR` replies carry the manual's description. Kept per connection, so one
-    /// client's choice does not change another's replies.
-    pub verbose: bool,
-}
-
-/// What the controller does with a command.
-#[derive(Debug, Clone, PartialEq)]
-pub enum Outcome {
-    /// Answer at once with this line.
-    Reply(String),
-    /// Hold the answer (and this connection's later commands) until [`Controller::poll`]
-    /// gives one.
-    Wait(Wait),
-    /// `BYE()`: answer `ACK`, then close the connection.
-    Bye,
-}
+pub use super::reply::{error_line, Approach, Outcome, Session, Wait};
+pub use super::wait::VALUE_POLL;
 
 /// The simulated controller: configuration, label, and a state machine per port.
 #[derive(Debug, Clone)]
@@ -60,18 +44,6 @@ pub struct Controller {
     pub(super) ports: Vec<PortSim>,
     pub(super) next_motion: u64,
 }
-
-/// An `ERR` reply line, with two-digit codes as the manual prints them (`ERR 04`).
-pub fn error_line(status: Status, verbose: bool) -> String {
-    if verbose {
-        format!("ERR {:02} {status}", status.code())
-    } else {
-        format!("ERR {:02}", status.code())
-    }
-}
-
-/// What a command does, or the status it is refused with.
-pub(super) type Step = Result<Outcome, Status>;
 
 impl Controller {
     /// A controller in its power-on state.

@@ -2,19 +2,12 @@
 
 use std::time::Duration;
 
-use super::controller::{error_line, Controller, Outcome, Session, Step};
+use super::controller::Controller;
 use super::device::{mm_text, um};
+use super::reply::{ack, error_line, reply, Outcome, Session, Step};
 use crate::griplink::command::{Command, GripConfig, GripConfigF, PortNumber};
 use crate::griplink::state::DeviceState;
 use crate::griplink::status::Status;
-
-fn reply(line: String) -> Step {
-    Ok(Outcome::Reply(line))
-}
-
-pub(super) fn ack() -> Step {
-    reply("ACK".to_owned())
-}
 
 impl Controller {
     /// Executes one command at time `now` for a connection with `session`.

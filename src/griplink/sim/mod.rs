@@ -17,8 +17,10 @@ pub mod controller;
 mod device;
 mod dispatch;
 mod motion;
+mod moves;
 pub mod parse;
 mod port;
+mod reply;
 mod server;
 #[cfg(test)]
 mod tests;

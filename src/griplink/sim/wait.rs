@@ -17,56 +17,15 @@
 
 use std::time::Duration;
 
-use super::controller::{error_line, Controller, Outcome, Session, Step};
+use super::controller::Controller;
+use super::motion::MotionEnd;
+use super::reply::{error_line, Approach, Outcome, Session, Step, Wait};
 use crate::griplink::command::PortNumber;
 use crate::griplink::state::DeviceState;
 use crate::griplink::status::Status;
 
 /// How often a WAITVAL re-reads the value while the fingers move (simulated time).
 pub const VALUE_POLL: Duration = Duration::from_millis(5);
-
-/// Where the value was when a WAITVAL started, relative to its window (3.4.12, cases 1 and 2).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Approach {
-    /// Below `threshold − window/2`: ACK once the value reaches that bound.
-    FromBelow,
-    /// Above `threshold + window/2`: ACK once the value reaches that bound.
-    FromAbove,
-}
-
-/// A reply being held back.
-#[derive(Debug, Clone, PartialEq)]
-pub enum Wait {
-    /// A blocking motion command: ACK when motion `id` ends.
-    Motion {
-        /// Port index.
-        port: usize,
-        /// The motion.
-        id: u64,
-    },
-    /// WSTR: the new state after the port's transition number `after`, `E_TIMEOUT` at
-    /// `deadline`.
-    Transition {
-        /// Port index.
-        port: usize,
-        /// The port's transition count when the WSTR arrived.
-        after: u64,
-        /// When to give up.
-        deadline: Duration,
-    },
-    /// WAITVAL(F): ACK when the position reaches `bound_um` from where it started,
-    /// `E_TIMEOUT` at `deadline`.
-    Value {
-        /// Port index.
-        port: usize,
-        /// The window bound the value approaches, µm.
-        bound_um: f64,
-        /// The side it approaches from.
-        approach: Approach,
-        /// When to give up.
-        deadline: Duration,
-    },
-}
 
 impl Controller {
     /// `WSTR[p]?` at `now` (3.4.10).
@@ -133,11 +92,9 @@ impl Controller {
                     return None;
                 }
                 match p.ended(*id) {
-                    Some(super::motion::MotionEnd::Done(DeviceState::Fault)) => {
-                        err(Status::CmdFailed)
-                    }
-                    Some(super::motion::MotionEnd::Done(_)) => Some("ACK".to_owned()),
-                    Some(super::motion::MotionEnd::Aborted) | None => err(Status::CmdAborted),
+                    Some(MotionEnd::Done(DeviceState::Fault)) => err(Status::CmdFailed),
+                    Some(MotionEnd::Done(_)) => Some("ACK".to_owned()),
+                    Some(MotionEnd::Aborted) | None => err(Status::CmdAborted),
                 }
             }
             Wait::Transition {

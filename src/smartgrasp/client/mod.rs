@@ -571,7 +571,8 @@ impl Client {
     /// which the next GRASP_FEEDBACK then refers to.
     pub async fn get_grasp(&self, request: GraspRequest) -> Result<GetGraspOutcome> {
         if let PoseFormat::Unknown(_) = request.pose_format {
-            return Err(Error::InvalidArgument(
+            return Err(Error::invalid(
+                "pose format",
                 "GET_GRASP needs one of the manual's pose formats to read the grasp pose",
             ));
         }

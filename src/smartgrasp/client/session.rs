@@ -127,8 +127,9 @@ pub(crate) fn check_pinned(version: u16) -> Result<()> {
     if (PROTOCOL_VERSION..=HIGHEST_VERSION).contains(&version) {
         Ok(())
     } else {
-        Err(Error::InvalidArgument(
-            "ClientConfig::protocol_version must be 3, 4 or None",
+        Err(Error::invalid(
+            "ClientConfig::protocol_version",
+            "it must be 3, 4 or None",
         ))
     }
 }

@@ -98,7 +98,7 @@ impl Shared {
     /// The error for a call that finds the task gone: lost connection or closed client.
     fn gone(&self) -> Error {
         match self.lost.get() {
-            Some(reason) => Error::ConnectionLost(reason.clone()),
+            Some(reason) => Error::lost(reason.as_str()),
             None => Error::Closed,
         }
     }
@@ -287,6 +287,15 @@ impl Client {
         self.shared.events.subscribe()
     }
 
+    /// Whether the connection is closed for good: [`Client::close`] was called, the last
+    /// handle's task ended, or the connection was lost and no reconnect policy brings it back
+    /// (every call fails with [`Error::Closed`] or [`Error::ConnectionLost`]). While the client
+    /// reconnects it is not closed. The same as the other protocols' `is_closed`.
+    pub fn is_closed(&self) -> bool {
+        // The task closes its queue when it ends (see `task::run`).
+        self.shared.tx.is_closed()
+    }
+
     /// The transport this client uses.
     pub fn transport(&self) -> TransportKind {
         self.shared.kind
@@ -345,7 +354,9 @@ impl Client {
     /// Cancel-safe for the connection; a command that was sent takes effect (a motion keeps moving)
     /// even if the call is dropped (see [Cancellation](Client#cancellation)).
     pub async fn command(&self, command: Command) -> Result<Bytes> {
-        command.validate().map_err(Error::InvalidArgument)?;
+        command
+            .validate()
+            .map_err(|reason| Error::invalid("command argument", reason))?;
         let timeout = match command {
             // Not a move: its final reply comes after a known time (3.6.3).
             Command::FingerPower(_, true) => {
@@ -390,15 +401,16 @@ impl Client {
         if id == 0xAA {
             // The decoder reads AA runs as preamble (see frame.rs): a reply with id 0xAA could
             // not be received reliably.
-            return Err(Error::InvalidArgument(
-                "command id 0xAA cannot be framed unambiguously".into(),
+            return Err(Error::invalid(
+                "command id",
+                "0xAA cannot be framed unambiguously",
             ));
         }
         if payload.len() > usize::from(u16::MAX) {
-            return Err(Error::InvalidArgument(format!(
-                "payload of {} bytes exceeds 65535",
-                payload.len()
-            )));
+            return Err(Error::invalid(
+                "payload",
+                format!("{} bytes exceed 65535", payload.len()),
+            ));
         }
         self.exchange(Frame::new(id, payload), timeout).await
     }
@@ -426,7 +438,9 @@ impl Client {
         options: UpdateOptions,
         decode: fn(&[u8]) -> std::result::Result<T, String>,
     ) -> Result<Subscription<T>> {
-        let mode = options.to_mode().map_err(Error::InvalidArgument)?;
+        let mode = options
+            .to_mode()
+            .map_err(|reason| Error::invalid("update options", reason))?;
         let (tx, rx) = mpsc::channel(self.shared.subscription_buffer);
         let key = self.shared.next_key.fetch_add(1, Ordering::Relaxed);
         let missed = Arc::new(AtomicU64::new(0));

@@ -196,7 +196,7 @@ impl Task {
         for (_, w) in self.waiters.drain() {
             if let Waiter::Caller(tx) = w {
                 let again = match e {
-                    Error::ConnectionLost(reason) => Error::ConnectionLost(reason.clone()),
+                    Error::ConnectionLost { .. } => e.clone(),
                     _ => Error::Closed,
                 };
                 let _ = tx.send(Err(again));
@@ -635,7 +635,7 @@ impl Task {
                 })
                 .await
             {
-                return Err(Error::ConnectionLost(e.to_string()));
+                return Err(Error::lost(e.to_string()));
             }
             result = loop {
                 tokio::select! {
@@ -661,11 +661,11 @@ impl Task {
                                 Err(e) => Err(e),
                             };
                             if let Err(e) = paired {
-                                break Err(Error::ConnectionLost(e.to_string()));
+                                break Err(Error::lost(e.to_string()));
                             }
                         }
-                        Some(Err(e)) => break Err(Error::ConnectionLost(e.to_string())),
-                        None => break Err(Error::ConnectionLost("closed by the gripper".into())),
+                        Some(Err(e)) => break Err(Error::lost(e.to_string())),
+                        None => break Err(Error::lost("closed by the gripper")),
                     },
                 }
             };
@@ -778,7 +778,7 @@ impl Session for Task {
     fn lost(&mut self, reason: &String) {
         // Calls in flight fail; nothing is sent again on its own (a move that was cut off must
         // not start again without the program deciding so).
-        self.fail_waiters(&Error::ConnectionLost(reason.clone()));
+        self.fail_waiters(&Error::lost(reason.clone()));
         if self.reconnect.is_some() {
             self.restore = self.streams_to_restore();
         }
@@ -809,7 +809,7 @@ impl Session for Task {
         let e = match end {
             Served::Lost(reason) => {
                 let _ = self.lost.set(reason.clone());
-                Error::ConnectionLost(reason.clone())
+                Error::lost(reason.clone())
             }
             Served::Closed(_) => Error::Closed,
         };

@@ -108,10 +108,10 @@ impl Device {
         match cmd {
             Command::Loop(d) => out.push(data(session, id, d)),
             Command::AnnounceDisconnect => {
-                if self.sessions.get(&session) == Some(&SessionKind::Tcp) {
+                if self.sessions.kind(session) == Some(SessionKind::Tcp) {
                     // "All running finger movements are stopped immediately" (3.1.2).
                     out.extend(self.abort_motion());
-                    self.announced.insert(session);
+                    self.sessions.announce(session);
                     ok(out);
                 } else {
                     out.push(status(session, id, Status::NotAvailable));
@@ -151,8 +151,17 @@ impl Device {
                     Err(e) => out.push(e),
                     Ok(()) => {
                         self.grip = GripState::Positioning;
-                        let kind = MotionKind::PrePosition;
-                        out.push(self.start(session, id, kind, target, speed_mm_per_s));
+                        // A part between the fingers stops a move that closes past it (3.2.2),
+                        // also one that starts on it (fingers holding it).
+                        let here = self.width_mm();
+                        let part = self.cfg.part.filter(|p| {
+                            self.cfg.part_blocks_motion && here >= p.width_mm && target < p.width_mm
+                        });
+                        let (kind, end) = match part {
+                            Some(p) => (MotionKind::PrePosition { blocked: true }, p.width_mm),
+                            None => (MotionKind::PrePosition { blocked: false }, target),
+                        };
+                        out.push(self.start(session, id, kind, end, speed_mm_per_s));
                     }
                 }
             }

@@ -5,32 +5,20 @@
 //! on the wall clock, since update periods are wire-level spacing, not physics).
 //!
 //! By concern: this file holds the state and its queries; the motion model is in `motion.rs`,
-//! sessions and auto-update streams in `sessions.rs`, what each command does in `commands.rs`.
-
-use std::collections::{BTreeMap, HashSet};
+//! the book of sessions and their auto-update streams (`Sessions`, a part the device holds) in
+//! `sessions.rs`, what each command does in `commands.rs`.
 
 use bytes::Bytes;
 
 use super::model::SimConfig;
 use super::motion::{Motion, MotionKind};
-use super::sessions::Stream;
-use crate::wsg::command::Command;
+use super::sessions::Sessions;
+// Public here since the simulator's first release (`wsg::sim::device::SessionId`).
+#[doc(inline)]
+pub use super::sessions::{SessionId, SessionKind};
+use crate::wsg::command::{id, Command, UpdateMode};
 use crate::wsg::frame::Decoded;
 use crate::wsg::{GraspingStatistics, GripState, Reply, SoftLimits, Status, SystemState};
-
-/// Identifies one connection (TCP connection, UDP peer, serial port) to the device.
-pub type SessionId = u64;
-
-/// The kind of a session's transport (the disconnect announcement is TCP-only, manual 3.1.2).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum SessionKind {
-    /// A TCP connection: an unannounced close triggers FAST STOP (manual 1.4.2).
-    Tcp,
-    /// A UDP peer.
-    Udp,
-    /// A serial line (or any other byte stream).
-    Serial,
-}
 
 /// A reply for one session.
 #[derive(Clone, Debug, PartialEq)]
@@ -63,9 +51,8 @@ pub struct Device {
     pub(super) finger_powered: [bool; 2],
     /// Pending finger power-on, per finger.
     pub(super) finger_power_on: [Option<PowerOn>; 2],
-    pub(super) sessions: BTreeMap<SessionId, SessionKind>,
-    pub(super) announced: HashSet<SessionId>,
-    pub(super) streams: BTreeMap<(SessionId, u8), Stream>,
+    /// The sessions connected, and their auto-update streams.
+    pub(super) sessions: Sessions,
 }
 
 /// A finger power-on under way (manual 3.6.3: its final reply comes "nach etwa 500 ms").
@@ -137,9 +124,7 @@ impl Device {
             stats: GraspingStatistics::default(),
             finger_powered: [true, true],
             finger_power_on: [None, None],
-            sessions: BTreeMap::new(),
-            announced: HashSet::new(),
-            streams: BTreeMap::new(),
+            sessions: Sessions::default(),
         }
     }
 
@@ -234,9 +219,14 @@ impl Device {
                         self.grip = GripState::Idle;
                         Status::Success
                     }
-                    MotionKind::PrePosition | MotionKind::Release => {
+                    MotionKind::PrePosition { blocked: false } | MotionKind::Release => {
                         self.grip = GripState::Idle;
                         Status::Success
+                    }
+                    MotionKind::PrePosition { blocked: true } => {
+                        self.grip = GripState::Idle;
+                        self.target_reached = false;
+                        Status::AxisBlocked
                     }
                     MotionKind::Grasp { found: true } => {
                         self.grip = GripState::Holding;
@@ -287,7 +277,7 @@ impl Device {
             }
             Decoded::Frame(f) => f,
         };
-        if self.announced.contains(&session) {
+        if self.sessions.announced(session) {
             out.push(status(session, frame.id, Status::AccessDenied));
             return out;
         }
@@ -302,6 +292,123 @@ impl Device {
             }
             Ok(cmd) => self.execute(session, wall, cmd, &mut out),
             Err(s) => out.push(status(session, frame.id, s)),
+        }
+        out
+    }
+
+    /// A session opened.
+    pub fn connect(&mut self, session: SessionId, kind: SessionKind) {
+        self.sessions.connect(session, kind);
+    }
+
+    /// A session closed (or was unplugged, or a UDP peer expired). An unannounced TCP close
+    /// triggers FAST STOP (manual 1.4.2), which ends a move in progress with E_CMD_ABORTED like
+    /// a stop does (1.3): the returned reply goes to whichever session started the move, which
+    /// may be another, still connected one (or this one, still reading after a half-close). The
+    /// session's auto-updates end.
+    pub fn disconnect(&mut self, session: SessionId, now: f64) -> Vec<Out> {
+        let mut out = self.advance(now);
+        let (kind, announced) = self.sessions.remove(session);
+        if kind == Some(SessionKind::Tcp) && !announced && self.cfg.fast_stop_on_close {
+            out.extend(self.trigger_fast_stop());
+        }
+        out
+    }
+
+    /// The transport of a session, if it is connected.
+    pub fn session_kind(&self, session: SessionId) -> Option<SessionKind> {
+        self.sessions.kind(session)
+    }
+
+    /// Whether a session has announced its disconnect.
+    pub fn announced(&self, session: SessionId) -> bool {
+        self.sessions.announced(session)
+    }
+
+    /// Whether `session` is still owed something: the final reply of a move it started or of a
+    /// finger power-on (3.6.3), or auto-updates (3.4.1) it switched on. A UDP peer is not
+    /// forgotten while it is: the device keeps streaming to its UDP remote port whether or not
+    /// the driver there ever sends again, and public drivers subscribe once and then only listen.
+    pub fn owes_session(&self, session: SessionId) -> bool {
+        self.sessions.streams_to(session)
+            || self.motion.is_some_and(|m| m.session == session)
+            || self
+                .finger_power_on
+                .iter()
+                .flatten()
+                .any(|p| p.owed.iter().any(|(s, _)| *s == session))
+    }
+
+    /// Answers 0x40–0x45's flags and period (3.4.1): the value now, and with FLAGS bit0 set
+    /// updates every period from wall time `wall` (see [`Sessions::set_stream`]).
+    pub(super) fn auto_update(
+        &mut self,
+        session: SessionId,
+        id: u8,
+        mode: UpdateMode,
+        wall: f64,
+    ) -> Out {
+        let value = self.streamed_value(id);
+        self.sessions.set_stream(session, id, mode, wall, &value);
+        data(session, id, value)
+    }
+
+    fn streamed_value(&self, id: u8) -> Bytes {
+        match id {
+            id::SYSTEM_STATE => Bytes::copy_from_slice(&self.system_state().bits().to_le_bytes()),
+            id::GRIP_STATE => Bytes::copy_from_slice(&[self.grip.to_u8()]),
+            id::WIDTH => f32_bytes(self.width_mm()),
+            id::SPEED => f32_bytes(self.speed_mm_per_s()),
+            _ => f32_bytes(self.force_n()),
+        }
+    }
+
+    fn force_n(&self) -> f32 {
+        if self.grip == GripState::Holding {
+            self.force_limit
+        } else {
+            0.0
+        }
+    }
+
+    /// How many auto-update streams are on (all sessions).
+    pub fn active_streams(&self) -> usize {
+        self.sessions.active_streams()
+    }
+
+    /// When the next auto-update or finger power-on is due (wall seconds).
+    pub fn next_update_due(&self) -> Option<f64> {
+        let power = self.finger_power_on.iter().flatten().map(|p| p.due_wall);
+        self.sessions
+            .next_due()
+            .into_iter()
+            .chain(power)
+            .reduce(f64::min)
+    }
+
+    /// The auto-updates due at wall time `wall` (after [`Device::advance`] to the current
+    /// simulated time). On-change streams send only when the value moved by the manual's
+    /// threshold (3.4.4–3.4.6: 0.01 mm, 0.05 mm/s, 0.05 N; any change of flags or state).
+    /// Sessions for which `paused` is true get none this time (their next one is a period
+    /// later): the server pauses a connection whose client does not read its replies.
+    ///
+    /// Finger power-ons due by `wall` finish here too (their 500 ms are wall time, 3.6.3).
+    pub fn updates_due(&mut self, wall: f64, paused: impl Fn(SessionId) -> bool) -> Vec<Out> {
+        let mut out = Vec::new();
+        for i in 0..self.finger_power_on.len() {
+            if let Some(p) = self.finger_power_on[i].take_if(|p| p.due_wall <= wall) {
+                self.finger_powered[i] = true;
+                out.extend(p.finish(finger_power_id(i), Status::Success));
+            }
+        }
+        for (session, id) in self.sessions.due(wall) {
+            let value = self.streamed_value(id);
+            if let Some(value) = self
+                .sessions
+                .update(session, id, value, wall, paused(session))
+            {
+                out.push(data(session, id, value));
+            }
         }
         out
     }
@@ -428,6 +535,54 @@ mod tests {
         };
         assert_eq!(cmd(&mut d, t, grasp), [Status::CmdPending]);
         assert!(d.next_event().is_some_and(f64::is_finite));
+    }
+
+    /// Manual 3.2.2: a pre-position that meets a blockage in its direction ends with
+    /// E_AXIS_BLOCKED, the fingers stopped there. With `part_blocks_motion`, the part is that
+    /// blockage for a move closing past it; without, the move passes (the default, unchanged).
+    #[test]
+    fn a_blocking_part_stops_a_closing_pre_position_at_its_width() {
+        let pre = |width_mm| Command::PrePosition {
+            relative: false,
+            stop_on_block: true,
+            width_mm,
+            speed_mm_per_s: 50.0,
+        };
+        for (blocking, status, end) in [
+            (true, Status::AxisBlocked, 40.0),
+            (false, Status::Success, 5.0),
+        ] {
+            let mut cfg = SimConfig::default().with_part(40.0, 1.0);
+            cfg.part_blocks_motion = blocking;
+            let mut d = Device::new(cfg);
+            d.connect(1, SessionKind::Tcp);
+            cmd(&mut d, 0.0, Command::Homing(HomingDirection::Default));
+            d.advance(100.0);
+            assert_eq!(cmd(&mut d, 100.0, pre(5.0)), [Status::CmdPending]);
+            assert_eq!(d.advance(200.0)[0].reply.status, status);
+            assert_eq!(d.width_mm(), end, "blocking: {blocking}");
+            assert_eq!(d.grip_state(), GripState::Idle);
+            // Fingers on the part: closing further is blocked at once.
+            if blocking {
+                assert_eq!(cmd(&mut d, 200.0, pre(5.0)), [Status::CmdPending]);
+                assert_eq!(d.advance(300.0)[0].reply.status, Status::AxisBlocked);
+                assert_eq!(d.width_mm(), 40.0);
+            }
+        }
+        // Opening, or closing to a width above the part, is not blocked.
+        let mut d = Device::new(
+            SimConfig::default()
+                .with_part(40.0, 1.0)
+                .with_blocking_part(),
+        );
+        d.connect(1, SessionKind::Tcp);
+        cmd(&mut d, 0.0, Command::Homing(HomingDirection::Default));
+        d.advance(100.0);
+        cmd(&mut d, 100.0, pre(60.0));
+        assert_eq!(d.advance(200.0)[0].reply.status, Status::Success);
+        cmd(&mut d, 200.0, pre(90.0));
+        assert_eq!(d.advance(300.0)[0].reply.status, Status::Success);
+        assert_eq!(d.width_mm(), 90.0);
     }
 
     #[test]

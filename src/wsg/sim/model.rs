@@ -104,6 +104,11 @@ pub struct SimConfig {
     pub time_scale: f64,
     /// Distance a grasp travels past its nominal width before reporting "no part", mm.
     pub clamping_travel_mm: f32,
+    /// The [`SimConfig::part`] sits between the fingers and blocks a pre-position (0x21) that
+    /// closes past it: the fingers stop on its width and the command ends with E_AXIS_BLOCKED
+    /// (manual 3.2.2, flag D1 "Stop bei Blockierung"). Default off: a pre-position then passes
+    /// through the part, as if it were only put there for a grasp.
+    pub part_blocks_motion: bool,
     /// Whether force measurement fingers are fitted (tare works, force control flag).
     pub force_sensor: bool,
     /// Hardware revision (0x50).
@@ -175,6 +180,7 @@ impl SimConfig {
             part: None,
             time_scale: 0.0,
             clamping_travel_mm: 2.0,
+            part_blocks_motion: false,
             force_sensor: false,
             hardware_revision: 1,
             firmware: FirmwareVersion(0x4120),
@@ -227,6 +233,14 @@ impl SimConfig {
             width_mm,
             tolerance_mm,
         });
+        self
+    }
+
+    /// With the part blocking a pre-position that closes past it (see
+    /// [`SimConfig::part_blocks_motion`]).
+    #[must_use]
+    pub fn with_blocking_part(mut self) -> Self {
+        self.part_blocks_motion = true;
         self
     }
 

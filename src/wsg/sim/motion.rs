@@ -1,13 +1,14 @@
 //! The motion model: trapezoidal speed profiles (accelerate, cruise, decelerate) within the
 //! model's limits, and the move in progress with the session and command that started it.
 
-use super::device::SessionId;
+use super::sessions::SessionId;
 
 /// What a move is for: decides the grip state and the final status when it ends (Anhang C).
+/// A pre-position that is `blocked` stops on a part before its target (E_AXIS_BLOCKED).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(super) enum MotionKind {
     Homing,
-    PrePosition,
+    PrePosition { blocked: bool },
     Grasp { found: bool },
     Release,
 }

@@ -2,20 +2,46 @@
 //!
 //! A session is what the device tells its clients apart by: a TCP connection, a UDP peer, a
 //! serial line. Its auto-updates are its own and end with it; the move it started answers it.
+//!
+//! [`Sessions`] is the device's book of them, a part the [`Device`](super::Device) holds: which
+//! sessions are connected and how, which announced their disconnect, and each stream's mode and
+//! schedule. It knows nothing of the fingers: the device passes in the value a stream sends.
+
+use std::collections::{BTreeMap, HashSet};
 
 use bytes::Bytes;
 
-use super::device::{data, f32_bytes, finger_power_id, Device, Out, SessionId, SessionKind};
 use crate::wsg::command::{id, UpdateMode};
-use crate::wsg::{GripState, Status};
 
 /// The shortest auto-update period, ms: "Der minimale zulässige Wert beträgt 10 ms" (3.4.1,
 /// 3.4.2, 3.4.4–3.4.6).
 pub const MIN_UPDATE_PERIOD_MS: u16 = 10;
 
+/// Identifies one connection (TCP connection, UDP peer, serial port) to the device.
+pub type SessionId = u64;
+
+/// The kind of a session's transport (the disconnect announcement is TCP-only, manual 3.1.2).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SessionKind {
+    /// A TCP connection: an unannounced close triggers FAST STOP (manual 1.4.2).
+    Tcp,
+    /// A UDP peer.
+    Udp,
+    /// A serial line (or any other byte stream).
+    Serial,
+}
+
+/// The sessions connected to the device and their auto-update streams.
+#[derive(Debug, Default)]
+pub(super) struct Sessions {
+    kinds: BTreeMap<SessionId, SessionKind>,
+    announced: HashSet<SessionId>,
+    streams: BTreeMap<(SessionId, u8), Stream>,
+}
+
 /// One auto-update stream of one session.
 #[derive(Clone, Debug)]
-pub(super) struct Stream {
+struct Stream {
     mode: UpdateMode,
     /// Wall seconds.
     next_due: f64,
@@ -28,64 +54,54 @@ impl Stream {
     }
 }
 
-impl Device {
+impl Sessions {
     /// A session opened.
-    pub fn connect(&mut self, session: SessionId, kind: SessionKind) {
-        self.sessions.insert(session, kind);
+    pub(super) fn connect(&mut self, session: SessionId, kind: SessionKind) {
+        self.kinds.insert(session, kind);
     }
 
-    /// A session closed (or was unplugged, or a UDP peer expired). An unannounced TCP close
-    /// triggers FAST STOP (manual 1.4.2), which ends a move in progress with E_CMD_ABORTED like
-    /// a stop does (1.3): the returned reply goes to whichever session started the move, which
-    /// may be another, still connected one (or this one, still reading after a half-close). The
-    /// session's auto-updates end.
-    pub fn disconnect(&mut self, session: SessionId, now: f64) -> Vec<Out> {
-        let mut out = self.advance(now);
-        let kind = self.sessions.remove(&session);
+    /// Forgets a session that closed, and its streams: its transport (if it was connected) and
+    /// whether it had announced its disconnect.
+    pub(super) fn remove(&mut self, session: SessionId) -> (Option<SessionKind>, bool) {
+        let kind = self.kinds.remove(&session);
         let announced = self.announced.remove(&session);
         self.streams.retain(|(s, _), _| *s != session);
-        if kind == Some(SessionKind::Tcp) && !announced && self.cfg.fast_stop_on_close {
-            out.extend(self.trigger_fast_stop());
-        }
-        out
+        (kind, announced)
     }
 
     /// The transport of a session, if it is connected.
-    pub fn session_kind(&self, session: SessionId) -> Option<SessionKind> {
-        self.sessions.get(&session).copied()
+    pub(super) fn kind(&self, session: SessionId) -> Option<SessionKind> {
+        self.kinds.get(&session).copied()
     }
 
     /// Whether a session has announced its disconnect.
-    pub fn announced(&self, session: SessionId) -> bool {
+    pub(super) fn announced(&self, session: SessionId) -> bool {
         self.announced.contains(&session)
     }
 
-    /// Whether `session` is still owed something: the final reply of a move it started or of a
-    /// finger power-on (3.6.3), or auto-updates (3.4.1) it switched on. A UDP peer is not
-    /// forgotten while it is: the device keeps streaming to its UDP remote port whether or not
-    /// the driver there ever sends again, and public drivers subscribe once and then only listen.
-    pub fn owes_session(&self, session: SessionId) -> bool {
-        self.streams.keys().any(|(s, _)| *s == session)
-            || self.motion.is_some_and(|m| m.session == session)
-            || self
-                .finger_power_on
-                .iter()
-                .flatten()
-                .any(|p| p.owed.iter().any(|(s, _)| *s == session))
+    /// The session announced its disconnect (3.1.2): the device refuses its later commands.
+    pub(super) fn announce(&mut self, session: SessionId) {
+        self.announced.insert(session);
     }
 
-    /// Answers 0x40–0x45's flags and period (3.4.1): the value now, and with FLAGS bit0 set
-    /// updates every period from wall time `wall`. The manual's status codes for these commands
-    /// are E_SUCCESS and E_CMD_FORMAT_ERROR only, so a period under the 10 ms minimum is not
-    /// refused: the stream runs at the minimum.
-    pub(super) fn auto_update(
+    /// Whether `session` has a stream on.
+    pub(super) fn streams_to(&self, session: SessionId) -> bool {
+        self.streams.keys().any(|(s, _)| *s == session)
+    }
+
+    /// Applies 0x40–0x45's flags and period (3.4.1) for `session` at wall time `wall`, the
+    /// value being `value` now: with FLAGS bit0 set, updates every period from `wall` on;
+    /// clear, any updates stop. The manual's status codes for these commands are E_SUCCESS
+    /// and E_CMD_FORMAT_ERROR only, so a period under the 10 ms minimum is not refused: the
+    /// stream runs at the minimum.
+    pub(super) fn set_stream(
         &mut self,
         session: SessionId,
         id: u8,
         mode: UpdateMode,
         wall: f64,
-    ) -> Out {
-        let value = self.streamed_value(id);
+        value: &Bytes,
+    ) {
         if mode.auto {
             if mode.period_ms < MIN_UPDATE_PERIOD_MS {
                 tracing::debug!(
@@ -103,85 +119,63 @@ impl Device {
             self.streams.insert((session, id), stream);
         } else {
             // FLAGS bit0 clear: answer once and stop any updates (3.4.1).
-            self.streams.remove(&(session, id));
-        }
-        data(session, id, value)
-    }
-
-    fn streamed_value(&self, id: u8) -> Bytes {
-        match id {
-            id::SYSTEM_STATE => Bytes::copy_from_slice(&self.system_state().bits().to_le_bytes()),
-            id::GRIP_STATE => Bytes::copy_from_slice(&[self.grip.to_u8()]),
-            id::WIDTH => f32_bytes(self.width_mm()),
-            id::SPEED => f32_bytes(self.speed_mm_per_s()),
-            _ => f32_bytes(self.force_n()),
+            self.stop_stream(session, id);
         }
     }
 
-    fn force_n(&self) -> f32 {
-        if self.grip == GripState::Holding {
-            self.force_limit
-        } else {
-            0.0
-        }
+    /// Stops the stream of `id` to `session`, if one runs.
+    pub(super) fn stop_stream(&mut self, session: SessionId, id: u8) {
+        self.streams.remove(&(session, id));
     }
 
     /// How many auto-update streams are on (all sessions).
-    pub fn active_streams(&self) -> usize {
+    pub(super) fn active_streams(&self) -> usize {
         self.streams.len()
     }
 
-    /// When the next auto-update or finger power-on is due (wall seconds).
-    pub fn next_update_due(&self) -> Option<f64> {
-        let power = self.finger_power_on.iter().flatten().map(|p| p.due_wall);
-        self.streams
-            .values()
-            .map(|s| s.next_due)
-            .chain(power)
-            .reduce(f64::min)
+    /// When the next auto-update is due (wall seconds).
+    pub(super) fn next_due(&self) -> Option<f64> {
+        self.streams.values().map(|s| s.next_due).reduce(f64::min)
     }
 
-    /// The auto-updates due at wall time `wall` (after [`Device::advance`] to the current
-    /// simulated time). On-change streams send only when the value moved by the manual's
-    /// threshold (3.4.4–3.4.6: 0.01 mm, 0.05 mm/s, 0.05 N; any change of flags or state).
-    /// Sessions for which `paused` is true get none this time (their next one is a period
-    /// later): the server pauses a connection whose client does not read its replies.
-    ///
-    /// Finger power-ons due by `wall` finish here too (their 500 ms are wall time, 3.6.3).
-    pub fn updates_due(&mut self, wall: f64, paused: impl Fn(SessionId) -> bool) -> Vec<Out> {
-        let mut out = Vec::new();
-        for i in 0..self.finger_power_on.len() {
-            if let Some(p) = self.finger_power_on[i].take_if(|p| p.due_wall <= wall) {
-                self.finger_powered[i] = true;
-                out.extend(p.finish(finger_power_id(i), Status::Success));
-            }
-        }
-        let due: Vec<(SessionId, u8)> = self
-            .streams
+    /// The streams whose update is due at wall time `wall`, as (session, command id).
+    pub(super) fn due(&self, wall: f64) -> Vec<(SessionId, u8)> {
+        self.streams
             .iter()
             .filter(|(_, s)| s.next_due <= wall)
             .map(|(k, _)| *k)
-            .collect();
-        for (session, id) in due {
-            let value = self.streamed_value(id);
-            let Some(s) = self.streams.get_mut(&(session, id)) else {
-                continue;
-            };
-            // Never fall behind by more than one period (no bursts after a stall).
-            s.next_due = (s.next_due + s.period_s()).max(wall);
-            if paused(session) {
-                continue;
-            }
-            let changed = match &s.last {
-                None => true,
-                Some(last) => changed(id, last, &value),
-            };
-            if !s.mode.on_change || changed {
-                s.last = Some(value.clone());
-                out.push(data(session, id, value));
-            }
+            .collect()
+    }
+
+    /// The due update of stream (`session`, `id`) at wall time `wall`, the value being `value`:
+    /// schedules the next one, and returns the value if it is to be sent. A `paused` session
+    /// gets none this time (its next one is a period later). On-change streams send only when
+    /// the value moved by the manual's threshold (3.4.4–3.4.6: 0.01 mm, 0.05 mm/s, 0.05 N; any
+    /// change of flags or state).
+    pub(super) fn update(
+        &mut self,
+        session: SessionId,
+        id: u8,
+        value: Bytes,
+        wall: f64,
+        paused: bool,
+    ) -> Option<Bytes> {
+        let s = self.streams.get_mut(&(session, id))?;
+        // Never fall behind by more than one period (no bursts after a stall).
+        s.next_due = (s.next_due + s.period_s()).max(wall);
+        if paused {
+            return None;
         }
-        out
+        let changed = match &s.last {
+            None => true,
+            Some(last) => changed(id, last, &value),
+        };
+        if !s.mode.on_change || changed {
+            s.last = Some(value.clone());
+            Some(value)
+        } else {
+            None
+        }
     }
 }
 

@@ -5,6 +5,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use crate::wsg::Status;
+use crate::ErrorKind;
 
 /// `Result` with [`Error`].
 pub type Result<T> = std::result::Result<T, Error>;
@@ -14,7 +15,8 @@ pub type Result<T> = std::result::Result<T, Error>;
 /// The variants keep apart who said no: the gripper ([`Error::Device`]), the connection
 /// ([`Error::Io`], [`Error::ConnectionLost`], [`Error::Closed`]), the clock ([`Error::Timeout`]),
 /// the bytes on the wire ([`Error::MalformedReply`], [`Error::UnexpectedReply`]) and this crate
-/// before anything was sent ([`Error::InvalidArgument`]).
+/// before anything was sent ([`Error::InvalidArgument`]). [`Error::kind`] classifies them the
+/// same way as the other protocols' errors.
 #[derive(Debug, Clone, thiserror::Error)]
 #[non_exhaustive]
 pub enum Error {
@@ -68,15 +70,18 @@ pub enum Error {
     },
     /// The connection was lost (closed by the gripper, reset, or given up by this client
     /// because a reply stayed away far beyond its timeout).
-    #[error("connection lost: {0}")]
-    ConnectionLost(String),
+    #[error("connection lost: {reason}")]
+    ConnectionLost {
+        /// Why, as far as known.
+        reason: Arc<str>,
+    },
     /// The connection was closed by this client ([`Client::close`](super::Client::close) or
     /// every handle dropped).
-    #[error("connection closed")]
+    #[error("the client was closed")]
     Closed,
     /// An I/O error of the socket.
     #[error("I/O error: {0}")]
-    Io(Arc<io::Error>),
+    Io(#[source] Arc<io::Error>),
 }
 
 impl From<io::Error> for Error {
@@ -91,6 +96,28 @@ impl Error {
         match self {
             Error::Device { status, .. } => *status,
             _ => None,
+        }
+    }
+
+    /// What kind of failure this is, in the classification every protocol shares.
+    pub fn kind(&self) -> ErrorKind {
+        match self {
+            Error::Device { .. } => ErrorKind::Device,
+            Error::InvalidArgument { .. } => ErrorKind::InvalidArgument,
+            Error::Timeout { .. } => ErrorKind::Timeout,
+            // A reply of the wrong form is as untrustworthy as one that does not parse.
+            Error::MalformedReply { .. } | Error::UnexpectedReply { .. } => {
+                ErrorKind::MalformedReply
+            }
+            Error::ConnectionLost { .. } => ErrorKind::ConnectionLost,
+            Error::Closed => ErrorKind::Closed,
+            Error::Io(e) => ErrorKind::of_io(e),
+        }
+    }
+
+    pub(crate) fn lost(reason: impl Into<Arc<str>>) -> Error {
+        Error::ConnectionLost {
+            reason: reason.into(),
         }
     }
 

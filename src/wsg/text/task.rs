@@ -168,7 +168,7 @@ impl LineError for Error {
     const PEER: &'static str = "gripper";
 
     fn connection_lost(why: String) -> Self {
-        Error::ConnectionLost(why)
+        Error::lost(why)
     }
 
     fn invalid_line(reason: String) -> Self {
@@ -472,7 +472,7 @@ async fn serve(
                     .map(|s| s.line.clone())
                     .unwrap_or_default();
                 tracing::error!(%command, "wsg text: reply overdue, giving up on the connection");
-                break Error::ConnectionLost(format!(
+                break Error::lost(format!(
                     "no reply to {command} long after its timeout; replies can no longer be paired"
                 ));
             },

@@ -11,6 +11,10 @@ use tokio::time::{sleep_until, Instant};
 
 use super::{note, Prng, SharedTrace};
 
+/// The longest delay of a datagram (a delayed copy sent before the faults stopped may still
+/// come this long afterwards: the quiet phase waits for it).
+pub const MAX_DELAY_MS: u64 = 5000;
+
 /// How often each fault hits a datagram: one in `n` (0: never).
 #[derive(Clone, Copy, Debug, Default)]
 pub struct DatagramProfile {
@@ -35,7 +39,13 @@ impl DatagramProfile {
             loss: pick(20),
             duplicate: pick(20),
             delay: pick(6),
-            max_delay_ms: 1 + rng.below(300),
+            // Now and then several seconds (issue 29): a reply that late is far past every
+            // deadline and grace a client draws.
+            max_delay_ms: if rng.one_in(6) {
+                1000 + rng.below(MAX_DELAY_MS - 1000)
+            } else {
+                1 + rng.below(300)
+            },
         }
     }
 }

@@ -14,7 +14,7 @@ use gripper::reconnect::{ConnectionEvent, ConnectionEvents};
 use tokio::io::DuplexStream;
 
 use super::phases::{after_close, DocumentedErrors};
-use super::streams::{faulty_pipe, StreamProfile};
+use super::streams::{faulty_pipe_logged, Carried, CarriedLog, StreamProfile};
 use super::{note, Prng, SharedTrace};
 
 /// The server of the moment (`slot`), its generation (0 for the first, then one more per
@@ -101,28 +101,58 @@ impl<S: Send + Sync + 'static, R: Send + 'static> Servers<S, R> {
     }
 }
 
+/// Each loss a client reported: when (simulated) and the reason it gave (rule 6 judges it).
+pub type Losses = Arc<Mutex<Vec<(tokio::time::Instant, String)>>>;
+
 /// Follows a client's connection events into the trace; the flag turns true at its first
-/// reported loss (the documented errors after it).
-pub fn watch_losses(
+/// reported loss (the documented errors after it), and each loss is kept with its time and
+/// reason.
+pub fn watch_losses_logged(
     mut events: ConnectionEvents,
     index: usize,
     trace: SharedTrace,
-) -> Arc<AtomicBool> {
+) -> (Arc<AtomicBool>, Losses) {
     let lost = Arc::new(AtomicBool::new(false));
-    let flag = lost.clone();
+    let losses = Losses::default();
+    let (flag, log) = (lost.clone(), losses.clone());
     tokio::spawn(async move {
         while let Some(ev) = events.next().await {
             note(&trace, format!("client {index}: event {ev:?}"));
-            if matches!(ev, ConnectionEvent::Lost { .. }) {
+            if let ConnectionEvent::Lost { reason } = &ev {
                 flag.store(true, Ordering::SeqCst);
+                log.lock()
+                    .unwrap()
+                    .push((tokio::time::Instant::now(), reason.clone()));
             }
         }
     });
-    lost
+    (lost, losses)
 }
 
-/// A client's sessions: (server generation, session number), in the order opened.
-pub type Sessions = Arc<Mutex<Vec<(u64, u64)>>>;
+/// One session a client opened: the server generation and session number, when it opened, and
+/// what the link did with the server's bytes (when each reached the client intact: rules 6-8).
+#[derive(Clone, Debug)]
+pub struct SessionRec {
+    pub gen: u64,
+    pub session: u64,
+    pub opened: tokio::time::Instant,
+    pub down: CarriedLog,
+}
+
+impl SessionRec {
+    /// When the first `end` bytes the server wrote on this session had all reached the client
+    /// (`None`: never, e.g. cut off).
+    pub fn delivered_by(&self, end: u64) -> Option<tokio::time::Instant> {
+        let c: std::sync::MutexGuard<'_, Carried> = self.down.lock().unwrap();
+        c.delivered
+            .iter()
+            .find(|&&(_, e)| e >= end)
+            .map(|&(t, _)| t)
+    }
+}
+
+/// A client's sessions, in the order opened.
+pub type Sessions = Arc<Mutex<Vec<SessionRec>>>;
 
 impl<S: Send + Sync + 'static, R: Send + 'static> Servers<S, R> {
     /// The opener a client `index` reconnects through: each call makes a new in-memory pipe
@@ -145,15 +175,22 @@ impl<S: Send + Sync + 'static, R: Send + 'static> Servers<S, R> {
         move || {
             let (sim, gen) = sims.current();
             let mut r = rng.lock().unwrap();
-            let (client_end, server_end) = faulty_pipe(
+            let down = CarriedLog::default();
+            let (client_end, server_end) = faulty_pipe_logged(
                 &mut r,
                 profile,
                 faults_on.clone(),
                 trace.clone(),
                 format!("c{index}"),
+                Some(down.clone()),
             );
             let session = serve(&sim, server_end);
-            sessions.lock().unwrap().push((gen, session));
+            sessions.lock().unwrap().push(SessionRec {
+                gen,
+                session,
+                opened: tokio::time::Instant::now(),
+                down,
+            });
             note(
                 &trace,
                 format!("client {index}: open session {gen}/{session}"),
@@ -250,4 +287,69 @@ where
     }
     let lost = lost.load(Ordering::SeqCst) || r.as_ref().is_err_and(|e| e.is_connection_lost());
     after_close(index, what, &after, lost)
+}
+
+/// One reply a server sent on one of a client's sessions, and when it reached the client intact
+/// (the evidence of rules 6-8 of the stream scenarios).
+pub struct Sent<'a, E> {
+    /// Its place in the records: (server generation, index).
+    pub key: (u64, usize),
+    pub gen: u64,
+    pub session: u64,
+    pub exchange: &'a E,
+    /// When its last byte reached the client (`None`: never, e.g. cut off).
+    pub delivered: Option<tokio::time::Instant>,
+}
+
+/// Every reply sent on one of `sessions`, in order: each record of `records` (by generation)
+/// whose session (`session_of`) is one of them, with when its bytes (`len` long, written one
+/// after another on the session) reached the client.
+pub fn sent_on<'a, E>(
+    sessions: &[SessionRec],
+    records: &'a [Vec<E>],
+    session_of: impl Fn(&E) -> u64,
+    len: impl Fn(&E) -> u64,
+) -> Vec<Sent<'a, E>> {
+    let mut out = Vec::new();
+    for s in sessions {
+        let mut end = 0u64;
+        for (j, e) in records[s.gen as usize].iter().enumerate() {
+            if session_of(e) != s.session {
+                continue;
+            }
+            end += len(e);
+            out.push(Sent {
+                key: (s.gen, j),
+                gen: s.gen,
+                session: s.session,
+                exchange: e,
+                delivered: s.delivered_by(end),
+            });
+        }
+    }
+    out
+}
+
+/// The session a client used at `t` (the last one opened by then).
+pub fn session_at(sessions: &[SessionRec], t: tokio::time::Instant) -> Option<&SessionRec> {
+    sessions.iter().rev().find(|s| s.opened <= t)
+}
+
+/// Rule 6's measure: how long before `t` the last reply on session `s` reached the client (or
+/// the session opened, if later). The documented give-up time counts from when a request waits
+/// at the front, so a give-up needs at least `give_up_after` of it.
+pub fn silence_before<E>(
+    s: &SessionRec,
+    sent: &[Sent<'_, E>],
+    t: tokio::time::Instant,
+) -> (Duration, tokio::time::Instant) {
+    let last = sent
+        .iter()
+        .filter(|x| x.gen == s.gen && x.session == s.session)
+        .filter_map(|x| x.delivered)
+        .filter(|&d| d <= t)
+        .max()
+        .unwrap_or(s.opened)
+        .max(s.opened);
+    (t - last, last)
 }

@@ -5,23 +5,29 @@
 //! oracle. GRIPLINK has no sequence numbers: replies pair with commands by order (manual 2.1),
 //! which is what the oracle checks, reply by reply.
 
+mod oracle;
+mod workload;
+
 use std::future::Future;
 use std::pin::Pin;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use gripper::griplink::command::{Blocking, Command, Expect};
-use gripper::griplink::reply::interpret;
+use gripper::griplink::command::Command;
 use gripper::griplink::sim::{Fault, SimConfig, SimExchange, SimServer};
-use gripper::griplink::{Answer, Client, ClientConfig, Error};
+use gripper::griplink::{Client, ClientConfig, Error, WaitBy};
 use tokio::time::Instant;
 
+use self::oracle::ClientView;
+use self::workload::{perform, pick, timeout_of, CallRec, Op, Render, WaitKind};
 use crate::core::phases::{
     draw_restart, draw_shape, fault_phase, open_retrying, reconnect_policy, run_line,
     unless_given_up, DocumentedErrors,
 };
-use crate::core::servers::{close_and_check, draw_drops, quiet_call, watch_losses, Servers};
+use crate::core::servers::{
+    close_and_check, draw_drops, quiet_call, watch_losses_logged, Losses, Servers, Sessions,
+};
 use crate::core::streams::StreamProfile;
 use crate::core::{note, Caps, Prng, Scenario, SharedTrace};
 
@@ -31,8 +37,10 @@ pub struct Griplink;
 /// Entries the simulator records at most (a run stays far below).
 const RECORD_CAPACITY: usize = 1 << 20;
 
-/// How late a call may end after its timeout (the task's own bookkeeping; simulated time).
-const CALL_SLACK: Duration = Duration::from_millis(10);
+/// How long a call without timeout may take before the caller's guard calls it hung (rule 8):
+/// far beyond anything the run's faults allow (a motion of at most 10 s, a 3 s stall, a
+/// give-up of at most 1 s, reconnects every 0.5 s).
+const FOREVER_GUARD: Duration = Duration::from_secs(600);
 
 impl Scenario for Griplink {
     fn variants(&self) -> &'static [&'static str] {
@@ -65,31 +73,47 @@ fn new_sim() -> Arc<SimServer> {
 struct Ctx {
     index: usize,
     client: Client,
-    /// Its sessions: (controller generation, session number).
-    sessions: Arc<Mutex<Vec<(u64, u64)>>>,
+    sessions: Sessions,
     reconnects: bool,
     closing: AtomicBool,
     lost: Arc<AtomicBool>,
+    losses: Losses,
 }
 
 /// What every caller of a run shares.
 struct RunWide {
-    /// Numbers the labels set (unique values: an answer names its request).
+    /// Numbers the values set (unique values: an answer names its request).
     labels: AtomicU64,
     /// Whether a call may have no timeout (not in runs where the controller drops replies).
     forever: bool,
+    log: Mutex<Vec<CallRec>>,
+    trace: SharedTrace,
 }
 
-/// One call as the caller saw it.
-struct CallRec {
-    client: usize,
-    line: String,
-    /// The reply shape the command expects.
-    expect: Expect,
-    start: Instant,
-    end: Instant,
-    timeout: Duration,
-    result: Result<Answer, Error>,
+/// The client's configuration: every option drawn (pipeline depths beyond the default 1 up to
+/// none at all, queue lengths, line limits small enough to discard replies, WAITVAL margins).
+fn draw_config(crng: &mut Prng, reconnects: bool) -> ClientConfig {
+    ClientConfig {
+        query_timeout: crng.millis(50, 2000),
+        motion_timeout: crng.millis(500, 10_000),
+        wait_margin: crng.millis(0, 3000),
+        give_up_after: crng.millis(10, 1000),
+        connect_timeout: Duration::from_secs(1),
+        // Small limits discard the longer replies (recipes, long strings; documented), but
+        // keep `ID?`'s, the resynchronisation probe's answer.
+        max_line_len: if crng.one_in(8) {
+            crng.between(20, 40) as usize
+        } else {
+            ClientConfig::default().max_line_len
+        },
+        queue_len: [1, 2, 4, 64, 1000][crng.below(5) as usize],
+        pipeline_depth: match crng.below(8) {
+            0 => 8,
+            1 => usize::MAX,
+            n => (n as usize).min(4),
+        },
+        reconnect: reconnects.then(reconnect_policy),
+    }
 }
 
 async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -> Vec<String> {
@@ -100,6 +124,7 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
     note(&trace, run_line(variant, seed, caps, level, n_clients));
     let mut violations = Vec::new();
     let mut ctxs = Vec::new();
+    let mut configs = Vec::new();
     for index in 0..n_clients {
         let mut crng = rng.fork();
         let reconnects = crng.one_in(2);
@@ -111,7 +136,7 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
             corrupt: 0,
             ..StreamProfile::random(&mut crng, level, false)
         };
-        let sessions = Arc::new(Mutex::new(Vec::new()));
+        let sessions = Sessions::default();
         let open = sims.opener(
             index,
             crng.fork(),
@@ -121,15 +146,7 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
             sessions.clone(),
             |sim, io| sim.serve_stream(io),
         );
-        let config = ClientConfig {
-            query_timeout: crng.millis(50, 2000),
-            motion_timeout: crng.millis(500, 10_000),
-            give_up_after: crng.millis(10, 1000),
-            connect_timeout: Duration::from_secs(1),
-            pipeline_depth: crng.between(1, 4) as usize,
-            reconnect: reconnects.then(reconnect_policy),
-            ..ClientConfig::default()
-        };
+        let config = draw_config(&mut crng, reconnects);
         let opened = open_retrying(index, &config, &faults_on, &trace, || {
             Client::open_with(open.clone(), config.clone())
         });
@@ -137,7 +154,8 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
             Ok(client) => client,
             Err(violation) => return vec![violation],
         };
-        let lost = watch_losses(client.connection_events(), index, trace.clone());
+        let (lost, losses) = watch_losses_logged(client.connection_events(), index, trace.clone());
+        configs.push(config);
         ctxs.push(Arc::new(Ctx {
             index,
             client,
@@ -145,6 +163,7 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
             reconnects,
             closing: AtomicBool::new(false),
             lost,
+            losses,
         }));
     }
 
@@ -153,29 +172,33 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
     // and repair with a probe (client/pipeline.rs), never pass on as another command's answer.
     // (A call without timeout is then left out: a dropped reply would hold it forever.)
     let drops = draw_drops(&mut rng, level);
-    let log = Arc::new(Mutex::new(Vec::<CallRec>::new()));
     let run_wide = Arc::new(RunWide {
         labels: AtomicU64::new(0),
         forever: drops == 0,
+        log: Mutex::new(Vec::new()),
+        trace: trace.clone(),
     });
-    let caller = |ctx: &Arc<Ctx>, k, rng, ops| {
-        let (log, run_wide, trace) = (log.clone(), run_wide.clone(), trace.clone());
-        caller(ctx.clone(), k, rng, ops, log, run_wide, trace)
-    };
+    let caller = |ctx: &Arc<Ctx>, k, rng, ops| caller(ctx.clone(), k, rng, ops, run_wide.clone());
     let faults = |rng: &mut Prng| {
         let restart = draw_restart(rng, level, |at| {
             sims.restart_at(at, new_sim, SimServer::recording, trace.clone())
         });
         let what = "fault: the controller will drop its next reply";
         sims.drop_replies(rng, drops, &trace, what, |sim| sim.inject(Fault::DropReply));
+        device_faults(rng, &sims, &trace);
         restart
     };
     fault_phase(&mut rng, caps, &ctxs, caller, faults, &faults_on, &trace).await;
 
-    // Quiet phase: after the recovery bound, a client that reconnects must answer; one that
-    // does not must answer or (after a loss) fail with ConnectionLost. Not after a dropped
-    // reply: the pairing may be out of step with no way to see it (same-shaped replies) until
-    // the oldest call's give-up limit, which a call without timeout does not have.
+    // Quiet phase (rule 10): after the recovery bound, every kind of call the client's callers
+    // made must be served: a client that reconnects must answer; one that does not must answer
+    // or (after a loss) fail with ConnectionLost. Not after a dropped reply: the pairing may be
+    // out of step with no way to see it (same-shaped replies) until the oldest call's give-up
+    // limit, which a call without timeout does not have.
+    // The recovery bound: the longest the controller may hold a line (a WSTR, 10 s, manual
+    // 3.4.10) beyond the shared 5 s of `quiet_call`, so that no call of the fault phase is
+    // still on the wire.
+    tokio::time::sleep(Duration::from_secs(8)).await;
     for ctx in &ctxs {
         if ctx.closing.load(Ordering::SeqCst) || drops > 0 {
             continue;
@@ -189,6 +212,11 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
             || async { ctx.client.with_timeout(Duration::from_secs(5)).id().await },
         );
         violations.extend(quiet.await);
+        violations.extend(quiet_kinds(ctx, &run_wide).await);
+        // One run in eight, chosen from the seed without a draw (every other path stays).
+        if ctx.index == 0 && seed.rotate_left(17) % 8 == 0 {
+            fault_again(ctx, &sims, &run_wide).await;
+        }
     }
     for ctx in &ctxs {
         // Closed again even if a caller closed it: its close() may have timed out before
@@ -207,55 +235,219 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
     let records = sims.all_records_noted(SimServer::recording, &trace, |e: &SimExchange| {
         format!("{}: {:?} -> {:?}", e.session, e.request, e.reply)
     });
-    let calls = std::mem::take(&mut *log.lock().unwrap());
-    violations.extend(oracle(&ctxs, &calls, &records, drops > 0));
+    let calls = std::mem::take(&mut *run_wide.log.lock().unwrap());
+    let views: Vec<ClientView> = ctxs
+        .iter()
+        .zip(&configs)
+        .map(|(ctx, config)| ClientView {
+            sessions: ctx.sessions.lock().unwrap().clone(),
+            closing: ctx.closing.load(Ordering::SeqCst),
+            losses: ctx.losses.lock().unwrap().clone(),
+            give_up_after: config.give_up_after,
+            max_line_len: config.max_line_len,
+        })
+        .collect();
+    violations.extend(oracle::judge(&views, &calls, &records, drops > 0));
     drop(ctxs);
     drop(sims);
     violations
 }
 
-/// A random call of the workload: its command.
-fn pick(rng: &mut Prng, labels: &AtomicU64) -> Command {
-    match rng.below(10) {
-        0 => Command::Id,
-        1 => Command::SerialNumber,
-        2 => Command::Label,
-        3 => Command::SetLabel(format!("L{}", labels.fetch_add(1, Ordering::SeqCst))),
-        4 => Command::DevState(0),
-        5 => Command::Value { port: 0, index: 0 },
-        6 => Command::Home(0),
-        7 => Command::Grip {
-            port: 0,
-            index: 0,
-            blocking: blocking(rng),
-        },
-        8 => Command::Release {
-            port: 0,
-            index: 0,
-            blocking: blocking(rng),
-        },
-        _ => Command::Version,
+/// The device faults of a fault phase: now and then, at 0–5 s, a device faults at once or its
+/// next motion ends in `DS_FAULT` (a grip from `DS_FAULT` re-enables the gripper first, manual
+/// 3.4.1: the waits' hardest case).
+fn device_faults(rng: &mut Prng, sims: &Sims, trace: &SharedTrace) {
+    if !rng.one_in(3) {
+        return;
+    }
+    for _ in 0..rng.between(1, 3) {
+        let (at, port, now) = (rng.millis(0, 5000), rng.below(2) as u8 * 2, rng.one_in(2));
+        let (sims, trace) = (sims.clone(), trace.clone());
+        tokio::spawn(async move {
+            tokio::time::sleep(at).await;
+            let sim = sims.current().0;
+            note(
+                &trace,
+                format!("fault: device {port} faults (at once: {now})"),
+            );
+            if now {
+                sim.inject_device_fault(port);
+            }
+            sim.fault_next_motion(port);
+        });
     }
 }
 
-/// Blocking (the reply waits for the end of the motion) or not, at random.
-fn blocking(rng: &mut Prng) -> Blocking {
-    if rng.one_in(2) {
-        Blocking::UntilDone
-    } else {
-        Blocking::Immediate
+/// Issue 29 G, on purpose (the fault phase meets it only by chance): the empty-handed gripper on
+/// port 2 closes on nothing (`DS_NO_PART` at its limit), faults, and a `grip_and_wait` starts in
+/// `DS_FAULT`; an `ENABLE` of the same port shows the re-enable (a state other than `DS_FAULT`
+/// read after the command: the simulator keeps a motion's start state until its end, so it
+/// shows none of its own), then the device faults again, its fingers where they were. The
+/// client docs say that state and the `DS_FAULT` read after it end the wait: rule 7
+/// (`oracle.rs`, `fault_waits`) judges the 1.5 s wait, well below the 2 s re-enable window that
+/// would end it otherwise.
+async fn fault_again(ctx: &Ctx, sims: &Sims, run_wide: &RunWide) {
+    let client = ctx.client.with_timeout(Duration::from_secs(20));
+    let port = client.port(2);
+    let prepared = (
+        port.home().await,
+        port.grip_and_wait(0, WaitBy::Polling(Duration::from_millis(10)))
+            .await,
+    );
+    note(
+        &run_wide.trace,
+        format!(
+            "quiet client {}: fault again, prepared {prepared:?}",
+            ctx.index
+        ),
+    );
+    let sim = sims.current().0;
+    sim.inject_device_fault(2);
+    sim.fault_next_motion(2);
+    let op = Op::Wait {
+        port: 2,
+        kind: WaitKind::Grip(0),
+        by: WaitBy::Polling(Duration::from_millis(10)),
+    };
+    let timeout = Duration::from_millis(1500);
+    let waiter = ctx.client.with_timeout(timeout);
+    let start = Instant::now();
+    // The re-enable shows (ENABLE: `DS_DISABLED`), then the device faults again, its fingers
+    // where they were.
+    let enable = async {
+        tokio::time::sleep(Duration::from_millis(20)).await;
+        let enabled = port.enable().await;
+        tokio::time::sleep(Duration::from_millis(100)).await;
+        sim.inject_device_fault(2);
+        enabled
+    };
+    let mut rng = Prng::new(0);
+    let (result, enabled) = tokio::join!(perform(&waiter, &op, &mut rng), enable);
+    note(
+        &run_wide.trace,
+        format!(
+            "quiet client {}: fault again: {result:?} (enable {enabled:?})",
+            ctx.index
+        ),
+    );
+    run_wide.log.lock().unwrap().push(CallRec {
+        client: ctx.index,
+        op,
+        start,
+        end: Instant::now(),
+        timeout,
+        result: Some(result),
+    });
+}
+
+/// Rule 10: in the quiet phase one call of every kind (one command each, valid arguments, a
+/// device's port) is served: Ok, or the device's own refusal (its state decides, e.g. a GRIP
+/// of a faulted gripper), never an error of the client's or the connection's.
+async fn quiet_kinds(ctx: &Ctx, run_wide: &RunWide) -> Vec<String> {
+    use gripper::griplink::command::Blocking;
+    use Command as C;
+    let kinds = [
+        Op::Typed(C::Id, Render::Str),
+        Op::Typed(C::Protocol, Render::Str),
+        Op::Typed(C::SerialNumber, Render::Str),
+        Op::Typed(C::Version, Render::Str),
+        Op::Typed(C::Label, Render::Str),
+        Op::Typed(C::DevState(2), Render::State),
+        Op::Typed(C::DevName(2), Render::Str),
+        Op::Typed(C::Value { port: 0, index: 0 }, Render::Int),
+        Op::Typed(C::ValueF { port: 2, index: 0 }, Render::Float),
+        Op::Typed(C::GripCfg { port: 0, index: 0 }, Render::Recipe),
+        Op::Typed(C::Home(2), Render::Unit),
+        Op::Typed(
+            C::Release {
+                port: 2,
+                index: 0,
+                blocking: Blocking::Immediate,
+            },
+            Render::Unit,
+        ),
+        Op::Execute(C::DevState(0)),
+        Op::Raw(C::SerialNumber),
+    ];
+    let mut out = Vec::new();
+    if ctx.lost.load(Ordering::SeqCst) && !ctx.reconnects {
+        return out;
+    }
+    let client = ctx.client.with_timeout(Duration::from_secs(20));
+    let mut rng = Prng::new(0);
+    for op in kinds {
+        let start = Instant::now();
+        let result = perform(&client, &op, &mut rng).await;
+        note(
+            &run_wide.trace,
+            format!("quiet client {}: {} -> {result:?}", ctx.index, op.kind()),
+        );
+        // A reply longer than the client's line limit is discarded, as documented.
+        let discarded = matches!(&result, Err(Error::MalformedReply { reason, .. }) if reason.contains("too long"))
+            && ctx.client.config().max_line_len < ClientConfig::default().max_line_len;
+        let served = matches!(&result, Ok(_) | Err(Error::Device { .. })) || discarded;
+        if !served {
+            out.push(format!(
+                "10 (the quiet phase serves every kind of call): client {} {} ({}) failed in the quiet phase: {result:?}",
+                ctx.index,
+                op.kind(),
+                op.line().unwrap_or_default()
+            ));
+        }
+        run_wide.log.lock().unwrap().push(CallRec {
+            client: ctx.index,
+            op,
+            start,
+            end: Instant::now(),
+            timeout: Duration::from_secs(20),
+            result: Some(result),
+        });
+    }
+    out
+}
+
+/// A burst's calls: `op` again with another port or index, so that calls in flight together
+/// differ only there (a reply paired with the wrong one shows in its echo).
+fn sibling(op: &Op, k: usize) -> Op {
+    use Command as C;
+    let swap = |p: u8| if k % 2 == 1 { p ^ 2 } else { p };
+    let idx = |i: u32| i.wrapping_add(k as u32 / 2) % 4;
+    let c = match op {
+        Op::Typed(c, _) | Op::Execute(c) | Op::Raw(c) => c.clone(),
+        other => return other.clone(),
+    };
+    let c = match c {
+        C::DevState(p) => C::DevState(swap(p)),
+        C::DevName(p) => C::DevName(swap(p)),
+        C::DevPid(p) => C::DevPid(swap(p)),
+        C::DevVid(p) => C::DevVid(swap(p)),
+        C::DevTag(p) => C::DevTag(swap(p)),
+        C::Value { port, index } => C::Value {
+            port: swap(port),
+            index: idx(index),
+        },
+        C::ValueF { port, index } => C::ValueF {
+            port: swap(port),
+            index: idx(index),
+        },
+        C::GripCfg { port, index } => C::GripCfg {
+            port: swap(port),
+            index: idx(index),
+        },
+        C::GripCfgF { port, index } => C::GripCfgF {
+            port: swap(port),
+            index: idx(index),
+        },
+        other => other,
+    };
+    match op {
+        Op::Typed(_, r) => Op::Typed(c, *r),
+        Op::Execute(_) => Op::Execute(c),
+        _ => Op::Raw(c),
     }
 }
 
-async fn caller(
-    ctx: Arc<Ctx>,
-    k: usize,
-    mut rng: Prng,
-    ops: u32,
-    log: Arc<Mutex<Vec<CallRec>>>,
-    run_wide: Arc<RunWide>,
-    trace: SharedTrace,
-) {
+async fn caller(ctx: Arc<Ctx>, k: usize, mut rng: Prng, ops: u32, run_wide: Arc<RunWide>) {
     for _ in 0..ops {
         if ctx.closing.load(Ordering::SeqCst) {
             return;
@@ -264,127 +456,83 @@ async fn caller(
             ctx.closing.store(true, Ordering::SeqCst);
             let r = ctx.client.close().await;
             note(
-                &trace,
+                &run_wide.trace,
                 format!("client {} caller {k}: close {r:?}", ctx.index),
             );
             return;
         }
-        let command = pick(&mut rng, &run_wide.labels);
-        let Ok(line) = command.encode() else { continue };
-        let timeout = if rng.one_in(30) && run_wide.forever {
-            Duration::MAX
+        let op = pick(&mut rng, &run_wide.labels);
+        // Now and then a burst: up to 5 calls at once that differ only in a port or an index
+        // (4 callers of 5: 20 calls in flight on one client).
+        let n = if rng.one_in(6) {
+            rng.between(2, 5) as usize
         } else {
-            rng.millis(20, 5000)
+            1
         };
-        let client = ctx.client.with_timeout(timeout);
-        let start = Instant::now();
-        // Now and then the caller gives up on the call (its future dropped).
-        let cancel = rng.one_in(8).then(|| rng.millis(1, 500));
-        let result = unless_given_up(cancel, client.execute(&command)).await;
-        let end = Instant::now();
-        note(
-            &trace,
-            format!(
-                "client {} caller {k}: {line} ({timeout:?}) -> {result:?}",
-                ctx.index
-            ),
-        );
-        if let Some(result) = result {
-            log.lock().unwrap().push(CallRec {
-                client: ctx.index,
-                line,
-                expect: command.expect(),
-                start,
-                end,
-                timeout,
-                result,
-            });
-        }
+        let calls: Vec<_> = (0..n)
+            .map(|i| {
+                let op = if i == 0 { op.clone() } else { sibling(&op, i) };
+                let sub = rng.fork();
+                one_call(ctx.clone(), k, op, sub, run_wide.clone())
+            })
+            .collect();
+        futures_util::future::join_all(calls).await;
         if rng.one_in(3) {
             tokio::time::sleep(rng.millis(0, 300)).await;
         }
     }
 }
 
-/// The promises: bounded calls; every answer (a value, or a status the controller reported) is
-/// one reply the controller sent to that client, during the call, to that very command line;
-/// one reply answers one call; `Closed` only after `close()`.
-///
-/// When the controller dropped a reply, a later reply of the same shape answering an earlier
-/// command is something no client can tell (GRIPLINK has no sequence numbers): then a reply
-/// counts if it was sent to that client during the call and, read as the call's own command
-/// expects, gives the same answer (the shape check is what the client can and must do).
-fn oracle(
-    ctxs: &[Arc<Ctx>],
-    calls: &[CallRec],
-    records: &[Vec<SimExchange>],
-    dropped: bool,
-) -> Vec<String> {
-    let mut out = Vec::new();
-    let mut used = std::collections::BTreeSet::new();
-    // Earliest end first: a greedy match is then exact for intervals.
-    let mut order: Vec<usize> = (0..calls.len()).collect();
-    order.sort_by_key(|&i| (calls[i].end, i));
-    for i in order {
-        let c = &calls[i];
-        let bound = c.start.checked_add(c.timeout).map(|t| t + CALL_SLACK);
-        if bound.is_some_and(|b| c.end > b) {
-            out.push(format!(
-                "1 (bounded): client {} {} with timeout {:?} took {:?}",
-                c.client,
-                c.line,
-                c.timeout,
-                c.end - c.start
-            ));
-        }
-        let answered = match &c.result {
-            Ok(_) | Err(Error::Device { .. }) => true,
-            Err(Error::Closed) => {
-                if !ctxs[c.client].closing.load(Ordering::SeqCst) {
-                    out.push(format!(
-                        "5 (documented errors): client {} {} ended Closed without close()",
-                        c.client, c.line
-                    ));
-                }
-                false
-            }
-            _ => false,
-        };
-        if !answered {
-            continue;
-        }
-        let sessions = ctxs[c.client].sessions.lock().unwrap().clone();
-        let found = sessions.iter().find_map(|&(g, s)| {
-            records[g as usize].iter().enumerate().find_map(|(j, e)| {
-                let fits = e.session == s
-                    && (e.request == c.line || dropped)
-                    && e.sent_at >= c.start
-                    && e.sent_at <= c.end
-                    && !used.contains(&(g, j))
-                    && same(&interpret(&c.line, c.expect, &e.reply), &c.result);
-                fits.then_some((g, j))
-            })
-        });
-        match found {
-            Some(k) => {
-                used.insert(k);
-            }
-            None => out.push(format!(
-                "2 (the controller's answer): client {} {} returned {:?}, which the controller did not send to that command during the call",
-                c.client, c.line, c.result
-            )),
-        }
+/// One call: its timeout (the handle's, none, or the configured default), made by name,
+/// given up now and then, logged for the oracle.
+async fn one_call(ctx: Arc<Ctx>, k: usize, op: Op, mut rng: Prng, run_wide: Arc<RunWide>) {
+    let handle = match rng.below(30) {
+        0 if run_wide.forever => Some(Duration::MAX),
+        0..=9 => None,
+        _ => Some(rng.millis(20, 5000)),
+    };
+    let client = match handle {
+        Some(t) => ctx.client.with_timeout(t),
+        None => ctx.client.clone(),
+    };
+    let timeout = timeout_of(&op, handle, ctx.client.config());
+    let start = Instant::now();
+    // Now and then the caller gives up on the call (its future dropped); a call without
+    // timeout is given up on only by the guard of rule 8.
+    let cancel = if timeout == Duration::MAX {
+        Some(FOREVER_GUARD)
+    } else {
+        rng.one_in(8).then(|| rng.millis(1, 500))
+    };
+    let result = unless_given_up(cancel, perform(&client, &op, &mut rng)).await;
+    let end = Instant::now();
+    note(
+        &run_wide.trace,
+        format!(
+            "client {} caller {k}: {} {:?} ({timeout:?}) -> {result:?}",
+            ctx.index,
+            op.kind(),
+            op.line()
+        ),
+    );
+    if timeout == Duration::MAX && result.is_none() {
+        note(
+            &run_wide.trace,
+            format!(
+                "8 (a call without timeout ends): client {} {} did not end within {FOREVER_GUARD:?}",
+                ctx.index,
+                op.kind()
+            ),
+        );
     }
-    out
-}
-
-/// The same answer: equal values, or the same device status.
-fn same(a: &Result<Answer, Error>, b: &Result<Answer, Error>) -> bool {
-    match (a, b) {
-        (Ok(x), Ok(y)) => x == y,
-        (Err(x), Err(y)) => x.status().is_some() && x.status() == y.status(),
-        _ => false,
-    }
+    run_wide.log.lock().unwrap().push(CallRec {
+        client: ctx.index,
+        op,
+        start,
+        end,
+        timeout,
+        result,
+    });
 }
 
 impl DocumentedErrors for Error {
@@ -393,6 +541,6 @@ impl DocumentedErrors for Error {
     }
 
     fn is_connection_lost(&self) -> bool {
-        matches!(self, Error::ConnectionLost(_))
+        matches!(self, Error::ConnectionLost { .. })
     }
 }

@@ -4,4 +4,4 @@ from _plant import plant
 
 KIND = "2 (each answer is the device"
 
-plant("src/wsg/client/pairing.rs", "release_at: after(req.deadline, grace),", "release_at: req.deadline,")
+plant("src/wsg/client/pairing/in_flight.rs", "release_at: after(req.deadline, grace),", "release_at: req.deadline,")

@@ -8,26 +8,31 @@
 //! answer against the server's record: the response it sent to that request, on that client's
 //! connection, during the call.
 
+mod oracle;
+
 use std::future::Future;
 use std::pin::Pin;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use gripper::smartgrasp::frame::{AnyResponseFrame, FRAME_LEN};
 use gripper::smartgrasp::sim::{Fault, SimConfig, SimExchange, SimServer};
 use gripper::smartgrasp::types::SelectionCriterion;
 use gripper::smartgrasp::{
-    Client, ClientConfig, Error, GraspFeedback, GraspMode, GraspRequest, MessageType, PoseFormat,
-    Request, Response, Tool,
+    AbcPose, Client, ClientConfig, Error, GraspFeedback, GraspMode, GraspRequest, Pose, PoseFormat,
+    Request, RobotSystem, Tool,
 };
 use tokio::time::Instant;
+
+use self::oracle::{decode, CallRec, ClientView, Via};
 
 use crate::core::phases::{
     draw_restart, draw_shape, fault_phase, open_retrying, reconnect_policy, run_line,
     unless_given_up, DocumentedErrors,
 };
-use crate::core::servers::{close_and_check, draw_drops, quiet_call, watch_losses, Servers};
+use crate::core::servers::{
+    close_and_check, draw_drops, quiet_call, watch_losses_logged, Losses, Servers, Sessions,
+};
 use crate::core::streams::StreamProfile;
 use crate::core::{note, Caps, Prng, Scenario, SharedTrace};
 
@@ -37,8 +42,9 @@ pub struct SmartGrasp;
 /// Entries the simulator records at most (a run stays far below).
 const RECORD_CAPACITY: usize = 1 << 20;
 
-/// How late a call may end after its timeout (the task's own bookkeeping; simulated time).
-const CALL_SLACK: Duration = Duration::from_millis(10);
+/// How long a call without timeout may take before the caller's guard calls it hung (rule 8):
+/// far beyond anything the run's faults allow.
+const FOREVER_GUARD: Duration = Duration::from_secs(600);
 
 impl Scenario for SmartGrasp {
     fn variants(&self) -> &'static [&'static str] {
@@ -73,8 +79,8 @@ fn new_sim(version: u16) -> Arc<SimServer> {
 struct Ctx {
     index: usize,
     client: Client,
-    /// Its sessions: (server generation, session number).
-    sessions: Arc<Mutex<Vec<(u64, u64)>>>,
+    /// Its sessions.
+    sessions: Sessions,
     reconnects: bool,
     /// Trusts the response counter (`ClientConfig::strict_response_counter`).
     strict: bool,
@@ -82,16 +88,8 @@ struct Ctx {
     corrupts: bool,
     closing: AtomicBool,
     lost: Arc<AtomicBool>,
-}
-
-/// One call as the caller saw it.
-struct CallRec {
-    client: usize,
-    request: Request,
-    start: Instant,
-    end: Instant,
-    timeout: Duration,
-    result: Result<Response, Error>,
+    losses: Losses,
+    config: ClientConfig,
 }
 
 async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -> Vec<String> {
@@ -126,16 +124,7 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
             sessions.clone(),
             |sim, io| sim.serve_stream(io),
         );
-        let config = ClientConfig {
-            query_timeout: crng.millis(50, 2000),
-            detection_timeout: crng.millis(100, 5000),
-            give_up_after: crng.millis(10, 1000),
-            connect_timeout: Duration::from_secs(1),
-            strict_response_counter: strict,
-            project_index: crng.one_in(2).then_some(0),
-            reconnect: reconnects.then(reconnect_policy),
-            ..ClientConfig::default()
-        };
+        let config = draw_config(&mut crng, version, strict, reconnects);
         // The opening sequence runs through the faults too (SET_PROJECT, GET_PROTOCOL_VERSION).
         let opened = open_retrying(index, &config, &faults_on, &trace, || {
             Client::open_with(open.clone(), config.clone())
@@ -144,7 +133,7 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
             Ok(client) => client,
             Err(violation) => return vec![violation],
         };
-        let lost = watch_losses(client.connection_events(), index, trace.clone());
+        let (lost, losses) = watch_losses_logged(client.connection_events(), index, trace.clone());
         ctxs.push(Arc::new(Ctx {
             index,
             client,
@@ -154,6 +143,8 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
             corrupts,
             closing: AtomicBool::new(false),
             lost,
+            losses,
+            config,
         }));
     }
 
@@ -165,8 +156,8 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
     let log = Arc::new(Mutex::new(Vec::<CallRec>::new()));
     let forever = drops == 0;
     let caller = |ctx: &Arc<Ctx>, k, rng, ops| {
-        let (log, trace) = (log.clone(), trace.clone());
-        caller(ctx.clone(), k, rng, ops, version, forever, log, trace)
+        let (log, trace, sims) = (log.clone(), trace.clone(), sims.clone());
+        caller(ctx.clone(), k, rng, ops, version, forever, log, trace, sims)
     };
     let faults = |rng: &mut Prng| {
         let fresh = move || new_sim(version);
@@ -201,6 +192,12 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
             },
         );
         violations.extend(quiet.await);
+        violations.extend(quiet_kinds(ctx, version, &log, &trace).await);
+        // One run in eight with a single reconnecting client, chosen from the seed without a
+        // draw (every other path stays).
+        if ctxs.len() == 1 && ctx.reconnects && seed.rotate_left(23) % 8 == 0 {
+            violations.extend(slow_project(ctx, version, &sims, &trace).await);
+        }
     }
     for ctx in &ctxs {
         ctx.closing.store(true, Ordering::SeqCst);
@@ -218,7 +215,18 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
         format!("{}: {:?} -> {response:?}", e.session, e.request)
     });
     let calls = std::mem::take(&mut *log.lock().unwrap());
-    violations.extend(oracle(&ctxs, &calls, &records, drops > 0));
+    let views: Vec<ClientView> = ctxs
+        .iter()
+        .map(|ctx| ClientView {
+            sessions: ctx.sessions.lock().unwrap().clone(),
+            closing: ctx.closing.load(Ordering::SeqCst),
+            strict: ctx.strict,
+            corrupts: ctx.corrupts,
+            losses: ctx.losses.lock().unwrap().clone(),
+            give_up_after: ctx.config.give_up_after,
+        })
+        .collect();
+    violations.extend(oracle::judge(&views, &calls, &records, drops > 0));
     drop(ctxs);
     drop(sims);
     violations
@@ -228,6 +236,21 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
 /// version has, feedback, SET_PROJECT (the demo project 0, or one that does not exist), and
 /// in V4 SET_TOOL (tools 1–3 exist, 9 does not).
 fn pick(rng: &mut Prng, version: u16) -> Request {
+    match rng.below(12) {
+        8 => {
+            return Request::RegisterClient(
+                [RobotSystem::Ur, RobotSystem::Kuka][rng.below(2) as usize],
+            )
+        }
+        9 => return Request::RobotPose(pose(rng)),
+        10 => {
+            return Request::SetWorkspace {
+                workspace_id: [0, 1, 7, u16::MAX][rng.below(4) as usize],
+            }
+        }
+        11 if version < 4 => return Request::GetState,
+        _ => {}
+    }
     match rng.below(if version >= 4 { 9 } else { 8 }) {
         0 => Request::GetProtocolVersion,
         1 | 2 => Request::GetState,
@@ -272,6 +295,211 @@ fn pick(rng: &mut Prng, version: u16) -> Request {
     }
 }
 
+/// The client's configuration: every option drawn (the protocol version pinned or
+/// negotiated, an opening sequence with REGISTER_CLIENT, SET_PROJECT, in V4 SET_TOOL and
+/// SET_WORKSPACE or without, strict counter or not, reconnect or not).
+fn draw_config(crng: &mut Prng, version: u16, strict: bool, reconnects: bool) -> ClientConfig {
+    ClientConfig {
+        query_timeout: crng.millis(50, 2000),
+        detection_timeout: crng.millis(100, 5000),
+        give_up_after: crng.millis(10, 1000),
+        connect_timeout: Duration::from_secs(1),
+        strict_response_counter: strict,
+        project_index: crng.one_in(2).then_some(0),
+        reconnect: reconnects.then(reconnect_policy),
+        robot_system: crng.one_in(3).then_some(RobotSystem::Kuka),
+        tool_id: crng.one_in(3).then_some(crng.between(1, 3) as u16),
+        workspace_id: crng.one_in(3).then_some(crng.below(2) as u16),
+        // A V3 server cannot be pinned to V4 (ServerTooOld, tested in tests/smartgrasp_v4.rs).
+        protocol_version: match crng.below(3) {
+            0 => Some(3),
+            1 if version >= 4 => Some(4),
+            _ => None,
+        },
+    }
+}
+
+/// A random pose in any format (V4 speaks ABC; the client converts a quaternion).
+fn pose(rng: &mut Prng) -> Pose {
+    Pose::Abc(AbcPose {
+        position_um: [rng.below(1000) as i32, rng.below(1000) as i32, 500_000],
+        abc_udeg: [rng.below(90_000_000) as i32, 0, 0],
+    })
+}
+
+/// Rule 10: in the quiet phase one call of every kind (valid arguments, each method by name)
+/// is served: Ok, or the server's own response code as an error (`Error::Device`), never an
+/// error of the client's or the connection's.
+async fn quiet_kinds(
+    ctx: &Ctx,
+    version: u16,
+    log: &Mutex<Vec<CallRec>>,
+    trace: &SharedTrace,
+) -> Vec<String> {
+    let mut out = Vec::new();
+    if ctx.lost.load(Ordering::SeqCst) && !ctx.reconnects {
+        return out;
+    }
+    let grasp = GraspRequest {
+        grasp_mode: GraspMode::AnyGrasp,
+        object_class: 1,
+        tool: Tool::Exterior,
+        selection_criterion: SelectionCriterion(1),
+        pose_format: PoseFormat::Abc,
+    };
+    let mut kinds = vec![
+        (Request::GetProtocolVersion, Via::Typed),
+        (Request::GetState, Via::Typed),
+        (Request::GetObjectCount { object_class: 1 }, Via::Typed),
+        (Request::GetGrasp(grasp), Via::Typed),
+        (Request::GraspFeedback(GraspFeedback::Ok), Via::Typed),
+        (Request::SetProject { project_index: 0 }, Via::Typed),
+        (Request::RegisterClient(RobotSystem::Ur), Via::Typed),
+        (Request::GetState, Via::Call),
+    ];
+    if ctx.client.protocol_version() >= 4 && version >= 4 {
+        kinds.push((Request::SetTool { tool_id: 1 }, Via::Typed));
+        kinds.push((Request::SetWorkspace { workspace_id: 0 }, Via::Typed));
+    }
+    let client = ctx.client.with_timeout(Duration::from_secs(20));
+    let mut rng = Prng::new(0);
+    kinds.push((Request::RobotPose(pose(&mut rng)), Via::Typed));
+    for (request, via) in kinds {
+        let start = Instant::now();
+        let result = perform(&client, request, via).await;
+        note(
+            trace,
+            format!(
+                "quiet client {}: {via:?} {request:?} -> {result:?}",
+                ctx.index
+            ),
+        );
+        if !matches!(&result, Ok(_) | Err(Error::Device { .. })) {
+            out.push(format!(
+                "10 (the quiet phase serves every kind of call): client {} {via:?} {:?} failed in the quiet phase: {result:?}",
+                ctx.index,
+                request.message_type()
+            ));
+        }
+        log.lock().unwrap().push(CallRec {
+            client: ctx.index,
+            request,
+            via,
+            start,
+            end: Instant::now(),
+            timeout: Duration::from_secs(20),
+            result: Some(result),
+        });
+    }
+    out
+}
+
+/// Issue 29 J, on purpose (the simulator answers SET_PROJECT at once; a delayed response is one
+/// response, not the restore after a reconnect): the program's `set_project` works with a
+/// timeout longer than the configured detection timeout against a server that takes longer
+/// than that; the server restarts and keeps taking that long for SET_PROJECT (30 reconnect
+/// attempts' worth). The client docs: a reconnect restores "the last ... SET_PROJECT the server
+/// accepted", and `with_timeout` exists so that a slow SET_PROJECT "does not re-open the
+/// session"; a client that restores it with the configured timeout never gets its session back.
+/// Rule 10: a GET_STATE after the restart must be served within 30 s.
+async fn slow_project(ctx: &Ctx, version: u16, sims: &Sims, trace: &SharedTrace) -> Vec<String> {
+    let detection = ctx.config.detection_timeout;
+    let slow = detection + Duration::from_millis(300);
+    let worked = slow + Duration::from_secs(2);
+    sims.current().0.inject(Fault::DelayReply(slow));
+    let set = ctx.client.with_timeout(worked).set_project(0).await;
+    note(
+        trace,
+        format!("quiet client {}: slow SET_PROJECT {set:?}", ctx.index),
+    );
+    if set.is_err() {
+        return Vec::new();
+    }
+    // The next server answers GET_PROTOCOL_VERSION, GET_STATE and REGISTER_CLIENT (the quiet
+    // phase registered) at once and SET_PROJECT after `slow`, attempt after attempt.
+    let fresh = new_sim(version);
+    for _ in 0..30 {
+        for _ in 0..3 {
+            fresh.inject(Fault::DelayReply(Duration::ZERO));
+        }
+        fresh.inject(Fault::DelayReply(slow));
+    }
+    let restart = sims.restart_at(
+        Duration::ZERO,
+        move || fresh,
+        SimServer::recording,
+        trace.clone(),
+    );
+    let _ = restart.await;
+    let after = ctx
+        .client
+        .with_timeout(Duration::from_secs(30))
+        .get_state()
+        .await;
+    note(
+        trace,
+        format!(
+            "quiet client {}: GET_STATE after the slow restart {after:?}",
+            ctx.index
+        ),
+    );
+    match after {
+        Ok(_) => Vec::new(),
+        Err(e) => vec![format!(
+            "10 (the quiet phase serves every kind of call): client {} GET_STATE after a reconnect to a server that answers SET_PROJECT in {slow:?} (the program's set_project worked with a {worked:?} timeout; detection_timeout {detection:?}): {e:?}",
+            ctx.index
+        )],
+    }
+}
+
+/// Makes the call through `call` or through its typed method, by name; returns what the method
+/// returned (`Debug`).
+async fn perform(client: &Client, request: Request, via: Via) -> Result<String, Error> {
+    fn show<T: std::fmt::Debug>(r: Result<T, Error>) -> Result<String, Error> {
+        r.map(|v| format!("{v:?}"))
+    }
+    if via == Via::Call {
+        return show(client.call(request).await);
+    }
+    match request {
+        Request::GetProtocolVersion => show(client.get_protocol_version().await),
+        Request::GetState => show(client.get_state().await),
+        Request::RegisterClient(robot) => show(client.register_client(robot).await),
+        Request::SetProject { project_index } => show(client.set_project(project_index).await),
+        Request::SetTool { tool_id } => show(client.set_tool(tool_id).await),
+        Request::SetWorkspace { workspace_id } => show(client.set_workspace(workspace_id).await),
+        Request::GetGrasp(g) => show(client.get_grasp(g).await),
+        Request::GraspFeedback(f) => show(client.grasp_feedback(f).await),
+        Request::GetObjectCount { object_class } => {
+            show(client.get_object_count(object_class).await)
+        }
+        Request::RobotPose(p) => show(client.robot_pose(p).await),
+    }
+}
+
+/// A burst's calls: `request` again for another class or tool, so that calls in flight together
+/// differ only there (a response paired with the wrong one shows in its echo).
+fn sibling(request: Request, k: usize) -> Request {
+    match request {
+        Request::GetObjectCount { object_class } => Request::GetObjectCount {
+            object_class: (object_class + k as u16) % 4,
+        },
+        Request::GetGrasp(g) => Request::GetGrasp(GraspRequest {
+            object_class: (g.object_class + k as u16 / 2) % 4,
+            tool: if k % 2 == 1 {
+                match g.tool {
+                    Tool::Exterior => Tool::Interior,
+                    _ => Tool::Exterior,
+                }
+            } else {
+                g.tool
+            },
+            ..g
+        }),
+        other => other,
+    }
+}
+
 #[allow(clippy::too_many_arguments)]
 async fn caller(
     ctx: Arc<Ctx>,
@@ -282,6 +510,7 @@ async fn caller(
     forever: bool,
     log: Arc<Mutex<Vec<CallRec>>>,
     trace: SharedTrace,
+    sims: Sims,
 ) {
     for _ in 0..ops {
         if ctx.closing.load(Ordering::SeqCst) {
@@ -296,158 +525,107 @@ async fn caller(
             );
             return;
         }
-        let request = pick(&mut rng, version);
-        let timeout = if rng.one_in(30) && forever {
-            Duration::MAX
-        } else {
-            rng.millis(20, 5000)
-        };
-        let client = ctx.client.with_timeout(timeout);
-        let start = Instant::now();
-        // Now and then the caller gives up on the call (its future dropped).
-        let cancel = rng.one_in(8).then(|| rng.millis(1, 500));
-        let result = unless_given_up(cancel, client.call(request)).await;
-        let end = Instant::now();
-        note(
-            &trace,
-            format!(
-                "client {} caller {k}: {request:?} ({timeout:?}) -> {result:?}",
-                ctx.index
-            ),
-        );
-        if let Some(result) = result {
-            log.lock().unwrap().push(CallRec {
-                client: ctx.index,
-                request,
-                start,
-                end,
-                timeout,
-                result,
-            });
+        if rng.one_in(25) {
+            // The handle's own accessors: called by name, not judged (they report what the
+            // faults did).
+            let seen = (
+                ctx.client.protocol_version(),
+                ctx.client.server_version(),
+                ctx.client.counter_gaps(),
+                ctx.client.registration(),
+                ctx.client.is_closed(),
+            );
+            drop(ctx.client.connection_events());
+            note(
+                &trace,
+                format!("client {} caller {k}: local {seen:?}", ctx.index),
+            );
+            continue;
         }
+        let request = pick(&mut rng, version);
+        let via = if rng.one_in(2) { Via::Typed } else { Via::Call };
+        // Now and then a slow response: the server holds this client's next response (or
+        // another's: the fault takes the next request it reads) for 0.2-4 s, and the call
+        // waits long enough for it; the others queue behind it (issue 29 H).
+        let slow = rng.one_in(10).then(|| rng.millis(200, 4000));
+        if let Some(d) = slow {
+            note(
+                &trace,
+                format!("fault: the server will delay its next response by {d:?}"),
+            );
+            sims.current().0.inject(Fault::DelayReply(d));
+        }
+        let n = if rng.one_in(6) {
+            rng.between(2, 5) as usize
+        } else {
+            1
+        };
+        let calls: Vec<_> = (0..n)
+            .map(|i| {
+                let request = if i == 0 { request } else { sibling(request, i) };
+                let sub = rng.fork();
+                let (ctx, log, trace) = (ctx.clone(), log.clone(), trace.clone());
+                one_call(ctx, k, request, via, slow, sub, forever, log, trace)
+            })
+            .collect();
+        futures_util::future::join_all(calls).await;
         if rng.one_in(3) {
             tokio::time::sleep(rng.millis(0, 300)).await;
         }
     }
 }
 
-/// A recorded response, read as the client reads one (`None`: not a whole frame, e.g. the
-/// "too old" empty message).
-fn decode(bytes: &[u8]) -> Option<Response> {
-    let frame: &[u8; FRAME_LEN] = bytes.try_into().ok()?;
-    Response::from_any_frame(&AnyResponseFrame::decode(frame)).ok()
-}
-
-/// A recorded response read as an answer of type `as_type` (the client reads a V3 type-17
-/// response to GET_OBJECT_COUNT as a count: the manual's erratum, `client/pairing.rs`).
-fn decode_as(bytes: &[u8], as_type: MessageType) -> Option<Response> {
-    let frame: &[u8; FRAME_LEN] = bytes.try_into().ok()?;
-    let mut frame = AnyResponseFrame::decode(frame);
-    frame.header_mut().message_type = as_type;
-    Response::from_any_frame(&frame).ok()
-}
-
-/// Whether, in the tolerant pairing, a response to `sent` answers a call of type `call` by its
-/// type: the same type, or in V3 a GRASP_FEEDBACK response for a count (the erratum; its echoed
-/// class tells them apart only when the count asked for a class, not for 0 = all).
-fn same_shape(call: MessageType, sent: MessageType, version: u16) -> bool {
-    call == sent
-        || (version == 3
-            && call == MessageType::GetObjectCount
-            && sent == MessageType::GraspFeedback)
-}
-
-/// The promises: bounded calls; every answer is one response the server sent to that client,
-/// during the call, to that very request (counter included, so it is that one response); one
-/// response answers one call; `Closed` only after `close()`.
-///
-/// What the oracle can and cannot demand:
-/// - After a dropped response, in the tolerant default (the counter only recorded: the manual
-///   does not say whether it counts per connection), a response of the same type to an earlier
-///   request is what no client can tell apart from its own (nor, in V3, a GRASP_FEEDBACK
-///   response from a count of all classes: the erratum's type 17). Then the response must still
-///   be one the server sent during the call, of a type the call accepts, read as the client
-///   reads it ([`same_shape`]). In strict mode the counter tells them apart: exact.
-/// - A client whose stream flips bytes: the frames have no checksum (manual 3.2), so a flipped
-///   body byte (a count, a pose, a code) reaches the caller as a valid value, and a flipped
-///   request byte makes the server answer another request. Then the oracle demands only that
-///   some response was sent to that client during the call (one per call): the answer is paired
-///   in order, not invented.
-fn oracle(
-    ctxs: &[Arc<Ctx>],
-    calls: &[CallRec],
-    records: &[Vec<SimExchange>],
-    dropped: bool,
-) -> Vec<String> {
-    let mut out = Vec::new();
-    let mut used = std::collections::BTreeSet::new();
-    // Earliest end first: a greedy match is then exact for intervals.
-    let mut order: Vec<usize> = (0..calls.len()).collect();
-    order.sort_by_key(|&i| (calls[i].end, i));
-    for i in order {
-        let c = &calls[i];
-        let ctx = &ctxs[c.client];
-        let bound = c.start.checked_add(c.timeout).map(|t| t + CALL_SLACK);
-        if bound.is_some_and(|b| c.end > b) {
-            out.push(format!(
-                "1 (bounded): client {} {:?} with timeout {:?} took {:?}",
-                c.client,
-                c.request,
-                c.timeout,
-                c.end - c.start
-            ));
-        }
-        let answer = match &c.result {
-            Ok(r) => r,
-            Err(Error::Closed) => {
-                if !ctx.closing.load(Ordering::SeqCst) {
-                    out.push(format!(
-                        "5 (documented errors): client {} {:?} ended Closed without close()",
-                        c.client, c.request
-                    ));
-                }
-                continue;
-            }
-            Err(_) => continue,
-        };
-        let loose = dropped && !ctx.strict;
-        let sessions = ctx.sessions.lock().unwrap().clone();
-        let found = sessions.iter().find_map(|&(g, s)| {
-            records[g as usize].iter().enumerate().find_map(|(j, e)| {
-                let base = e.session == s
-                    && e.sent_at >= c.start
-                    && e.sent_at <= c.end
-                    && !used.contains(&(g, j));
-                // Compared as sent: a frame carries only its version's fields (V3 no
-                // selection criterion, V4 no tool).
-                let exact = || {
-                    c.request.to_any_frame(e.request.version()).ok() == Some(e.request)
-                        && decode(&e.response).as_ref() == Some(answer)
-                };
-                let shaped = || {
-                    loose
-                        && same_shape(
-                            c.request.message_type(),
-                            e.request.header().message_type,
-                            e.request.version(),
-                        )
-                        && decode_as(&e.response, c.request.message_type()).as_ref() == Some(answer)
-                };
-                let fits = base && (ctx.corrupts || exact() || shaped());
-                fits.then_some((g, j))
-            })
-        });
-        match found {
-            Some(k) => {
-                used.insert(k);
-            }
-            None => out.push(format!(
-                "2 (the server's answer): client {} {:?} returned {answer:?}, which the server did not send to that request during the call",
-                c.client, c.request
-            )),
-        }
-    }
-    out
+/// One call: its timeout (the handle's, none, or the configured default), made through `call`
+/// or its typed method, given up now and then, logged for the oracle.
+#[allow(clippy::too_many_arguments)]
+async fn one_call(
+    ctx: Arc<Ctx>,
+    k: usize,
+    request: Request,
+    via: Via,
+    slow: Option<Duration>,
+    mut rng: Prng,
+    forever: bool,
+    log: Arc<Mutex<Vec<CallRec>>>,
+    trace: SharedTrace,
+) {
+    let handle = match (slow, rng.below(30)) {
+        (Some(d), _) => Some(d + rng.millis(100, 2000)),
+        (None, 0) if forever => Some(Duration::MAX),
+        (None, 0..=9) => None,
+        _ => Some(rng.millis(20, 5000)),
+    };
+    let client = match handle {
+        Some(t) => ctx.client.with_timeout(t),
+        None => ctx.client.clone(),
+    };
+    let timeout = handle.unwrap_or_else(|| oracle::configured_timeout(&ctx.config, &request));
+    let start = Instant::now();
+    // Now and then the caller gives up on the call (its future dropped); a call without
+    // timeout only by the guard of rule 8.
+    let cancel = if timeout == Duration::MAX {
+        Some(FOREVER_GUARD)
+    } else {
+        rng.one_in(8).then(|| rng.millis(1, 500))
+    };
+    let result = unless_given_up(cancel, perform(&client, request, via)).await;
+    let end = Instant::now();
+    note(
+        &trace,
+        format!(
+            "client {} caller {k}: {via:?} {request:?} ({timeout:?}) -> {result:?}",
+            ctx.index
+        ),
+    );
+    log.lock().unwrap().push(CallRec {
+        client: ctx.index,
+        request,
+        via,
+        start,
+        end,
+        timeout,
+        result,
+    });
 }
 
 impl DocumentedErrors for Error {

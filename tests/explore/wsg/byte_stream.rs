@@ -58,41 +58,16 @@ pub fn reply_lost_on_streams(
             continue;
         };
         let sent_at = t0 + record.records[fin].at;
-        let (Some(w), Some((_, carried))) = (
-            &wire[fin],
-            view.carried.iter().find(|(s, _)| *s == ack.session),
-        ) else {
-            continue;
-        };
         if sent_at > c.end + view.grace {
             continue;
         }
-        let Some(kept) = carried.input.get(w.start as usize..w.end() as usize) else {
-            continue; // Beyond what the log kept.
-        };
-        if kept != w.bytes.as_slice() {
-            v.push(format!(
-                "explorer: session {}'s stream at byte {} is not the reply the simulator recorded there ({kept:02x?}, not {:02x?})",
-                ack.session, w.start, w.bytes
-            ));
-            continue;
-        }
-        // A damaged byte may cost every frame up to DAMAGE_REACH after it. A frame torn across
-        // two writes apart in time may lose its head to the client's partial-frame timeout
-        // (`transport.rs`, resync): itself, and the frames after it only if its tail holds a
-        // preamble (manual 1.2.1: AA AA AA) that a decoder could take for a header.
-        let reach = |d: u64| d < w.end() && d + DAMAGE_REACH >= w.start;
-        let torn = wire.iter().flatten().any(|o| {
-            o.session == ack.session
-                && delivered(carried, o.start + 1) != delivered(carried, o.end())
-                && (o.start == w.start
-                    || reach(o.start) && o.bytes[1..].windows(3).any(|p| p == [0xAA; 3]))
-        });
-        if torn || carried.damaged.iter().any(|&d| reach(d)) {
-            continue;
-        }
-        let Some(at) = delivered(carried, w.end()) else {
-            continue;
+        let at = match intact(record, view, &wire, fin) {
+            Intact::At(at) => at,
+            Intact::No => continue,
+            Intact::Mismatch(e) => {
+                v.push(e);
+                continue;
+            }
         };
         let acked_at = t0 + ack.at;
         let held = !view.losses.iter().any(|&l| l >= acked_at && l <= at)
@@ -128,6 +103,64 @@ pub fn reply_lost_on_streams(
         ));
     }
     v
+}
+
+/// What the link did with one reply's bytes.
+enum Intact {
+    /// Delivered intact, by then.
+    At(Instant),
+    /// Not delivered, or not provably intact.
+    No,
+    /// The log and the record disagree (an explorer bug).
+    Mismatch(String),
+}
+
+/// Whether reply record `fin` reached the client intact, and when: the link delivered its
+/// bytes with no damage that could reach them (within [`DAMAGE_REACH`] before them), not torn
+/// across two writes apart in time.
+fn intact(record: &SimRecording, view: &ClientView, wire: &[Option<OnWire>], fin: usize) -> Intact {
+    let session = record.records[fin].session;
+    let (Some(w), Some((_, carried))) =
+        (&wire[fin], view.carried.iter().find(|(s, _)| *s == session))
+    else {
+        return Intact::No;
+    };
+    let Some(kept) = carried.input.get(w.start as usize..w.end() as usize) else {
+        return Intact::No; // Beyond what the log kept.
+    };
+    if kept != w.bytes.as_slice() {
+        return Intact::Mismatch(format!(
+            "explorer: session {session}'s stream at byte {} is not the reply the simulator recorded there ({kept:02x?}, not {:02x?})",
+            w.start, w.bytes
+        ));
+    }
+    // A damaged byte may cost every frame up to DAMAGE_REACH after it. A frame torn across
+    // two writes apart in time may lose its head to the client's partial-frame timeout
+    // (`transport.rs`, resync): itself, and the frames after it only if its tail holds a
+    // preamble (manual 1.2.1: AA AA AA) that a decoder could take for a header.
+    let reach = |d: u64| d < w.end() && d + DAMAGE_REACH >= w.start;
+    let torn = wire.iter().flatten().any(|o| {
+        o.session == session
+            && delivered(carried, o.start + 1) != delivered(carried, o.end())
+            && (o.start == w.start
+                || reach(o.start) && o.bytes[1..].windows(3).any(|p| p == [0xAA; 3]))
+    });
+    if torn || carried.damaged.iter().any(|&d| reach(d)) {
+        return Intact::No;
+    }
+    match delivered(carried, w.end()) {
+        Some(at) => Intact::At(at),
+        None => Intact::No,
+    }
+}
+
+/// When reply record `i` reached the client intact over its stream session (see
+/// [`reply_lost_on_streams`]), if it did (None on UDP).
+pub fn delivered_intact(record: &SimRecording, view: &ClientView, i: usize) -> Option<Instant> {
+    match intact(record, view, &on_wire(record, view), i) {
+        Intact::At(at) => Some(at),
+        _ => None,
+    }
 }
 
 /// Appended to a promise 2 violation (an auto-update the device never sent) when the link

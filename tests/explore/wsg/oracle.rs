@@ -65,6 +65,12 @@ pub struct ClientView {
     /// Per stream session (TCP, serial), what the link did with the bytes the device sent it
     /// (empty on UDP).
     pub carried: Vec<(SessionId, Carried)>,
+    /// Per stream connection (TCP, serial), what the client's end saw (`tap.rs`).
+    pub taps: Vec<(SessionId, super::tap::TapLog)>,
+    /// The longest reply payload it accepts (`max_payload_len`).
+    pub max_payload: usize,
+    /// Violations seen directly (accessors' answers).
+    pub notes: Vec<String>,
 }
 
 /// Appended to a promise 2, 3 or 4 violation whose answer fits a reply datagram the fault
@@ -207,6 +213,14 @@ fn check_client(
         }
         match &c.res {
             Res::Other(e) => v.push(format!("2 (no wrong answer): {} {} failed with {e}", c.who, c.op)),
+            Res::Invalid if !c.bad => v.push(format!(
+                "2 (no wrong answer): {} {} failed with InvalidArgument, but its arguments are valid",
+                c.who, c.op
+            )),
+            r if c.bad && !matches!(r, Res::Invalid | Res::Cancelled) => v.push(format!(
+                "2 (bad input is a typed error): {} {} was called with an invalid argument and ended {r:?}, not InvalidArgument",
+                c.who, c.op
+            )),
             Res::Closed if close_start.is_none_or(|s| c.end < s) => v.push(format!(
                 "5 (documented errors): {} {} got Error::Closed at {} but close() was never called before it (a lost connection is ConnectionLost)",
                 c.who, c.op, t(c.end, t0)
@@ -217,7 +231,7 @@ fn check_client(
         if let (false, Some(lost)) = (view.reconnect, first_lost) {
             let fine = matches!(
                 c.res,
-                Res::Lost | Res::Cancelled | Res::Closed | Res::Conflict
+                Res::Lost | Res::Cancelled | Res::Closed | Res::Conflict | Res::Invalid
             );
             if c.start > lost && !fine {
                 v.push(format!(
@@ -360,6 +374,15 @@ fn check_client(
         }
     }
     v.extend(reply_lost_on_streams(calls, record, t0, view, close_start));
+    v.extend(super::liveness::check(
+        calls,
+        record,
+        t0,
+        view,
+        udp,
+        close_start,
+    ));
+    v.extend(view.notes.iter().cloned());
     // An update may be any value of that id the device sent this client before it was
     // received: a stream shared by several subscribers (3.4.1: one stream per value) may hand a
     // new one a value sent just before it subscribed, which is still the device's.

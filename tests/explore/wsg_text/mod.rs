@@ -10,7 +10,11 @@
 //! callers open a new connection after a loss (or drop theirs without `BYE()` now and then,
 //! which raises FAST STOP on the device).
 
+mod edges;
+mod liveness;
 mod oracle;
+mod quiet;
+mod tap;
 mod workload;
 
 use std::future::Future;
@@ -24,6 +28,7 @@ use gripper::wsg::text::{Client, ClientConfig, Error};
 use gripper::wsg::HomingDirection;
 use tokio::time::Instant;
 
+use self::tap::{SharedTap, Tap};
 use self::workload::{classify, CallRec, Expect, Log, Res};
 use crate::core::phases::{
     after_close, draw_restart, draw_shape, fault_phase, run_line, DocumentedErrors,
@@ -57,14 +62,20 @@ impl Scenario for WsgText {
 /// needs of it.
 pub struct Ctx {
     index: usize,
-    client: Mutex<Client>,
+    /// The connection of the moment, and its index in `sessions` and `taps`.
+    client: Mutex<(Client, usize)>,
     /// The simulator sessions it opened, oldest first.
     sessions: Arc<Mutex<Vec<SessionId>>>,
+    /// What the client wrote and read on each of those connections (`tap.rs`).
+    taps: Mutex<Vec<SharedTap>>,
     /// Whether its callers open a new connection after a loss.
     reconnect: bool,
-    /// Whether a call may have no timeout (only where no line can be lost: no corruption).
-    forever: bool,
+    /// Whether its link may flip bits (GCL has no checksum: a flipped bit is another line).
+    corrupting: bool,
     closing: AtomicBool,
+    /// Whether the quiet phase found a name of this client held for good, or its queue full of
+    /// such calls (issue 29 K, M): the documented errors after `close()` are then tagged.
+    stuck: AtomicBool,
     /// When a `close()` began (a `Closed` before it breaks promise 5).
     closed_at: Mutex<Option<Instant>>,
     config: ClientConfig,
@@ -92,11 +103,16 @@ impl Ctx {
 
     /// The connection of the moment.
     fn client(&self) -> Client {
+        self.client.lock().unwrap().0.clone()
+    }
+
+    /// The connection of the moment and its index (`sessions`, `taps`).
+    fn current(&self) -> (Client, usize) {
         self.client.lock().unwrap().clone()
     }
 
     /// A new connection through the fault layer, served by the simulator as a new session.
-    fn open(&self) -> Client {
+    fn open(&self) -> (Client, usize) {
         let n = &self.net;
         let label = format!("c{}", self.index);
         let (near, far) = faulty_pipe(
@@ -107,12 +123,18 @@ impl Ctx {
             label,
         );
         let session = n.sim.serve_stream(far, SessionKind::Tcp);
-        self.sessions.lock().unwrap().push(session);
+        let conn = {
+            let mut sessions = self.sessions.lock().unwrap();
+            sessions.push(session);
+            sessions.len() - 1
+        };
         note(
             &n.trace,
             format!("client {}: session {session}", self.index),
         );
-        Client::from_io(near, self.config.clone())
+        let (near, tap) = Tap::new(near);
+        self.taps.lock().unwrap().push(tap);
+        (Client::from_io(near, self.config.clone()), conn)
     }
 
     /// Replaces the connection (the old one is dropped without `BYE()` once no call holds it).
@@ -154,6 +176,15 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
     let corrupting = level > 0 && rng.one_in(3);
     let run = run_line(variant, seed, caps, level, n_clients);
     note(&trace, format!("{run}, corrupting {corrupting}"));
+    // Up to 20 callers per client (issue 29) in a quarter of the full-size runs.
+    let caps = if caps.callers == Caps::FULL.callers && rng.one_in(4) {
+        Caps {
+            callers: 20,
+            ..caps
+        }
+    } else {
+        caps
+    };
     let mut ctxs = Vec::new();
     for index in 0..n_clients {
         let mut crng = rng.fork();
@@ -161,14 +192,7 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
         if !corrupting {
             profile.corrupt = 0;
         }
-        let config = ClientConfig {
-            query_timeout: crng.millis(50, 2000),
-            motion_timeout: crng.millis(1000, 10_000),
-            give_up_after: crng.millis(100, 5000),
-            queue_len: crng.between(1, 8) as usize,
-            push_buffer: crng.between(1, 8) as usize,
-            ..ClientConfig::default()
-        };
+        let config = workload::draw_config(&mut crng);
         let reconnect = crng.one_in(2);
         note(
             &trace,
@@ -186,11 +210,13 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
         let ctx = Ctx {
             index,
             // Replaced at once: `open` needs the slot.
-            client: Mutex::new(Client::from_io(near, config.clone())),
+            client: Mutex::new((Client::from_io(near, config.clone()), 0)),
             sessions,
+            taps: Mutex::new(Vec::new()),
             reconnect,
-            forever: !corrupting,
+            corrupting,
             closing: AtomicBool::new(false),
+            stuck: AtomicBool::new(false),
             closed_at: Mutex::new(None),
             config,
             net,
@@ -230,8 +256,18 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
     for ctx in &ctxs {
         v.extend(recovery(ctx, &log, &trace).await);
     }
-    if let Some(ctx) = ctxs.iter().find(|c| !c.closing.load(Ordering::SeqCst)) {
+    for ctx in &ctxs {
+        v.extend(quiet::every_kind(ctx, &log, &trace).await);
+    }
+    // A client whose quiet phase found a name held for good (issue 29 K, M) may hold STOP too.
+    let usable =
+        |c: &&Arc<Ctx>| !c.closing.load(Ordering::SeqCst) && !c.stuck.load(Ordering::SeqCst);
+    if let Some(ctx) = ctxs.iter().find(usable) {
         v.extend(stop_is_not_queued(ctx, &sim, sim_t0, &trace).await);
+    }
+    // After the stop check: the edge client may leave without `BYE()` (FAST STOP).
+    if rng.one_in(4) {
+        v.extend(edges::check(&mut rng, &sim, &trace).await);
     }
     for ctx in &ctxs {
         if ctx.start_closing() {
@@ -239,11 +275,18 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
         }
         let c = ctx.client();
         let lost = c.is_closed();
+        // Bounded: a client may have drawn `Duration::MAX` for its query timeout.
+        let c = c.with_timeout(RECOVERY_TIMEOUT);
         let r = c.close().await;
         note(&trace, format!("close client {}: {r:?}", ctx.index));
         let after = c.position_mm().await;
-        let lost = lost || matches!(r, Err(Error::ConnectionLost(_)));
-        v.extend(after_close(ctx.index, "POS?", &after, lost));
+        let lost = lost || matches!(r, Err(Error::ConnectionLost { .. }));
+        let stuck = if ctx.stuck.load(Ordering::SeqCst) {
+            quiet::FULL
+        } else {
+            ""
+        };
+        v.extend(after_close(ctx.index, "POS?", &after, lost).map(|e| e + stuck));
     }
 
     let record = crate::wsg::note_record(&sim, &trace);
@@ -259,6 +302,13 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
     let mut all = oracle::check(
         &calls, &pushes, &record, sim_t0, &sessions, &closed_at, exact,
     );
+    let taps: Vec<Vec<SharedTap>> = ctxs
+        .iter()
+        .map(|c| c.taps.lock().unwrap().clone())
+        .collect();
+    let configs: Vec<ClientConfig> = ctxs.iter().map(|c| c.config.clone()).collect();
+    let after_close = log.after_close.lock().unwrap().clone();
+    all.extend(liveness::check(&calls, &taps, &configs, &after_close));
     all.extend(v);
     drop(ctxs);
     drop(sim);
@@ -279,13 +329,15 @@ async fn recovery(ctx: &Ctx, log: &Log, trace: &SharedTrace) -> Vec<String> {
     if ctx.closing.load(Ordering::SeqCst) {
         return Vec::new();
     }
-    let longest_call = ctx.config.motion_timeout.max(Duration::from_secs(5));
-    let bound = longest_call + ctx.config.give_up_after + Duration::from_secs(12);
+    // Capped: a drawn `Duration::MAX` (issue 29) must not overflow the bound.
+    let cap = Duration::from_secs(60);
+    let longest_call = ctx.config.motion_timeout.clamp(Duration::from_secs(5), cap);
+    let bound = longest_call + ctx.config.give_up_after.min(cap) + Duration::from_secs(12);
     tokio::time::sleep(bound).await;
     if ctx.reconnect {
         ctx.reopen_if_closed("recovery: the connection was lost");
     }
-    if !ctx.forever {
+    if ctx.corrupting {
         // A corrupted LF in the fault phase leaves a fragment in the client's reader that eats
         // the next reply line (it ends it): a query whose answer nobody checks clears it.
         let flush = ctx
@@ -298,7 +350,8 @@ async fn recovery(ctx: &Ctx, log: &Log, trace: &SharedTrace) -> Vec<String> {
             format!("recovery client {}: TEMP? {flush:?}", ctx.index),
         );
     }
-    let c = ctx.client().with_timeout(RECOVERY_TIMEOUT);
+    let (c, conn) = ctx.current();
+    let c = c.with_timeout(RECOVERY_TIMEOUT);
     let lost = c.is_closed();
     let mut v = Vec::new();
     for (line, name, expect) in [
@@ -317,14 +370,17 @@ async fn recovery(ctx: &Ctx, log: &Log, trace: &SharedTrace) -> Vec<String> {
         );
         let res = r.as_ref().map_or_else(classify, Clone::clone);
         match (&res, lost) {
-            (Res::Done | Res::Value(_), false) | (Res::Lost, true) => {}
+            (Res::Done | Res::Value(_), false) | (Res::Lost(_), true) => {}
             _ => v.push(format!(
-                "5 (recovery): client {} (reconnect {}, lost {lost}): {bound:?} after the faults stopped, {line} ended {r:?}",
-                ctx.index, ctx.reconnect
+                "5 (recovery): client {} (reconnect {}, lost {lost}): {bound:?} after the faults stopped, {line} ended {r:?}{}",
+                ctx.index,
+                ctx.reconnect,
+                recovery_tag(ctx, log, conn, (line, name, expect), start)
             )),
         }
         log.calls.lock().unwrap().push(CallRec {
             client: ctx.index,
+            conn,
             line: line.into(),
             name,
             expect,
@@ -337,6 +393,23 @@ async fn recovery(ctx: &Ctx, log: &Log, trace: &SharedTrace) -> Vec<String> {
     v
 }
 
+/// Why a recovery call failed, if it is a known finding: its name held for good (issue 29 M),
+/// or the client's queue full of calls given up behind such names (K with M).
+fn recovery_tag(
+    ctx: &Ctx,
+    log: &Log,
+    conn: usize,
+    (line, name, expect): (&str, &str, Expect),
+    start: Instant,
+) -> &'static str {
+    let held = quiet::held_tag(ctx, log, conn, name, expect, start);
+    if held.is_empty() {
+        quiet::full_tag(ctx, log, conn, line, start)
+    } else {
+        held
+    }
+}
+
 /// Promise 3, live: with the network quiet, a `STOP()` called while a slow `MOVE` runs reaches
 /// the device at the instant it is called (not behind the motion), is answered by its own
 /// `ACK STOP`, and the `MOVE` ends with its `ERR MOVE` (shared note §3.7).
@@ -346,14 +419,16 @@ async fn stop_is_not_queued(
     sim_t0: Instant,
     trace: &SharedTrace,
 ) -> Vec<String> {
-    let c = ctx.client();
+    // Bounded calls: a client may have drawn `Duration::MAX` for its default timeouts.
+    let c = ctx.client().with_timeout(RECOVERY_TIMEOUT);
     let _ = c.ack_fast_stop().await;
-    if c.home(HomingDirection::Default).await.is_err() {
+    let m = c.with_timeout(Duration::from_secs(30));
+    if m.home(HomingDirection::Default).await.is_err() {
         return Vec::new();
     }
     let width = c.position_mm().await.unwrap_or(0.0);
     let target = if width > 55.0 { 5.0 } else { 105.0 };
-    let mover = c.clone();
+    let mover = m.clone();
     let motion_start = Instant::now();
     let motion = tokio::spawn(async move { mover.move_to(target, Some(10.0)).await });
     tokio::time::sleep(Duration::from_millis(200)).await;
@@ -408,6 +483,6 @@ impl DocumentedErrors for Error {
     }
 
     fn is_connection_lost(&self) -> bool {
-        matches!(self, Error::ConnectionLost(_))
+        matches!(self, Error::ConnectionLost { .. })
     }
 }

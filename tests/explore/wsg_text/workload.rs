@@ -7,7 +7,7 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use gripper::wsg::text::line::{encode_call, encode_set};
-use gripper::wsg::text::{Client, Error, Quantity};
+use gripper::wsg::text::{Client, ClientConfig, Error, Quantity};
 use gripper::wsg::HomingDirection;
 use tokio::time::Instant;
 
@@ -37,8 +37,8 @@ pub enum Res {
     Device(String),
     /// `Error::Closed`.
     Closed,
-    /// `Error::ConnectionLost`.
-    Lost,
+    /// `Error::ConnectionLost`, with its message (why: the oracle's rule 6 reads it).
+    Lost(String),
     /// `Error::Timeout`.
     Timeout,
     /// `Error::MalformedReply` or `Error::UnexpectedReply`: a line of the call's name that is
@@ -46,13 +46,25 @@ pub enum Res {
     Malformed(String),
     /// Anything else (the workload's arguments are valid: always a violation).
     Other(String),
+    /// The caller gave up on it (its future dropped) at `end`.
+    Cancelled,
+    /// A call without timeout (`Duration::MAX`) that had not ended [`FOREVER_BOUND`] after it
+    /// began: the caller dropped it (rule 8).
+    Hung,
 }
+
+/// How long the explorer waits for a call without timeout before it drops it and reports it
+/// (rule 8): far beyond the longest motion (110 mm at 10 mm/s), stall (3 s), timeout and
+/// give-up time a run draws, so a call that has not ended by then has no bound.
+pub const FOREVER_BOUND: Duration = Duration::from_secs(120);
 
 /// One call as the oracle sees it.
 #[derive(Clone, Debug)]
 pub struct CallRec {
     /// Which client (index).
     pub client: usize,
+    /// Which of its connections (index into its sessions and taps).
+    pub conn: usize,
     /// The command line the client writes.
     pub line: String,
     /// The name its replies carry.
@@ -82,13 +94,28 @@ pub struct PushRec {
     pub at: Instant,
 }
 
+/// A `close()` in the fault phase and the call made right after it.
+#[derive(Clone, Debug)]
+pub struct AfterClose {
+    /// Which client, and which connection.
+    pub client: usize,
+    /// See `client`.
+    pub conn: usize,
+    /// When `close()` began, and how it ended.
+    pub close: (Instant, Res),
+    /// The call after it: start, end, how it ended.
+    pub after: (Instant, Instant, Res),
+}
+
 /// Everything the callers of a run recorded.
 #[derive(Default)]
 pub struct Log {
-    /// Every call that ended (not the cancelled ones).
+    /// Every call (a cancelled one as [`Res::Cancelled`]).
     pub calls: Mutex<Vec<CallRec>>,
     /// Every push received.
     pub pushes: Mutex<Vec<PushRec>>,
+    /// Every `close()` of the fault phase and the call after it.
+    pub after_close: Mutex<Vec<AfterClose>>,
 }
 
 /// A call of the workload: its line, name, reply form, and how to make it.
@@ -174,13 +201,9 @@ fn op(rng: &mut Prng) -> Op {
             }
         }
         _ => {
-            let q = [
-                Quantity::Position,
-                Quantity::Speed,
-                Quantity::Force,
-                Quantity::GripState,
-                Quantity::Temperature,
-            ][rng.below(5) as usize];
+            // By its GCL name, in either case (`Quantity::from_name` takes any).
+            let name = ["POS", "speed", "FORCE", "GripState", "TEMP"][rng.below(5) as usize];
+            let q = Quantity::from_name(name).expect("a GCL push name");
             if rng.one_in(5) {
                 ("AUTOSEND", Ack, Call::AutosendOff(q))
             } else {
@@ -236,7 +259,7 @@ pub fn classify(e: &Error) -> Res {
     match e {
         Error::Device { line, .. } => Res::Device(line.clone()),
         Error::Closed => Res::Closed,
-        Error::ConnectionLost(_) => Res::Lost,
+        Error::ConnectionLost { reason } => Res::Lost(reason.to_string()),
         Error::Timeout { .. } => Res::Timeout,
         Error::MalformedReply { .. } | Error::UnexpectedReply { .. } => {
             Res::Malformed(e.to_string())
@@ -245,19 +268,21 @@ pub fn classify(e: &Error) -> Res {
     }
 }
 
+/// Where a call runs and where it is logged.
+struct At<'a> {
+    ctx: &'a Ctx,
+    /// The connection (index into the client's sessions and taps).
+    conn: usize,
+    log: &'a Log,
+    trace: &'a SharedTrace,
+}
+
 /// Runs `call` on `c`: how it ended, and when. An `AUTOSEND` that starts a stream ends with
 /// its `ACK`; then it reads a few pushes (logged), drops the stream and stops the pushes (a
 /// call of its own, logged).
-async fn perform(
-    c: &Client,
-    call: &Call,
-    ctx: &Ctx,
-    rng: &mut Prng,
-    log: &Log,
-    trace: &SharedTrace,
-) -> (Res, Instant) {
+async fn perform(c: &Client, call: &Call, at: &At<'_>, rng: &mut Prng) -> (Res, Instant) {
     if let Call::Autosend(q, ms, on_change) = call {
-        return autosend(c, *q, *ms, *on_change, ctx, rng, log, trace).await;
+        return autosend(c, (*q, *ms, *on_change), at, rng).await;
     }
     let done = |()| Res::Done;
     let num = Res::Value;
@@ -285,21 +310,19 @@ async fn perform(
     (r, Instant::now())
 }
 
-// The call's parts and the run's handles, each needed once: a struct would only rename them.
-#[allow(clippy::too_many_arguments)]
+/// `AUTOSEND(q, ms[, true])`: ends with its `ACK`; then reads a few pushes from its stream (or,
+/// one time in three, from a stream of every push, `Client::pushes`, taken before), drops it,
+/// and stops the pushes (a call of its own, logged).
 async fn autosend(
     c: &Client,
-    q: Quantity,
-    ms: u16,
-    on_change: bool,
-    ctx: &Ctx,
+    (q, ms, on_change): (Quantity, u16, bool),
+    at: &At<'_>,
     rng: &mut Prng,
-    log: &Log,
-    trace: &SharedTrace,
 ) -> (Res, Instant) {
+    let every = rng.one_in(3).then(|| c.pushes());
     let mut pushes = match c.autosend(q, ms, on_change).await {
         Err(e) => return (classify(&e), Instant::now()),
-        Ok(pushes) => pushes,
+        Ok(own) => every.unwrap_or(own),
     };
     let acked = Instant::now();
     // Read a few, each within a bound, then drop the stream.
@@ -308,43 +331,130 @@ async fn autosend(
         let Ok(Some(p)) = tokio::time::timeout(wait, pushes.recv()).await else {
             break;
         };
-        note(trace, format!("client {}: push {p:?}", ctx.index));
-        log.pushes.lock().unwrap().push(PushRec {
-            client: ctx.index,
+        note(at.trace, format!("client {}: push {p:?}", at.ctx.index));
+        at.log.pushes.lock().unwrap().push(PushRec {
+            client: at.ctx.index,
             name: p.quantity.name(),
             value: p.value,
             at: Instant::now(),
         });
     }
+    note(
+        at.trace,
+        format!("client {}: pushes missed {}", at.ctx.index, pushes.missed()),
+    );
     drop(pushes);
     let off = Call::AutosendOff(q);
-    let start = Instant::now();
-    let c = c.with_timeout(ctx.config.query_timeout);
-    let r = res(c.stop_autosend(q).await, |()| Res::Done);
+    let timeout = c.config().query_timeout;
+    // Logged even if the caller drops this call midway (its request may wait in the client's
+    // queue: rule 9 counts what the queue holds).
+    let mut logged = Logged {
+        log: at.log,
+        rec: Some(CallRec {
+            client: at.ctx.index,
+            conn: at.conn,
+            line: line_of("AUTOSEND", &off),
+            name: "AUTOSEND",
+            expect: Expect::Ack,
+            start: Instant::now(),
+            end: Instant::now(),
+            timeout,
+            res: Res::Cancelled,
+        }),
+    };
+    let c = c.with_timeout(timeout);
+    let r = forever_bounded(timeout, async {
+        (
+            res(c.stop_autosend(q).await, |()| Res::Done),
+            Instant::now(),
+        )
+    })
+    .await
+    .0;
     note(
-        trace,
+        at.trace,
         format!(
             "client {}: {} -> {r:?}",
-            ctx.index,
+            at.ctx.index,
             line_of("AUTOSEND", &off)
         ),
     );
-    log.calls.lock().unwrap().push(CallRec {
-        client: ctx.index,
-        line: line_of("AUTOSEND", &off),
-        name: "AUTOSEND",
-        expect: Expect::Ack,
-        start,
-        end: Instant::now(),
-        timeout: ctx.config.query_timeout,
-        res: r,
-    });
+    logged.end(r);
     (Res::Done, acked)
 }
 
-/// One caller: `ops` calls on its client with random timeouts and cancellations; now and then
-/// it closes the client (`BYE()`), or drops its connection without `BYE()` and opens another
-/// (the device raises FAST STOP); after a lost connection a reconnecting client opens another.
+/// A call's record, logged when it ends, or as [`Res::Cancelled`] when its future is dropped.
+struct Logged<'a> {
+    log: &'a Log,
+    rec: Option<CallRec>,
+}
+
+impl Logged<'_> {
+    /// The call ended: `res`, now.
+    fn end(&mut self, res: Res) {
+        if let Some(mut rec) = self.rec.take() {
+            rec.end = Instant::now();
+            rec.res = res;
+            self.log.calls.lock().unwrap().push(rec);
+        }
+    }
+}
+
+impl Drop for Logged<'_> {
+    fn drop(&mut self) {
+        self.end(Res::Cancelled);
+    }
+}
+
+/// Rule 8: a call without timeout must end; past [`FOREVER_BOUND`] it is dropped and reported
+/// ([`Res::Hung`]). A call with a timeout runs as it is.
+async fn forever_bounded(
+    timeout: Duration,
+    call: impl std::future::Future<Output = (Res, Instant)>,
+) -> (Res, Instant) {
+    if timeout != Duration::MAX {
+        return call.await;
+    }
+    match tokio::time::timeout(FOREVER_BOUND, call).await {
+        Ok(ended) => ended,
+        Err(_) => (Res::Hung, Instant::now()),
+    }
+}
+
+/// The timeout of the call made right after a `close()` (it must fail at once).
+pub const AFTER_CLOSE_TIMEOUT: Duration = Duration::from_secs(2);
+
+/// A client configuration: the ranges the scenario always drew, and now and then an edge value
+/// (issue 29): a timeout of `Duration::MAX` or zero, no give-up time or an immediate one, a
+/// long queue or push buffer. (`usize::MAX` sizes are drawn by `edges.rs`, on a client of its
+/// own: they panic today, issue 29 O.)
+pub fn draw_config(rng: &mut Prng) -> ClientConfig {
+    let mut config = ClientConfig {
+        query_timeout: rng.millis(50, 2000),
+        motion_timeout: rng.millis(1000, 10_000),
+        give_up_after: rng.millis(100, 5000),
+        queue_len: rng.between(1, 8) as usize,
+        push_buffer: rng.between(1, 8) as usize,
+        ..ClientConfig::default()
+    };
+    match rng.below(40) {
+        0 => config.query_timeout = Duration::MAX,
+        1 => config.motion_timeout = Duration::MAX,
+        2 => config.give_up_after = Duration::ZERO,
+        3 => config.give_up_after = Duration::MAX,
+        4 => config.queue_len = 1000,
+        5 => config.push_buffer = 1000,
+        // (A zero default timeout fails every call the quiet phase makes: `edges.rs` draws it.)
+        _ => {}
+    }
+    config
+}
+
+/// One caller: `ops` calls on its client with random timeouts (now and then none,
+/// `Duration::MAX`, or zero) and cancellations; now and then it closes the client (`BYE()`),
+/// then checks that a call fails as documented, or drops its connection without `BYE()` and
+/// opens another (the device raises FAST STOP); after a lost connection a reconnecting client
+/// opens another.
 pub async fn caller(
     ctx: Arc<Ctx>,
     k: usize,
@@ -359,11 +469,31 @@ pub async fn caller(
         }
         if rng.one_in(150) {
             ctx.start_closing();
-            let r = ctx.client().close().await;
+            let (c, conn) = ctx.current();
+            let start = Instant::now();
+            let r = c.close().await;
             note(
                 &trace,
                 format!("client {} caller {k}: close {r:?}", ctx.index),
             );
+            // After `close()`, a call fails at once, with `Closed` (or `ConnectionLost` if the
+            // connection was lost): not a timeout on a connection that reads no more calls
+            // (issue 29 N: a `BYE()` answered otherwise than `ACK BYE`).
+            let after_start = Instant::now();
+            let after = c.with_timeout(AFTER_CLOSE_TIMEOUT).position_mm().await;
+            note(
+                &trace,
+                format!(
+                    "client {} caller {k}: POS? after close: {after:?}",
+                    ctx.index
+                ),
+            );
+            log.after_close.lock().unwrap().push(AfterClose {
+                client: ctx.index,
+                conn,
+                close: (start, res(r, |()| Res::Done)),
+                after: (after_start, Instant::now(), res(after, Res::Value)),
+            });
             return;
         }
         if ctx.reconnect && rng.one_in(60) {
@@ -372,18 +502,26 @@ pub async fn caller(
         }
         let op = op(&mut rng);
         let timeout = match rng.below(30) {
-            0 if ctx.forever => Duration::MAX,
-            0..=14 => rng.millis(20, 5000),
+            0 => Duration::MAX,
+            1 => Duration::ZERO,
+            2..=15 => rng.millis(20, 5000),
             _ => match op.expect {
                 Expect::Fin => ctx.config.motion_timeout,
                 _ => ctx.config.query_timeout,
             },
         };
-        let client = ctx.client().with_timeout(timeout);
+        let (client, conn) = ctx.current();
+        let client = client.with_timeout(timeout);
         let start = Instant::now();
         let cancel = rng.one_in(8).then(|| rng.millis(1, 500));
         let mut prng = rng.fork();
-        let call = perform(&client, &op.call, &ctx, &mut prng, &log, &trace);
+        let at = At {
+            ctx: &ctx,
+            conn,
+            log: &log,
+            trace: &trace,
+        };
+        let call = forever_bounded(timeout, perform(&client, &op.call, &at, &mut prng));
         let ended = unless_given_up(cancel, call).await;
         note(
             &trace,
@@ -394,10 +532,11 @@ pub async fn caller(
                 ended.as_ref().map(|e| &e.0)
             ),
         );
-        let Some((res, end)) = ended else { continue };
-        let lost = res == Res::Lost;
+        let (res, end) = ended.unwrap_or_else(|| (Res::Cancelled, Instant::now()));
+        let lost = matches!(res, Res::Lost(_));
         log.calls.lock().unwrap().push(CallRec {
             client: ctx.index,
+            conn,
             line: op.line,
             name: op.name,
             expect: op.expect,

@@ -357,7 +357,7 @@ impl TextSession {
                 Ok((push_id, period_ms, on_change)) => {
                     emit.push(Emit::Line(format!("ACK {name}")));
                     if period_ms == 0 {
-                        device.streams.remove(&(session, push_id));
+                        device.sessions.stop_stream(session, push_id);
                     } else {
                         let mode = UpdateMode {
                             auto: true,

@@ -1,0 +1,13 @@
+"""Planted bug (GRIPLINK, rule 6): a reply is given up on at its call's deadline, without the
+`give_up_after` the client docs promise ("If a reply stays away give_up_after beyond its call's
+timeout"): a controller that answers a little late, in order, gets its healthy connection
+declared lost."""
+from _plant import plant
+
+KIND = "6 (a connection is lost only for cause)"
+
+plant(
+    "src/griplink/client/task.rs",
+    "let give_up_at = crate::deadline::after(request.deadline, config.give_up_after);",
+    "let give_up_at = request.deadline;",
+)

@@ -1,0 +1,16 @@
+"""Planted bug (SmartGrasp, rule 7): a GRASP_FEEDBACK response is paired and then never handed
+to its caller (a decoder that drops good frames), who waits out its timeout although the
+response reached the client intact."""
+from _plant import plant
+
+KIND = "7 (a Timeout only when its reply did not arrive in time)"
+
+plant(
+    "src/smartgrasp/client/link.rs",
+    "        if w.reply.send(Ok(frame)).is_err() {",
+    """        if frame.header().message_type == MessageType::GraspFeedback {
+            std::mem::forget(w.reply);
+            return Ok(());
+        }
+        if w.reply.send(Ok(frame)).is_err() {""",
+)

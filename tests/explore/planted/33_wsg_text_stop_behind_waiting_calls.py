@@ -1,0 +1,20 @@
+"""Planted bug (WSG text, GCL; issue 29 rule 9): STOP() takes its turn behind the requests waiting
+for busy names (first come, first served) instead of going out at once. The quiet phase's live
+stop check (rule 3) cannot see it: nothing waits there."""
+from _plant import plant
+
+KIND = "9 (a stop is sent at once, faults or not)"
+
+plant(
+    "src/wsg/text/task.rs",
+    """                if book.on_wire.contains_key(request.name) {""",
+    """                let behind = request.name == "STOP" && !book.waiting.is_empty();
+                if book.on_wire.contains_key(request.name) || behind {""",
+)
+plant(
+    "src/wsg/text/task.rs",
+    """                        Handled::Freed(name) => to_send = book.next_waiting(name),""",
+    """                        Handled::Freed(name) => {
+                            to_send = book.next_waiting(name).or_else(|| book.next_waiting("STOP"))
+                        }""",
+)

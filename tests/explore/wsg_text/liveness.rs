@@ -1,0 +1,388 @@
+//! The rules of issue 29 for the text client, judged on what the client itself wrote and read
+//! (`tap.rs`), with the numbers and wording every protocol's oracle uses:
+//!
+//! 6. **A connection is lost only for cause**: the client gives a connection up on time
+//!    ("no reply to CMD long after its timeout") only if no reply of CMD's name reached it since
+//!    it wrote CMD: not when the reply came (a decoder that lost it), nor when the device had
+//!    acknowledged the motion (`ACK MOVE`: the device answers in order, the motion runs; issue
+//!    29 L). Losses by the end of the stream (a cut, a restart) are the schedule's.
+//! 7. **A Timeout only when its reply did not arrive in time**: a call that ended `Timeout`
+//!    after the client wrote its line must not have had a reply of its name read by the client
+//!    before its deadline (the next such line after the write is the call's: one command per
+//!    name on the wire).
+//! 8. **A call without timeout ends, and frees what it held**: a `Duration::MAX` call must end
+//!    (the workload drops it after `FOREVER_BOUND` and records it `Hung`); its name must be free
+//!    afterwards (`quiet.rs`, rule 10's calls).
+//! 9. **A stop is sent at once, faults or not**: `STOP()`/`FASTSTOP()` is written the instant it
+//!    is called, unless one of the same name is on the wire unanswered (one command per name: by
+//!    design, not judged) or `BYE()` was written. Issue 29 K: a queue full of calls whose
+//!    callers gave up holds it.
+//!
+//! And promise 5's documented errors after `close()` (issue 29 N): nothing is written after
+//! `BYE()`, and a call after `close()` fails at once.
+
+use std::time::Duration;
+
+use gripper::wsg::text::line::{parse_reply, ReplyLine};
+use gripper::wsg::text::ClientConfig;
+use tokio::time::Instant;
+
+use super::oracle::request_name;
+use super::tap::{Line, SharedTap, TapLog};
+use super::workload::{AfterClose, CallRec, Expect, Res, FOREVER_BOUND};
+
+/// How far before its deadline a reply must have been read to count as in time (the task and
+/// the caller's timer may run in either order at one instant).
+const MARGIN: Duration = Duration::from_millis(1);
+
+/// How late after a call began its stop may be written (the task's turn, simulated).
+const AT_ONCE: Duration = Duration::from_millis(1);
+
+const MOTIONS: [&str; 4] = ["HOME", "MOVE", "GRIP", "RELEASE"];
+
+/// Whether `line` ends a command `name` that waits for `expect` (what the client's pairing
+/// takes as its reply: a final reply, an `ERR`, or a wrong form of that name; a motion's `ACK`
+/// does not end it, nor a push or an `ERR` without a name).
+fn ends(line: &str, name: &str, expect: Expect) -> bool {
+    // A line that is not UTF-8 (a flipped bit; the tap shows it with U+FFFD) is discarded by the
+    // client's reader before any pairing.
+    if line.contains('\u{FFFD}') {
+        return false;
+    }
+    let n = match parse_reply(line) {
+        Ok(ReplyLine::Ack(_)) if expect == Expect::Fin => return false,
+        Ok(ReplyLine::Ack(n) | ReplyLine::Fin(n) | ReplyLine::Value { name: n, .. }) => n,
+        Ok(ReplyLine::Err { name: Some(n), .. }) => n,
+        _ => return false,
+    };
+    n.eq_ignore_ascii_case(name)
+}
+
+/// What a command of `name` waits for.
+fn expect_of(name: &str, calls: &[CallRec]) -> Expect {
+    if MOTIONS.contains(&name) {
+        return Expect::Fin;
+    }
+    calls
+        .iter()
+        .find(|c| c.name.eq_ignore_ascii_case(name))
+        .map_or(Expect::Ack, |c| c.expect)
+}
+
+/// The first line read after the line numbered `after` and before `to` that ends `name`, no
+/// longer than the client reads.
+fn reply_read<'a>(
+    log: &'a TapLog,
+    name: &str,
+    expect: Expect,
+    (after, to): (u64, Instant),
+    max_line_len: usize,
+) -> Option<&'a Line> {
+    log.read.lines.iter().find(|l| {
+        l.seq > after && l.at < to && l.text.len() <= max_line_len && ends(&l.text, name, expect)
+    })
+}
+
+/// Whether a command of `name` was on the wire unanswered at `at` (written, and no line that
+/// ends it read since, by `at`).
+pub fn busy(log: &TapLog, name: &str, expect: Expect, at: Instant, max_line_len: usize) -> bool {
+    let last = log
+        .written
+        .lines
+        .iter()
+        .rfind(|l| l.at <= at && request_name(&l.text) == name);
+    // `at` itself counts: a reply read at that instant freed the name by then.
+    let until = at + Duration::from_nanos(1);
+    last.is_some_and(|w| reply_read(log, name, expect, (w.seq, until), max_line_len).is_none())
+}
+
+/// When each call's own line was written (time, place), if it was: the writes of a line pair
+/// with the calls of that line in the order the calls began (a name's requests wait in order;
+/// identical lines of several callers are told apart only so).
+fn own_writes(calls: &[CallRec], taps: &[Vec<SharedTap>]) -> Vec<Option<(Instant, u64)>> {
+    let mut own = vec![None; calls.len()];
+    let mut order: Vec<usize> = (0..calls.len()).collect();
+    order.sort_by_key(|&i| calls[i].start);
+    let mut taken = std::collections::BTreeSet::new();
+    for i in order {
+        let c = &calls[i];
+        let Some(tap) = taps[c.client].get(c.conn) else {
+            continue;
+        };
+        let log = tap.lock().unwrap();
+        let w = log.written.lines.iter().find(|l| {
+            l.at >= c.start
+                && l.at <= c.end
+                && l.text == c.line
+                && !taken.contains(&(c.client, c.conn, l.seq))
+        });
+        if let Some(w) = w {
+            taken.insert((c.client, c.conn, w.seq));
+            own[i] = Some((w.at, w.seq));
+        }
+    }
+    own
+}
+
+/// Every rule above; `taps[i][k]`: client `i`'s connection `k`.
+pub fn check(
+    calls: &[CallRec],
+    taps: &[Vec<SharedTap>],
+    configs: &[ClientConfig],
+    after_close: &[AfterClose],
+) -> Vec<String> {
+    let mut out = Vec::new();
+    let mut judged_losses = std::collections::BTreeSet::new();
+    let own = own_writes(calls, taps);
+    for (i, c) in calls.iter().enumerate() {
+        let Some(tap) = taps[c.client].get(c.conn) else {
+            continue;
+        };
+        let log = tap.lock().unwrap();
+        let max = configs[c.client].max_line_len;
+        let who = format!("client {} {}", c.client, c.line);
+        match &c.res {
+            Res::Timeout => out.extend(timeout(i, calls, &own, &log, max)),
+            Res::Lost(why) if judged_losses.insert((c.client, c.conn)) => {
+                out.extend(loss(c, why, calls, &log, max));
+            }
+            Res::Hung => {
+                // M: the call's own command, or the one of its name it waited behind, was never
+                // answered (its reply was damaged): the name was still busy when it was dropped.
+                // A call left waiting after its name freed up is another bug: untagged.
+                // K with M: never written, behind a queue full of such calls.
+                let full = own[i].is_none()
+                    && queued_before(i, calls, &own) >= configs[c.client].queue_len.max(1);
+                // (Strictly before the drop: the caller's next line may draw a reply at once.)
+                let dropped = c.end - Duration::from_nanos(1);
+                let tag = if busy(&log, c.name, c.expect, dropped, max) {
+                    " [no reply of its name reached the client]"
+                } else if full {
+                    FULL
+                } else {
+                    ""
+                };
+                out.push(format!(
+                    "8 (a call without timeout ends, and frees what it held): {who} (no timeout) had not ended {FOREVER_BOUND:?} after it began{tag}"
+                ));
+            }
+            _ => {}
+        }
+        if matches!(c.name, "STOP" | "FASTSTOP") {
+            out.extend(stop(i, calls, &own, &log, &configs[c.client]));
+        }
+    }
+    for a in after_close {
+        let Some(tap) = taps[a.client].get(a.conn) else {
+            continue;
+        };
+        let log = tap.lock().unwrap();
+        out.extend(closed(a, &log));
+    }
+    out
+}
+
+/// Rule 7 for call `i`, which ended `Timeout`.
+fn timeout(
+    i: usize,
+    calls: &[CallRec],
+    own: &[Option<(Instant, u64)>],
+    log: &TapLog,
+    max: usize,
+) -> Option<String> {
+    let c = &calls[i];
+    let deadline = c.start.checked_add(c.timeout)?;
+    let (w, seq) = own[i].filter(|(w, _)| *w < deadline)?;
+    // Another live call of the connection with the very same line: the write may be either's.
+    let shared = calls.iter().enumerate().any(|(j, o)| {
+        j != i
+            && o.client == c.client
+            && o.conn == c.conn
+            && o.line == c.line
+            && o.start <= w
+            && w <= o.end
+    });
+    if shared {
+        return None;
+    }
+    let r = reply_read(log, c.name, c.expect, (seq, deadline), max)?;
+    (r.at + MARGIN <= deadline).then(|| {
+        format!(
+            "7 (a Timeout only when its reply did not arrive in time): client {} {} (timeout {:?}) ended Timeout, yet the client wrote it {:?} after the call began and read {:?} {:?} after, {:?} before its deadline",
+            c.client,
+            c.line,
+            c.timeout,
+            w - c.start,
+            r.text,
+            r.at - w,
+            deadline - r.at
+        )
+    })
+}
+
+/// Rule 6 for the first loss of a connection.
+fn loss(c: &CallRec, why: &str, calls: &[CallRec], log: &TapLog, max: usize) -> Option<String> {
+    let command = why
+        .strip_prefix("no reply to ")?
+        .split(" long after its timeout")
+        .next()?;
+    let name = request_name(command);
+    let expect = expect_of(&name, calls);
+    let w = log
+        .written
+        .lines
+        .iter()
+        .rfind(|l| l.at <= c.end && l.text == command)?;
+    let who = format!("client {} (connection {})", c.client, c.conn);
+    if let Some(r) = reply_read(log, &name, expect, (w.seq, c.end), max) {
+        return Some(format!(
+            "6 (a connection is lost only for cause): {who} was given up for no reply to {command}, yet the client read {:?} {:?} after writing it and {:?} before giving up",
+            r.text,
+            r.at - w.at,
+            c.end - r.at
+        ));
+    }
+    let ack = format!("ACK {name}");
+    let acked = log
+        .read
+        .lines
+        .iter()
+        .find(|l| l.seq > w.seq && l.at <= c.end && l.text == ack);
+    acked.map(|r| {
+        format!(
+            "6 (a connection is lost only for cause): {who} was given up for no reply to {command}, which the device had acknowledged ({ack:?} read {:?} after writing it, {:?} before giving up) [an acknowledged motion: the device answers in order]",
+            r.at - w.at,
+            c.end - r.at
+        )
+    })
+}
+
+/// Rule 9 for call `i`, a `STOP()` or `FASTSTOP()`.
+fn stop(
+    i: usize,
+    calls: &[CallRec],
+    own: &[Option<(Instant, u64)>],
+    log: &TapLog,
+    config: &ClientConfig,
+) -> Option<String> {
+    let c = &calls[i];
+    let max = config.max_line_len;
+    let ended_with_connection = matches!(c.res, Res::Lost(_) | Res::Closed);
+    if c.timeout.is_zero() || ended_with_connection || c.end <= c.start {
+        return None;
+    }
+    let same_conn = |o: &CallRec| o.client == c.client && o.conn == c.conn;
+    let unwritten_at = |j: usize, at: Instant| own[j].is_none_or(|(w, _)| w > at);
+    // One command per name: a stop behind an unanswered one of its name, or behind an earlier
+    // call of its name still waiting to be written, waits (by design, not judged).
+    let earlier_waiting = calls.iter().enumerate().any(|(j, o)| {
+        j != i
+            && same_conn(o)
+            && o.name == c.name
+            && o.start <= c.start
+            && o.end > c.start
+            && unwritten_at(j, c.start)
+    });
+    if earlier_waiting || busy(log, c.name, Expect::Ack, c.start, max) {
+        return None;
+    }
+    let bye = log
+        .written
+        .lines
+        .iter()
+        .any(|l| l.at <= c.start && l.text == "BYE()");
+    if bye {
+        return None;
+    }
+    let written = own[i].map(|(w, _)| w - c.start);
+    if written.is_some_and(|d| d <= AT_ONCE) {
+        return None;
+    }
+    // Issue 29 K: the client's queue (`queue_len` calls in its channel and as many again waiting
+    // behind busy names) was full: at least `queue_len` other calls of the connection had begun
+    // and not had their line written, each still waiting or given up (timed out, dropped)
+    // without being written. A request whose caller gave up leaves the queue only when a request
+    // is added behind a busy name or its own name frees up, so a queue of them can hold a stop
+    // behind a motion for as long as the motion runs.
+    let queued = queued_before(i, calls, own);
+    let tag = if queued >= config.queue_len.max(1) {
+        FULL
+    } else {
+        ""
+    };
+    Some(format!(
+        "9 (a stop is sent at once, faults or not): client {} {} ({:?}, ended {:?}) was written {written:?} after it was called (none of its name on the wire; {queued} other calls not yet sent, queue_len {}){tag}",
+        c.client, c.line, c.timeout, c.res, config.queue_len
+    ))
+}
+
+/// The tag of a call held behind a full queue (issue 29 K).
+const FULL: &str = " [behind a full queue of calls not yet sent]";
+
+/// How many other calls of call `i`'s connection had begun by its start and not had their line
+/// written, each still waiting then, or given up (timed out, dropped, dropped by the workload
+/// without timeout) without ever being written: the client's queue holds them (`queue_len` in
+/// its channel, as many again behind busy names; a request whose caller gave up leaves only
+/// when a request is added behind a busy name or its own name frees up).
+fn queued_before(i: usize, calls: &[CallRec], own: &[Option<(Instant, u64)>]) -> usize {
+    let c = &calls[i];
+    calls
+        .iter()
+        .enumerate()
+        .filter(|&(j, o)| {
+            j != i
+                && o.client == c.client
+                && o.conn == c.conn
+                && o.start <= c.start
+                && own[j].is_none_or(|(w, _)| w > c.start)
+                && (o.end > c.start
+                    || matches!(o.res, Res::Timeout | Res::Cancelled | Res::Hung)
+                        && own[j].is_none())
+        })
+        .count()
+}
+
+/// Promise 5 after a `close()` of the fault phase: nothing is written after `BYE()`, and the
+/// call made right after `close()` fails with `Closed` (or `ConnectionLost`), not a timeout.
+fn closed(a: &AfterClose, log: &TapLog) -> Vec<String> {
+    let mut out = Vec::new();
+    let bye_acked = a.close.1 == Res::Done;
+    let tag = if bye_acked {
+        ""
+    } else {
+        " [BYE() was not answered ACK BYE]"
+    };
+    // A `close()` that ended before `BYE()` went out leaves the connection open (documented).
+    let bye_written = log
+        .written
+        .lines
+        .iter()
+        .any(|l| l.at >= a.close.0 && l.at <= a.after.0 && l.text == "BYE()");
+    if bye_written && !matches!(a.after.2, Res::Closed | Res::Lost(_)) {
+        out.push(format!(
+            "5 (documented errors): client {}: close() ended {:?}, then a call ended {:?} after {:?}, not Closed{tag}",
+            a.client,
+            a.close.1,
+            a.after.2,
+            a.after.1 - a.after.0
+        ));
+    }
+    let bye = log
+        .written
+        .lines
+        .iter()
+        .position(|l| l.at >= a.close.0 && l.text == "BYE()");
+    if let Some(i) = bye {
+        let later: Vec<&str> = log.written.lines[i + 1..]
+            .iter()
+            .map(|l| l.text.as_str())
+            .collect();
+        if !later.is_empty() {
+            out.push(format!(
+                "5 (nothing is written after BYE()): client {}: the client wrote {later:?} after BYE()",
+                a.client
+            ));
+        }
+    }
+    out
+}
