@@ -255,6 +255,39 @@ async fn grip_from_fault_that_faults_again_reports_the_fault_once_still() {
     }
 }
 
+/// A grip from DS_FAULT whose re-enable shows as a state other than DS_FAULT (here ENABLE:
+/// DS_DISABLED) and that then faults again without moving its fingers: the DS_FAULT read after
+/// the re-enable is a transition and ends the wait with the fault at once, neither a `Timeout`
+/// nor a wait for [`RE_ENABLE_WINDOW`] (issue 29 G, griplink-tcp:0x00000000000091a8).
+#[tokio::test]
+async fn grip_from_fault_that_re_enables_and_faults_again_in_place_reports_the_fault() {
+    let (server, client) = homed(SimConfig::et4()).await;
+    let g = client.port(0);
+    // No part: the fingers close fully, and a grip from there moves nothing.
+    server.set_part(0, None);
+    assert_eq!(g.grip_and_wait(0, POLL).await.unwrap(), GripOutcome::NoPart);
+    server.inject_device_fault(0);
+    server.fault_next_motion(0);
+    let limit = Duration::from_millis(1500);
+    assert!(limit < RE_ENABLE_WINDOW);
+    let waiter = client.with_timeout(limit).port(0);
+    let started = Instant::now();
+    let enable = async {
+        tokio::time::sleep(Duration::from_millis(20)).await;
+        g.enable().await.unwrap();
+        assert_eq!(g.state().await.unwrap(), DeviceState::Disabled);
+        tokio::time::sleep(Duration::from_millis(100)).await;
+        server.inject_device_fault(0);
+    };
+    let (outcome, ()) = tokio::join!(
+        waiter.grip_and_wait(0, WaitBy::Polling(Duration::from_millis(10))),
+        enable
+    );
+    assert_eq!(outcome.unwrap(), GripOutcome::Fault);
+    let took = started.elapsed();
+    assert!(took < Duration::from_millis(1000), "{took:?}");
+}
+
 /// WSTR on an idle port waits for a transition and answers ERR 05 after the controller's WSTR
 /// timeout (3.4.10); only a WSTR right after a reported transition answers at once.
 #[tokio::test]

@@ -338,6 +338,10 @@ impl Port {
         let query = Some(self.client.config.query_timeout);
         // From DS_FAULT: whether the fingers have moved since the command (see `ended_in_place`).
         let mut moved = false;
+        // From DS_FAULT: whether a state other than DS_FAULT was read after the command, the
+        // documented sign of the re-enable (3.4.1): from then on an outcome state read again,
+        // DS_FAULT included, is a transition and ends the wait (see the client docs).
+        let mut left_start = false;
         loop {
             // What the controller says, if it says anything: `None` after its own timeout.
             let heard = match (by, m.target_um) {
@@ -387,8 +391,11 @@ impl Port {
                 Some(state) => state,
                 None => self.within(m.deadline, query, &err)?.state().await?,
             };
+            if m.start == DeviceState::Fault && state != DeviceState::Fault {
+                left_start = true;
+            }
             if let Some(done) = (m.outcome)(state) {
-                if state != m.start {
+                if state != m.start || left_start {
                     return Ok(done);
                 }
                 if self.ended_in_place(m, &mut moved).await? {
