@@ -199,6 +199,15 @@ impl Timeouts {
         tokio::time::timeout(self.for_type(message_type), exchange)
     }
 
+    /// These timeouts, none shorter than `at_least` (a set-up request restored with the timeout
+    /// it was once answered within, see `Session::open`).
+    pub(crate) fn at_least(self, at_least: Duration) -> Timeouts {
+        Timeouts {
+            query: self.query.max(at_least),
+            detection: self.detection.max(at_least),
+        }
+    }
+
     /// The error of a `message_type` call that ran out of time.
     fn expired(self, message_type: MessageType) -> Error {
         Error::Timeout {
@@ -655,16 +664,15 @@ impl Client {
         let message_type = request.message_type();
         let frame = request.to_any_frame(self.protocol_version())?;
         let (reply, answer) = oneshot::channel();
-        let deadline = crate::deadline::after(
-            tokio::time::Instant::now(),
-            self.timeouts.for_type(message_type),
-        );
+        let timeout = self.timeouts.for_type(message_type);
+        let deadline = crate::deadline::after(tokio::time::Instant::now(), timeout);
         let exchange = async {
             let call = Call {
                 request,
                 frame,
                 reply,
                 deadline,
+                timeout,
             };
             // The queue nearly always has room: `try_send` skips building and polling a permit
             // future (issue 14). Fair all the same: a released permit goes to a waiting sender
