@@ -404,3 +404,45 @@ async fn a_slow_set_project_is_restored_with_the_timeout_that_worked() {
     );
     assert_eq!(server.with_state(|s| s.active_project()), Some(1));
 }
+
+/// `connect_without_opening` speaks the configured version, V3 if none, on every connection: a
+/// reconnect to a server that speaks V4 too must not negotiate V4 (issue 29 I), where a V3
+/// GET_GRASP's tool would be silently dropped.
+#[tokio::test]
+async fn without_opening_a_reconnect_keeps_speaking_v3() {
+    let server = SimServer::bind(
+        "127.0.0.1:0",
+        SimConfig {
+            max_version: 4,
+            ..SimConfig::default()
+        },
+    )
+    .await
+    .unwrap();
+    let proxy = proxy(&server).await;
+    let config = ClientConfig {
+        reconnect: Some(POLICY),
+        ..ClientConfig::default()
+    };
+    let client = Client::connect_without_opening(proxy.local_addr(), config)
+        .await
+        .unwrap();
+    let mut events = client.connection_events();
+    assert_eq!(client.protocol_version(), 3);
+    // A first call: the proxy has the connection by then, and cuts it.
+    within("get_state", client.get_state()).await.unwrap();
+    proxy.cut_connections();
+    let seen = until_restored(&mut events).await;
+    assert!(
+        matches!(seen.last(), Some(ConnectionEvent::Restored { .. })),
+        "{seen:?}"
+    );
+    assert_eq!((client.protocol_version(), client.server_version()), (3, 4));
+    let GetGraspOutcome::Grasp(g) = within("get_grasp", client.get_grasp(grasp_request()))
+        .await
+        .unwrap()
+    else {
+        panic!("no grasp")
+    };
+    assert_eq!(g.tool, Some(Tool::Exterior));
+}

@@ -343,16 +343,22 @@ impl Client {
     /// Connects without sending anything (`config`'s opening-sequence fields are not used; a
     /// reconnect runs GET_PROTOCOL_VERSION and GET_STATE, then restores what the program set up
     /// with its own calls). Speaks [`ClientConfig::protocol_version`], V3 if `None` (nothing is
-    /// negotiated). Cancel-safe like [`connect`](Self::connect).
+    /// negotiated), on every connection: a reconnect pins that version as if configured (a
+    /// server that no longer speaks it is [`Error::ServerTooOld`]), so the calls' shapes never
+    /// change under the program (a V3 GET_GRASP's tool). Cancel-safe like
+    /// [`connect`](Self::connect).
     pub async fn connect_without_opening(
         addr: impl ToSocketAddrs,
-        config: ClientConfig,
+        mut config: ClientConfig,
     ) -> Result<Client> {
         let addrs = link::within_connect_timeout(config.connect_timeout, resolve(addr)).await?;
         let version = config
             .protocol_version
             .unwrap_or(crate::smartgrasp::frame::PROTOCOL_VERSION);
         session::check_pinned(version)?;
+        // The reconnect's opening sequence negotiates unless a version is pinned: pin the one
+        // this connection speaks (issue 29 I).
+        config.protocol_version = Some(version);
         let shared = Arc::new(Shared::new(version));
         let opener = Opener::Tcp(addrs);
         let mut link = Link::connect(&opener, &config, &shared).await?;
