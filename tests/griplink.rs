@@ -74,6 +74,39 @@ async fn system_information() {
     assert!(!client.set_verbose(false).await.unwrap());
 }
 
+/// `Client::from_stream` runs the client over a stream the program connected itself; with a
+/// reconnect policy a lost connection is re-opened to the stream's peer address.
+#[tokio::test]
+async fn from_stream_runs_over_the_given_stream_and_reconnects_to_its_peer() {
+    let server = sim().await;
+    let stream = TcpStream::connect(server.local_addr()).await.unwrap();
+    let config = ClientConfig {
+        reconnect: Some(gripper::reconnect::ReconnectPolicy {
+            initial_delay: Duration::from_millis(10),
+            max_delay: Duration::from_millis(10),
+            factor: 1.0,
+            max_attempts: Some(20),
+        }),
+        ..ClientConfig::default()
+    };
+    let client = Client::from_stream(stream, config);
+    assert_eq!(client.id().await.unwrap(), "GRIPLINK-ET4");
+    // The server closes the connection instead of answering: that call fails, the next runs
+    // on a new connection to the same address.
+    server.inject(Fault::Close);
+    assert!(client.id().await.is_err());
+    let again = tokio::time::timeout(Duration::from_secs(10), async {
+        loop {
+            if let Ok(id) = client.id().await {
+                return id;
+            }
+        }
+    });
+    assert_eq!(again.await.unwrap(), "GRIPLINK-ET4");
+    assert!(!client.is_closed());
+    client.close().await.unwrap();
+}
+
 #[tokio::test]
 async fn device_information_on_full_empty_and_missing_ports() {
     let server = sim().await;

@@ -8,7 +8,8 @@ mod common;
 use std::time::Duration;
 
 use gripper::griplink::client::{
-    GripOutcome, ReleaseOutcome, WaitBy, RE_ENABLE_WINDOW, STILL_FOR, TARGET_TOLERANCE_UM,
+    GripOutcome, ReleaseOutcome, WaitBy, MIN_POLL_INTERVAL, RE_ENABLE_WINDOW, STILL_FOR,
+    TARGET_TOLERANCE_UM,
 };
 use gripper::griplink::command::{FlexGrip, FlexRelease};
 use gripper::griplink::sim::{SimConfig, SimDevice, SimServer};
@@ -255,6 +256,39 @@ async fn grip_from_fault_that_faults_again_reports_the_fault_once_still() {
     }
 }
 
+/// A grip from DS_FAULT whose re-enable shows as a state other than DS_FAULT (here ENABLE:
+/// DS_DISABLED) and that then faults again without moving its fingers: the DS_FAULT read after
+/// the re-enable is a transition and ends the wait with the fault at once, neither a `Timeout`
+/// nor a wait for [`RE_ENABLE_WINDOW`] (issue 29 G, griplink-tcp:0x00000000000091a8).
+#[tokio::test]
+async fn grip_from_fault_that_re_enables_and_faults_again_in_place_reports_the_fault() {
+    let (server, client) = homed(SimConfig::et4()).await;
+    let g = client.port(0);
+    // No part: the fingers close fully, and a grip from there moves nothing.
+    server.set_part(0, None);
+    assert_eq!(g.grip_and_wait(0, POLL).await.unwrap(), GripOutcome::NoPart);
+    server.inject_device_fault(0);
+    server.fault_next_motion(0);
+    let limit = Duration::from_millis(1500);
+    assert!(limit < RE_ENABLE_WINDOW);
+    let waiter = client.with_timeout(limit).port(0);
+    let started = Instant::now();
+    let enable = async {
+        tokio::time::sleep(Duration::from_millis(20)).await;
+        g.enable().await.unwrap();
+        assert_eq!(g.state().await.unwrap(), DeviceState::Disabled);
+        tokio::time::sleep(Duration::from_millis(100)).await;
+        server.inject_device_fault(0);
+    };
+    let (outcome, ()) = tokio::join!(
+        waiter.grip_and_wait(0, WaitBy::Polling(Duration::from_millis(10))),
+        enable
+    );
+    assert_eq!(outcome.unwrap(), GripOutcome::Fault);
+    let took = started.elapsed();
+    assert!(took < Duration::from_millis(1000), "{took:?}");
+}
+
 /// WSTR on an idle port waits for a transition and answers ERR 05 after the controller's WSTR
 /// timeout (3.4.10); only a WSTR right after a reported transition answers at once.
 #[tokio::test]
@@ -296,4 +330,47 @@ async fn wstr_on_an_idle_port_answers_err_05_after_its_timeout() {
         other => panic!("expected ERR 05, got {other:?}"),
     }
     assert_eq!(g.state().await.unwrap(), DeviceState::Disabled);
+}
+
+/// `WaitBy::Polling(Duration::ZERO)` pauses [`MIN_POLL_INTERVAL`] between reads, as `Watch`
+/// does, instead of polling back to back: under a paused clock a grip of 160 ms simulated takes
+/// at most one state read per millisecond. Back to back, the clock never moved again (no read
+/// ever waits for a timer) and the wait spun for ever (the explorer hung,
+/// griplink-tcp:0x2726fa0c478ed35b); the watchdog turns that into a failure.
+#[test]
+fn polling_with_a_zero_interval_pauses_the_minimum_between_reads() {
+    let (done, finished) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let rt = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .start_paused(true)
+            .build()
+            .unwrap();
+        rt.block_on(async {
+            let (server, client) = homed(SimConfig::et4()).await;
+            let g = client.port(0);
+            // 8 mm at 50 mm/s: 160 ms simulated.
+            slow_down(&server, 1.0);
+            server.start_recording(1 << 20);
+            let started = Instant::now();
+            let outcome = g.grip_and_wait(0, WaitBy::Polling(Duration::ZERO)).await;
+            let took = started.elapsed();
+            let reads = server
+                .recording()
+                .iter()
+                .filter(|e| e.request.starts_with("DEVSTATE"))
+                .count();
+            done.send((outcome, took, reads)).unwrap();
+        });
+    });
+    let (outcome, took, reads) = finished
+        .recv_timeout(Duration::from_secs(60))
+        .expect("the zero-interval wait never ended");
+    assert_eq!(outcome.unwrap(), GripOutcome::Holding);
+    // One read per pause at most, plus the start state and the first read after the ACK.
+    let bound = took.as_micros() / MIN_POLL_INTERVAL.as_micros() + 2;
+    assert!(
+        (reads as u128) <= bound,
+        "{reads} state reads in {took:?} (bound {bound})"
+    );
 }

@@ -366,3 +366,83 @@ async fn close_stops_reconnecting() {
     assert!(client.is_closed());
     assert_eq!(proxy.stats().connections_accepted, 1, "no reconnect");
 }
+
+/// A SET_PROJECT the program made with a longer timeout than the configured detection timeout
+/// (a server slow to load the project) is restored after a reconnect with that timeout, not the
+/// configured one, under which it would time out attempt after attempt and the session would
+/// never come back (issue 29 J, smartgrasp-v4:0xac95614eb8ec7a96).
+#[tokio::test]
+async fn a_slow_set_project_is_restored_with_the_timeout_that_worked() {
+    let server = sim().await;
+    let proxy = proxy(&server).await;
+    let config = ClientConfig {
+        detection_timeout: Duration::from_millis(200),
+        ..config(Some(POLICY))
+    };
+    let client = Client::connect(proxy.local_addr(), config).await.unwrap();
+    let mut events = client.connection_events();
+    let slow = Duration::from_millis(400);
+    server.inject(Fault::DelayReply(slow));
+    client
+        .with_timeout(Duration::from_secs(2))
+        .set_project(1)
+        .await
+        .unwrap();
+    // Every opening sequence from now: GET_PROTOCOL_VERSION, GET_STATE and REGISTER_CLIENT at
+    // once, SET_PROJECT after `slow`.
+    for _ in 0..20 {
+        for _ in 0..3 {
+            server.inject(Fault::DelayReply(Duration::ZERO));
+        }
+        server.inject(Fault::DelayReply(slow));
+    }
+    proxy.cut_connections();
+    let seen = until_restored(&mut events).await;
+    assert!(
+        matches!(seen.last(), Some(ConnectionEvent::Restored { attempts: 1 })),
+        "{seen:?}"
+    );
+    assert_eq!(server.with_state(|s| s.active_project()), Some(1));
+}
+
+/// `connect_without_opening` speaks the configured version, V3 if none, on every connection: a
+/// reconnect to a server that speaks V4 too must not negotiate V4 (issue 29 I), where a V3
+/// GET_GRASP's tool would be silently dropped.
+#[tokio::test]
+async fn without_opening_a_reconnect_keeps_speaking_v3() {
+    let server = SimServer::bind(
+        "127.0.0.1:0",
+        SimConfig {
+            max_version: 4,
+            ..SimConfig::default()
+        },
+    )
+    .await
+    .unwrap();
+    let proxy = proxy(&server).await;
+    let config = ClientConfig {
+        reconnect: Some(POLICY),
+        ..ClientConfig::default()
+    };
+    let client = Client::connect_without_opening(proxy.local_addr(), config)
+        .await
+        .unwrap();
+    let mut events = client.connection_events();
+    assert_eq!(client.protocol_version(), 3);
+    // A first call: the proxy has the connection by then, and cuts it.
+    within("get_state", client.get_state()).await.unwrap();
+    proxy.cut_connections();
+    let seen = until_restored(&mut events).await;
+    assert!(
+        matches!(seen.last(), Some(ConnectionEvent::Restored { .. })),
+        "{seen:?}"
+    );
+    assert_eq!((client.protocol_version(), client.server_version()), (3, 4));
+    let GetGraspOutcome::Grasp(g) = within("get_grasp", client.get_grasp(grasp_request()))
+        .await
+        .unwrap()
+    else {
+        panic!("no grasp")
+    };
+    assert_eq!(g.tool, Some(Tool::Exterior));
+}

@@ -38,10 +38,12 @@ pub enum Malformed {
         /// The response's message type.
         received: MessageType,
     },
-    /// A SUCCESS response does not repeat a field of the request it was paired with, as the
-    /// manual says it does (GET_GRASP: tool, pose format and a non-zero object class, 3.3.3.1;
+    /// A SUCCESS V3 response does not repeat a field of the request it was paired with, as the
+    /// manual says it does (GET_GRASP: the tool and a non-zero object class, 3.3.3.1;
     /// GET_OBJECT_COUNT: object class, 3.3.4.1). It answers another request (or was corrupted):
-    /// the connection is closed rather than hand it to this caller.
+    /// the connection is closed rather than hand it to this caller. GET_GRASP's pose format is
+    /// no echo (it is the format the response's pose is written in, 3.3.3.1), and a V4
+    /// response is checked by its header only (PROTOCOLS.md 2b).
     #[error("the response to {request} does not repeat the request's {field}")]
     Echo {
         /// The request's message type.

@@ -120,7 +120,8 @@ use tokio::time::Instant;
 
 pub use port::Port;
 pub use wait::{
-    GripOutcome, ReleaseOutcome, WaitBy, RE_ENABLE_WINDOW, STILL_FOR, TARGET_TOLERANCE_UM,
+    GripOutcome, ReleaseOutcome, WaitBy, MIN_POLL_INTERVAL, RE_ENABLE_WINDOW, STILL_FOR,
+    TARGET_TOLERANCE_UM,
 };
 pub use watch::Watch;
 

@@ -25,7 +25,9 @@ pub enum WaitBy {
     /// wait: later commands of this connection wait behind it.
     Transition,
     /// `DEVSTATE[p]?` (and `VALUE[p][0]?` where needed) at this interval: other commands can run
-    /// in between.
+    /// in between. An interval below [`MIN_POLL_INTERVAL`] (`Duration::ZERO` included) is taken
+    /// as [`MIN_POLL_INTERVAL`], as by [`Port::watch_state`]: reading back to back would flood
+    /// the controller.
     Polling(Duration),
 }
 
@@ -69,6 +71,12 @@ pub const STILL_FOR: Duration = Duration::from_millis(200);
 /// [client docs](super#waiting-for-a-motion)). 2 s is this crate's choice: many times what an
 /// actuator needs to power up and build its force, and short against the motion timeout.
 pub const RE_ENABLE_WINDOW: Duration = Duration::from_secs(2);
+
+/// The shortest pause between two reads of [`WaitBy::Polling`] and of a [`Watch`](super::Watch)
+/// (a shorter interval, zero included, is taken as this one): 1 ms, this crate's choice, so that
+/// a poller never sends back to back (the manual gives no rate; one IO-Link cycle is about this
+/// long).
+pub const MIN_POLL_INTERVAL: Duration = Duration::from_millis(1);
 
 /// The longest single `WAITVAL` a helper sends: between two, it checks the state for a fault.
 const WAITVAL_CHUNK: Duration = Duration::from_secs(1);
@@ -338,6 +346,10 @@ impl Port {
         let query = Some(self.client.config.query_timeout);
         // From DS_FAULT: whether the fingers have moved since the command (see `ended_in_place`).
         let mut moved = false;
+        // From DS_FAULT: whether a state other than DS_FAULT was read after the command, the
+        // documented sign of the re-enable (3.4.1): from then on an outcome state read again,
+        // DS_FAULT included, is a transition and ends the wait (see the client docs).
+        let mut left_start = false;
         loop {
             // What the controller says, if it says anything: `None` after its own timeout.
             let heard = match (by, m.target_um) {
@@ -387,8 +399,11 @@ impl Port {
                 Some(state) => state,
                 None => self.within(m.deadline, query, &err)?.state().await?,
             };
+            if m.start == DeviceState::Fault && state != DeviceState::Fault {
+                left_start = true;
+            }
             if let Some(done) = (m.outcome)(state) {
-                if state != m.start {
+                if state != m.start || left_start {
                     return Ok(done);
                 }
                 if self.ended_in_place(m, &mut moved).await? {
@@ -402,7 +417,7 @@ impl Port {
                 }
             }
             let pause = match by {
-                WaitBy::Polling(interval) => interval,
+                WaitBy::Polling(interval) => interval.max(MIN_POLL_INTERVAL),
                 WaitBy::Transition => WSTR_RETRY_PAUSE,
             };
             if tokio::time::timeout_at(m.deadline, tokio::time::sleep(pause))

@@ -16,7 +16,8 @@ use crate::griplink::state::DeviceState;
 impl Port {
     /// A stream of the device state (`DEVSTATE[p]?`), polled every `interval`. Ends when the
     /// connection is closed for good (with a reconnect policy, a lost connection yields its
-    /// error and polling goes on once it is restored); dropping it stops the polling.
+    /// error and polling goes on once it is restored); dropping it stops the polling. An
+    /// `interval` below [`MIN_POLL_INTERVAL`](super::MIN_POLL_INTERVAL) is taken as that.
     pub fn watch_state(&self, interval: Duration) -> Watch<DeviceState> {
         let port = self.clone();
         Watch::spawn(self.client.clone(), interval, move || {
@@ -53,7 +54,7 @@ impl<T: Send + 'static> Watch<T> {
         // One reading buffered: a slow consumer slows the polling instead of piling readings up.
         let (tx, readings) = mpsc::channel(1);
         let poller = tokio::spawn(async move {
-            let mut ticker = tokio::time::interval(interval.max(Duration::from_millis(1)));
+            let mut ticker = tokio::time::interval(interval.max(super::MIN_POLL_INTERVAL));
             ticker.set_missed_tick_behavior(MissedTickBehavior::Delay);
             loop {
                 ticker.tick().await;

@@ -51,6 +51,9 @@ pub(crate) struct Call {
     ///
     /// [`Client::with_timeout`]: super::Client::with_timeout
     pub deadline: Instant,
+    /// The caller's timeout that `deadline` was counted with: a set-up request answered within
+    /// it is restored after a reconnect with (at least) this timeout (`Session::record`).
+    pub timeout: Duration,
 }
 
 /// A request on the wire, waiting for its response.
@@ -61,12 +64,15 @@ struct Waiting {
     /// reaches the front (`crate::give_up`): a server that has not answered by then is not
     /// answering, and the connection is given up.
     give_up: GiveUp,
+    /// Its call's timeout (see [`Call::timeout`]), for `on_paired`.
+    timeout: Duration,
 }
 
-/// What [`Link::serve`] tells its owner about each response it pairs: the request and its
-/// response (the session records the set-up requests the server accepted). A callback rather
+/// What [`Link::serve`] tells its owner about each response it pairs: the request, its
+/// response and its call's timeout (the session records the set-up requests the server accepted,
+/// with the timeout they were answered within). A callback rather
 /// than the session itself, so that the link does not depend on the session that drives it.
-pub(crate) type OnPaired<'a> = dyn FnMut(&RequestFrame, &ResponseFrame) + Send + 'a;
+pub(crate) type OnPaired<'a> = dyn FnMut(&RequestFrame, &ResponseFrame, Duration) + Send + 'a;
 
 /// A connection and its pairing state.
 pub(crate) struct Link {
@@ -162,7 +168,7 @@ impl Link {
     pub(crate) async fn exchange(
         &mut self,
         request: &Request,
-        config: &ClientConfig,
+        timeouts: Timeouts,
     ) -> Result<Response> {
         let request = request.to_any_frame(self.version())?;
         let answer = async {
@@ -177,10 +183,7 @@ impl Link {
             self.last_response = Some(frame);
             Ok(normalised(&request, &frame))
         };
-        let frame = config
-            .timeouts()
-            .run(request.header().message_type, answer)
-            .await?;
+        let frame = timeouts.run(request.header().message_type, answer).await?;
         Ok(Response::from_any_frame(&frame)?)
     }
 
@@ -263,12 +266,13 @@ impl Link {
                             let (reply, _) = oneshot::channel();
                             let limit = self.timeouts.for_type(marker.header().message_type);
                             let deadline = after(Instant::now(), limit);
-                            if let Err(e) = self.send(marker, reply, deadline).await {
+                            if let Err(e) = self.send(marker, reply, deadline, limit).await {
                                 let _ = call.reply.send(Err(e.clone()));
                                 break e;
                             }
                         }
-                        if let Err(e) = self.send(call.frame, call.reply, call.deadline).await {
+                        let sent = self.send(call.frame, call.reply, call.deadline, call.timeout);
+                        if let Err(e) = sent.await {
                             break e;
                         }
                     }
@@ -295,6 +299,7 @@ impl Link {
         request: RequestFrame,
         reply: oneshot::Sender<Result<ResponseFrame>>,
         deadline: Instant,
+        timeout: Duration,
     ) -> Result<()> {
         // Behind other requests its clock starts again when it reaches the front, with the
         // time its caller had left when it was sent (`crate::give_up`).
@@ -314,6 +319,7 @@ impl Link {
             request,
             reply,
             give_up,
+            timeout,
         });
         Ok(())
     }
@@ -436,7 +442,7 @@ impl Link {
         }
         self.last_response = Some(*frame);
         let frame = normalised(&w.request, frame);
-        on_paired(&w.request, &frame);
+        on_paired(&w.request, &frame, w.timeout);
         if w.reply.send(Ok(frame)).is_err() {
             tracing::debug!(request = %w.request.header().message_type, counter = received, "late reply discarded");
         }

@@ -199,6 +199,15 @@ impl Timeouts {
         tokio::time::timeout(self.for_type(message_type), exchange)
     }
 
+    /// These timeouts, none shorter than `at_least` (a set-up request restored with the timeout
+    /// it was once answered within, see `Session::open`).
+    pub(crate) fn at_least(self, at_least: Duration) -> Timeouts {
+        Timeouts {
+            query: self.query.max(at_least),
+            detection: self.detection.max(at_least),
+        }
+    }
+
     /// The error of a `message_type` call that ran out of time.
     fn expired(self, message_type: MessageType) -> Error {
         Error::Timeout {
@@ -334,16 +343,22 @@ impl Client {
     /// Connects without sending anything (`config`'s opening-sequence fields are not used; a
     /// reconnect runs GET_PROTOCOL_VERSION and GET_STATE, then restores what the program set up
     /// with its own calls). Speaks [`ClientConfig::protocol_version`], V3 if `None` (nothing is
-    /// negotiated). Cancel-safe like [`connect`](Self::connect).
+    /// negotiated), on every connection: a reconnect pins that version as if configured (a
+    /// server that no longer speaks it is [`Error::ServerTooOld`]), so the calls' shapes never
+    /// change under the program (a V3 GET_GRASP's tool). Cancel-safe like
+    /// [`connect`](Self::connect).
     pub async fn connect_without_opening(
         addr: impl ToSocketAddrs,
-        config: ClientConfig,
+        mut config: ClientConfig,
     ) -> Result<Client> {
         let addrs = link::within_connect_timeout(config.connect_timeout, resolve(addr)).await?;
         let version = config
             .protocol_version
             .unwrap_or(crate::smartgrasp::frame::PROTOCOL_VERSION);
         session::check_pinned(version)?;
+        // The reconnect's opening sequence negotiates unless a version is pinned: pin the one
+        // this connection speaks (issue 29 I).
+        config.protocol_version = Some(version);
         let shared = Arc::new(Shared::new(version));
         let opener = Opener::Tcp(addrs);
         let mut link = Link::connect(&opener, &config, &shared).await?;
@@ -655,16 +670,15 @@ impl Client {
         let message_type = request.message_type();
         let frame = request.to_any_frame(self.protocol_version())?;
         let (reply, answer) = oneshot::channel();
-        let deadline = crate::deadline::after(
-            tokio::time::Instant::now(),
-            self.timeouts.for_type(message_type),
-        );
+        let timeout = self.timeouts.for_type(message_type);
+        let deadline = crate::deadline::after(tokio::time::Instant::now(), timeout);
         let exchange = async {
             let call = Call {
                 request,
                 frame,
                 reply,
                 deadline,
+                timeout,
             };
             // The queue nearly always has room: `try_send` skips building and polling a permit
             // future (issue 14). Fair all the same: a released permit goes to a waiting sender

@@ -1,6 +1,8 @@
 //! The opening sequence (manual 6) with the version negotiation, and what the program set up,
 //! which a reconnect restores.
 
+use std::time::Duration;
+
 use super::link::Link;
 use super::ClientConfig;
 use crate::smartgrasp::error::{Error, Malformed, Result};
@@ -17,29 +19,59 @@ pub(crate) const HIGHEST_VERSION: u16 = v4::PROTOCOL_VERSION;
 /// Kept as typed requests, so that they are sent in whatever version the new connection speaks.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct Session {
-    register: Option<Request>,
-    project: Option<Request>,
-    tool: Option<Request>,
-    workspace: Option<Request>,
+    register: Option<SetUp>,
+    project: Option<SetUp>,
+    tool: Option<SetUp>,
+    workspace: Option<SetUp>,
+}
+
+/// One set-up request and the timeout it was answered within.
+#[derive(Debug, Clone)]
+struct SetUp {
+    request: Request,
+    /// The program's call's timeout (e.g. [`Client::with_timeout`](super::Client::with_timeout)
+    /// for a server that loads a project slowly): the restore waits at least this long, as the
+    /// configured timeout may be too short for this server (issue 29 J). `None`: from the
+    /// configuration, restored with the configured timeouts.
+    answered_within: Option<Duration>,
+}
+
+impl SetUp {
+    fn from_config(request: Request) -> SetUp {
+        SetUp {
+            request,
+            answered_within: None,
+        }
+    }
 }
 
 impl Session {
     /// The set-up the configuration asks for.
     pub(crate) fn from_config(config: &ClientConfig) -> Session {
         Session {
-            register: config.robot_system.map(Request::RegisterClient),
+            register: config
+                .robot_system
+                .map(|system| SetUp::from_config(Request::RegisterClient(system))),
             project: config
                 .project_index
-                .map(|project_index| Request::SetProject { project_index }),
-            tool: config.tool_id.map(|tool_id| Request::SetTool { tool_id }),
+                .map(|project_index| SetUp::from_config(Request::SetProject { project_index })),
+            tool: config
+                .tool_id
+                .map(|tool_id| SetUp::from_config(Request::SetTool { tool_id })),
             workspace: config
                 .workspace_id
-                .map(|workspace_id| Request::SetWorkspace { workspace_id }),
+                .map(|workspace_id| SetUp::from_config(Request::SetWorkspace { workspace_id })),
         }
     }
 
-    /// Remembers a set-up request the server accepted (whoever waited for its answer).
-    pub(crate) fn record(&mut self, request: &AnyRequestFrame, response: &AnyResponseFrame) {
+    /// Remembers a set-up request the server accepted (whoever waited for its answer), with the
+    /// timeout of the call it was answered within.
+    pub(crate) fn record(
+        &mut self,
+        request: &AnyRequestFrame,
+        response: &AnyResponseFrame,
+        timeout: Duration,
+    ) {
         if response.header().response_code != ResponseCode::Success {
             return;
         }
@@ -53,7 +85,10 @@ impl Session {
             Request::SetWorkspace { .. } => &mut self.workspace,
             _ => return,
         };
-        *slot = Some(request);
+        *slot = Some(SetUp {
+            request,
+            answered_within: Some(timeout),
+        });
     }
 
     /// Runs the opening sequence on a fresh connection:
@@ -66,13 +101,20 @@ impl Session {
     ///    warned about, never fatal;
     /// 4. SET_PROJECT, then (V4 only) SET_TOOL and SET_WORKSPACE as set up. On a V3 connection a
     ///    tool or workspace id is skipped with a warning: V3 chooses the tool in each GET_GRASP.
+    ///
+    /// Each set-up request the program sent itself is restored with the timeout its call was
+    /// answered within, if longer than the configured one: a server that took that long to
+    /// load the project before takes as long again.
     pub(crate) async fn open(&self, link: &mut Link, config: &ClientConfig) -> Result<Opened> {
+        let timeouts = config.timeouts();
         link.set_version(PROTOCOL_VERSION);
-        let server_version =
-            match success(link.exchange(&Request::GetProtocolVersion, config).await?)? {
-                ResponseBody::ProtocolVersion(v) => v,
-                other => return Err(unexpected_body(other)),
-            };
+        let server_version = match success(
+            link.exchange(&Request::GetProtocolVersion, timeouts)
+                .await?,
+        )? {
+            ResponseBody::ProtocolVersion(v) => v,
+            other => return Err(unexpected_body(other)),
+        };
         let wanted = config.protocol_version.unwrap_or(HIGHEST_VERSION);
         check_pinned(wanted)?;
         let version = if config.protocol_version.is_some() {
@@ -87,20 +129,28 @@ impl Session {
             });
         }
         link.set_version(version);
-        match success(link.exchange(&Request::GetState, config).await?)? {
+        match success(link.exchange(&Request::GetState, timeouts).await?)? {
             ResponseBody::State(ServerState::Operational) => {}
             ResponseBody::State(state) => return Err(Error::NotOperational { state }),
             other => return Err(unexpected_body(other)),
         }
         let mut registration = None;
-        if let Some(request) = &self.register {
-            let code = link.exchange(request, config).await?.code;
+        if let Some(SetUp {
+            request,
+            answered_within,
+        }) = &self.register
+        {
+            let within = timeouts.at_least(answered_within.unwrap_or_default());
+            let code = link.exchange(request, within).await?.code;
             if code != ResponseCode::Success {
                 tracing::warn!(%code, ?request, "smartgrasp: REGISTER_CLIENT was not accepted; going on (manual 3.3.2.3: informational)");
             }
             registration = Some(code);
         }
-        for request in [&self.project, &self.tool, &self.workspace]
+        for SetUp {
+            request,
+            answered_within,
+        } in [&self.project, &self.tool, &self.workspace]
             .into_iter()
             .flatten()
         {
@@ -112,7 +162,8 @@ impl Session {
                 );
                 continue;
             }
-            success(link.exchange(request, config).await?)?;
+            let within = timeouts.at_least(answered_within.unwrap_or_default());
+            success(link.exchange(request, within).await?)?;
         }
         Ok(Opened {
             server_version,

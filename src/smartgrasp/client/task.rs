@@ -110,7 +110,7 @@ impl Supervised for SmartGrasp {
         let served = link
             .serve(
                 &mut task.calls,
-                &mut |request, response| session.record(request, response),
+                &mut |request, response, timeout| session.record(request, response, timeout),
                 &task.shutdown,
             )
             .await;

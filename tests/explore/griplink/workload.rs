@@ -492,13 +492,11 @@ pub fn pick(rng: &mut Prng, labels: &AtomicU64) -> Op {
             by: if rng.one_in(2) {
                 WaitBy::Transition
             } else {
-                // Not `Duration::ZERO`: the helper then polls back to back without a pause
-                // (unlike `Watch`, which takes at least 1 ms), and against the simulator, which
-                // answers in no simulated time, the clock never moves again: the run hangs
-                // (griplink-tcp:0x2726fa0c478ed35b with ZERO drawn; reported to issue 29).
-                // (The same draws as before, so that a seed keeps its path.)
+                // `Duration::ZERO` too: the helper then pauses MIN_POLL_INTERVAL (before the
+                // clamp it polled back to back and the simulated clock never moved again:
+                // griplink-tcp:0x2726fa0c478ed35b hung).
                 WaitBy::Polling(match rng.below(6) {
-                    0 => Duration::from_millis(1),
+                    0 => Duration::ZERO,
                     _ => rng.millis(1, 300),
                 })
             },
