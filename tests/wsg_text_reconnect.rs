@@ -171,3 +171,49 @@ async fn a_policy_that_gives_up_closes_the_client_with_the_loss() {
     let err = client.position_mm().await.unwrap_err();
     assert!(matches!(err, Error::ConnectionLost { .. }), "{err:?}");
 }
+
+/// `open_with`: the client runs over the streams the program opens (here in-memory pipes to a
+/// simulator served without sockets, as the explorer serves it), and a reconnect opens the next
+/// one through the same opener. The gripper's restart drops the first pipe.
+#[tokio::test]
+async fn open_with_reconnects_through_the_programs_opener() {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    use std::sync::Arc;
+
+    let sim = Arc::new(SimServer::in_memory(SimConfig::new(Model::Wsg50).text()));
+    let opened = Arc::new(AtomicUsize::new(0));
+    let open = {
+        let (sim, opened) = (sim.clone(), opened.clone());
+        move || {
+            let (sim, opened) = (sim.clone(), opened.clone());
+            async move {
+                let (near, far) = tokio::io::duplex(4096);
+                sim.serve_stream(far, gripper::wsg::sim::SessionKind::Tcp);
+                opened.fetch_add(1, Ordering::SeqCst);
+                Ok::<_, std::io::Error>(near)
+            }
+        }
+    };
+    let client = Client::open_with(open, reconnecting(None)).await.unwrap();
+    assert_eq!(opened.load(Ordering::SeqCst), 1);
+    assert_eq!(client.set_part_width_tolerance_mm(6.0).await.unwrap(), 6.0);
+    let mut events = client.connection_events();
+
+    sim.restart();
+    let got = events_until(&mut events, |e| {
+        matches!(e, ConnectionEvent::Restored { .. })
+    })
+    .await;
+    assert!(
+        matches!(got.first(), Some(ConnectionEvent::Lost { .. })),
+        "{got:?}"
+    );
+    assert_eq!(
+        opened.load(Ordering::SeqCst),
+        2,
+        "one reopen through the opener"
+    );
+    // The restart reset the gripper's settings; the client restored the one the program set.
+    assert_eq!(client.part_width_tolerance_mm().await.unwrap(), 6.0);
+    client.close().await.unwrap();
+}
