@@ -2,39 +2,49 @@
 //! view), over `gripper::wsg::text`. The simulator's text mode is `gripper_rs.wsg.sim.SimServer(
 //! text=True)`.
 
+use std::time::Duration;
+
 use gripper::wsg::text::{self, Error, Push, Pushes, Quantity};
 use pyo3::prelude::*;
 use pyo3::IntoPyObjectExt;
 
 use crate::args::Checked;
 use crate::convert::{field, record, ToPy};
-use crate::errors::{self, Kind};
+use crate::errors;
 use crate::runtime::{self, seconds};
 use crate::stream::{Ended, Ending, Stream};
 use crate::wsg::homing_direction;
 
-/// A text-interface error as the package's exception; a device error without a numeral code
-/// has code -1 (the whole `ERR` line is in the message).
+/// A text-interface error as the package's exception ([`errors::error`]).
 pub fn error(e: Error) -> PyErr {
-    let message = e.to_string();
-    let kind = match e {
-        Error::Device {
-            command,
-            status: Some(status),
-            ..
-        } => Kind::Device(crate::wsg::device(command, status)),
-        Error::Device { command, .. } => Kind::Device(errors::Device::new(-1, command)),
-        Error::Timeout { timeout, .. } => Kind::Timeout {
-            timeout_s: timeout.as_secs_f64(),
-        },
-        Error::ConnectionLost { .. } => Kind::ConnectionLost,
-        Error::Closed => Kind::Closed,
-        Error::MalformedReply { .. } | Error::UnexpectedReply { .. } => Kind::Malformed,
-        Error::InvalidArgument { .. } => Kind::InvalidArgument,
-        Error::Io(_) => Kind::Transport,
-        _ => Kind::Other,
-    };
-    errors::classify(kind, message)
+    errors::error(e)
+}
+
+/// The GCL extras of an error: the device's status (a device error without a numeral code has
+/// code -1; the whole `ERR` line is in the message), the call's timeout.
+impl errors::Classified for Error {
+    fn kind(&self) -> gripper::ErrorKind {
+        Error::kind(self)
+    }
+
+    fn refusal(self) -> Option<errors::Device> {
+        match self {
+            Error::Device {
+                command,
+                status: Some(status),
+                ..
+            } => Some(crate::wsg::device(command, status)),
+            Error::Device { command, .. } => Some(errors::Device::new(-1, command)),
+            _ => None,
+        }
+    }
+
+    fn timeout(&self) -> Option<Duration> {
+        match self {
+            Error::Timeout { timeout, .. } => Some(*timeout),
+            _ => None,
+        }
+    }
 }
 
 impl ToPy for Push {
@@ -226,17 +236,9 @@ async fn autosend(
     Ok(Ended(pushes, ending))
 }
 
-/// `close()` (and leaving a `with` block), idempotent (issue 32): a client already closed, or whose connection is
-/// already lost, is fine to leave.
+/// `close()` (and leaving a `with` block), idempotent ([`errors::close_for_exit`]).
 async fn close_for_exit(c: text::Client) -> text::Result<()> {
-    match c.close().await {
-        Err(Error::Closed | Error::ConnectionLost { .. }) => Ok(()),
-        Ok(()) => {
-            crate::lifecycle::closed(|| c.is_closed()).await;
-            Ok(())
-        }
-        other => other,
-    }
+    errors::close_for_exit(c.close(), || c.is_closed()).await
 }
 
 /// `gripper_rs._native.wsg_text`.
