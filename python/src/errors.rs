@@ -89,6 +89,36 @@ pub trait Classified: std::fmt::Display {
     fn timeout(&self) -> Option<Duration>;
 }
 
+/// `classified!(Error, refusal)` in a protocol's module: its `error` (the `Error` as the
+/// package's exception, [`error`]) and its [`Classified`]: the crate's `kind()`, the duration of
+/// the `Timeout { timeout, .. }` variant (all four protocols have it), and `refusal`, the
+/// protocol's own `fn(Error) -> Option<Device>`.
+macro_rules! classified {
+    ($Error:ident, $refusal:path) => {
+        /// The protocol's error as the package's exception ([`crate::errors::error`]).
+        pub fn error(e: $Error) -> pyo3::PyErr {
+            $crate::errors::error(e)
+        }
+
+        impl $crate::errors::Classified for $Error {
+            fn kind(&self) -> gripper::ErrorKind {
+                $Error::kind(self)
+            }
+
+            fn refusal(self) -> Option<$crate::errors::Device> {
+                $refusal(self)
+            }
+
+            fn timeout(&self) -> Option<std::time::Duration> {
+                match self {
+                    $Error::Timeout { timeout, .. } => Some(*timeout),
+                    _ => None,
+                }
+            }
+        }
+    };
+}
+
 /// A protocol's error as the package's exception: the class from its [`ErrorKind`], the
 /// attributes from the protocol's extras ([`Classified`]). The one classifier of the package.
 pub fn error<E: Classified>(e: E) -> PyErr {

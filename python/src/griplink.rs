@@ -3,7 +3,6 @@
 
 use std::collections::HashMap;
 use std::net::SocketAddr;
-use std::time::Duration;
 
 use gripper::griplink::{
     self, Blocking, DeviceState, Error, FlexGrip, FlexRelease, GripConfig, GripConfigF,
@@ -22,37 +21,21 @@ use crate::stream::Stream;
 
 const PY: &str = "gripper_rs.griplink";
 
-/// A GRIPLINK error as the package's exception ([`errors::error`]).
-pub fn error(e: Error) -> PyErr {
-    errors::error(e)
-}
+classified!(Error, refusal);
 
-/// The GRIPLINK extras of an error: the controller's status, the call's timeout.
-impl errors::Classified for Error {
-    fn kind(&self) -> gripper::ErrorKind {
-        Error::kind(self)
-    }
-
-    fn refusal(self) -> Option<errors::Device> {
-        let Error::Device {
-            command, status, ..
-        } = self
-        else {
-            return None;
-        };
-        let d = errors::Device::new(i64::from(status.code()), command).status(PY, "Status");
-        Some(match (status.identifier(), status.description()) {
-            (Some(name), Some(description)) => d.known(name, description),
-            _ => d,
-        })
-    }
-
-    fn timeout(&self) -> Option<Duration> {
-        match self {
-            Error::Timeout { timeout, .. } => Some(*timeout),
-            _ => None,
-        }
-    }
+/// A GRIPLINK controller's refusal (`DeviceError`).
+fn refusal(e: Error) -> Option<errors::Device> {
+    let Error::Device {
+        command, status, ..
+    } = e
+    else {
+        return None;
+    };
+    let d = errors::Device::new(i64::from(status.code()), command).status(PY, "Status");
+    Some(match (status.identifier(), status.description()) {
+        (Some(name), Some(description)) => d.known(name, description),
+        _ => d,
+    })
 }
 
 // ---- results -------------------------------------------------------------------------------

@@ -2,7 +2,6 @@
 //! `gripper_rs.smartgrasp.sim.SimServer`.
 
 use std::net::SocketAddr;
-use std::time::Duration;
 
 use gripper::smartgrasp::{
     self, Error, GetGraspOutcome, Grasp, GraspFeedback, GraspMode, GraspRequest, ObjectCount, Pose,
@@ -20,46 +19,30 @@ use crate::stream::Stream;
 
 const PY: &str = "gripper_rs.smartgrasp";
 
-/// A SmartGrasp error as the package's exception ([`errors::error`]).
-pub fn error(e: Error) -> PyErr {
-    errors::error(e)
-}
+classified!(Error, refusal);
 
-/// The SmartGrasp extras of an error: the server's response code, the call's timeout. A server
-/// that is not OPERATIONAL (kind `Device`) sent no response code: no refusal, a `ProtocolError`.
-impl errors::Classified for Error {
-    fn kind(&self) -> gripper::ErrorKind {
-        Error::kind(self)
-    }
-
-    fn refusal(self) -> Option<errors::Device> {
-        let Error::Device {
-            message_type,
-            status,
-        } = self
-        else {
-            return None;
-        };
-        let d = errors::Device::new(i64::from(u8::from(status)), message_type.to_string())
-            .status(PY, "ResponseCode");
-        Some(match status {
-            smartgrasp::ResponseCode::Unknown(_) => d,
-            known => {
-                // Display is "SYMBOL (text)" (manual 3.2).
-                let text = known.to_string();
-                let (name, description) = text.split_once(' ').unwrap_or((&text, ""));
-                let description = description.trim_start_matches('(').trim_end_matches(')');
-                d.known(name, description)
-            }
-        })
-    }
-
-    fn timeout(&self) -> Option<Duration> {
-        match self {
-            Error::Timeout { timeout, .. } => Some(*timeout),
-            _ => None,
+/// A SmartGrasp server's refusal (`DeviceError`). A server that is not OPERATIONAL (kind
+/// `Device`) sent no response code: no refusal, a `ProtocolError`.
+fn refusal(e: Error) -> Option<errors::Device> {
+    let Error::Device {
+        message_type,
+        status,
+    } = e
+    else {
+        return None;
+    };
+    let d = errors::Device::new(i64::from(u8::from(status)), message_type.to_string())
+        .status(PY, "ResponseCode");
+    Some(match status {
+        smartgrasp::ResponseCode::Unknown(_) => d,
+        known => {
+            // Display is "SYMBOL (text)" (manual 3.2).
+            let text = known.to_string();
+            let (name, description) = text.split_once(' ').unwrap_or((&text, ""));
+            let description = description.trim_start_matches('(').trim_end_matches(')');
+            d.known(name, description)
         }
-    }
+    })
 }
 
 // ---- results -------------------------------------------------------------------------------

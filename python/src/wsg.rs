@@ -1,7 +1,6 @@
 //! `gripper_rs.wsg`: the WSG client (blocking and asyncio) and `gripper_rs.wsg.sim.SimServer`.
 
 use std::net::SocketAddr;
-use std::time::Duration;
 
 use gripper::wsg::{
     self, Error, Finger, FingerFlags, FingerInfo, GraspingStatistics, GripState, HomingDirection,
@@ -20,29 +19,13 @@ use crate::stream::{ending_from_events, Ended, Stream};
 
 const PY: &str = "gripper_rs.wsg";
 
-/// A WSG error as the package's exception ([`errors::error`]).
-pub fn error(e: Error) -> PyErr {
-    errors::error(e)
-}
+classified!(Error, refusal);
 
-/// The WSG extras of an error: the device's status, the call's timeout.
-impl errors::Classified for Error {
-    fn kind(&self) -> gripper::ErrorKind {
-        Error::kind(self)
-    }
-
-    fn refusal(self) -> Option<errors::Device> {
-        match self {
-            Error::Device { command, status } => Some(device(command, status)),
-            _ => None,
-        }
-    }
-
-    fn timeout(&self) -> Option<Duration> {
-        match self {
-            Error::Timeout { timeout, .. } => Some(*timeout),
-            _ => None,
-        }
+/// A WSG device's refusal (`DeviceError`).
+fn refusal(e: Error) -> Option<errors::Device> {
+    match e {
+        Error::Device { command, status } => Some(device(command, status)),
+        _ => None,
     }
 }
 

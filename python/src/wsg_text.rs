@@ -2,8 +2,6 @@
 //! view), over `gripper::wsg::text`. The simulator's text mode is `gripper_rs.wsg.sim.SimServer(
 //! text=True)`.
 
-use std::time::Duration;
-
 use gripper::wsg::text::{self, Error, Push, Pushes, Quantity};
 use pyo3::prelude::*;
 use pyo3::IntoPyObjectExt;
@@ -15,35 +13,19 @@ use crate::runtime::{self, seconds};
 use crate::stream::{Ended, Ending, Stream};
 use crate::wsg::homing_direction;
 
-/// A text-interface error as the package's exception ([`errors::error`]).
-pub fn error(e: Error) -> PyErr {
-    errors::error(e)
-}
+classified!(Error, refusal);
 
-/// The GCL extras of an error: the device's status (a device error without a numeral code has
-/// code -1; the whole `ERR` line is in the message), the call's timeout.
-impl errors::Classified for Error {
-    fn kind(&self) -> gripper::ErrorKind {
-        Error::kind(self)
-    }
-
-    fn refusal(self) -> Option<errors::Device> {
-        match self {
-            Error::Device {
-                command,
-                status: Some(status),
-                ..
-            } => Some(crate::wsg::device(command, status)),
-            Error::Device { command, .. } => Some(errors::Device::new(-1, command)),
-            _ => None,
-        }
-    }
-
-    fn timeout(&self) -> Option<Duration> {
-        match self {
-            Error::Timeout { timeout, .. } => Some(*timeout),
-            _ => None,
-        }
+/// A GCL refusal (`DeviceError`): a device error without a numeral code has code -1 (the
+/// whole `ERR` line is in the message).
+fn refusal(e: Error) -> Option<errors::Device> {
+    match e {
+        Error::Device {
+            command,
+            status: Some(status),
+            ..
+        } => Some(crate::wsg::device(command, status)),
+        Error::Device { command, .. } => Some(errors::Device::new(-1, command)),
+        _ => None,
     }
 }
 
