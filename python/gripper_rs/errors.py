@@ -105,11 +105,15 @@ class DeviceError(GripperError):
 
 
 class TimeoutError(GripperError, builtins.TimeoutError):
-    """No reply within the call's timeout (``timeout_s`` seconds); the client stays usable."""
+    """No reply within the call's timeout (``timeout_s`` seconds); the client stays usable.
 
-    timeout_s: float
+    Also connecting that did not finish within the connect timeout: then ``timeout_s`` is None
+    (the connect timeout is the caller's own ``connect_timeout_s``).
+    """
 
-    def __init__(self, message: str, *, timeout_s: float) -> None:
+    timeout_s: float | None
+
+    def __init__(self, message: str, *, timeout_s: float | None) -> None:
         super().__init__(message, timeout_s=timeout_s)
 
 
@@ -134,5 +138,6 @@ class InvalidArgumentError(GripperError, ValueError):
 
 
 class ProtocolError(GripperError):
-    """The peer broke the protocol in another way (SmartGrasp: too old, not operational, a
-    response lost)."""
+    """The peer broke the exchange in another way: it is too old for this client (SmartGrasp
+    before V3), it cannot serve calls (SmartGrasp not OPERATIONAL), or a reply was lost on the
+    wire (WSG: the final reply after E_CMD_PENDING; SmartGrasp: a response the counter skipped)."""

@@ -2,8 +2,13 @@
 //! `DeviceError` with the device's code, status enum, name and description, `TimeoutError` (a
 //! builtin `TimeoutError`), `ConnectionLostError`, `ClosedError`, `MalformedReplyError`,
 //! `InvalidArgumentError` (a `ValueError`), `TransportError` (an `OSError`) and `ProtocolError`.
-//! One function, [`classify`], picks the class from the error's [`Kind`].
+//! One function, [`error`], picks the class from the error's [`gripper::ErrorKind`] (`kind()` of
+//! every protocol's error); each protocol adds only its extras ([`Classified`]).
 
+use std::future::Future;
+use std::time::Duration;
+
+use gripper::ErrorKind;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use pyo3::IntoPyObjectExt;
@@ -23,31 +28,6 @@ pub fn raise(class: &str, message: String, attrs: &[(&str, Py<PyAny>)]) -> PyErr
         };
         build().unwrap_or_else(|e| e)
     })
-}
-
-/// What kind of failure an error is: the one thing that decides its exception class
-/// ([`classify`]). Each protocol's `error()` says which kind each of its variants is; once the
-/// crate's `gripper::ErrorKind` (with `kind()` on every protocol's error) is in, that is the
-/// only mapping left to swap (`Kind::from(e.kind())`), here.
-pub enum Kind {
-    /// The device refused the command.
-    Device(Device),
-    /// No reply within `timeout_s` seconds.
-    Timeout { timeout_s: f64 },
-    /// The connection broke (or the client gave up on it).
-    ConnectionLost,
-    /// Closed by this side.
-    Closed,
-    /// A reply that does not have the documented layout or does not answer the call.
-    Malformed,
-    /// Refused before anything was sent.
-    InvalidArgument,
-    /// Opening or configuring the transport failed.
-    Transport,
-    /// The peer broke the protocol in another way.
-    Protocol,
-    /// Anything else: the base class.
-    Other,
 }
 
 /// A Python value made later, by the thread that holds the GIL.
@@ -93,18 +73,93 @@ impl Device {
     }
 }
 
-/// The exception for an error of `kind` with `message`: the one classifier of the package.
-pub fn classify(kind: Kind, message: String) -> PyErr {
-    match kind {
-        Kind::Device(d) => device(message, d),
-        Kind::Timeout { timeout_s } => timeout(message, timeout_s),
-        Kind::ConnectionLost => raise("ConnectionLostError", message, &[]),
-        Kind::Closed => raise("ClosedError", message, &[]),
-        Kind::Malformed => raise("MalformedReplyError", message, &[]),
-        Kind::InvalidArgument => raise("InvalidArgumentError", message, &[]),
-        Kind::Transport => raise("TransportError", message, &[]),
-        Kind::Protocol => raise("ProtocolError", message, &[]),
-        Kind::Other => raise("GripperError", message, &[]),
+/// What the package needs of a protocol's error beyond its [`ErrorKind`]: the extras only that
+/// protocol's error carries. Each protocol module implements it for its `Error`; [`error`] is
+/// the one classifier.
+pub trait Classified: std::fmt::Display {
+    /// The crate's classification (`Error::kind`).
+    fn kind(&self) -> ErrorKind;
+    /// The device's refusal for a `DeviceError` (code, status enum, manual symbol and text,
+    /// what was refused); `None` for an error of kind [`ErrorKind::Device`] that carries no
+    /// status of the protocol's table (SmartGrasp: a server that is not OPERATIONAL), which is
+    /// a `ProtocolError`.
+    fn refusal(self) -> Option<Device>;
+    /// The call's timeout that ran out, for a `TimeoutError`; `None` for a connect timeout (an
+    /// I/O error of kind `TimedOut`, which carries no duration).
+    fn timeout(&self) -> Option<Duration>;
+}
+
+/// `classified!(Error, refusal)` in a protocol's module: its `error` (the `Error` as the
+/// package's exception, [`error`]) and its [`Classified`]: the crate's `kind()`, the duration of
+/// the `Timeout { timeout, .. }` variant (all four protocols have it), and `refusal`, the
+/// protocol's own `fn(Error) -> Option<Device>`.
+macro_rules! classified {
+    ($Error:ident, $refusal:path) => {
+        /// The protocol's error as the package's exception ([`crate::errors::error`]).
+        pub fn error(e: $Error) -> pyo3::PyErr {
+            $crate::errors::error(e)
+        }
+
+        impl $crate::errors::Classified for $Error {
+            fn kind(&self) -> gripper::ErrorKind {
+                $Error::kind(self)
+            }
+
+            fn refusal(self) -> Option<$crate::errors::Device> {
+                $refusal(self)
+            }
+
+            fn timeout(&self) -> Option<std::time::Duration> {
+                match self {
+                    $Error::Timeout { timeout, .. } => Some(*timeout),
+                    _ => None,
+                }
+            }
+        }
+    };
+}
+
+/// A protocol's error as the package's exception: the class from its [`ErrorKind`], the
+/// attributes from the protocol's extras ([`Classified`]). The one classifier of the package.
+pub fn error<E: Classified>(e: E) -> PyErr {
+    let message = e.to_string();
+    match e.kind() {
+        ErrorKind::Device => match e.refusal() {
+            Some(d) => device(message, d),
+            None => raise("ProtocolError", message, &[]),
+        },
+        // `timeout_s` is None for a connect timeout: the I/O error has no duration, and the
+        // connect timeout is the caller's own `connect_timeout_s`.
+        ErrorKind::Timeout => timeout(message, e.timeout().map(|t| t.as_secs_f64())),
+        // The peer cannot serve this client (SmartGrasp older than V3), or a reply was lost on
+        // the wire (WSG after E_CMD_PENDING, SmartGrasp's counter): neither is a refusal nor a
+        // malformed reply, both the peer breaking the exchange.
+        ErrorKind::Incompatible | ErrorKind::ReplyLost => raise("ProtocolError", message, &[]),
+        ErrorKind::MalformedReply => raise("MalformedReplyError", message, &[]),
+        ErrorKind::InvalidArgument => raise("InvalidArgumentError", message, &[]),
+        ErrorKind::ConnectionLost => raise("ConnectionLostError", message, &[]),
+        ErrorKind::Closed => raise("ClosedError", message, &[]),
+        // `ErrorKind` is non-exhaustive: an unknown kind is a failure of the link, as its docs
+        // ask.
+        _ => raise("TransportError", message, &[]),
+    }
+}
+
+/// `close()` (and leaving a `with` block) of every client, idempotent (issue 32): a client that
+/// is already closed, or whose connection is already lost (the error was raised by the call that
+/// saw it), is fine to leave. After a successful close it waits until `is_closed` says so
+/// ([`crate::lifecycle::closed`]).
+pub async fn close_for_exit<E: Classified>(
+    closing: impl Future<Output = Result<(), E>>,
+    is_closed: impl Fn() -> bool,
+) -> Result<(), E> {
+    match closing.await {
+        Err(e) if e.kind().is_disconnected() => Ok(()),
+        Ok(()) => {
+            crate::lifecycle::closed(is_closed).await;
+            Ok(())
+        }
+        Err(e) => Err(e),
     }
 }
 
@@ -131,8 +186,8 @@ fn device(message: String, d: Device) -> PyErr {
     })
 }
 
-/// A `TimeoutError` after `timeout_s` seconds.
-fn timeout(message: String, timeout_s: f64) -> PyErr {
+/// A `TimeoutError` after `timeout_s` seconds (None: the connect timeout).
+fn timeout(message: String, timeout_s: Option<f64>) -> PyErr {
     Python::attach(|py| match timeout_s.into_py_any(py) {
         Ok(t) => raise("TimeoutError", message, &[("timeout_s", t)]),
         Err(e) => e,

@@ -13,7 +13,7 @@ use pyo3::IntoPyObjectExt;
 
 use crate::args::Checked;
 use crate::convert::{enum_member, enum_value, field, record, ToPy};
-use crate::errors::{self, Kind};
+use crate::errors;
 use crate::events;
 use crate::runtime::{self, seconds};
 use crate::sim::Slot;
@@ -21,30 +21,21 @@ use crate::stream::Stream;
 
 const PY: &str = "gripper_rs.griplink";
 
-/// A GRIPLINK error as the package's exception.
-pub fn error(e: Error) -> PyErr {
-    let message = e.to_string();
-    let kind = match e {
-        Error::Device {
-            command, status, ..
-        } => {
-            let d = errors::Device::new(i64::from(status.code()), command).status(PY, "Status");
-            Kind::Device(match (status.identifier(), status.description()) {
-                (Some(name), Some(description)) => d.known(name, description),
-                _ => d,
-            })
-        }
-        Error::Timeout { timeout, .. } => Kind::Timeout {
-            timeout_s: timeout.as_secs_f64(),
-        },
-        Error::ConnectionLost { .. } => Kind::ConnectionLost,
-        Error::Closed => Kind::Closed,
-        Error::MalformedReply { .. } | Error::UnexpectedReply { .. } => Kind::Malformed,
-        Error::InvalidArgument { .. } => Kind::InvalidArgument,
-        Error::Io(_) => Kind::Transport,
-        _ => Kind::Other,
+classified!(Error, refusal);
+
+/// A GRIPLINK controller's refusal (`DeviceError`).
+fn refusal(e: Error) -> Option<errors::Device> {
+    let Error::Device {
+        command, status, ..
+    } = e
+    else {
+        return None;
     };
-    errors::classify(kind, message)
+    let d = errors::Device::new(i64::from(status.code()), command).status(PY, "Status");
+    Some(match (status.identifier(), status.description()) {
+        (Some(name), Some(description)) => d.known(name, description),
+        _ => d,
+    })
 }
 
 // ---- results -------------------------------------------------------------------------------
@@ -228,17 +219,9 @@ impl ToPy for AioClient {
     }
 }
 
-/// `close()` (and leaving a `with` block), idempotent (issue 32): a client that is already closed, or whose connection
-/// is already lost (the error was raised by the call that saw it), is fine to leave.
+/// `close()` (and leaving a `with` block), idempotent ([`errors::close_for_exit`]).
 async fn close_for_exit(c: griplink::Client) -> griplink::Result<()> {
-    match c.close().await {
-        Err(Error::Closed | Error::ConnectionLost { .. }) => Ok(()),
-        Ok(()) => {
-            crate::lifecycle::closed(|| c.is_closed()).await;
-            Ok(())
-        }
-        other => other,
-    }
+    errors::close_for_exit(c.close(), || c.is_closed()).await
 }
 
 twins! {

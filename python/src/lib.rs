@@ -5,12 +5,13 @@
 
 // The macros first: `macro_rules!` are visible to the modules declared after them.
 #[macro_use]
+mod errors;
+#[macro_use]
 mod sim;
 #[macro_use]
 mod twins;
 mod args;
 mod convert;
-mod errors;
 mod events;
 mod griplink;
 mod lifecycle;

@@ -11,7 +11,7 @@ use pyo3::prelude::*;
 
 use crate::args::Checked;
 use crate::convert::{enum_member, enum_value, field, record, ToPy};
-use crate::errors::{self, Kind};
+use crate::errors;
 use crate::events;
 use crate::runtime::{self, seconds};
 use crate::sim::Slot;
@@ -19,41 +19,30 @@ use crate::stream::Stream;
 
 const PY: &str = "gripper_rs.smartgrasp";
 
-/// A SmartGrasp error as the package's exception.
-pub fn error(e: Error) -> PyErr {
-    let message = e.to_string();
-    let kind = match e {
-        Error::Device {
-            message_type,
-            status,
-        } => {
-            let d = errors::Device::new(i64::from(u8::from(status)), message_type.to_string())
-                .status(PY, "ResponseCode");
-            Kind::Device(match status {
-                smartgrasp::ResponseCode::Unknown(_) => d,
-                known => {
-                    // Display is "SYMBOL (text)" (manual 3.2).
-                    let text = known.to_string();
-                    let (name, description) = text.split_once(' ').unwrap_or((&text, ""));
-                    let description = description.trim_start_matches('(').trim_end_matches(')');
-                    d.known(name, description)
-                }
-            })
-        }
-        Error::Timeout { timeout, .. } => Kind::Timeout {
-            timeout_s: timeout.as_secs_f64(),
-        },
-        Error::ConnectionLost { .. } => Kind::ConnectionLost,
-        Error::Closed => Kind::Closed,
-        Error::MalformedReply(_) => Kind::Malformed,
-        Error::InvalidArgument { .. } | Error::Pose(_) | Error::Request(_) => Kind::InvalidArgument,
-        Error::Io(_) => Kind::Transport,
-        Error::ServerTooOld { .. } | Error::NotOperational { .. } | Error::ResponseLost { .. } => {
-            Kind::Protocol
-        }
-        _ => Kind::Other,
+classified!(Error, refusal);
+
+/// A SmartGrasp server's refusal (`DeviceError`). A server that is not OPERATIONAL (kind
+/// `Device`) sent no response code: no refusal, a `ProtocolError`.
+fn refusal(e: Error) -> Option<errors::Device> {
+    let Error::Device {
+        message_type,
+        status,
+    } = e
+    else {
+        return None;
     };
-    errors::classify(kind, message)
+    let d = errors::Device::new(i64::from(u8::from(status)), message_type.to_string())
+        .status(PY, "ResponseCode");
+    Some(match status {
+        smartgrasp::ResponseCode::Unknown(_) => d,
+        known => {
+            // Display is "SYMBOL (text)" (manual 3.2).
+            let text = known.to_string();
+            let (name, description) = text.split_once(' ').unwrap_or((&text, ""));
+            let description = description.trim_start_matches('(').trim_end_matches(')');
+            d.known(name, description)
+        }
+    })
 }
 
 // ---- results -------------------------------------------------------------------------------
@@ -285,17 +274,9 @@ impl ToPy for AioClient {
     }
 }
 
-/// `close()` (and leaving a `with` block), idempotent (issue 32): a client that is already closed, or whose connection
-/// is already lost (the error was raised by the call that saw it), is fine to leave.
+/// `close()` (and leaving a `with` block), idempotent ([`errors::close_for_exit`]).
 async fn close_for_exit(c: smartgrasp::Client) -> smartgrasp::Result<()> {
-    match c.close().await {
-        Err(Error::Closed | Error::ConnectionLost { .. }) => Ok(()),
-        Ok(()) => {
-            crate::lifecycle::closed(|| c.is_closed()).await;
-            Ok(())
-        }
-        other => other,
-    }
+    errors::close_for_exit(c.close(), || c.is_closed()).await
 }
 
 twins! {

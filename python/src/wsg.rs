@@ -11,7 +11,7 @@ use pyo3::IntoPyObjectExt;
 
 use crate::args::Checked;
 use crate::convert::{enum_value, f32_to_f64, field, record, ToPy};
-use crate::errors::{self, Kind};
+use crate::errors;
 use crate::events;
 use crate::runtime::{self, seconds};
 use crate::sim::Slot;
@@ -19,25 +19,13 @@ use crate::stream::{ending_from_events, Ended, Stream};
 
 const PY: &str = "gripper_rs.wsg";
 
-/// A WSG error as the package's exception.
-pub fn error(e: Error) -> PyErr {
-    let message = e.to_string();
-    errors::classify(kind(e), message)
-}
+classified!(Error, refusal);
 
-/// What kind of failure a WSG error is (see [`errors::Kind`]).
-fn kind(e: Error) -> Kind {
+/// A WSG device's refusal (`DeviceError`).
+fn refusal(e: Error) -> Option<errors::Device> {
     match e {
-        Error::Device { command, status } => Kind::Device(device(command, status)),
-        Error::Timeout { timeout, .. } => Kind::Timeout {
-            timeout_s: timeout.as_secs_f64(),
-        },
-        Error::ConnectionLost { .. } => Kind::ConnectionLost,
-        Error::Closed => Kind::Closed,
-        Error::MalformedReply { .. } => Kind::Malformed,
-        Error::InvalidArgument { .. } => Kind::InvalidArgument,
-        Error::Io(_) => Kind::Transport,
-        _ => Kind::Other,
+        Error::Device { command, status } => Some(device(command, status)),
+        _ => None,
     }
 }
 
@@ -557,13 +545,9 @@ impl ToPy for wsg::Reply {
     }
 }
 
-/// `close()` (and leaving a `with` block), idempotent (issue 32): a client that is already closed, or whose connection
-/// is already lost (the error was raised by the call that saw it), is fine to leave.
+/// `close()` (and leaving a `with` block), idempotent ([`errors::close_for_exit`]).
 async fn close_for_exit(c: wsg::Client) -> wsg::Result<()> {
-    match c.close().await {
-        Err(Error::Closed | Error::ConnectionLost { .. }) => Ok(()),
-        other => other,
-    }
+    errors::close_for_exit(c.close(), || c.is_closed()).await
 }
 
 // ---- the simulator -------------------------------------------------------------------------

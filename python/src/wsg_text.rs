@@ -8,33 +8,25 @@ use pyo3::IntoPyObjectExt;
 
 use crate::args::Checked;
 use crate::convert::{field, record, ToPy};
-use crate::errors::{self, Kind};
+use crate::errors;
 use crate::runtime::{self, seconds};
 use crate::stream::{Ended, Ending, Stream};
 use crate::wsg::homing_direction;
 
-/// A text-interface error as the package's exception; a device error without a numeral code
-/// has code -1 (the whole `ERR` line is in the message).
-pub fn error(e: Error) -> PyErr {
-    let message = e.to_string();
-    let kind = match e {
+classified!(Error, refusal);
+
+/// A GCL refusal (`DeviceError`): a device error without a numeral code has code -1 (the
+/// whole `ERR` line is in the message).
+fn refusal(e: Error) -> Option<errors::Device> {
+    match e {
         Error::Device {
             command,
             status: Some(status),
             ..
-        } => Kind::Device(crate::wsg::device(command, status)),
-        Error::Device { command, .. } => Kind::Device(errors::Device::new(-1, command)),
-        Error::Timeout { timeout, .. } => Kind::Timeout {
-            timeout_s: timeout.as_secs_f64(),
-        },
-        Error::ConnectionLost { .. } => Kind::ConnectionLost,
-        Error::Closed => Kind::Closed,
-        Error::MalformedReply { .. } | Error::UnexpectedReply { .. } => Kind::Malformed,
-        Error::InvalidArgument { .. } => Kind::InvalidArgument,
-        Error::Io(_) => Kind::Transport,
-        _ => Kind::Other,
-    };
-    errors::classify(kind, message)
+        } => Some(crate::wsg::device(command, status)),
+        Error::Device { command, .. } => Some(errors::Device::new(-1, command)),
+        _ => None,
+    }
 }
 
 impl ToPy for Push {
@@ -226,17 +218,9 @@ async fn autosend(
     Ok(Ended(pushes, ending))
 }
 
-/// `close()` (and leaving a `with` block), idempotent (issue 32): a client already closed, or whose connection is
-/// already lost, is fine to leave.
+/// `close()` (and leaving a `with` block), idempotent ([`errors::close_for_exit`]).
 async fn close_for_exit(c: text::Client) -> text::Result<()> {
-    match c.close().await {
-        Err(Error::Closed | Error::ConnectionLost { .. }) => Ok(()),
-        Ok(()) => {
-            crate::lifecycle::closed(|| c.is_closed()).await;
-            Ok(())
-        }
-        other => other,
-    }
+    errors::close_for_exit(c.close(), || c.is_closed()).await
 }
 
 /// `gripper_rs._native.wsg_text`.

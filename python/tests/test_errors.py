@@ -3,10 +3,12 @@ included), every error pickles and copies to an equal one, DeviceError's name an
 
 from __future__ import annotations
 
+import builtins
 import copy
 import pickle
+import socket
 import types
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 
 import pytest
 
@@ -158,3 +160,58 @@ def test_simulator_options_take_any_mapping() -> None:
         assert port.grip_and_wait(1) is griplink.GripOutcome.HOLDING
     with pytest.raises(gripper_rs.InvalidArgumentError):
         griplink.sim.SimServer(parts={300: 12.0})
+
+
+@pytest.fixture
+def unanswered_address() -> Iterator[str]:
+    """A loopback address whose connects hang: a listener that never accepts, with a backlog of
+    0 already filled, so the kernel drops further SYNs and a connect waits until its timeout."""
+    listener = socket.socket()
+    listener.bind(("127.0.0.1", 0))
+    listener.listen(0)
+    host, port = listener.getsockname()
+    fillers = []
+    try:
+        for _ in range(3):
+            s = socket.socket()
+            s.setblocking(False)
+            s.connect_ex((host, port))
+            fillers.append(s)
+        yield f"{host}:{port}"
+    finally:
+        for s in fillers:
+            s.close()
+        listener.close()
+
+
+@pytest.mark.parametrize(
+    "connect",
+    [
+        lambda a: wsg.Client.connect_tcp(a, connect_timeout_s=0.2),
+        lambda a: wsg.text.Client.connect(a, connect_timeout_s=0.2),
+        lambda a: griplink.Client.connect(a, connect_timeout_s=0.2),
+        lambda a: smartgrasp.Client.connect(a, connect_timeout_s=0.2),
+    ],
+    ids=["wsg", "text", "griplink", "smartgrasp"],
+)
+def test_a_connect_timeout_is_a_timeout_error_without_duration(
+    unanswered_address: str, connect: Callable[[str], object]
+) -> None:
+    # gripper::ErrorKind::Timeout (an I/O error of kind TimedOut), once a TransportError: every
+    # protocol's connect timeout is the TimeoutError its docs promise, and it has no duration.
+    with pytest.raises(gripper_rs.TimeoutError) as caught:
+        connect(unanswered_address)
+    assert isinstance(caught.value, builtins.TimeoutError)
+    assert caught.value.timeout_s is None
+    assert pickle.loads(pickle.dumps(caught.value)) == caught.value
+
+
+def test_a_subscription_conflict_is_an_invalid_argument(wsg_client: wsg.Client) -> None:
+    # gripper::ErrorKind::InvalidArgument (refused before sending), once a plain GripperError.
+    stream = wsg_client.subscribe_width_mm(0.05)
+    try:
+        with pytest.raises(gripper_rs.InvalidArgumentError) as caught:
+            wsg_client.subscribe_width_mm(0.1)
+        assert "already streamed" in str(caught.value)
+    finally:
+        stream.close()

@@ -144,14 +144,6 @@ fn handler(g: &Griplink, call: Call) -> crate::trigger::Handler {
     })
 }
 
-fn note_error(telemetry: &Shared, e: &Error) {
-    if matches!(e, Error::Timeout { .. }) {
-        telemetry.timed_out(e.to_string());
-    } else {
-        telemetry.lock().last_error = Some(e.to_string());
-    }
-}
-
 async fn feed_position(
     port: Port,
     every: Duration,
@@ -166,7 +158,7 @@ async fn feed_position(
         };
         match reading {
             Some(Ok(mm)) => telemetry.lock().width_mm = Some(mm),
-            Some(Err(e)) => note_error(&telemetry, &e),
+            Some(Err(e)) => telemetry.note_error(e.kind(), e.to_string()),
             None => return,
         }
     }
@@ -186,7 +178,7 @@ async fn feed_state(
         };
         match reading {
             Some(Ok(s)) => apply_state(&mut telemetry.lock(), s),
-            Some(Err(e)) => note_error(&telemetry, &e),
+            Some(Err(e)) => telemetry.note_error(e.kind(), e.to_string()),
             None => return,
         }
     }
@@ -227,7 +219,7 @@ struct Inner {
 impl Griplink {
     fn record<T>(&self, r: gripper::griplink::Result<T>) -> Result<T, String> {
         r.map_err(|e| {
-            note_error(&self.0.telemetry, &e);
+            self.0.telemetry.note_error(e.kind(), e.to_string());
             e.to_string()
         })
     }

@@ -137,7 +137,7 @@ pub fn start(
             let (client, telemetry) = (client.clone(), telemetry.clone());
             Box::pin(async move {
                 client.grasp_feedback(feedback).await.map_err(|e| {
-                    telemetry.lock().last_error = Some(e.to_string());
+                    telemetry.note_error(e.kind(), e.to_string());
                     e.to_string()
                 })?;
                 Ok(format!("GRASP_FEEDBACK {feedback:?} sent"))
@@ -162,7 +162,7 @@ async fn next_grasp(
         pose_format: PoseFormat::Quaternion,
     };
     let outcome = client.get_grasp(request).await.map_err(|e| {
-        telemetry.lock().last_error = Some(e.to_string());
+        telemetry.note_error(e.kind(), e.to_string());
         format!("GET_GRASP: {e}")
     })?;
     let grasp = match outcome {
@@ -224,10 +224,9 @@ async fn poll_state(client: Client, telemetry: Shared, shutdown: watch::Receiver
             if !telemetry.lock().connected {
                 return;
             }
-            let state = client.get_state().await;
-            let mut t = telemetry.lock();
-            match state {
+            match client.get_state().await {
                 Ok(s) => {
+                    let mut t = telemetry.lock();
                     t.set_state("server_state", s.to_string());
                     t.warnings = if s == gripper::smartgrasp::ServerState::Operational {
                         Vec::new()
@@ -235,7 +234,7 @@ async fn poll_state(client: Client, telemetry: Shared, shutdown: watch::Receiver
                         vec![format!("server state {s}")]
                     };
                 }
-                Err(e) => t.last_error = Some(format!("GET_STATE: {e}")),
+                Err(e) => telemetry.note_error(e.kind(), format!("GET_STATE: {e}")),
             }
         }
     })

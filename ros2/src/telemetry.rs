@@ -2,6 +2,8 @@
 
 use std::sync::{Arc, Mutex, MutexGuard};
 
+use gripper::ErrorKind;
+
 /// The latest readings and counters of one device.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Telemetry {
@@ -71,10 +73,72 @@ impl Shared {
         self.lock().clone()
     }
 
-    /// Counts a timeout and keeps its message.
-    pub fn timed_out(&self, what: String) {
+    /// Records a failed call or reading of any protocol: keeps `message` as the last error and
+    /// counts a timeout ([`ErrorKind::Timeout`], the protocol's `Error::kind()`). The node's one
+    /// classification of errors: every node (WSG, GCL, GRIPLINK, Grasping-Kit) reports through it.
+    pub fn note_error(&self, kind: ErrorKind, message: String) {
         let mut t = self.lock();
-        t.timeouts += 1;
-        t.last_error = Some(what);
+        if kind == ErrorKind::Timeout {
+            t.timeouts += 1;
+        }
+        t.last_error = Some(message);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::time::Duration;
+
+    use gripper::{griplink, smartgrasp, wsg};
+
+    use super::Shared;
+
+    /// Every protocol's timeout counts, the connect timeout (an I/O error of kind `TimedOut`)
+    /// included; the GCL and Grasping-Kit nodes once kept only the message.
+    #[test]
+    fn every_protocols_timeout_is_counted_and_other_errors_are_not() {
+        let t = Shared::new("test", "");
+        let timeout = Duration::from_millis(5);
+        let timeouts = [
+            wsg::Error::Timeout {
+                command: 0x43,
+                timeout,
+            }
+            .kind(),
+            wsg::text::Error::Timeout {
+                command: "POS?".into(),
+                timeout,
+            }
+            .kind(),
+            griplink::Error::Timeout {
+                command: "POS[0]".into(),
+                timeout,
+            }
+            .kind(),
+            smartgrasp::Error::Timeout {
+                message_type: smartgrasp::MessageType::GetState,
+                timeout,
+            }
+            .kind(),
+            wsg::Error::from(std::io::Error::from(std::io::ErrorKind::TimedOut)).kind(),
+        ];
+        for kind in timeouts {
+            t.note_error(kind, format!("{kind}"));
+        }
+        assert_eq!(t.get().timeouts, 5);
+        t.note_error(
+            griplink::Error::Closed.kind(),
+            "the client was closed".into(),
+        );
+        t.note_error(
+            smartgrasp::Error::ConnectionLost {
+                reason: "reset".into(),
+            }
+            .kind(),
+            "connection lost: reset".into(),
+        );
+        let t = t.get();
+        assert_eq!(t.timeouts, 5);
+        assert_eq!(t.last_error.as_deref(), Some("connection lost: reset"));
     }
 }

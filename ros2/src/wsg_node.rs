@@ -271,11 +271,11 @@ async fn acknowledge_after_reconnect(client: &Client, telemetry: &Shared) {
                 "FAST STOP after the reconnect: acknowledged (auto_acknowledge_fast_stop)"
             );
             if let Err(e) = client.acknowledge_fast_stop().await {
-                telemetry.lock().last_error = Some(format!("acknowledge after reconnect: {e}"));
+                telemetry.note_error(e.kind(), format!("acknowledge after reconnect: {e}"));
             }
         }
         Ok(_) => {}
-        Err(e) => telemetry.lock().last_error = Some(format!("system state after reconnect: {e}")),
+        Err(e) => telemetry.note_error(e.kind(), format!("system state after reconnect: {e}")),
     }
 }
 
@@ -289,19 +289,11 @@ async fn poll_temperature(client: Client, telemetry: Shared, shutdown: watch::Re
             }
             match client.temperature_c().await {
                 Ok(c) => telemetry.lock().temperature_c = Some(f64::from(c)),
-                Err(e) => note_error(&telemetry, &e),
+                Err(e) => telemetry.note_error(e.kind(), e.to_string()),
             }
         }
     })
     .await;
-}
-
-fn note_error(telemetry: &Shared, e: &Error) {
-    if matches!(e, Error::Timeout { .. }) {
-        telemetry.timed_out(e.to_string());
-    } else {
-        telemetry.lock().last_error = Some(e.to_string());
-    }
 }
 
 /// The WSG as the action's actuator.
@@ -323,7 +315,7 @@ struct Inner {
 impl Wsg {
     fn record<T>(&self, r: gripper::wsg::Result<T>) -> gripper::wsg::Result<T> {
         if let Err(e) = &r {
-            note_error(&self.0.telemetry, e);
+            self.0.telemetry.note_error(e.kind(), e.to_string());
         }
         r
     }

@@ -116,9 +116,8 @@ async fn poll(client: Client, every: Duration, telemetry: Shared, shutdown: watc
                     t.set_state("grip_state", format!("{grip:?}"));
                 }
                 Err(e) => {
-                    let mut t = telemetry.lock();
-                    t.connected = !client.is_closed();
-                    t.last_error = Some(e.to_string());
+                    telemetry.lock().connected = !client.is_closed();
+                    telemetry.note_error(e.kind(), e.to_string());
                 }
             }
         }
@@ -141,7 +140,7 @@ struct Inner {
 impl Text {
     fn record<T>(&self, r: gripper::wsg::text::Result<T>) -> Result<T, String> {
         r.map_err(|e| {
-            self.0.telemetry.lock().last_error = Some(e.to_string());
+            self.0.telemetry.note_error(e.kind(), e.to_string());
             e.to_string()
         })
     }
