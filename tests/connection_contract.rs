@@ -8,7 +8,7 @@
 //!   every later call fails with the protocol's `ConnectionLost`;
 //! - a policy that gives up (`GaveUp { attempts: 2 }`) closes the client like one without.
 //!
-//! And the cancel contract: the cancel contract:
+//! And the cancel contract:
 //!
 //! - calls dropped at any await point (`select!`, `timeout`) never disturb another caller's
 //!   calls, and the connection stays healthy: no loss, no reconnect, the next call is served;
