@@ -6,7 +6,8 @@
 //!   (`Restored { attempts: 1 }`), and calls work again on the new connection;
 //! - without a policy a loss closes the client for good: the event stream ends after `Lost`, and
 //!   every later call fails with the protocol's `ConnectionLost`;
-//! - a policy that gives up (`GaveUp { attempts: 2 }`) closes the client like one without.
+//! - a policy that gives up (one `Reconnecting` per attempt, then `GaveUp { attempts: 2 }`)
+//!   closes the client like one without.
 //!
 //! And the cancel contract:
 //!
@@ -138,6 +139,7 @@ async fn without_a_policy_a_loss_closes_for_good<C: Contracted>() {
     let got = events_until(&mut events, |e| matches!(e, ConnectionEvent::Lost { .. })).await;
     assert_eq!(got.len(), 1, "{got:?}");
     assert_eq!(within("the stream's end", events.next()).await, None);
+    assert!(client.is_closed());
     for _ in 0..3 {
         assert_eq!(
             within("query", client.query()).await,
@@ -153,8 +155,18 @@ async fn a_policy_that_gives_up_closes_with_the_loss<C: Contracted>() {
     // Nothing to reconnect to: the proxy the client connects through is gone.
     within("the proxy's shutdown", proxy.shutdown()).await;
     let got = events_until(&mut events, |e| matches!(e, ConnectionEvent::GaveUp { .. })).await;
+    let attempts: Vec<u32> = got
+        .iter()
+        .filter_map(|e| match e {
+            ConnectionEvent::Reconnecting { attempt, .. } => Some(*attempt),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(attempts, [1, 2], "{got:?}");
+    assert!(!got.contains(&ConnectionEvent::Connected), "{got:?}");
     assert_eq!(got.last(), Some(&ConnectionEvent::GaveUp { attempts: 2 }));
     assert_eq!(within("the stream's end", events.next()).await, None);
+    assert!(client.is_closed());
     assert_eq!(
         within("query", client.query()).await,
         Outcome::ConnectionLost
