@@ -193,6 +193,7 @@ async fn poll_then_drop<F: Future>(call: F, polls: usize) -> bool {
 async fn a_dropped_call_leaves_the_connection_healthy<C: Contracted>() {
     // Without a policy a loss would close the client: every later call would fail.
     let (_sim, proxy, client, _events) = proxied::<C>(None).await;
+    let sent_before = proxy.stats().client_to_server.frames;
     let steady = async {
         for _ in 0..40 {
             assert_eq!(within("steady query", client.query()).await, Outcome::Ok);
@@ -208,6 +209,13 @@ async fn a_dropped_call_leaves_the_connection_healthy<C: Contracted>() {
     };
     within("the calls", async { tokio::join!(steady, dropper) }).await;
     assert_eq!(within("query", client.query()).await, Outcome::Ok);
+    // Some dropped calls were on the wire when dropped (more requests than the 41 kept calls):
+    // their replies came to a connection whose callers had moved on.
+    let sent = proxy.stats().client_to_server.frames - sent_before;
+    assert!(
+        sent > 41,
+        "no dropped call reached the wire ({sent} requests)"
+    );
     assert!(!client.is_closed());
     assert_eq!(proxy.stats().connections_accepted, 1);
     assert_eq!(proxy.stats().connections_cut, 0);
