@@ -343,6 +343,43 @@ macro_rules! contract {
     };
 }
 
+/// The handle's methods every client spells the same way (`connection_events`, `close`,
+/// `is_closed`), inside a `Contracted` impl.
+macro_rules! handle {
+    (close_fails_waiting_calls = $cut:literal) => {
+        fn events(&self) -> ConnectionEvents {
+            self.connection_events()
+        }
+
+        async fn close(&self) -> Outcome {
+            match Client::close(self).await {
+                Ok(()) => Outcome::Ok,
+                Err(error) => outcome(error),
+            }
+        }
+
+        fn is_closed(&self) -> bool {
+            Client::is_closed(self)
+        }
+
+        const CLOSE_FAILS_WAITING_CALLS: bool = $cut;
+    };
+}
+
+/// `outcome(error)`: how a call of the protocol's `Error` ended, in the terms of the contract
+/// (each protocol's enum has the same variants for the connection's end).
+macro_rules! outcome {
+    () => {
+        fn outcome(error: Error) -> Outcome {
+            match error {
+                Error::ConnectionLost { .. } => Outcome::ConnectionLost,
+                Error::Closed => Outcome::Closed,
+                other => Outcome::Other(format!("{other:?}")),
+            }
+        }
+    };
+}
+
 mod wsg {
     use super::*;
     use gripper::wsg::sim::{Model, SimConfig, SimServer};
@@ -379,31 +416,10 @@ mod wsg {
             }
         }
 
-        fn events(&self) -> ConnectionEvents {
-            self.connection_events()
-        }
-
-        async fn close(&self) -> Outcome {
-            match Client::close(self).await {
-                Ok(()) => Outcome::Ok,
-                Err(error) => outcome(error),
-            }
-        }
-
-        fn is_closed(&self) -> bool {
-            Client::is_closed(self)
-        }
-
-        const CLOSE_FAILS_WAITING_CALLS: bool = false;
+        handle!(close_fails_waiting_calls = false);
     }
 
-    fn outcome(error: Error) -> Outcome {
-        match error {
-            Error::ConnectionLost { .. } => Outcome::ConnectionLost,
-            Error::Closed => Outcome::Closed,
-            other => Outcome::Other(format!("{other:?}")),
-        }
-    }
+    outcome!();
 
     contract!(
         Client,
@@ -446,31 +462,10 @@ mod wsg_text {
             }
         }
 
-        fn events(&self) -> ConnectionEvents {
-            self.connection_events()
-        }
-
-        async fn close(&self) -> Outcome {
-            match Client::close(self).await {
-                Ok(()) => Outcome::Ok,
-                Err(error) => outcome(error),
-            }
-        }
-
-        fn is_closed(&self) -> bool {
-            Client::is_closed(self)
-        }
-
-        const CLOSE_FAILS_WAITING_CALLS: bool = false;
+        handle!(close_fails_waiting_calls = false);
     }
 
-    fn outcome(error: Error) -> Outcome {
-        match error {
-            Error::ConnectionLost { .. } => Outcome::ConnectionLost,
-            Error::Closed => Outcome::Closed,
-            other => Outcome::Other(format!("{other:?}")),
-        }
-    }
+    outcome!();
 
     contract!(
         Client,
@@ -513,31 +508,10 @@ mod griplink {
             }
         }
 
-        fn events(&self) -> ConnectionEvents {
-            self.connection_events()
-        }
-
-        async fn close(&self) -> Outcome {
-            match Client::close(self).await {
-                Ok(()) => Outcome::Ok,
-                Err(error) => outcome(error),
-            }
-        }
-
-        fn is_closed(&self) -> bool {
-            Client::is_closed(self)
-        }
-
-        const CLOSE_FAILS_WAITING_CALLS: bool = false;
+        handle!(close_fails_waiting_calls = false);
     }
 
-    fn outcome(error: Error) -> Outcome {
-        match error {
-            Error::ConnectionLost { .. } => Outcome::ConnectionLost,
-            Error::Closed => Outcome::Closed,
-            other => Outcome::Other(format!("{other:?}")),
-        }
-    }
+    outcome!();
 
     contract!(
         Client,
@@ -584,31 +558,10 @@ mod smartgrasp {
             }
         }
 
-        fn events(&self) -> ConnectionEvents {
-            self.connection_events()
-        }
-
-        async fn close(&self) -> Outcome {
-            match Client::close(self).await {
-                Ok(()) => Outcome::Ok,
-                Err(error) => outcome(error),
-            }
-        }
-
-        fn is_closed(&self) -> bool {
-            Client::is_closed(self)
-        }
-
-        const CLOSE_FAILS_WAITING_CALLS: bool = true;
+        handle!(close_fails_waiting_calls = true);
     }
 
-    fn outcome(error: Error) -> Outcome {
-        match error {
-            Error::ConnectionLost { .. } => Outcome::ConnectionLost,
-            Error::Closed => Outcome::Closed,
-            other => Outcome::Other(format!("{other:?}")),
-        }
-    }
+    outcome!();
 
     contract!(Client);
 }
