@@ -145,41 +145,6 @@ async fn a_call_in_flight_when_the_link_drops_fails_and_is_never_sent_again() {
 }
 
 #[tokio::test]
-async fn gives_up_after_the_policys_attempts_and_fails_later_calls() {
-    let server = sim().await;
-    let client = Client::connect_with(server.local_addr(), reconnecting(Some(2)))
-        .await
-        .unwrap();
-    let mut events = client.connection_events();
-    assert_eq!(client.id().await.unwrap(), "GRIPLINK-ET4");
-    drop(server); // closes the connection and the listener: every attempt is refused
-    let got = events_until(&mut events, |e| matches!(e, ConnectionEvent::GaveUp { .. })).await;
-    let attempts = got
-        .iter()
-        .filter(|e| matches!(e, ConnectionEvent::Reconnecting { .. }))
-        .count();
-    assert_eq!(attempts, 2, "{got:?}");
-    assert_eq!(got.last(), Some(&ConnectionEvent::GaveUp { attempts: 2 }));
-    assert!(!got.contains(&ConnectionEvent::Connected), "{got:?}");
-    assert_eq!(within("end", events.next()).await, None);
-    let r = within("call", client.id()).await;
-    assert!(matches!(r, Err(Error::ConnectionLost { .. })), "{r:?}");
-}
-
-#[tokio::test]
-async fn without_a_policy_the_loss_is_reported_and_the_client_stays_closed() {
-    let server = sim().await;
-    let client = Client::connect(server.local_addr()).await.unwrap();
-    let mut events = client.connection_events();
-    drop(server);
-    let got = events_until(&mut events, |_| true).await;
-    assert!(matches!(got[..], [ConnectionEvent::Lost { .. }]), "{got:?}");
-    assert_eq!(within("end", events.next()).await, None);
-    let r = within("call", client.id()).await;
-    assert!(matches!(r, Err(Error::ConnectionLost { .. })), "{r:?}");
-}
-
-#[tokio::test]
 async fn close_does_not_reconnect() {
     let server = sim().await;
     let client = Client::connect_with(server.local_addr(), reconnecting(None))

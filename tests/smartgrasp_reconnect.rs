@@ -290,24 +290,6 @@ async fn gives_up_after_max_attempts_and_closes() {
 }
 
 #[tokio::test]
-async fn without_a_policy_the_loss_is_reported_and_the_client_closes() {
-    let (_server, proxy, client, mut events) = setup(None).await;
-    proxy.cut_connections();
-    assert!(matches!(
-        next(&mut events).await,
-        Some(ConnectionEvent::Lost { .. })
-    ));
-    assert_eq!(
-        next(&mut events).await,
-        None,
-        "the stream ends with the client"
-    );
-    let err = client.get_state().await.unwrap_err();
-    assert!(matches!(err, Error::ConnectionLost { .. }), "{err}");
-    assert_eq!(proxy.stats().connections_accepted, 1, "no reconnect");
-}
-
-#[tokio::test]
 async fn close_ends_the_connection_and_fails_pending_and_later_calls() {
     let (server, proxy, client, mut events) = setup(None).await;
     let other = client.clone();

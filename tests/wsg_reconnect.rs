@@ -187,31 +187,6 @@ async fn the_client_gives_up_after_its_attempts_and_later_calls_fail() {
 }
 
 #[tokio::test]
-async fn without_a_policy_the_loss_is_reported_and_final() {
-    let sim = SimServer::bind("127.0.0.1:0", SimConfig::new(Model::Wsg50))
-        .await
-        .unwrap();
-    let client = Client::connect_tcp(sim.local_addr().unwrap())
-        .await
-        .unwrap();
-    let mut events = client.connection_events();
-    client.system_info().await.unwrap();
-    sim.unplug();
-    assert!(matches!(
-        next_event(&mut events).await,
-        ConnectionEvent::Lost { .. }
-    ));
-    assert_eq!(
-        tokio::time::timeout(LIMIT, events.next()).await.unwrap(),
-        None
-    );
-    assert!(matches!(
-        client.system_info().await,
-        Err(Error::ConnectionLost { .. })
-    ));
-}
-
-#[tokio::test]
 async fn close_while_reconnecting_gives_up() {
     let sim = SimServer::bind("127.0.0.1:0", SimConfig::new(Model::Wsg50))
         .await

@@ -142,36 +142,6 @@ async fn a_call_in_flight_when_the_link_drops_fails_and_is_never_sent_again() {
     assert_eq!(proxy.client_to_server().stats().frames, homes_sent + 1);
 }
 
-#[tokio::test]
-async fn without_a_policy_a_lost_connection_stays_closed() {
-    let (_server, proxy, client) = proxied(ClientConfig::default()).await;
-    let mut events = client.connection_events();
-    client.position_mm().await.unwrap();
-    proxy.cut_connections();
-    let got = events_until(&mut events, |e| matches!(e, ConnectionEvent::Lost { .. })).await;
-    assert_eq!(got.len(), 1, "{got:?}");
-    assert!(within("the stream's end", events.next()).await.is_none());
-    assert!(client.is_closed());
-    let err = client.position_mm().await.unwrap_err();
-    assert!(matches!(err, Error::ConnectionLost { .. }), "{err:?}");
-    assert_eq!(proxy.stats().connections_accepted, 1);
-}
-
-#[tokio::test]
-async fn a_policy_that_gives_up_closes_the_client_with_the_loss() {
-    let (_server, proxy, client) = proxied(reconnecting(Some(2))).await;
-    let mut events = client.connection_events();
-    client.position_mm().await.unwrap();
-    // Nothing to reconnect to: the proxy the client connects through is gone.
-    within("the proxy's shutdown", proxy.shutdown()).await;
-    let got = events_until(&mut events, |e| matches!(e, ConnectionEvent::GaveUp { .. })).await;
-    assert_eq!(got.last(), Some(&ConnectionEvent::GaveUp { attempts: 2 }));
-    assert!(within("the stream's end", events.next()).await.is_none());
-    assert!(client.is_closed());
-    let err = client.position_mm().await.unwrap_err();
-    assert!(matches!(err, Error::ConnectionLost { .. }), "{err:?}");
-}
-
 /// `open_with`: the client runs over the streams the program opens (here in-memory pipes to a
 /// simulator served without sockets, as the explorer serves it), and a reconnect opens the next
 /// one through the same opener. The gripper's restart drops the first pipe.
