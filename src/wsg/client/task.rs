@@ -129,6 +129,14 @@ pub(crate) struct Task {
 /// released anyway (see [`Task::barrier_refused`]).
 const BARRIER_REFUSALS: u8 = 3;
 
+/// What the payload of the client's own loop-back barriers begins with; a token follows.
+pub(super) const BARRIER_PREFIX: &[u8] = b"gripper barrier ";
+
+/// The payload length of a barrier's echo: status (2 bytes, manual 1.2.2) + the loop-back's
+/// payload (3.1.1). A client must accept replies this long, or every barrier goes unanswered
+/// ([`super::ClientBuilder::max_payload_len`]).
+pub(super) const BARRIER_ECHO_LEN: usize = 2 + BARRIER_PREFIX.len() + std::mem::size_of::<Token>();
+
 /// Where the connection's timers wait while nothing is due (they are not polled then).
 const IDLE_TIMER: Duration = Duration::from_secs(3600);
 
