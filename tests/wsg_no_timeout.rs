@@ -9,7 +9,7 @@ use bytes::BytesMut;
 use futures_util::StreamExt;
 use gripper::wsg::command::id;
 use gripper::wsg::frame::{self, Frame};
-use gripper::wsg::{Client, Error, Finger, WsgCodec};
+use gripper::wsg::{Client, Error, Finger, UpdateOptions, WsgCodec};
 use tokio::io::AsyncWriteExt;
 use tokio::net::TcpListener;
 use tokio_util::codec::FramedRead;
@@ -93,4 +93,25 @@ async fn an_acknowledged_finger_power_on_without_timeout_whose_final_reply_is_lo
     )
     .await;
     assert!(matches!(powered, Err(Error::Timeout { .. })), "{powered:?}");
+}
+
+/// The same while system state (0x40) is streamed: a probe's query is then answered through a
+/// loop-back barrier (the last 0x40 frame before its echo), and that answer was dropped instead
+/// of reaching the recovery, so the motion kept a probe out for ever and its id stayed held
+/// (the explorer's wsg-serial:0x81263a75df4c46d4).
+#[tokio::test]
+async fn a_probe_answered_through_a_barrier_still_counts() {
+    let client = client(device_losing_final_replies().await).await;
+    let _states = bounded(
+        "subscribe",
+        client.subscribe_system_state(UpdateOptions::periodic(Duration::from_millis(100))),
+    )
+    .await
+    .unwrap();
+    let forever = client.with_timeouts(Duration::from_millis(200), Duration::MAX);
+    let moved = bounded("pre_position", forever.pre_position(20.0, 50.0)).await;
+    assert!(
+        matches!(moved, Err(Error::ReplyLost { command: 0x21 })),
+        "{moved:?}"
+    );
 }
