@@ -3,6 +3,9 @@
 //! Over loopback sockets against the in-process simulator.
 #![cfg(feature = "sim")]
 
+mod common;
+
+use common::bounded;
 use std::time::Duration;
 
 use futures_util::StreamExt;
@@ -11,13 +14,6 @@ use gripper::wsg::{Client, UpdateOptions};
 
 fn config() -> SimConfig {
     SimConfig::new(Model::Wsg50).with_part(40.0, 2.0)
-}
-
-/// Bounds a call that must end by itself well before this.
-async fn bounded<F: std::future::Future>(what: &str, call: F) -> F::Output {
-    tokio::time::timeout(Duration::from_secs(20), call)
-        .await
-        .unwrap_or_else(|_| panic!("{what}: no answer within 20 s"))
 }
 
 /// `request_queue(usize::MAX)` panicked as the client started and `subscription_buffer(usize::MAX)`

@@ -2,6 +2,9 @@
 //! B): over a loopback TCP socket, against a scripted device that acknowledges a command
 //! (E_CMD_PENDING) and never sends its final reply.
 
+mod common;
+
+use common::bounded;
 use std::net::SocketAddr;
 use std::time::Duration;
 
@@ -47,13 +50,6 @@ async fn device_losing_final_replies() -> SocketAddr {
         }
     });
     addr
-}
-
-/// Bounds a call that must end by itself well before this.
-async fn bounded<F: std::future::Future>(what: &str, call: F) -> F::Output {
-    tokio::time::timeout(Duration::from_secs(20), call)
-        .await
-        .unwrap_or_else(|_| panic!("{what}: never ended"))
 }
 
 async fn client(addr: SocketAddr) -> Client {
