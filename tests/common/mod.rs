@@ -99,3 +99,12 @@ pub async fn smartgrasp_peer(
     });
     addr
 }
+
+/// Bounds a call that must end by itself well before 20 s: a hang fails the test (naming
+/// `what`) instead of blocking the suite.
+#[allow(dead_code)] // only some tests use it
+pub async fn bounded<F: std::future::Future>(what: &str, call: F) -> F::Output {
+    tokio::time::timeout(std::time::Duration::from_secs(20), call)
+        .await
+        .unwrap_or_else(|_| panic!("{what}: no answer within 20 s"))
+}

@@ -13,7 +13,7 @@ use tokio::sync::mpsc;
 use tokio::time::{timeout_at, Instant};
 
 use super::connector::{self, Connector, ConnectorKind, Reconnect};
-use super::task::Task;
+use super::task::{Task, BARRIER_ECHO_LEN};
 use super::{
     Client, Shared, DEFAULT_CONNECT_TIMEOUT, DEFAULT_LATE_REPLY_GRACE, DEFAULT_MOTION_TIMEOUT,
     DEFAULT_PARTIAL_FRAME_TIMEOUT, DEFAULT_QUERY_TIMEOUT, DEFAULT_SUBSCRIPTION_BUFFER,
@@ -86,23 +86,31 @@ impl ClientBuilder {
         self
     }
 
-    /// Updates buffered per subscriber (default 64, at least 1).
+    /// Updates buffered per subscriber (default 64). Clamped to at least 1 and at most
+    /// [`tokio::sync::Semaphore::MAX_PERMITS`] (a tokio channel holds no more; `usize::MAX`
+    /// means "as many as that", never a panic).
     pub fn subscription_buffer(mut self, n: usize) -> Self {
-        self.subscription_buffer = n.max(1);
+        self.subscription_buffer = channel_capacity(n);
         self
     }
 
-    /// Requests buffered between the handles and the task (default 64, at least 1); callers wait
-    /// (within their timeout) when it is full.
+    /// Requests buffered between the handles and the task (default 64); callers wait (within
+    /// their timeout) when it is full. Clamped to at least 1 and at most
+    /// [`tokio::sync::Semaphore::MAX_PERMITS`] (a tokio channel holds no more; `usize::MAX`
+    /// means "as many as that", never a panic).
     pub fn request_queue(mut self, n: usize) -> Self {
-        self.request_queue = n.max(1);
+        self.request_queue = channel_capacity(n);
         self
     }
 
     /// Largest reply payload accepted (default
-    /// [`DEFAULT_MAX_PAYLOAD_LEN`](crate::wsg::frame::DEFAULT_MAX_PAYLOAD_LEN)).
+    /// [`DEFAULT_MAX_PAYLOAD_LEN`](crate::wsg::frame::DEFAULT_MAX_PAYLOAD_LEN)); longer replies
+    /// are dropped as noise. Clamped to at least 26 bytes, the echo of the client's own
+    /// loop-back barriers (below it every barrier would go unanswered and a fenced id stay
+    /// held), and at most 65535, the largest length the frame's 16-bit length field can carry
+    /// (manual 1.2.1; `usize::MAX` means "any", never a panic or an oversized buffer).
     pub fn max_payload_len(mut self, n: usize) -> Self {
-        self.max_payload_len = n;
+        self.max_payload_len = n.clamp(BARRIER_ECHO_LEN, usize::from(u16::MAX));
         self
     }
 
@@ -337,4 +345,10 @@ impl ClientBuilder {
             motion_timeout: self.motion_timeout,
         }
     }
+}
+
+/// A tokio channel's capacity for a configured length `n`: tokio panics on 0 and above
+/// [`tokio::sync::Semaphore::MAX_PERMITS`] (`usize::MAX` included).
+fn channel_capacity(n: usize) -> usize {
+    n.clamp(1, tokio::sync::Semaphore::MAX_PERMITS)
 }

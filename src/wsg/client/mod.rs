@@ -265,8 +265,10 @@ impl Client {
     /// request is released the connection's query timeout + grace after it was sent (the call
     /// fails with [`Error::Timeout`] naming the connection's query timeout), and an
     /// acknowledged motion is probed from the connection's motion timeout after it was sent
-    /// (released only on evidence that its final reply is lost: [`Error::ReplyLost`]). A call
-    /// dropped before its reply keeps its id no longer than that hold either, once another
+    /// (released only on evidence that its final reply is lost: [`Error::ReplyLost`]; its
+    /// "not moving" probes go on a grace period apart until then), and an acknowledged finger
+    /// power on is released the query timeout + [`FINGER_POWER_ON_DURATION`] + grace after it
+    /// was sent ([`Error::Timeout`]). A call dropped before its reply keeps its id no longer than that hold either, once another
     /// call of the id wants it: nobody waits for the reply.
     #[must_use]
     pub fn with_timeouts(&self, query: Duration, motion: Duration) -> Client {

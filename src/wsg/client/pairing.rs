@@ -603,11 +603,14 @@ impl Pairing {
         f.probe_at = Some(if seen == Observation::Moving && !st.queue.is_empty() {
             // Calls made after that probe went out: ask again for them.
             now
-        } else if !st.queue.is_empty() || now >= f.deadline {
+        } else if !st.queue.is_empty() || now >= f.recovery_at() {
             after(now, grace)
         } else {
             // Nobody waits and the caller still does: no more probes before its deadline.
-            f.deadline.max(after(now, grace))
+            // `recovery_at`, not the deadline: a caller without timeout (or one gone) has a
+            // saturated deadline, and waiting for it left a move whose final reply was lost
+            // unprobed for good after its first "not moving" (issue 29 B).
+            f.recovery_at().max(after(now, grace))
         });
         if seen == Observation::Moving {
             Verdict::Running(refused)

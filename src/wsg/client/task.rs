@@ -129,6 +129,14 @@ pub(crate) struct Task {
 /// released anyway (see [`Task::barrier_refused`]).
 const BARRIER_REFUSALS: u8 = 3;
 
+/// What the payload of the client's own loop-back barriers begins with; a token follows.
+pub(super) const BARRIER_PREFIX: &[u8] = b"gripper barrier ";
+
+/// The payload length of a barrier's echo: status (2 bytes, manual 1.2.2) + the loop-back's
+/// payload (3.1.1). A client must accept replies this long, or every barrier goes unanswered
+/// ([`super::ClientBuilder::max_payload_len`]).
+pub(super) const BARRIER_ECHO_LEN: usize = 2 + BARRIER_PREFIX.len() + std::mem::size_of::<Token>();
+
 /// Where the connection's timers wait while nothing is due (they are not polled then).
 const IDLE_TIMER: Duration = Duration::from_secs(3600);
 
@@ -423,15 +431,26 @@ impl Task {
 
     /// The echo of the barrier sent after query `query` of streamed command `id` came: the
     /// query is answered by the last frame of `id` before it, if there was one.
-    fn settled(&mut self, id: u8, query: Token) {
+    async fn settled(&mut self, id: u8, query: Token) -> io::Result<()> {
         let Some(reply) = self.pairing.settle(id, query) else {
-            return;
+            return Ok(());
         };
-        // An E_SUCCESS frame: it went to the subscribers when it came.
-        if let Some(Waiter::Caller(tx)) = self.waiters.remove(&query) {
-            let _ = tx.send(Ok(reply));
-        }
         self.send_next(id);
+        // An E_SUCCESS frame: it went to the subscribers when it came.
+        match self.waiters.remove(&query) {
+            Some(Waiter::Caller(tx)) => {
+                let _ = tx.send(Ok(reply));
+            }
+            // A recovery probe of a motion while system state (0x40) is streamed: what it saw
+            // goes to the pairing as from any probe. Dropped, it left the motion with a probe
+            // out for ever, its id held (wsg-serial:0x81263a75df4c46d4).
+            Some(Waiter::Probe { id: motion, token }) => {
+                self.on_probe(motion, token, observation(&reply), query)
+                    .await?;
+            }
+            _ => {}
+        }
+        Ok(())
     }
 
     /// The request on the wire of `id` is done: its next queued request (if any) goes out once
@@ -535,17 +554,7 @@ impl Task {
                         id: motion,
                         token: t,
                     }) => {
-                        let seen = match SystemState::decode(&reply.data) {
-                            Ok(s) if reply.status == Status::Success => {
-                                if s.contains(SystemState::MOVING) {
-                                    Observation::Moving
-                                } else {
-                                    Observation::Idle
-                                }
-                            }
-                            _ => Observation::Unknown,
-                        };
-                        self.on_probe(motion, t, seen, token).await?;
+                        self.on_probe(motion, t, observation(&reply), token).await?;
                     }
                     // The echo is the barrier's own (a loop reply must echo the payload on
                     // the wire): every reply sent before it has been read.
@@ -561,7 +570,9 @@ impl Task {
                     Some(Waiter::Settle {
                         id: streamed,
                         query,
-                    }) if reply.status == Status::Success => self.settled(streamed, query),
+                    }) if reply.status == Status::Success => {
+                        self.settled(streamed, query).await?;
+                    }
                     Some(Waiter::Settle {
                         id: streamed,
                         query,
@@ -855,6 +866,20 @@ fn alive(waiters: &IntMap<Token, Waiter>, token: Token) -> bool {
             | Waiter::Settle { .. },
         ) => true,
         None => false,
+    }
+}
+
+/// What a recovery probe's answer (a system state reply, manual 3.4.1) says about the fingers.
+fn observation(reply: &Reply) -> Observation {
+    match SystemState::decode(&reply.data) {
+        Ok(s) if reply.status == Status::Success => {
+            if s.contains(SystemState::MOVING) {
+                Observation::Moving
+            } else {
+                Observation::Idle
+            }
+        }
+        _ => Observation::Unknown,
     }
 }
 

@@ -375,7 +375,8 @@ async fn open_client(
 /// Appended to a quiet-phase violation (promises 3, 5, 10) of a TCP or serial client whose
 /// `max_payload_len` is below the length of the echo of its own loop-back barriers
 /// ([`BARRIER_ECHO_LEN`]): the client drops every echo, so no barrier completes and an id that
-/// waits for one stays held (issue 29 C, open: a clear error or a clamp is the fix).
+/// waits for one stays held (issue 29 C; since the builder clamps `max_payload_len` to at least
+/// that length (fixwsg) it no longer applies, and is kept for a client that would not clamp).
 pub const SHORT_OF_BARRIER: &str = "[max_payload_len below the barrier echo's length]";
 
 /// The payload length of a barrier's echo: E_SUCCESS (2 bytes) and the barrier's payload,
@@ -427,10 +428,14 @@ impl BuilderOptions {
             .serial_exclusive(false)
     }
 
-    /// The longest reply payload the client accepts.
+    /// The longest reply payload the client accepts: `max_payload_len` as the builder
+    /// documents it, clamped to the barrier echo's length and the frame's 16-bit length field
+    /// (issue 29 C, fixed on fixwsg).
     pub fn max_payload(&self) -> usize {
         self.max_payload_len
-            .unwrap_or(gripper::wsg::frame::DEFAULT_MAX_PAYLOAD_LEN)
+            .map_or(gripper::wsg::frame::DEFAULT_MAX_PAYLOAD_LEN, |n| {
+                n.clamp(BARRIER_ECHO_LEN, usize::from(u16::MAX))
+            })
     }
 }
 

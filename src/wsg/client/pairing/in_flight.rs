@@ -10,6 +10,7 @@ use tokio::time::Instant;
 
 use super::{is_motion, Request, Token};
 use crate::deadline::{after, is_never};
+use crate::wsg::client::FINGER_POWER_ON_DURATION;
 use crate::wsg::command::id;
 use crate::wsg::{Reply, Status};
 
@@ -108,6 +109,16 @@ impl InFlight {
     pub(super) fn due(&self, id: u8) -> Option<Instant> {
         if self.acknowledged && is_motion(id) {
             self.probe_at
+        } else if self.acknowledged && !self.held {
+            // Acknowledged (not a motion), its caller without timeout or gone: its saturated
+            // deadline bounds nothing, so the holds do. Its final reply comes about
+            // FINGER_POWER_ON_DURATION after the acknowledgement (finger power on, manual
+            // 3.6.3, is the only asynchronous command that is no motion): a lost one is given
+            // up that much after the reply hold (issue 29 B: the call never ended).
+            Some(
+                self.release_at
+                    .min(after(self.unacked_release_at, FINGER_POWER_ON_DURATION)),
+            )
         } else if self.acknowledged || self.held && !is_motion(id) {
             // Acknowledged (not a motion): its final reply is owed, the deadline bounds it.
             // Held: its caller's own deadline wins over the reply hold. Not a motion's: its

@@ -8,7 +8,7 @@ use std::time::Duration;
 use bytes::Bytes;
 use tokio::time::Instant;
 
-use super::{send_within, Task, Waiter, BARRIER_REFUSALS};
+use super::{send_within, Task, Waiter, BARRIER_PREFIX, BARRIER_REFUSALS};
 use crate::deadline::after;
 use crate::wsg::client::pairing::{Due, Observation, Request, Token, Verdict};
 use crate::wsg::command::{id, Command, UpdateMode};
@@ -107,7 +107,7 @@ impl Task {
     /// A loop-back request (0x06) with a payload no other request carries, for `waiter`.
     pub(super) fn barrier(&mut self, waiter: Waiter) -> Request {
         let token = self.waiter(waiter);
-        let mut payload = b"gripper barrier ".to_vec();
+        let mut payload = BARRIER_PREFIX.to_vec();
         payload.extend_from_slice(&token.to_le_bytes());
         Request {
             token,
