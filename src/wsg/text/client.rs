@@ -13,7 +13,7 @@ use super::line::{encode_call, encode_set, parse_number, BadArgument, DEFAULT_MA
 use super::push::{Pushes, Quantity};
 use super::task::{self, after, Answer, Expect, Request, Shared, Task, TaskConfig};
 use crate::connection::Connection;
-use crate::line::Opener;
+use crate::line::{channel_capacity, Opener};
 use crate::reconnect::{
     BoxStream, ConnectionEvents, EventSender, EventSubscriber, ReconnectPolicy,
 };
@@ -38,9 +38,11 @@ pub struct ClientConfig {
     /// Longest reply line accepted; longer ones are discarded. Default 256 bytes.
     pub max_line_len: usize,
     /// How many calls may wait to be sent (in the channel, and again in the task while a
-    /// command of their name is on the wire). Default 64.
+    /// command of their name is on the wire). Default 64; 0 is taken as 1, and anything above
+    /// tokio's `Semaphore::MAX_PERMITS` (e.g. `usize::MAX`) as that.
     pub queue_len: usize,
-    /// Pushes each [`Pushes`] stream buffers. Default 64.
+    /// Pushes each [`Pushes`] stream buffers. Default 64; 0 is taken as 1, and anything above
+    /// tokio's `Semaphore::MAX_PERMITS` (e.g. `usize::MAX`) as that.
     pub push_buffer: usize,
     /// Reconnect after a lost connection (`None`, the default: a lost connection stays closed
     /// and every later call fails with the reason). Not for [`Client::from_io`], whose stream
@@ -171,7 +173,7 @@ impl Client {
     }
 
     fn spawn(stream: BoxStream, opener: Option<Opener>, config: ClientConfig) -> Client {
-        let (requests, rx) = mpsc::channel(config.queue_len.max(1));
+        let (requests, rx) = mpsc::channel(channel_capacity(config.queue_len));
         let shared = Arc::new(Shared::default());
         let events = EventSender::new("wsg text", EVENT_BUFFER);
         let task = Task {
@@ -179,7 +181,7 @@ impl Client {
             config: TaskConfig {
                 give_up_after: config.give_up_after,
                 max_line_len: config.max_line_len,
-                waiting_len: config.queue_len.max(1),
+                waiting_len: channel_capacity(config.queue_len),
                 query_timeout: config.query_timeout,
                 connect_timeout: config.connect_timeout,
             },
@@ -466,6 +468,10 @@ impl Client {
     fn subscribe(&self, filter: Option<Quantity>) -> Pushes {
         let (pushes, subscriber) = Pushes::new(filter, self.config.push_buffer);
         if let Ok(mut subs) = self.shared.subscribers.lock() {
+            // Streams already dropped go now, not only when a push arrives: a program that
+            // retries a refused `AUTOSEND` (its stream dropped with the error) on a gripper
+            // that pushes nothing would otherwise grow this list without bound.
+            subs.retain(|s| !s.is_closed());
             if !self.is_closed() {
                 subs.push(subscriber);
             }
@@ -504,5 +510,36 @@ impl Client {
         self.ack("AUTOSEND", line).await?;
         self.shared.forget(&format!("AUTOSEND {}", quantity.name()));
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use tokio::io::{AsyncBufReadExt, AsyncWriteExt, BufReader};
+
+    /// Issue 29 O: a program retrying an `AUTOSEND` the gripper refuses drops a stream each
+    /// time; with no push ever arriving, only `subscribe` can remove them, and must, or the
+    /// list grows for as long as the program retries.
+    #[tokio::test]
+    async fn refused_autosend_retries_leave_no_subscribers_behind() {
+        let (ours, theirs) = tokio::io::duplex(4096);
+        let client = Client::from_io(ours, ClientConfig::default());
+        let gripper = tokio::spawn(async move {
+            let (read, mut write) = tokio::io::split(theirs);
+            let mut lines = BufReader::new(read).lines();
+            while let Ok(Some(line)) = lines.next_line().await {
+                let name = line.split('(').next().unwrap_or_default().to_owned();
+                let _ = write.write_all(format!("ERR {name} 2\n").as_bytes()).await;
+            }
+        });
+        for _ in 0..100 {
+            let refused = client.autosend(Quantity::Position, 50, false).await;
+            assert!(refused.is_err(), "{refused:?}");
+        }
+        let left = client.shared.subscribers.lock().unwrap().len();
+        assert!(left <= 1, "{left} subscribers kept for dropped streams");
+        drop(client);
+        gripper.await.unwrap();
     }
 }
