@@ -73,3 +73,92 @@ async fn queue_len_and_push_buffer_usize_max_serve_calls() {
     assert_eq!(call.await.unwrap().unwrap(), 12.5);
     assert_eq!(pushes.recv().await.unwrap().value, 12.5);
 }
+
+/// The next line the client wrote, within `within` (a line that never comes fails the test).
+async fn line_within(gripper: &mut Gripper, within: Duration, what: &str) -> String {
+    tokio::time::timeout(within, gripper.lines.next_line())
+        .await
+        .unwrap_or_else(|_| panic!("not written within {within:?}: {what}"))
+        .unwrap()
+        .expect("the client closed the connection")
+}
+
+/// A MOVE acknowledged and running (its FIN not sent), and a second MOVE waiting for the name:
+/// with `queue_len` 1 the client's queue is full.
+async fn full_queue(client: &Client, gripper: &mut Gripper) -> [tokio::task::JoinHandle<()>; 1] {
+    let first = tokio::spawn({
+        let client = client.clone();
+        async move { client.move_to(10.0, None).await.unwrap() }
+    });
+    let line = gripper.line().await.unwrap();
+    assert!(line.starts_with("MOVE(10"), "{line}");
+    gripper.reply("ACK MOVE").await;
+    [first]
+}
+
+/// Issue 29 K: `STOP()` is written at once while the queue is full of calls waiting for a busy
+/// name (and the channel holds a call behind them): a stop never waits behind the queue.
+#[tokio::test]
+async fn stop_is_written_at_once_behind_a_full_queue() {
+    let config = ClientConfig {
+        queue_len: 1,
+        ..ClientConfig::default()
+    };
+    let (client, mut gripper) = pair(config).await;
+    let [first] = full_queue(&client, &mut gripper).await;
+    let second = tokio::spawn({
+        let client = client.clone();
+        async move { client.move_to(20.0, None).await }
+    });
+    let query = tokio::spawn({
+        let client = client.clone();
+        async move { client.position_mm().await }
+    });
+    let stop = tokio::spawn({
+        let client = client.clone();
+        async move { client.stop().await }
+    });
+    let line = line_within(&mut gripper, Duration::from_secs(5), "STOP()").await;
+    assert_eq!(line, "STOP()");
+    gripper.reply("ACK STOP").await;
+    stop.await.unwrap().unwrap();
+    // The queue then drains in order as names free.
+    gripper.reply("FIN MOVE").await;
+    first.await.unwrap();
+    let line = gripper.line().await.unwrap();
+    assert!(line.starts_with("MOVE(20"), "{line}");
+    gripper.reply("ACK MOVE").await;
+    gripper.reply("FIN MOVE").await;
+    second.await.unwrap().unwrap();
+    assert_eq!(gripper.line().await.as_deref(), Some("POS?"));
+    gripper.reply("POS=20").await;
+    assert_eq!(query.await.unwrap().unwrap(), 20.0);
+}
+
+/// Issue 29 K: a call that gave up while waiting for its name leaves the queue when it gives
+/// up, not when its name frees: the calls behind it go out meanwhile.
+#[tokio::test]
+async fn a_call_given_up_leaves_a_full_queue() {
+    let config = ClientConfig {
+        queue_len: 1,
+        ..ClientConfig::default()
+    };
+    let (client, mut gripper) = pair(config).await;
+    let [_first] = full_queue(&client, &mut gripper).await;
+    let gave_up = client
+        .with_timeout(Duration::from_millis(200))
+        .move_to(20.0, None)
+        .await;
+    assert!(
+        matches!(gave_up, Err(gripper::wsg::text::Error::Timeout { .. })),
+        "{gave_up:?}"
+    );
+    let query = tokio::spawn({
+        let client = client.clone();
+        async move { client.position_mm().await }
+    });
+    let line = line_within(&mut gripper, Duration::from_secs(5), "POS?").await;
+    assert_eq!(line, "POS?");
+    gripper.reply("POS=10").await;
+    assert_eq!(query.await.unwrap().unwrap(), 10.0);
+}

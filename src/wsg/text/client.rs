@@ -38,7 +38,8 @@ pub struct ClientConfig {
     /// Longest reply line accepted; longer ones are discarded. Default 256 bytes.
     pub max_line_len: usize,
     /// How many calls may wait to be sent (in the channel, and again in the task while a
-    /// command of their name is on the wire). Default 64; 0 is taken as 1, and anything above
+    /// command of their name is on the wire). A call whose caller gave up leaves the queue then.
+    /// [`Client::stop`] and [`Client::fast_stop`] never wait behind it. Default 64; 0 is taken as 1, and anything above
     /// tokio's `Semaphore::MAX_PERMITS` (e.g. `usize::MAX`) as that.
     pub queue_len: usize,
     /// Pushes each [`Pushes`] stream buffers. Default 64; 0 is taken as 1, and anything above
@@ -95,6 +96,8 @@ impl Default for ClientConfig {
 pub struct Client {
     connection: Connection,
     requests: mpsc::Sender<Request>,
+    /// `STOP()` and `FASTSTOP()`: read by the task whatever the queue holds (issue 29 K).
+    stops: mpsc::Sender<Request>,
     shared: Arc<Shared>,
     events: EventSubscriber,
     config: Arc<ClientConfig>,
@@ -174,10 +177,12 @@ impl Client {
 
     fn spawn(stream: BoxStream, opener: Option<Opener>, config: ClientConfig) -> Client {
         let (requests, rx) = mpsc::channel(channel_capacity(config.queue_len));
+        let (stops, stops_rx) = mpsc::channel(channel_capacity(config.queue_len));
         let shared = Arc::new(Shared::default());
         let events = EventSender::new("wsg text", EVENT_BUFFER);
         let task = Task {
             requests: rx,
+            stops: stops_rx,
             config: TaskConfig {
                 give_up_after: config.give_up_after,
                 max_line_len: config.max_line_len,
@@ -193,6 +198,7 @@ impl Client {
         Client {
             connection: Connection::spawn(task::run(stream, task)),
             requests,
+            stops,
             shared,
             events: events.subscriber(),
             config: Arc::new(config),
@@ -250,8 +256,12 @@ impl Client {
             timeout,
             waiter,
         };
+        let channel = match name {
+            "STOP" | "FASTSTOP" => &self.stops,
+            _ => &self.requests,
+        };
         let exchange = async {
-            self.requests
+            channel
                 .send(request)
                 .await
                 .map_err(|_| self.shared.failure())?;
@@ -364,12 +374,16 @@ impl Client {
 
     /// `STOP()`: stops a motion at once; resolves on `ACK STOP`. The motion's own call then
     /// fails with `ERR <NAME> …`, and the grip state returns to IDLE (shared note §3.7).
+    ///
+    /// Never waits behind other calls: it is written as soon as no other `STOP()` is on the
+    /// wire, even while the queue ([`ClientConfig::queue_len`]) is full of calls waiting for a
+    /// busy name.
     pub async fn stop(&self) -> Result<()> {
         self.ack("STOP", "STOP()".into()).await
     }
 
     /// `FASTSTOP()`: stops at once and enters FAST STOP; motions are refused until
-    /// [`Client::ack_fast_stop`].
+    /// [`Client::ack_fast_stop`]. Like [`Client::stop`], never waits behind other calls.
     pub async fn fast_stop(&self) -> Result<()> {
         self.ack("FASTSTOP", "FASTSTOP()".into()).await
     }

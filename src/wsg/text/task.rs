@@ -150,6 +150,10 @@ pub(crate) struct TaskConfig {
 /// Everything the task needs besides the first connection.
 pub(crate) struct Task {
     pub requests: mpsc::Receiver<Request>,
+    /// `STOP()` and `FASTSTOP()`, apart from the other calls: a stop must never wait behind
+    /// calls that wait for their name (issue 29 K; the manual's STOP/FASTSTOP are answered
+    /// during a motion, chapter 2). The task reads it whatever the queue holds.
+    pub stops: mpsc::Receiver<Request>,
     pub config: TaskConfig,
     pub shared: Arc<Shared>,
     pub events: EventSender,
@@ -200,6 +204,39 @@ impl Book {
             // A caller that left (timeout, dropped future) no longer listens: its reply is
             // consumed here and goes to nobody else.
             let _ = slot.waiter.send(result);
+        }
+    }
+
+    /// Drops the waiting requests whose caller left, and fails those whose time ran out, so
+    /// the queue holds only requests someone still waits for (issue 29 K: a queue full of
+    /// calls given up blocked every other call).
+    fn prune(&mut self) {
+        let now = Instant::now();
+        if self
+            .waiting
+            .iter()
+            .any(|r| r.waiter.is_closed() || now >= r.deadline)
+        {
+            let waiting = std::mem::take(&mut self.waiting);
+            self.waiting = waiting.into_iter().filter_map(usable).collect();
+        }
+    }
+
+    /// The earliest deadline of the waiting requests.
+    fn waiting_deadline(&self) -> Option<Instant> {
+        self.waiting.iter().map(|r| r.deadline).min()
+    }
+
+    /// Takes a request read from a channel: the request to send now if its name is free,
+    /// else it waits for its name.
+    fn admit(&mut self, request: Request) -> Option<Request> {
+        let request = usable(request)?;
+        if self.on_wire.contains_key(request.name) {
+            self.prune();
+            self.waiting.push_back(request);
+            None
+        } else {
+            Some(request)
         }
     }
 
@@ -305,6 +342,21 @@ fn usable(request: Request) -> Option<Request> {
     Some(request)
 }
 
+/// Resolves when the caller of a waiting request has left (its future dropped).
+async fn any_caller_gone(waiting: &mut VecDeque<Request>) {
+    std::future::poll_fn(|cx| {
+        if waiting
+            .iter_mut()
+            .any(|r| r.waiter.poll_closed(cx).is_ready())
+        {
+            std::task::Poll::Ready(())
+        } else {
+            std::task::Poll::Pending
+        }
+    })
+    .await
+}
+
 /// Runs until every handle is dropped, `BYE()` is acknowledged, or the connection is lost for
 /// good (the loop is the shared supervisor's, `crate::supervisor`).
 pub(crate) async fn run(stream: BoxStream, task: Task) {
@@ -378,6 +430,7 @@ impl Session for Text {
         match serve(
             conn,
             &mut task.requests,
+            &mut task.stops,
             task.config,
             &task.shared,
             reconnects,
@@ -411,6 +464,11 @@ impl Session for Text {
 
     fn ended(&mut self, end: &Served<(), Error>) {
         self.task.shared.record(&reason(end));
+        // The supervisor refuses what is left in `requests`; the stops are ours to refuse.
+        self.task.stops.close();
+        while let Ok(request) = self.task.stops.try_recv() {
+            Self::refuse(request, end);
+        }
         if let Ok(mut subs) = self.task.shared.subscribers.lock() {
             // Ends every push stream.
             subs.clear();
@@ -469,6 +527,7 @@ async fn exchange(
 async fn serve(
     conn: &mut LineConn,
     requests: &mut mpsc::Receiver<Request>,
+    stops: &mut mpsc::Receiver<Request>,
     config: TaskConfig,
     shared: &Shared,
     reconnects: bool,
@@ -479,6 +538,9 @@ async fn serve(
     };
     let timer = tokio::time::sleep_until(Instant::now());
     tokio::pin!(timer);
+    // While the queue is full: the earliest deadline of a waiting request, when it leaves.
+    let queue_timer = tokio::time::sleep_until(Instant::now());
+    tokio::pin!(queue_timer);
     // A request whose line could not be written: told why at the end.
     let mut unsent = None;
     // `BYE()` is on the wire: nothing more is sent.
@@ -487,6 +549,12 @@ async fn serve(
         let give_up = book.give_up_at();
         if let Some(at) = give_up {
             move_timer(timer.as_mut(), at);
+        }
+        book.prune();
+        let full = book.waiting.len() >= config.waiting_len;
+        let queue_deadline = if full { book.waiting_deadline() } else { None };
+        if let Some(at) = queue_deadline {
+            move_timer(queue_timer.as_mut(), at);
         }
         let mut to_send: Option<Request> = None;
         tokio::select! {
@@ -517,18 +585,19 @@ async fn serve(
                     "no reply to {command} long after its timeout; replies can no longer be paired"
                 ));
             },
-            request = requests.recv(), if !closing && book.waiting.len() < config.waiting_len => {
+            // A stop is read whatever the queue holds (issue 29 K).
+            request = stops.recv(), if !closing => {
                 let Some(request) = request else { break Error::Closed };
-                let Some(request) = usable(request) else { continue };
-                if book.on_wire.contains_key(request.name) {
-                    // Drop the waiting requests nobody waits for any more first, so the queue
-                    // holds at most one request per live caller.
-                    book.waiting.retain(|r| !r.waiter.is_closed());
-                    book.waiting.push_back(request);
-                } else {
-                    to_send = Some(request);
-                }
+                to_send = book.admit(request);
             }
+            request = requests.recv(), if !closing && !full => {
+                let Some(request) = request else { break Error::Closed };
+                to_send = book.admit(request);
+            }
+            // The queue is full: a request leaves it when its time runs out or its caller
+            // leaves, and the channel is read again.
+            () = &mut queue_timer, if queue_deadline.is_some() => {}
+            () = any_caller_gone(&mut book.waiting), if full => {}
         }
         if let Some(request) = to_send {
             let give_up_at = after(request.deadline, config.give_up_after);
@@ -561,6 +630,7 @@ async fn serve(
     if closing || matches!(end, Error::Closed) || !reconnects {
         shared.record(&end);
         requests.close();
+        stops.close();
     }
     if let Some(waiter) = unsent {
         let _ = waiter.send(Err(end.clone()));
