@@ -162,3 +162,96 @@ async fn a_call_given_up_leaves_a_full_queue() {
     gripper.reply("POS=10").await;
     assert_eq!(query.await.unwrap().unwrap(), 10.0);
 }
+
+/// The connection's end as the gripper sees it: every line the client writes until it closes
+/// the connection (bounded: a connection left open fails the test).
+async fn lines_until_closed(gripper: &mut Gripper) -> Vec<String> {
+    let mut lines = Vec::new();
+    while let Some(line) = gripper.line().await {
+        lines.push(line);
+    }
+    lines
+}
+
+/// Issue 29 N: a call waiting for a busy name when `BYE()` goes out is never written, even
+/// when a reply frees its name before `ACK BYE`; it fails `Closed`.
+#[tokio::test]
+async fn nothing_is_written_after_bye() {
+    let config = ClientConfig {
+        queue_len: 4,
+        ..ClientConfig::default()
+    };
+    let (client, mut gripper) = pair(config).await;
+    let [first] = full_queue(&client, &mut gripper).await;
+    let second = tokio::spawn({
+        let client = client.clone();
+        async move { client.move_to(20.0, None).await }
+    });
+    // Written once MOVE(20) waits in the task (the channel is read in order).
+    let query = tokio::spawn({
+        let client = client.clone();
+        async move { client.position_mm().await }
+    });
+    assert_eq!(gripper.line().await.as_deref(), Some("POS?"));
+    gripper.reply("POS=10").await;
+    query.await.unwrap().unwrap();
+    let close = tokio::spawn({
+        let client = client.clone();
+        async move { client.close().await }
+    });
+    assert_eq!(gripper.line().await.as_deref(), Some("BYE()"));
+    gripper.reply("FIN MOVE").await;
+    first.await.unwrap();
+    let waited = second.await.unwrap();
+    assert!(
+        matches!(waited, Err(gripper::wsg::text::Error::Closed)),
+        "{waited:?}"
+    );
+    gripper.reply("ACK BYE").await;
+    close.await.unwrap().unwrap();
+    assert_eq!(lines_until_closed(&mut gripper).await, Vec::<String>::new());
+}
+
+/// Issue 29 N: `BYE()` refused (`ERR BYE …`): `close()` returns the refusal, and the
+/// connection is closed all the same: a later call fails `Closed` at once.
+#[tokio::test]
+async fn bye_refused_still_closes() {
+    let (client, mut gripper) = pair(ClientConfig::default()).await;
+    let close = tokio::spawn({
+        let client = client.clone();
+        async move { client.close().await }
+    });
+    assert_eq!(gripper.line().await.as_deref(), Some("BYE()"));
+    gripper.reply("ERR BYE 2").await;
+    let refused = close.await.unwrap();
+    assert!(
+        matches!(refused, Err(gripper::wsg::text::Error::Device { .. })),
+        "{refused:?}"
+    );
+    assert_eq!(lines_until_closed(&mut gripper).await, Vec::<String>::new());
+    let after = tokio::time::timeout(LIMIT, client.position_mm()).await;
+    assert!(
+        matches!(after, Ok(Err(gripper::wsg::text::Error::Closed))),
+        "{after:?}"
+    );
+}
+
+/// Issue 29 N: `BYE()` unanswered: `close()` times out, and the connection is closed then: a
+/// later call fails `Closed`, not `Timeout`.
+#[tokio::test]
+async fn bye_unanswered_closes_when_close_times_out() {
+    let (client, mut gripper) = pair(ClientConfig::default()).await;
+    let impatient = client.with_timeout(Duration::from_millis(200));
+    let (closed, line) = tokio::join!(impatient.close(), gripper.line());
+    assert_eq!(line.as_deref(), Some("BYE()"));
+    assert!(
+        matches!(closed, Err(gripper::wsg::text::Error::Timeout { .. })),
+        "{closed:?}"
+    );
+    let after = client.position_mm().await;
+    assert!(
+        matches!(after, Err(gripper::wsg::text::Error::Closed)),
+        "{after:?}"
+    );
+    assert_eq!(lines_until_closed(&mut gripper).await, Vec::<String>::new());
+}

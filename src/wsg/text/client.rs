@@ -394,7 +394,11 @@ impl Client {
     }
 
     /// `BYE()`: announces the disconnect, so closing does not raise FAST STOP; waits for
-    /// `ACK BYE`, then closes the connection. Calls made afterwards, on any clone, fail.
+    /// `ACK BYE`, then closes the connection. Calls made afterwards, on any clone, fail with
+    /// [`Error::Closed`], and so do calls still waiting for a busy name: nothing is written
+    /// after `BYE()`. Answered otherwise (`ERR BYE …`, returned as [`Error::Device`]) or not
+    /// within its timeout ([`Error::Timeout`]), the connection is closed all the same (the
+    /// gripper may then raise FAST STOP).
     pub async fn close(&self) -> Result<()> {
         self.ack("BYE", "BYE()".into()).await
     }

@@ -543,8 +543,11 @@ async fn serve(
     tokio::pin!(queue_timer);
     // A request whose line could not be written: told why at the end.
     let mut unsent = None;
-    // `BYE()` is on the wire: nothing more is sent.
-    let mut closing = false;
+    // `BYE()` is on the wire (with its call's timeout; `bye_timer` is at its deadline):
+    // nothing more is sent.
+    let mut closing: Option<Duration> = None;
+    let bye_timer = tokio::time::sleep_until(Instant::now());
+    tokio::pin!(bye_timer);
     let end = 'serve: loop {
         let give_up = book.give_up_at();
         if let Some(at) = give_up {
@@ -564,6 +567,12 @@ async fn serve(
                 Some(Ok(line)) => match line.text() {
                     Ok(text) => match book.on_line(text, shared) {
                         Handled::Bye => break Error::Closed,
+                        // `BYE()` answered otherwise (`ERR BYE`, a reply of another kind): its
+                        // call has its answer, and the program is done with the connection all
+                        // the same (issue 29 N).
+                        Handled::Freed("BYE") if closing.is_some() => break Error::Closed,
+                        // After `BYE()` nothing more is written (issue 29 N).
+                        Handled::Freed(_) if closing.is_some() => {}
                         // A name freed: its next waiting request goes out.
                         Handled::Freed(name) => to_send = book.next_waiting(name),
                         Handled::Nothing => {}
@@ -585,12 +594,24 @@ async fn serve(
                     "no reply to {command} long after its timeout; replies can no longer be paired"
                 ));
             },
+            // `BYE()`'s call is over without `ACK BYE`: the connection is closed then, so
+            // the calls after `close()` fail `Closed` (issue 29 N).
+            () = &mut bye_timer, if closing.is_some() => {
+                // Its caller is told it timed out (not `Closed`), whichever timer fires first.
+                if let (Some(slot), Some(timeout)) = (book.on_wire.remove("BYE"), closing) {
+                    let _ = slot.waiter.send(Err(Error::Timeout {
+                        command: slot.line,
+                        timeout,
+                    }));
+                }
+                break Error::Closed;
+            }
             // A stop is read whatever the queue holds (issue 29 K).
-            request = stops.recv(), if !closing => {
+            request = stops.recv(), if closing.is_none() => {
                 let Some(request) = request else { break Error::Closed };
                 to_send = book.admit(request);
             }
-            request = requests.recv(), if !closing && !full => {
+            request = requests.recv(), if closing.is_none() && !full => {
                 let Some(request) = request else { break Error::Closed };
                 to_send = book.admit(request);
             }
@@ -615,7 +636,14 @@ async fn serve(
                 }
             }
             tracing::trace!(command = %request.line, "wsg text: sent");
-            closing |= request.name == "BYE";
+            if request.name == "BYE" {
+                closing = Some(request.timeout);
+                move_timer(bye_timer.as_mut(), request.deadline);
+                // The calls waiting for their name are never sent now.
+                for waiting in book.waiting.drain(..) {
+                    let _ = waiting.waiter.send(Err(Error::Closed));
+                }
+            }
             book.on_wire.insert(
                 request.name,
                 Slot {
@@ -627,7 +655,7 @@ async fn serve(
             );
         }
     };
-    if closing || matches!(end, Error::Closed) || !reconnects {
+    if closing.is_some() || matches!(end, Error::Closed) || !reconnects {
         shared.record(&end);
         requests.close();
         stops.close();
@@ -644,7 +672,7 @@ async fn serve(
     conn.writer.shutdown().await;
     // After BYE() the program is done with the connection, however it ended: a loss then is
     // not reconnected.
-    if closing && reconnects {
+    if closing.is_some() && reconnects {
         Error::Closed
     } else {
         end
