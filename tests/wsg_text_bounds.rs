@@ -255,3 +255,49 @@ async fn bye_unanswered_closes_when_close_times_out() {
     );
     assert_eq!(lines_until_closed(&mut gripper).await, Vec::<String>::new());
 }
+
+/// Issue 29 M: a call without timeout whose reply arrives damaged (here `damaged`) ends: the
+/// client probes with a query, and once a reply written after the damaged line arrives, the
+/// call fails `MalformedReply` and its name is free for the next call.
+async fn damaged_reply_of_a_call_without_timeout(damaged: &str) {
+    let (client, mut gripper) = pair(ClientConfig::default()).await;
+    let forever = client.with_timeout(Duration::MAX);
+    let call = tokio::spawn({
+        let forever = forever.clone();
+        async move { forever.set_verbose(false).await }
+    });
+    assert_eq!(gripper.line().await.as_deref(), Some("VERBOSE=0"));
+    gripper.reply(damaged).await;
+    assert_eq!(gripper.line().await.as_deref(), Some("GRIPSTATE?"));
+    gripper.reply("GRIPSTATE=0").await;
+    let failed = tokio::time::timeout(LIMIT, call)
+        .await
+        .expect("the call never ended");
+    assert!(
+        matches!(
+            failed,
+            Ok(Err(gripper::wsg::text::Error::MalformedReply { .. }))
+        ),
+        "{failed:?}"
+    );
+    // VERBOSE is free again.
+    let again = tokio::spawn(async move { forever.set_verbose(true).await });
+    assert_eq!(gripper.line().await.as_deref(), Some("VERBOSE=1"));
+    gripper.reply("VERBOSE=1").await;
+    assert!(again.await.unwrap().unwrap());
+}
+
+#[tokio::test]
+async fn call_without_timeout_ends_when_its_reply_is_err_without_a_name() {
+    damaged_reply_of_a_call_without_timeout("ERR 2").await;
+}
+
+#[tokio::test]
+async fn call_without_timeout_ends_when_its_reply_is_malformed() {
+    damaged_reply_of_a_call_without_timeout("VERBOSE 0").await;
+}
+
+#[tokio::test]
+async fn call_without_timeout_ends_when_its_reply_names_another_command() {
+    damaged_reply_of_a_call_without_timeout("VERBOSF=0").await;
+}

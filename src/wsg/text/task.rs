@@ -67,7 +67,18 @@ struct Slot {
     waiter: Waiter,
     /// Past this the reply is so late that nothing can be paired with confidence any more.
     give_up_at: Instant,
+    /// Its place in the order lines were written (the gripper answers in that order).
+    seq: u64,
+    /// A motion's `ACK` was read (its `FIN` or `ERR` comes when the motion ends).
+    acked: bool,
 }
+
+/// The names a probe may use (queries answered at once, harmless), in order of preference.
+const PROBES: [(&str, &str); 3] = [
+    ("GRIPSTATE", "GRIPSTATE?"),
+    ("POS", "POS?"),
+    ("SPEED", "SPEED?"),
+];
 
 /// What the handles and the task share.
 #[derive(Debug, Default)]
@@ -191,9 +202,121 @@ struct Book {
     /// run to run (`wsg-text:0x5a7dcaabb2430033`, tests/explore/determinism.txt).
     on_wire: BTreeMap<&'static str, Slot>,
     waiting: VecDeque<Request>,
+    /// Lines written so far (the next `Slot::seq`).
+    sent: u64,
+    /// A reply line that could not be paired (damaged, `ERR` without a name) and the `seq` of
+    /// the last line written before it: a command answered at once that was written by then
+    /// and is still unanswered when a later command's reply arrives lost its reply to that
+    /// line (the gripper answers in order, shared note §3.7). Issue 29 M.
+    damaged: Option<(u64, String)>,
+    /// Names freed by calls failed because their reply was damaged: their next waiting
+    /// requests go out.
+    freed: Vec<&'static str>,
 }
 
 impl Book {
+    fn new() -> Book {
+        Book {
+            on_wire: BTreeMap::new(),
+            waiting: VecDeque::new(),
+            sent: 0,
+            damaged: None,
+            freed: Vec::new(),
+        }
+    }
+
+    /// Puts a command written to the wire in the book.
+    fn on_wire(
+        &mut self,
+        name: &'static str,
+        line: String,
+        expect: Expect,
+        waiter: Waiter,
+        give_up_at: Instant,
+    ) {
+        self.sent += 1;
+        let slot = Slot {
+            line,
+            expect,
+            waiter,
+            give_up_at,
+            seq: self.sent,
+            acked: false,
+        };
+        self.on_wire.insert(name, slot);
+    }
+
+    /// Whether `slot` waits for a reply the gripper sends at once (not a motion's `FIN`).
+    fn answered_at_once(slot: &Slot) -> bool {
+        slot.expect != Expect::Fin || !slot.acked
+    }
+
+    /// A reply line that cannot be paired arrived: it may have been the reply of any command
+    /// answered at once that is on the wire.
+    fn damage(&mut self, text: &str) {
+        if self.on_wire.values().any(|s| s.expect != Expect::Fin) {
+            self.damaged = Some((self.sent, text.to_owned()));
+        }
+    }
+
+    /// A reply to the command written as `seq` arrived: the commands answered at once written
+    /// before the damaged line and still unanswered lost their reply to it. They fail, and
+    /// their names are free (no reply of theirs can come any more). A motion not yet
+    /// acknowledged is left alone: if its `ACK` was damaged, its `FIN` may still come.
+    fn settle(&mut self, seq: u64) {
+        let Some((upto, line)) = self.damaged.take_if(|(upto, _)| seq > *upto) else {
+            return;
+        };
+        let lost: Vec<&'static str> = self
+            .on_wire
+            .iter()
+            .filter(|(_, s)| s.seq <= upto && s.expect != Expect::Fin)
+            .map(|(&name, _)| name)
+            .collect();
+        for name in lost {
+            if let Some(slot) = self.on_wire.remove(name) {
+                tracing::warn!(command = %slot.line, %line, "wsg text: reply damaged, call failed");
+                let _ = slot.waiter.send(Err(Error::MalformedReply {
+                    command: slot.line,
+                    line: line.clone(),
+                    reason: "its reply could not be read (a later command was answered first)"
+                        .into(),
+                }));
+                self.freed.push(name);
+            }
+        }
+    }
+
+    /// A query to write after a damaged line, when nothing written since waits for a reply
+    /// the gripper sends at once: its answer tells which replies were lost.
+    fn probe(&self, query_timeout: Duration) -> Option<Request> {
+        let (upto, _) = self.damaged.as_ref()?;
+        let suspects = self
+            .on_wire
+            .values()
+            .any(|s| s.seq <= *upto && s.expect != Expect::Fin);
+        let barrier = self
+            .on_wire
+            .values()
+            .any(|s| s.seq > *upto && Book::answered_at_once(s));
+        if !suspects || barrier {
+            return None;
+        }
+        let (name, line) = PROBES
+            .into_iter()
+            .find(|(name, _)| !self.on_wire.contains_key(name))?;
+        // Nobody waits for its answer: it is consumed when it comes.
+        let (waiter, _) = oneshot::channel();
+        Some(Request {
+            name,
+            line: line.to_owned(),
+            expect: Expect::Value,
+            deadline: after(Instant::now(), query_timeout),
+            timeout: query_timeout,
+            waiter,
+        })
+    }
+
     /// The earliest give-up time of the commands on the wire.
     fn give_up_at(&self) -> Option<Instant> {
         self.on_wire.values().map(|s| s.give_up_at).min()
@@ -257,6 +380,7 @@ impl Book {
             Ok(reply) => reply,
             Err(why) => {
                 tracing::warn!(line = text, %why, "wsg text: reply that is not GCL, dropped");
+                self.damage(text);
                 return Handled::Nothing;
             }
         };
@@ -274,6 +398,7 @@ impl Book {
                 // No name: it cannot be paired with confidence (§4.3). The caller it was meant
                 // for times out rather than a wrong caller failing.
                 tracing::warn!(line = text, "wsg text: ERR without a command name, dropped");
+                self.damage(text);
                 return Handled::Nothing;
             }
         };
@@ -281,13 +406,27 @@ impl Book {
         // lower-case one is still the same command.
         let Some((&key, slot)) = self
             .on_wire
-            .iter()
+            .iter_mut()
             .find(|(k, _)| k.eq_ignore_ascii_case(name))
         else {
             tracing::debug!(
                 line = text,
                 "wsg text: reply for no command on the wire, dropped"
             );
+            // A name damaged on the way reads as another name.
+            self.damage(text);
+            return Handled::Nothing;
+        };
+        // A reply to a line written after a damaged one: the replies before it have come.
+        // (A motion's `FIN` is no such sign: it comes when the motion ends.)
+        if !matches!(reply, ReplyLine::Fin(_)) {
+            let seq = slot.seq;
+            if matches!(reply, ReplyLine::Ack(_)) && slot.expect == Expect::Fin {
+                slot.acked = true;
+            }
+            self.settle(seq);
+        }
+        let Some(slot) = self.on_wire.get(key) else {
             return Handled::Nothing;
         };
         let result = match (reply, slot.expect) {
@@ -492,19 +631,8 @@ async fn exchange(
     let command = setting.line.clone();
     conn.writer.send::<Error>(&setting.line, deadline).await?;
     let (waiter, mut answer) = oneshot::channel();
-    let mut book = Book {
-        on_wire: BTreeMap::new(),
-        waiting: VecDeque::new(),
-    };
-    book.on_wire.insert(
-        setting.name,
-        Slot {
-            line: setting.line,
-            expect: setting.expect,
-            waiter,
-            give_up_at: deadline,
-        },
-    );
+    let mut book = Book::new();
+    book.on_wire(setting.name, setting.line, setting.expect, waiter, deadline);
     loop {
         let line = match tokio::time::timeout_at(deadline, conn.reader.next_line()).await {
             Err(_) => return Err(Error::Timeout { command, timeout }),
@@ -532,10 +660,7 @@ async fn serve(
     shared: &Shared,
     reconnects: bool,
 ) -> Error {
-    let mut book = Book {
-        on_wire: BTreeMap::new(),
-        waiting: VecDeque::new(),
-    };
+    let mut book = Book::new();
     let timer = tokio::time::sleep_until(Instant::now());
     tokio::pin!(timer);
     // While the queue is full: the earliest deadline of a waiting request, when it leaves.
@@ -577,7 +702,10 @@ async fn serve(
                         Handled::Freed(name) => to_send = book.next_waiting(name),
                         Handled::Nothing => {}
                     },
-                    Err(why) => tracing::warn!(%why, "wsg text: reply line discarded"),
+                    Err(why) => {
+                        tracing::warn!(%why, "wsg text: reply line discarded");
+                        book.damage(&why.to_string());
+                    }
                 },
                 Some(Err(e)) => break io_error(e),
                 None => break peer_closed(),
@@ -620,7 +748,31 @@ async fn serve(
             () = &mut queue_timer, if queue_deadline.is_some() => {}
             () = any_caller_gone(&mut book.waiting), if full => {}
         }
-        if let Some(request) = to_send {
+        let mut outgoing: VecDeque<Request> = to_send.into_iter().collect();
+        // Names freed by calls whose reply was damaged: their next waiting requests go out
+        // (not after `BYE()`).
+        for name in std::mem::take(&mut book.freed) {
+            if closing.is_none() {
+                outgoing.extend(book.next_waiting(name));
+            }
+        }
+        // After what there is to send, a probe if a damaged line left calls in doubt (M).
+        let mut probed = closing.is_some();
+        loop {
+            let request = match outgoing.pop_front() {
+                Some(request) => request,
+                None if !probed => {
+                    probed = true;
+                    match book.probe(config.query_timeout) {
+                        Some(probe) => {
+                            tracing::debug!(command = %probe.line, "wsg text: probe after a damaged reply");
+                            probe
+                        }
+                        None => break,
+                    }
+                }
+                None => break,
+            };
             let give_up_at = after(request.deadline, config.give_up_after);
             match conn.writer.send(&request.line, give_up_at).await {
                 Ok(()) => {}
@@ -640,18 +792,17 @@ async fn serve(
                 closing = Some(request.timeout);
                 move_timer(bye_timer.as_mut(), request.deadline);
                 // The calls waiting for their name are never sent now.
-                for waiting in book.waiting.drain(..) {
+                for waiting in book.waiting.drain(..).chain(outgoing.drain(..)) {
                     let _ = waiting.waiter.send(Err(Error::Closed));
                 }
+                probed = true;
             }
-            book.on_wire.insert(
+            book.on_wire(
                 request.name,
-                Slot {
-                    line: request.line,
-                    expect: request.expect,
-                    waiter: request.waiter,
-                    give_up_at,
-                },
+                request.line,
+                request.expect,
+                request.waiter,
+                give_up_at,
             );
         }
     };
