@@ -301,3 +301,72 @@ async fn call_without_timeout_ends_when_its_reply_is_malformed() {
 async fn call_without_timeout_ends_when_its_reply_names_another_command() {
     damaged_reply_of_a_call_without_timeout("VERBOSF=0").await;
 }
+
+/// Issue 29 L: an acknowledged motion whose `FIN` comes later than its timeout +
+/// `give_up_after` is checked with `GRIPSTATE?`, not given up on time alone: while the gripper
+/// reports it running, the connection stays, and its late `FIN` is consumed when it comes.
+#[tokio::test]
+async fn a_slow_acknowledged_motion_is_checked_not_given_up() {
+    let config = ClientConfig {
+        give_up_after: Duration::from_millis(200),
+        ..ClientConfig::default()
+    };
+    let (client, mut gripper) = pair(config).await;
+    let slow = client.with_timeout(Duration::from_millis(100));
+    let (moved, line) = tokio::join!(slow.move_to(10.0, None), async {
+        let line = gripper.line().await.unwrap();
+        gripper.reply("ACK MOVE").await;
+        line
+    });
+    assert!(line.starts_with("MOVE(10"), "{line}");
+    assert!(
+        matches!(moved, Err(gripper::wsg::text::Error::Timeout { .. })),
+        "{moved:?}"
+    );
+    // Past timeout + give_up_after: the client asks; the motion still runs (6: positioning).
+    let line = line_within(&mut gripper, Duration::from_secs(5), "GRIPSTATE?").await;
+    assert_eq!(line, "GRIPSTATE?");
+    gripper.reply("GRIPSTATE=6").await;
+    // Asked again later, still running; then the FIN comes.
+    let line = line_within(&mut gripper, Duration::from_secs(5), "GRIPSTATE?").await;
+    assert_eq!(line, "GRIPSTATE?");
+    gripper.reply("GRIPSTATE=6").await;
+    gripper.reply("FIN MOVE").await;
+    // The connection is up and MOVE is free.
+    let again = tokio::spawn({
+        let client = client.clone();
+        async move { client.move_to(20.0, None).await }
+    });
+    let line = gripper.line().await.unwrap();
+    assert!(line.starts_with("MOVE(20"), "{line}");
+    gripper.reply("ACK MOVE").await;
+    gripper.reply("FIN MOVE").await;
+    again.await.unwrap().unwrap();
+}
+
+/// Issue 29 L: a motion the gripper reports over whose `FIN` still does not come gets the
+/// connection given up (for cause: a later `FIN` could no longer be paired).
+#[tokio::test]
+async fn a_motion_reported_over_without_its_fin_gives_the_connection_up() {
+    let config = ClientConfig {
+        give_up_after: Duration::from_millis(200),
+        ..ClientConfig::default()
+    };
+    let (client, mut gripper) = pair(config).await;
+    let slow = client.with_timeout(Duration::from_millis(100));
+    let (_, line) = tokio::join!(slow.move_to(10.0, None), async {
+        let line = gripper.line().await.unwrap();
+        gripper.reply("ACK MOVE").await;
+        line
+    });
+    assert!(line.starts_with("MOVE(10"), "{line}");
+    let line = line_within(&mut gripper, Duration::from_secs(5), "GRIPSTATE?").await;
+    assert_eq!(line, "GRIPSTATE?");
+    gripper.reply("GRIPSTATE=0").await;
+    assert_eq!(lines_until_closed(&mut gripper).await, Vec::<String>::new());
+    let after = client.position_mm().await;
+    assert!(
+        matches!(after, Err(gripper::wsg::text::Error::ConnectionLost { .. })),
+        "{after:?}"
+    );
+}

@@ -31,7 +31,11 @@ pub struct ClientConfig {
     pub motion_timeout: Duration,
     /// How long past a call's timeout a missing reply is tolerated before the connection is
     /// declared broken (replies carry only a name, so a reply that comes later than this could
-    /// be taken for the next command of that name). Default 30 s.
+    /// be taken for the next command of that name). Default 30 s. An acknowledged motion
+    /// (`ACK` read) whose `FIN` is that late is not given up on time alone: the client asks
+    /// `GRIPSTATE?`, and keeps waiting (asking again every `give_up_after`, at least 100 ms)
+    /// while the gripper reports it running; reported over, its `FIN` has one more
+    /// `give_up_after` to come before the connection is given up.
     pub give_up_after: Duration,
     /// Timeout of the TCP connect. Default 5 s.
     pub connect_timeout: Duration,

@@ -22,7 +22,7 @@ use crate::deadline::move_timer;
 use crate::line::{io_error, peer_closed, Failure, LineConn, LineError, Opener};
 use crate::reconnect::{BoxStream, EventSender, ReconnectPolicy};
 use crate::supervisor::{supervise, Restore, Served, Session};
-use crate::wsg::Status;
+use crate::wsg::{GripState, Status};
 
 /// What a command's call waits for.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -71,7 +71,17 @@ struct Slot {
     seq: u64,
     /// A motion's `ACK` was read (its `FIN` or `ERR` comes when the motion ends).
     acked: bool,
+    /// An acknowledged motion past its give-up time: a `GRIPSTATE?` asks whether it still runs
+    /// (issue 29 L).
+    checking: bool,
+    /// The gripper reported that motion over without its `FIN` read: if none comes within
+    /// `give_up_after` more, the connection is given up.
+    over: bool,
 }
+
+/// The least time between two checks of an overdue motion (issue 29 L): `give_up_after` may be
+/// zero, and a check every instant would spin.
+const RECHECK_FLOOR: Duration = Duration::from_millis(100);
 
 /// The names a probe may use (queries answered at once, harmless), in order of preference.
 const PROBES: [(&str, &str); 3] = [
@@ -212,11 +222,14 @@ struct Book {
     /// Names freed by calls failed because their reply was damaged: their next waiting
     /// requests go out.
     freed: Vec<&'static str>,
+    /// `TaskConfig::give_up_after`.
+    give_up_after: Duration,
 }
 
 impl Book {
-    fn new() -> Book {
+    fn new(give_up_after: Duration) -> Book {
         Book {
+            give_up_after,
             on_wire: BTreeMap::new(),
             waiting: VecDeque::new(),
             sent: 0,
@@ -242,6 +255,8 @@ impl Book {
             give_up_at,
             seq: self.sent,
             acked: false,
+            checking: false,
+            over: false,
         };
         self.on_wire.insert(name, slot);
     }
@@ -315,6 +330,74 @@ impl Book {
             timeout: query_timeout,
             waiter,
         })
+    }
+
+    /// The command on the wire whose give-up time came: an acknowledged motion is checked
+    /// with `GRIPSTATE?` (a healthy slow motion is not a reason to give the connection up,
+    /// issue 29 L; the gripper answers during motion, shared note §3.7), which this returns if
+    /// it is to be written; anything else (or a motion reported over whose `FIN` still did not
+    /// come) is `Err` with its line: the connection is given up.
+    fn overdue(
+        &mut self,
+        query_timeout: Duration,
+        give_up_after: Duration,
+    ) -> Result<Option<Request>, String> {
+        let now = Instant::now();
+        let probe_free = !self.on_wire.contains_key("GRIPSTATE");
+        let Some(slot) = self.on_wire.values_mut().min_by_key(|s| s.give_up_at) else {
+            return Ok(None);
+        };
+        if slot.give_up_at > now {
+            return Ok(None);
+        }
+        if slot.expect != Expect::Fin || !slot.acked || slot.over {
+            return Err(slot.line.clone());
+        }
+        slot.checking = true;
+        // Checked again after the probe's own give-up time (an unanswered probe gives the
+        // connection up first), or after a GRIPSTATE? of the program's on the wire.
+        let recheck = give_up_after.max(RECHECK_FLOOR);
+        let wait = query_timeout.saturating_add(recheck);
+        slot.give_up_at = after(now, wait.saturating_add(recheck));
+        if !probe_free {
+            return Ok(None);
+        }
+        tracing::debug!(command = %slot.line, "wsg text: motion overdue, asking its state");
+        // Nobody waits for its answer: it is consumed when it comes (and read by `on_line`).
+        let (waiter, _) = oneshot::channel();
+        Ok(Some(Request {
+            name: "GRIPSTATE",
+            line: "GRIPSTATE?".to_owned(),
+            expect: Expect::Value,
+            deadline: after(now, query_timeout),
+            timeout: query_timeout,
+            waiter,
+        }))
+    }
+
+    /// A `GRIPSTATE=` read (a probe's or a program's): the motions being checked still run, or
+    /// are over (their `FIN` then has one more `give_up_after` to come).
+    fn motion_state(&mut self, value: &str, give_up_after: Duration) {
+        let state = parse_number(value)
+            .filter(|v| v.fract() == 0.0 && (0.0..=255.0).contains(v))
+            .map(|v| GripState::from_u8(v as u8));
+        let over = matches!(
+            state,
+            Some(
+                GripState::Idle
+                    | GripState::NoPartFound
+                    | GripState::PartLost
+                    | GripState::Holding
+                    | GripState::Error
+            )
+        );
+        let now = Instant::now();
+        for slot in self.on_wire.values_mut().filter(|s| s.checking) {
+            slot.checking = false;
+            slot.over = over;
+            slot.give_up_at = after(now, give_up_after.max(RECHECK_FLOOR));
+            tracing::debug!(command = %slot.line, value, over, "wsg text: overdue motion checked");
+        }
     }
 
     /// The earliest give-up time of the commands on the wire.
@@ -425,6 +508,9 @@ impl Book {
                 slot.acked = true;
             }
             self.settle(seq);
+        }
+        if let (ReplyLine::Value { value, .. }, "GRIPSTATE") = (reply, key) {
+            self.motion_state(value, self.give_up_after);
         }
         let Some(slot) = self.on_wire.get(key) else {
             return Handled::Nothing;
@@ -631,7 +717,7 @@ async fn exchange(
     let command = setting.line.clone();
     conn.writer.send::<Error>(&setting.line, deadline).await?;
     let (waiter, mut answer) = oneshot::channel();
-    let mut book = Book::new();
+    let mut book = Book::new(timeout);
     book.on_wire(setting.name, setting.line, setting.expect, waiter, deadline);
     loop {
         let line = match tokio::time::timeout_at(deadline, conn.reader.next_line()).await {
@@ -660,7 +746,7 @@ async fn serve(
     shared: &Shared,
     reconnects: bool,
 ) -> Error {
-    let mut book = Book::new();
+    let mut book = Book::new(config.give_up_after);
     let timer = tokio::time::sleep_until(Instant::now());
     tokio::pin!(timer);
     // While the queue is full: the earliest deadline of a waiting request, when it leaves.
@@ -711,16 +797,15 @@ async fn serve(
                 None => break peer_closed(),
             },
             () = &mut timer, if give_up.is_some() => {
-                let command = book
-                    .on_wire
-                    .values()
-                    .min_by_key(|s| s.give_up_at)
-                    .map(|s| s.line.clone())
-                    .unwrap_or_default();
-                tracing::error!(%command, "wsg text: reply overdue, giving up on the connection");
-                break Error::lost(format!(
-                    "no reply to {command} long after its timeout; replies can no longer be paired"
-                ));
+                match book.overdue(config.query_timeout, config.give_up_after) {
+                    Ok(probe) => to_send = probe,
+                    Err(command) => {
+                        tracing::error!(%command, "wsg text: reply overdue, giving up on the connection");
+                        break Error::lost(format!(
+                            "no reply to {command} long after its timeout; replies can no longer be paired"
+                        ));
+                    }
+                }
             },
             // `BYE()`'s call is over without `ACK BYE`: the connection is closed then, so
             // the calls after `close()` fail `Closed` (issue 29 N).
