@@ -370,3 +370,34 @@ async fn a_motion_reported_over_without_its_fin_gives_the_connection_up() {
         "{after:?}"
     );
 }
+
+/// Issue 29 M for motions, found through L's check: an acknowledged motion whose `FIN` arrived
+/// damaged ends once the gripper reports it over, and its name is free; the connection stays.
+#[tokio::test]
+async fn a_motion_whose_fin_was_damaged_ends_when_reported_over() {
+    let config = ClientConfig {
+        give_up_after: Duration::from_millis(200),
+        ..ClientConfig::default()
+    };
+    let (client, mut gripper) = pair(config).await;
+    let slow = client.with_timeout(Duration::from_millis(100));
+    let (_, line) = tokio::join!(slow.move_to(10.0, None), async {
+        let line = gripper.line().await.unwrap();
+        gripper.reply("ACK MOVE").await;
+        gripper.reply("FIN MOVX").await;
+        line
+    });
+    assert!(line.starts_with("MOVE(10"), "{line}");
+    let line = line_within(&mut gripper, Duration::from_secs(5), "GRIPSTATE?").await;
+    assert_eq!(line, "GRIPSTATE?");
+    gripper.reply("GRIPSTATE=0").await;
+    let again = tokio::spawn({
+        let client = client.clone();
+        async move { client.move_to(20.0, None).await }
+    });
+    let line = line_within(&mut gripper, Duration::from_secs(5), "MOVE(20)").await;
+    assert!(line.starts_with("MOVE(20"), "{line}");
+    gripper.reply("ACK MOVE").await;
+    gripper.reply("FIN MOVE").await;
+    again.await.unwrap().unwrap();
+}

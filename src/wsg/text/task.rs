@@ -77,6 +77,8 @@ struct Slot {
     /// The gripper reported that motion over without its `FIN` read: if none comes within
     /// `give_up_after` more, the connection is given up.
     over: bool,
+    /// `Book::damages` when its `ACK` was read.
+    damages_at_ack: u64,
 }
 
 /// The least time between two checks of an overdue motion (issue 29 L): `give_up_after` may be
@@ -224,12 +226,15 @@ struct Book {
     freed: Vec<&'static str>,
     /// `TaskConfig::give_up_after`.
     give_up_after: Duration,
+    /// Reply lines that could not be paired so far.
+    damages: u64,
 }
 
 impl Book {
     fn new(give_up_after: Duration) -> Book {
         Book {
             give_up_after,
+            damages: 0,
             on_wire: BTreeMap::new(),
             waiting: VecDeque::new(),
             sent: 0,
@@ -257,6 +262,7 @@ impl Book {
             acked: false,
             checking: false,
             over: false,
+            damages_at_ack: 0,
         };
         self.on_wire.insert(name, slot);
     }
@@ -269,6 +275,7 @@ impl Book {
     /// A reply line that cannot be paired arrived: it may have been the reply of any command
     /// answered at once that is on the wire.
     fn damage(&mut self, text: &str) {
+        self.damages += 1;
         if self.on_wire.values().any(|s| s.expect != Expect::Fin) {
             self.damaged = Some((self.sent, text.to_owned()));
         }
@@ -392,11 +399,29 @@ impl Book {
             )
         );
         let now = Instant::now();
-        for slot in self.on_wire.values_mut().filter(|s| s.checking) {
+        let damages = self.damages;
+        let mut ended = Vec::new();
+        for (&name, slot) in self.on_wire.iter_mut().filter(|(_, s)| s.checking) {
             slot.checking = false;
             slot.over = over;
             slot.give_up_at = after(now, give_up_after.max(RECHECK_FLOOR));
             tracing::debug!(command = %slot.line, value, over, "wsg text: overdue motion checked");
+            // Over, and a line that could not be read came after its `ACK`: that was its `FIN`
+            // or `ERR` (the gripper answers in order: it came before this state). The call
+            // ends and the name is free (issue 29 M for motions).
+            if over && damages > slot.damages_at_ack {
+                ended.push(name);
+            }
+        }
+        for name in ended {
+            if let Some(slot) = self.on_wire.remove(name) {
+                let _ = slot.waiter.send(Err(Error::MalformedReply {
+                    command: slot.line,
+                    line: format!("GRIPSTATE={value}"),
+                    reason: "the motion is over and its FIN or ERR could not be read".into(),
+                }));
+                self.freed.push(name);
+            }
         }
     }
 
@@ -506,6 +531,7 @@ impl Book {
             let seq = slot.seq;
             if matches!(reply, ReplyLine::Ack(_)) && slot.expect == Expect::Fin {
                 slot.acked = true;
+                slot.damages_at_ack = self.damages;
             }
             self.settle(seq);
         }
@@ -798,7 +824,9 @@ async fn serve(
             },
             () = &mut timer, if give_up.is_some() => {
                 match book.overdue(config.query_timeout, config.give_up_after) {
-                    Ok(probe) => to_send = probe,
+                    // Not after `BYE()` (issue 29 N): the session ends at its deadline anyway.
+                    Ok(probe) if closing.is_none() => to_send = probe,
+                    Ok(_) => {}
                     Err(command) => {
                         tracing::error!(%command, "wsg text: reply overdue, giving up on the connection");
                         break Error::lost(format!(
