@@ -302,11 +302,10 @@ async fn call_without_timeout_ends_when_its_reply_names_another_command() {
     damaged_reply_of_a_call_without_timeout("VERBOSF=0").await;
 }
 
-/// Issue 29 L: an acknowledged motion whose `FIN` comes later than its timeout +
-/// `give_up_after` is checked with `GRIPSTATE?`, not given up on time alone: while the gripper
-/// reports it running, the connection stays, and its late `FIN` is consumed when it comes.
-#[tokio::test]
-async fn a_slow_acknowledged_motion_is_checked_not_given_up() {
+/// A client (`give_up_after` 200 ms) whose `MOVE(10)` with a 100 ms timeout was acknowledged
+/// (then answered `after_ack`) and timed out; returned once, past its timeout +
+/// `give_up_after`, the client asked `GRIPSTATE?` (issue 29 L).
+async fn overdue_move(after_ack: &[&str]) -> (Client, Gripper) {
     let config = ClientConfig {
         give_up_after: Duration::from_millis(200),
         ..ClientConfig::default()
@@ -316,6 +315,9 @@ async fn a_slow_acknowledged_motion_is_checked_not_given_up() {
     let (moved, line) = tokio::join!(slow.move_to(10.0, None), async {
         let line = gripper.line().await.unwrap();
         gripper.reply("ACK MOVE").await;
+        for reply in after_ack {
+            gripper.reply(reply).await;
+        }
         line
     });
     assert!(line.starts_with("MOVE(10"), "{line}");
@@ -323,9 +325,18 @@ async fn a_slow_acknowledged_motion_is_checked_not_given_up() {
         matches!(moved, Err(gripper::wsg::text::Error::Timeout { .. })),
         "{moved:?}"
     );
-    // Past timeout + give_up_after: the client asks; the motion still runs (6: positioning).
     let line = line_within(&mut gripper, Duration::from_secs(5), "GRIPSTATE?").await;
     assert_eq!(line, "GRIPSTATE?");
+    (client, gripper)
+}
+
+/// Issue 29 L: an acknowledged motion whose `FIN` comes later than its timeout +
+/// `give_up_after` is checked with `GRIPSTATE?`, not given up on time alone: while the gripper
+/// reports it running, the connection stays, and its late `FIN` is consumed when it comes.
+#[tokio::test]
+async fn a_slow_acknowledged_motion_is_checked_not_given_up() {
+    let (client, mut gripper) = overdue_move(&[]).await;
+    // The motion still runs (6: positioning).
     gripper.reply("GRIPSTATE=6").await;
     // Asked again later, still running; then the FIN comes.
     let line = line_within(&mut gripper, Duration::from_secs(5), "GRIPSTATE?").await;
@@ -348,20 +359,7 @@ async fn a_slow_acknowledged_motion_is_checked_not_given_up() {
 /// connection given up (for cause: a later `FIN` could no longer be paired).
 #[tokio::test]
 async fn a_motion_reported_over_without_its_fin_gives_the_connection_up() {
-    let config = ClientConfig {
-        give_up_after: Duration::from_millis(200),
-        ..ClientConfig::default()
-    };
-    let (client, mut gripper) = pair(config).await;
-    let slow = client.with_timeout(Duration::from_millis(100));
-    let (_, line) = tokio::join!(slow.move_to(10.0, None), async {
-        let line = gripper.line().await.unwrap();
-        gripper.reply("ACK MOVE").await;
-        line
-    });
-    assert!(line.starts_with("MOVE(10"), "{line}");
-    let line = line_within(&mut gripper, Duration::from_secs(5), "GRIPSTATE?").await;
-    assert_eq!(line, "GRIPSTATE?");
+    let (client, mut gripper) = overdue_move(&[]).await;
     gripper.reply("GRIPSTATE=0").await;
     assert_eq!(lines_until_closed(&mut gripper).await, Vec::<String>::new());
     let after = client.position_mm().await;
@@ -375,21 +373,7 @@ async fn a_motion_reported_over_without_its_fin_gives_the_connection_up() {
 /// damaged ends once the gripper reports it over, and its name is free; the connection stays.
 #[tokio::test]
 async fn a_motion_whose_fin_was_damaged_ends_when_reported_over() {
-    let config = ClientConfig {
-        give_up_after: Duration::from_millis(200),
-        ..ClientConfig::default()
-    };
-    let (client, mut gripper) = pair(config).await;
-    let slow = client.with_timeout(Duration::from_millis(100));
-    let (_, line) = tokio::join!(slow.move_to(10.0, None), async {
-        let line = gripper.line().await.unwrap();
-        gripper.reply("ACK MOVE").await;
-        gripper.reply("FIN MOVX").await;
-        line
-    });
-    assert!(line.starts_with("MOVE(10"), "{line}");
-    let line = line_within(&mut gripper, Duration::from_secs(5), "GRIPSTATE?").await;
-    assert_eq!(line, "GRIPSTATE?");
+    let (client, mut gripper) = overdue_move(&["FIN MOVX"]).await;
     gripper.reply("GRIPSTATE=0").await;
     let again = tokio::spawn({
         let client = client.clone();
