@@ -1035,3 +1035,18 @@ async fn blank_lines_and_endless_floats_are_refused_before_sending() {
     // The connection is untouched: nothing was sent.
     assert_eq!(client.id().await.unwrap(), "GRIPLINK-ET4");
 }
+
+/// Issue 29 O: `queue_len` `usize::MAX` (unbounded in practice) is taken as tokio's largest
+/// channel, not a panic in its semaphore.
+#[tokio::test]
+async fn queue_len_usize_max_serves_calls() {
+    let server = sim().await;
+    let config = ClientConfig {
+        queue_len: usize::MAX,
+        ..ClientConfig::default()
+    };
+    let client = Client::connect_with(server.local_addr(), config)
+        .await
+        .unwrap();
+    client.protocol().await.unwrap();
+}

@@ -163,7 +163,8 @@ pub struct ClientConfig {
     pub connect_timeout: Duration,
     /// Longest reply line accepted; longer ones are discarded. Default 1024 bytes.
     pub max_line_len: usize,
-    /// How many calls may wait to be sent. Default 64.
+    /// How many calls may wait to be sent. Default 64; 0 is taken as 1, and anything above
+    /// tokio's `Semaphore::MAX_PERMITS` (e.g. `usize::MAX`) as that.
     pub queue_len: usize,
     /// How many commands may be on the wire unanswered. Default 1: the controller's input
     /// buffer is not documented, and a command still in our queue can be withdrawn when its
@@ -359,7 +360,7 @@ impl Client {
     }
 
     fn spawn(stream: BoxStream, opener: Opener, config: ClientConfig) -> Client {
-        let (requests, rx) = mpsc::channel(config.queue_len.max(1));
+        let (requests, rx) = mpsc::channel(crate::line::channel_capacity(config.queue_len));
         let shared = Arc::new(Shared::default());
         let events = EventSender::new("griplink", EVENT_BUFFER);
         let task = Task {

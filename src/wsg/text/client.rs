@@ -13,7 +13,7 @@ use super::line::{encode_call, encode_set, parse_number, BadArgument, DEFAULT_MA
 use super::push::{Pushes, Quantity};
 use super::task::{self, after, Answer, Expect, Request, Shared, Task, TaskConfig};
 use crate::connection::Connection;
-use crate::line::Opener;
+use crate::line::{channel_capacity, Opener};
 use crate::reconnect::{
     BoxStream, ConnectionEvents, EventSender, EventSubscriber, ReconnectPolicy,
 };
@@ -31,16 +31,23 @@ pub struct ClientConfig {
     pub motion_timeout: Duration,
     /// How long past a call's timeout a missing reply is tolerated before the connection is
     /// declared broken (replies carry only a name, so a reply that comes later than this could
-    /// be taken for the next command of that name). Default 30 s.
+    /// be taken for the next command of that name). Default 30 s. An acknowledged motion
+    /// (`ACK` read) whose `FIN` is that late is not given up on time alone: the client asks
+    /// `GRIPSTATE?`, and keeps waiting (asking again every `give_up_after`, at least 100 ms)
+    /// while the gripper reports it running; reported over, its `FIN` has one more
+    /// `give_up_after` to come before the connection is given up.
     pub give_up_after: Duration,
     /// Timeout of the TCP connect. Default 5 s.
     pub connect_timeout: Duration,
     /// Longest reply line accepted; longer ones are discarded. Default 256 bytes.
     pub max_line_len: usize,
     /// How many calls may wait to be sent (in the channel, and again in the task while a
-    /// command of their name is on the wire). Default 64.
+    /// command of their name is on the wire). A call whose caller gave up leaves the queue then.
+    /// [`Client::stop`] and [`Client::fast_stop`] never wait behind it. Default 64; 0 is taken as 1, and anything above
+    /// tokio's `Semaphore::MAX_PERMITS` (e.g. `usize::MAX`) as that.
     pub queue_len: usize,
-    /// Pushes each [`Pushes`] stream buffers. Default 64.
+    /// Pushes each [`Pushes`] stream buffers. Default 64; 0 is taken as 1, and anything above
+    /// tokio's `Semaphore::MAX_PERMITS` (e.g. `usize::MAX`) as that.
     pub push_buffer: usize,
     /// Reconnect after a lost connection (`None`, the default: a lost connection stays closed
     /// and every later call fails with the reason). Not for [`Client::from_io`], whose stream
@@ -93,6 +100,8 @@ impl Default for ClientConfig {
 pub struct Client {
     connection: Connection,
     requests: mpsc::Sender<Request>,
+    /// `STOP()` and `FASTSTOP()`: read by the task whatever the queue holds (issue 29 K).
+    stops: mpsc::Sender<Request>,
     shared: Arc<Shared>,
     events: EventSubscriber,
     config: Arc<ClientConfig>,
@@ -171,15 +180,17 @@ impl Client {
     }
 
     fn spawn(stream: BoxStream, opener: Option<Opener>, config: ClientConfig) -> Client {
-        let (requests, rx) = mpsc::channel(config.queue_len.max(1));
+        let (requests, rx) = mpsc::channel(channel_capacity(config.queue_len));
+        let (stops, stops_rx) = mpsc::channel(channel_capacity(config.queue_len));
         let shared = Arc::new(Shared::default());
         let events = EventSender::new("wsg text", EVENT_BUFFER);
         let task = Task {
             requests: rx,
+            stops: stops_rx,
             config: TaskConfig {
                 give_up_after: config.give_up_after,
                 max_line_len: config.max_line_len,
-                waiting_len: config.queue_len.max(1),
+                waiting_len: channel_capacity(config.queue_len),
                 query_timeout: config.query_timeout,
                 connect_timeout: config.connect_timeout,
             },
@@ -191,6 +202,7 @@ impl Client {
         Client {
             connection: Connection::spawn(task::run(stream, task)),
             requests,
+            stops,
             shared,
             events: events.subscriber(),
             config: Arc::new(config),
@@ -248,8 +260,12 @@ impl Client {
             timeout,
             waiter,
         };
+        let channel = match name {
+            "STOP" | "FASTSTOP" => &self.stops,
+            _ => &self.requests,
+        };
         let exchange = async {
-            self.requests
+            channel
                 .send(request)
                 .await
                 .map_err(|_| self.shared.failure())?;
@@ -362,12 +378,16 @@ impl Client {
 
     /// `STOP()`: stops a motion at once; resolves on `ACK STOP`. The motion's own call then
     /// fails with `ERR <NAME> …`, and the grip state returns to IDLE (shared note §3.7).
+    ///
+    /// Never waits behind other calls: it is written as soon as no other `STOP()` is on the
+    /// wire, even while the queue ([`ClientConfig::queue_len`]) is full of calls waiting for a
+    /// busy name.
     pub async fn stop(&self) -> Result<()> {
         self.ack("STOP", "STOP()".into()).await
     }
 
     /// `FASTSTOP()`: stops at once and enters FAST STOP; motions are refused until
-    /// [`Client::ack_fast_stop`].
+    /// [`Client::ack_fast_stop`]. Like [`Client::stop`], never waits behind other calls.
     pub async fn fast_stop(&self) -> Result<()> {
         self.ack("FASTSTOP", "FASTSTOP()".into()).await
     }
@@ -378,7 +398,11 @@ impl Client {
     }
 
     /// `BYE()`: announces the disconnect, so closing does not raise FAST STOP; waits for
-    /// `ACK BYE`, then closes the connection. Calls made afterwards, on any clone, fail.
+    /// `ACK BYE`, then closes the connection. Calls made afterwards, on any clone, fail with
+    /// [`Error::Closed`], and so do calls still waiting for a busy name: nothing is written
+    /// after `BYE()`. Answered otherwise (`ERR BYE …`, returned as [`Error::Device`]) or not
+    /// within its timeout ([`Error::Timeout`]), the connection is closed all the same (the
+    /// gripper may then raise FAST STOP).
     pub async fn close(&self) -> Result<()> {
         self.ack("BYE", "BYE()".into()).await
     }
@@ -466,6 +490,10 @@ impl Client {
     fn subscribe(&self, filter: Option<Quantity>) -> Pushes {
         let (pushes, subscriber) = Pushes::new(filter, self.config.push_buffer);
         if let Ok(mut subs) = self.shared.subscribers.lock() {
+            // Streams already dropped go now, not only when a push arrives: a program that
+            // retries a refused `AUTOSEND` (its stream dropped with the error) on a gripper
+            // that pushes nothing would otherwise grow this list without bound.
+            subs.retain(|s| !s.is_closed());
             if !self.is_closed() {
                 subs.push(subscriber);
             }
@@ -504,5 +532,36 @@ impl Client {
         self.ack("AUTOSEND", line).await?;
         self.shared.forget(&format!("AUTOSEND {}", quantity.name()));
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use tokio::io::{AsyncBufReadExt, AsyncWriteExt, BufReader};
+
+    /// Issue 29 O: a program retrying an `AUTOSEND` the gripper refuses drops a stream each
+    /// time; with no push ever arriving, only `subscribe` can remove them, and must, or the
+    /// list grows for as long as the program retries.
+    #[tokio::test]
+    async fn refused_autosend_retries_leave_no_subscribers_behind() {
+        let (ours, theirs) = tokio::io::duplex(4096);
+        let client = Client::from_io(ours, ClientConfig::default());
+        let gripper = tokio::spawn(async move {
+            let (read, mut write) = tokio::io::split(theirs);
+            let mut lines = BufReader::new(read).lines();
+            while let Ok(Some(line)) = lines.next_line().await {
+                let name = line.split('(').next().unwrap_or_default().to_owned();
+                let _ = write.write_all(format!("ERR {name} 2\n").as_bytes()).await;
+            }
+        });
+        for _ in 0..100 {
+            let refused = client.autosend(Quantity::Position, 50, false).await;
+            assert!(refused.is_err(), "{refused:?}");
+        }
+        let left = client.shared.subscribers.lock().unwrap().len();
+        assert!(left <= 1, "{left} subscribers kept for dropped streams");
+        drop(client);
+        gripper.await.unwrap();
     }
 }

@@ -49,7 +49,11 @@ pub enum Error {
         /// The timeout that expired.
         timeout: Duration,
     },
-    /// A reply with the command's name that is not GCL or not a number where one is due.
+    /// A reply with the command's name that is not GCL or not a number where one is due; or a
+    /// reply that could not be read at all (damaged, `ERR` without a name): the client then
+    /// probes with a query, and a command answered at once that is still unanswered when a
+    /// command written later is answered lost its reply to that line (the gripper answers in
+    /// order), whatever its timeout, even `Duration::MAX`.
     #[error("malformed reply to {command}: {line:?}: {reason}")]
     MalformedReply {
         /// The command line.

@@ -80,6 +80,11 @@ pub(crate) struct PushSubscriber {
 }
 
 impl PushSubscriber {
+    /// Whether its [`Pushes`] stream was dropped.
+    pub(crate) fn is_closed(&self) -> bool {
+        self.tx.is_closed()
+    }
+
     /// Hands a push over; false when the stream is gone.
     pub(crate) fn deliver(&self, push: Push) -> bool {
         if self.filter.is_some_and(|q| q != push.quantity) {
@@ -107,7 +112,7 @@ pub struct Pushes {
 
 impl Pushes {
     pub(crate) fn new(filter: Option<Quantity>, buffer: usize) -> (Pushes, PushSubscriber) {
-        let (tx, rx) = mpsc::channel(buffer.max(1));
+        let (tx, rx) = mpsc::channel(crate::line::channel_capacity(buffer));
         let missed = Arc::new(AtomicU64::new(0));
         (
             Pushes {

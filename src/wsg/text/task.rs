@@ -24,7 +24,7 @@ use crate::line::{
 };
 use crate::reconnect::{BoxStream, EventSender, ReconnectPolicy};
 use crate::supervisor::supervise;
-use crate::wsg::Status;
+use crate::wsg::{GripState, Status};
 
 /// What a command's call waits for.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -69,7 +69,30 @@ struct Slot {
     waiter: Waiter,
     /// Past this the reply is so late that nothing can be paired with confidence any more.
     give_up_at: Instant,
+    /// Its place in the order lines were written (the gripper answers in that order).
+    seq: u64,
+    /// A motion's `ACK` was read (its `FIN` or `ERR` comes when the motion ends).
+    acked: bool,
+    /// An acknowledged motion past its give-up time: a `GRIPSTATE?` asks whether it still runs
+    /// (issue 29 L).
+    checking: bool,
+    /// The gripper reported that motion over without its `FIN` read: if none comes within
+    /// `give_up_after` more, the connection is given up.
+    over: bool,
+    /// `Book::damages` when its `ACK` was read.
+    damages_at_ack: u64,
 }
+
+/// The least time between two checks of an overdue motion (issue 29 L): `give_up_after` may be
+/// zero, and a check every instant would spin.
+const RECHECK_FLOOR: Duration = Duration::from_millis(100);
+
+/// The names a probe may use (queries answered at once, harmless), in order of preference.
+const PROBES: [(&str, &str); 3] = [
+    ("GRIPSTATE", "GRIPSTATE?"),
+    ("POS", "POS?"),
+    ("SPEED", "SPEED?"),
+];
 
 /// What the handles and the task share.
 #[derive(Debug, Default)]
@@ -152,6 +175,10 @@ pub(crate) struct TaskConfig {
 /// Everything the task needs besides the first connection.
 pub(crate) struct Task {
     pub requests: mpsc::Receiver<Request>,
+    /// `STOP()` and `FASTSTOP()`, apart from the other calls: a stop must never wait behind
+    /// calls that wait for their name (issue 29 K; the manual's STOP/FASTSTOP are answered
+    /// during a motion, chapter 2). The task reads it whatever the queue holds.
+    pub stops: mpsc::Receiver<Request>,
     pub config: TaskConfig,
     pub shared: Arc<Shared>,
     pub events: EventSender,
@@ -193,9 +220,217 @@ struct Book {
     /// run to run (`wsg-text:0x5a7dcaabb2430033`, tests/explore/determinism.txt).
     on_wire: BTreeMap<&'static str, Slot>,
     waiting: VecDeque<Request>,
+    /// Lines written so far (the next `Slot::seq`).
+    sent: u64,
+    /// A reply line that could not be paired (damaged, `ERR` without a name) and the `seq` of
+    /// the last line written before it: a command answered at once that was written by then
+    /// and is still unanswered when a later command's reply arrives lost its reply to that
+    /// line (the gripper answers in order, shared note §3.7). Issue 29 M.
+    damaged: Option<(u64, String)>,
+    /// Names freed by calls failed because their reply was damaged: their next waiting
+    /// requests go out.
+    freed: Vec<&'static str>,
+    /// `TaskConfig::give_up_after`.
+    give_up_after: Duration,
+    /// Reply lines that could not be paired so far.
+    damages: u64,
 }
 
 impl Book {
+    fn new(give_up_after: Duration) -> Book {
+        Book {
+            give_up_after,
+            damages: 0,
+            on_wire: BTreeMap::new(),
+            waiting: VecDeque::new(),
+            sent: 0,
+            damaged: None,
+            freed: Vec::new(),
+        }
+    }
+
+    /// Puts a command written to the wire in the book.
+    fn on_wire(
+        &mut self,
+        name: &'static str,
+        line: String,
+        expect: Expect,
+        waiter: Waiter,
+        give_up_at: Instant,
+    ) {
+        self.sent += 1;
+        let slot = Slot {
+            line,
+            expect,
+            waiter,
+            give_up_at,
+            seq: self.sent,
+            acked: false,
+            checking: false,
+            over: false,
+            damages_at_ack: 0,
+        };
+        self.on_wire.insert(name, slot);
+    }
+
+    /// Whether `slot` waits for a reply the gripper sends at once (not a motion's `FIN`).
+    fn answered_at_once(slot: &Slot) -> bool {
+        slot.expect != Expect::Fin || !slot.acked
+    }
+
+    /// A reply line that cannot be paired arrived: it may have been the reply of any command
+    /// answered at once that is on the wire.
+    fn damage(&mut self, text: &str) {
+        self.damages += 1;
+        if self.on_wire.values().any(|s| s.expect != Expect::Fin) {
+            self.damaged = Some((self.sent, text.to_owned()));
+        }
+    }
+
+    /// A reply to the command written as `seq` arrived: the commands answered at once written
+    /// before the damaged line and still unanswered lost their reply to it. They fail, and
+    /// their names are free (no reply of theirs can come any more). A motion not yet
+    /// acknowledged is left alone: if its `ACK` was damaged, its `FIN` may still come.
+    fn settle(&mut self, seq: u64) {
+        let Some((upto, line)) = self.damaged.take_if(|(upto, _)| seq > *upto) else {
+            return;
+        };
+        let lost: Vec<&'static str> = self
+            .on_wire
+            .iter()
+            .filter(|(_, s)| s.seq <= upto && s.expect != Expect::Fin)
+            .map(|(&name, _)| name)
+            .collect();
+        for name in lost {
+            if let Some(slot) = self.on_wire.remove(name) {
+                tracing::warn!(command = %slot.line, %line, "wsg text: reply damaged, call failed");
+                let _ = slot.waiter.send(Err(Error::MalformedReply {
+                    command: slot.line,
+                    line: line.clone(),
+                    reason: "its reply could not be read (a later command was answered first)"
+                        .into(),
+                }));
+                self.freed.push(name);
+            }
+        }
+    }
+
+    /// A query to write after a damaged line, when nothing written since waits for a reply
+    /// the gripper sends at once: its answer tells which replies were lost.
+    fn probe(&self, query_timeout: Duration) -> Option<Request> {
+        let (upto, _) = self.damaged.as_ref()?;
+        let suspects = self
+            .on_wire
+            .values()
+            .any(|s| s.seq <= *upto && s.expect != Expect::Fin);
+        let barrier = self
+            .on_wire
+            .values()
+            .any(|s| s.seq > *upto && Book::answered_at_once(s));
+        if !suspects || barrier {
+            return None;
+        }
+        let (name, line) = PROBES
+            .into_iter()
+            .find(|(name, _)| !self.on_wire.contains_key(name))?;
+        // Nobody waits for its answer: it is consumed when it comes.
+        let (waiter, _) = oneshot::channel();
+        Some(Request {
+            name,
+            line: line.to_owned(),
+            expect: Expect::Value,
+            deadline: after(Instant::now(), query_timeout),
+            timeout: query_timeout,
+            waiter,
+        })
+    }
+
+    /// The command on the wire whose give-up time came: an acknowledged motion is checked
+    /// with `GRIPSTATE?` (a healthy slow motion is not a reason to give the connection up,
+    /// issue 29 L; the gripper answers during motion, shared note §3.7), which this returns if
+    /// it is to be written; anything else (or a motion reported over whose `FIN` still did not
+    /// come) is `Err` with its line: the connection is given up.
+    fn overdue(
+        &mut self,
+        query_timeout: Duration,
+        give_up_after: Duration,
+    ) -> Result<Option<Request>, String> {
+        let now = Instant::now();
+        let probe_free = !self.on_wire.contains_key("GRIPSTATE");
+        let Some(slot) = self.on_wire.values_mut().min_by_key(|s| s.give_up_at) else {
+            return Ok(None);
+        };
+        if slot.give_up_at > now {
+            return Ok(None);
+        }
+        if slot.expect != Expect::Fin || !slot.acked || slot.over {
+            return Err(slot.line.clone());
+        }
+        slot.checking = true;
+        // Checked again after the probe's own give-up time (an unanswered probe gives the
+        // connection up first), or after a GRIPSTATE? of the program's on the wire.
+        let recheck = give_up_after.max(RECHECK_FLOOR);
+        let wait = query_timeout.saturating_add(recheck);
+        slot.give_up_at = after(now, wait.saturating_add(recheck));
+        if !probe_free {
+            return Ok(None);
+        }
+        tracing::debug!(command = %slot.line, "wsg text: motion overdue, asking its state");
+        // Nobody waits for its answer: it is consumed when it comes (and read by `on_line`).
+        let (waiter, _) = oneshot::channel();
+        Ok(Some(Request {
+            name: "GRIPSTATE",
+            line: "GRIPSTATE?".to_owned(),
+            expect: Expect::Value,
+            deadline: after(now, query_timeout),
+            timeout: query_timeout,
+            waiter,
+        }))
+    }
+
+    /// A `GRIPSTATE=` read (a probe's or a program's): the motions being checked still run, or
+    /// are over (their `FIN` then has one more `give_up_after` to come).
+    fn motion_state(&mut self, value: &str, give_up_after: Duration) {
+        let state = parse_number(value)
+            .filter(|v| v.fract() == 0.0 && (0.0..=255.0).contains(v))
+            .map(|v| GripState::from_u8(v as u8));
+        let over = matches!(
+            state,
+            Some(
+                GripState::Idle
+                    | GripState::NoPartFound
+                    | GripState::PartLost
+                    | GripState::Holding
+                    | GripState::Error
+            )
+        );
+        let now = Instant::now();
+        let damages = self.damages;
+        let mut ended = Vec::new();
+        for (&name, slot) in self.on_wire.iter_mut().filter(|(_, s)| s.checking) {
+            slot.checking = false;
+            slot.over = over;
+            slot.give_up_at = after(now, give_up_after.max(RECHECK_FLOOR));
+            tracing::debug!(command = %slot.line, value, over, "wsg text: overdue motion checked");
+            // Over, and a line that could not be read came after its `ACK`: that was its `FIN`
+            // or `ERR` (the gripper answers in order: it came before this state). The call
+            // ends and the name is free (issue 29 M for motions).
+            if over && damages > slot.damages_at_ack {
+                ended.push(name);
+            }
+        }
+        for name in ended {
+            if let Some(slot) = self.on_wire.remove(name) {
+                let _ = slot.waiter.send(Err(Error::MalformedReply {
+                    command: slot.line,
+                    line: format!("GRIPSTATE={value}"),
+                    reason: "the motion is over and its FIN or ERR could not be read".into(),
+                }));
+                self.freed.push(name);
+            }
+        }
+    }
+
     /// The earliest give-up time of the commands on the wire.
     fn give_up_at(&self) -> Option<Instant> {
         self.on_wire.values().map(|s| s.give_up_at).min()
@@ -206,6 +441,39 @@ impl Book {
             // A caller that left (timeout, dropped future) no longer listens: its reply is
             // consumed here and goes to nobody else.
             let _ = slot.waiter.send(result);
+        }
+    }
+
+    /// Drops the waiting requests whose caller left, and fails those whose time ran out, so
+    /// the queue holds only requests someone still waits for (issue 29 K: a queue full of
+    /// calls given up blocked every other call).
+    fn prune(&mut self) {
+        let now = Instant::now();
+        if self
+            .waiting
+            .iter()
+            .any(|r| r.waiter.is_closed() || now >= r.deadline)
+        {
+            let waiting = std::mem::take(&mut self.waiting);
+            self.waiting = waiting.into_iter().filter_map(usable).collect();
+        }
+    }
+
+    /// The earliest deadline of the waiting requests.
+    fn waiting_deadline(&self) -> Option<Instant> {
+        self.waiting.iter().map(|r| r.deadline).min()
+    }
+
+    /// Takes a request read from a channel: the request to send now if its name is free,
+    /// else it waits for its name.
+    fn admit(&mut self, request: Request) -> Option<Request> {
+        let request = usable(request)?;
+        if self.on_wire.contains_key(request.name) {
+            self.prune();
+            self.waiting.push_back(request);
+            None
+        } else {
+            Some(request)
         }
     }
 
@@ -226,6 +494,7 @@ impl Book {
             Ok(reply) => reply,
             Err(why) => {
                 tracing::warn!(line = text, %why, "wsg text: reply that is not GCL, dropped");
+                self.damage(text);
                 return Handled::Nothing;
             }
         };
@@ -243,6 +512,7 @@ impl Book {
                 // No name: it cannot be paired with confidence (§4.3). The caller it was meant
                 // for times out rather than a wrong caller failing.
                 tracing::warn!(line = text, "wsg text: ERR without a command name, dropped");
+                self.damage(text);
                 return Handled::Nothing;
             }
         };
@@ -250,13 +520,31 @@ impl Book {
         // lower-case one is still the same command.
         let Some((&key, slot)) = self
             .on_wire
-            .iter()
+            .iter_mut()
             .find(|(k, _)| k.eq_ignore_ascii_case(name))
         else {
             tracing::debug!(
                 line = text,
                 "wsg text: reply for no command on the wire, dropped"
             );
+            // A name damaged on the way reads as another name.
+            self.damage(text);
+            return Handled::Nothing;
+        };
+        // A reply to a line written after a damaged one: the replies before it have come.
+        // (A motion's `FIN` is no such sign: it comes when the motion ends.)
+        if !matches!(reply, ReplyLine::Fin(_)) {
+            let seq = slot.seq;
+            if matches!(reply, ReplyLine::Ack(_)) && slot.expect == Expect::Fin {
+                slot.acked = true;
+                slot.damages_at_ack = self.damages;
+            }
+            self.settle(seq);
+        }
+        if let (ReplyLine::Value { value, .. }, "GRIPSTATE") = (reply, key) {
+            self.motion_state(value, self.give_up_after);
+        }
+        let Some(slot) = self.on_wire.get(key) else {
             return Handled::Nothing;
         };
         let result = match (reply, slot.expect) {
@@ -311,6 +599,21 @@ fn usable(request: Request) -> Option<Request> {
     Some(request)
 }
 
+/// Resolves when the caller of a waiting request has left (its future dropped).
+async fn any_caller_gone(waiting: &mut VecDeque<Request>) {
+    std::future::poll_fn(|cx| {
+        if waiting
+            .iter_mut()
+            .any(|r| r.waiter.poll_closed(cx).is_ready())
+        {
+            std::task::Poll::Ready(())
+        } else {
+            std::task::Poll::Pending
+        }
+    })
+    .await
+}
+
 /// Runs until every handle is dropped, `BYE()` is acknowledged, or the connection is lost for
 /// good (the loop is the shared supervisor's, `crate::supervisor`).
 pub(crate) async fn run(stream: BoxStream, task: Task) {
@@ -354,6 +657,7 @@ impl LineTask for Task {
         serve(
             conn,
             &mut self.requests,
+            &mut self.stops,
             self.config,
             &self.shared,
             reconnects,
@@ -370,6 +674,11 @@ impl LineTask for Task {
 
     fn ended(&mut self, reason: &Error) {
         self.shared.record(reason);
+        // The supervisor refuses what is left in `requests`; the stops are ours to refuse.
+        self.stops.close();
+        while let Ok(request) = self.stops.try_recv() {
+            Self::refuse(request, reason);
+        }
         if let Ok(mut subs) = self.shared.subscribers.lock() {
             // Ends every push stream.
             subs.clear();
@@ -393,19 +702,8 @@ async fn exchange(
     let command = setting.line.clone();
     conn.writer.send::<Error>(&setting.line, deadline).await?;
     let (waiter, mut answer) = oneshot::channel();
-    let mut book = Book {
-        on_wire: BTreeMap::new(),
-        waiting: VecDeque::new(),
-    };
-    book.on_wire.insert(
-        setting.name,
-        Slot {
-            line: setting.line,
-            expect: setting.expect,
-            waiter,
-            give_up_at: deadline,
-        },
-    );
+    let mut book = Book::new(timeout);
+    book.on_wire(setting.name, setting.line, setting.expect, waiter, deadline);
     loop {
         let line = match tokio::time::timeout_at(deadline, conn.reader.next_line()).await {
             Err(_) => return Err(Error::Timeout { command, timeout }),
@@ -428,24 +726,34 @@ async fn exchange(
 async fn serve(
     conn: &mut LineConn,
     requests: &mut mpsc::Receiver<Request>,
+    stops: &mut mpsc::Receiver<Request>,
     config: TaskConfig,
     shared: &Shared,
     reconnects: bool,
 ) -> Error {
-    let mut book = Book {
-        on_wire: BTreeMap::new(),
-        waiting: VecDeque::new(),
-    };
+    let mut book = Book::new(config.give_up_after);
     let timer = tokio::time::sleep_until(Instant::now());
     tokio::pin!(timer);
+    // While the queue is full: the earliest deadline of a waiting request, when it leaves.
+    let queue_timer = tokio::time::sleep_until(Instant::now());
+    tokio::pin!(queue_timer);
     // A request whose line could not be written: told why at the end.
     let mut unsent = None;
-    // `BYE()` is on the wire: nothing more is sent.
-    let mut closing = false;
+    // `BYE()` is on the wire (with its call's timeout; `bye_timer` is at its deadline):
+    // nothing more is sent.
+    let mut closing: Option<Duration> = None;
+    let bye_timer = tokio::time::sleep_until(Instant::now());
+    tokio::pin!(bye_timer);
     let end = 'serve: loop {
         let give_up = book.give_up_at();
         if let Some(at) = give_up {
             move_timer(timer.as_mut(), at);
+        }
+        book.prune();
+        let full = book.waiting.len() >= config.waiting_len;
+        let queue_deadline = if full { book.waiting_deadline() } else { None };
+        if let Some(at) = queue_deadline {
+            move_timer(queue_timer.as_mut(), at);
         }
         let mut to_send: Option<Request> = None;
         tokio::select! {
@@ -455,41 +763,88 @@ async fn serve(
                 Some(Ok(line)) => match line.text() {
                     Ok(text) => match book.on_line(text, shared) {
                         Handled::Bye => break Error::Closed,
+                        // `BYE()` answered otherwise (`ERR BYE`, a reply of another kind): its
+                        // call has its answer, and the program is done with the connection all
+                        // the same (issue 29 N).
+                        Handled::Freed("BYE") if closing.is_some() => break Error::Closed,
+                        // After `BYE()` nothing more is written (issue 29 N).
+                        Handled::Freed(_) if closing.is_some() => {}
                         // A name freed: its next waiting request goes out.
                         Handled::Freed(name) => to_send = book.next_waiting(name),
                         Handled::Nothing => {}
                     },
-                    Err(why) => tracing::warn!(%why, "wsg text: reply line discarded"),
+                    Err(why) => {
+                        tracing::warn!(%why, "wsg text: reply line discarded");
+                        book.damage(&why.to_string());
+                    }
                 },
                 Some(Err(e)) => break io_error(e),
                 None => break peer_closed(),
             },
             () = &mut timer, if give_up.is_some() => {
-                let command = book
-                    .on_wire
-                    .values()
-                    .min_by_key(|s| s.give_up_at)
-                    .map(|s| s.line.clone())
-                    .unwrap_or_default();
-                tracing::error!(%command, "wsg text: reply overdue, giving up on the connection");
-                break Error::lost(format!(
-                    "no reply to {command} long after its timeout; replies can no longer be paired"
-                ));
-            },
-            request = requests.recv(), if !closing && book.waiting.len() < config.waiting_len => {
-                let Some(request) = request else { break Error::Closed };
-                let Some(request) = usable(request) else { continue };
-                if book.on_wire.contains_key(request.name) {
-                    // Drop the waiting requests nobody waits for any more first, so the queue
-                    // holds at most one request per live caller.
-                    book.waiting.retain(|r| !r.waiter.is_closed());
-                    book.waiting.push_back(request);
-                } else {
-                    to_send = Some(request);
+                match book.overdue(config.query_timeout, config.give_up_after) {
+                    // Not after `BYE()` (issue 29 N): the session ends at its deadline anyway.
+                    Ok(probe) if closing.is_none() => to_send = probe,
+                    Ok(_) => {}
+                    Err(command) => {
+                        tracing::error!(%command, "wsg text: reply overdue, giving up on the connection");
+                        break Error::lost(format!(
+                            "no reply to {command} long after its timeout; replies can no longer be paired"
+                        ));
+                    }
                 }
+            },
+            // `BYE()`'s call is over without `ACK BYE`: the connection is closed then, so
+            // the calls after `close()` fail `Closed` (issue 29 N).
+            () = &mut bye_timer, if closing.is_some() => {
+                // Its caller is told it timed out (not `Closed`), whichever timer fires first.
+                if let (Some(slot), Some(timeout)) = (book.on_wire.remove("BYE"), closing) {
+                    let _ = slot.waiter.send(Err(Error::Timeout {
+                        command: slot.line,
+                        timeout,
+                    }));
+                }
+                break Error::Closed;
+            }
+            // A stop is read whatever the queue holds (issue 29 K).
+            request = stops.recv(), if closing.is_none() => {
+                let Some(request) = request else { break Error::Closed };
+                to_send = book.admit(request);
+            }
+            request = requests.recv(), if closing.is_none() && !full => {
+                let Some(request) = request else { break Error::Closed };
+                to_send = book.admit(request);
+            }
+            // The queue is full: a request leaves it when its time runs out or its caller
+            // leaves, and the channel is read again.
+            () = &mut queue_timer, if queue_deadline.is_some() => {}
+            () = any_caller_gone(&mut book.waiting), if full => {}
+        }
+        let mut outgoing: VecDeque<Request> = to_send.into_iter().collect();
+        // Names freed by calls whose reply was damaged: their next waiting requests go out
+        // (not after `BYE()`).
+        for name in std::mem::take(&mut book.freed) {
+            if closing.is_none() {
+                outgoing.extend(book.next_waiting(name));
             }
         }
-        if let Some(request) = to_send {
+        // After what there is to send, a probe if a damaged line left calls in doubt (M).
+        let mut probed = closing.is_some();
+        loop {
+            let request = match outgoing.pop_front() {
+                Some(request) => request,
+                None if !probed => {
+                    probed = true;
+                    match book.probe(config.query_timeout) {
+                        Some(probe) => {
+                            tracing::debug!(command = %probe.line, "wsg text: probe after a damaged reply");
+                            probe
+                        }
+                        None => break,
+                    }
+                }
+                None => break,
+            };
             let give_up_at = after(request.deadline, config.give_up_after);
             match conn.writer.send(&request.line, give_up_at).await {
                 Ok(()) => {}
@@ -505,21 +860,28 @@ async fn serve(
                 }
             }
             tracing::trace!(command = %request.line, "wsg text: sent");
-            closing |= request.name == "BYE";
-            book.on_wire.insert(
+            if request.name == "BYE" {
+                closing = Some(request.timeout);
+                move_timer(bye_timer.as_mut(), request.deadline);
+                // The calls waiting for their name are never sent now.
+                for waiting in book.waiting.drain(..).chain(outgoing.drain(..)) {
+                    let _ = waiting.waiter.send(Err(Error::Closed));
+                }
+                probed = true;
+            }
+            book.on_wire(
                 request.name,
-                Slot {
-                    line: request.line,
-                    expect: request.expect,
-                    waiter: request.waiter,
-                    give_up_at,
-                },
+                request.line,
+                request.expect,
+                request.waiter,
+                give_up_at,
             );
         }
     };
-    if closing || matches!(end, Error::Closed) || !reconnects {
+    if closing.is_some() || matches!(end, Error::Closed) || !reconnects {
         shared.record(&end);
         requests.close();
+        stops.close();
     }
     if let Some(waiter) = unsent {
         let _ = waiter.send(Err(end.clone()));
@@ -533,7 +895,7 @@ async fn serve(
     conn.writer.shutdown().await;
     // After BYE() the program is done with the connection, however it ended: a loss then is
     // not reconnected.
-    if closing && reconnects {
+    if closing.is_some() && reconnects {
         Error::Closed
     } else {
         end

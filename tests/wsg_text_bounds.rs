@@ -1,0 +1,387 @@
+//! The WSG text client's bounds (issue 29 K–O): what no configuration or caller may do to the
+//! connection. Each test runs the client against a scripted gripper on loopback TCP (port 0)
+//! that answers exactly what the test says, on a paused clock where the test waits on time.
+
+use std::time::Duration;
+
+use gripper::wsg::text::{Client, ClientConfig};
+use tokio::io::{AsyncBufReadExt, AsyncWriteExt, BufReader};
+use tokio::net::tcp::{OwnedReadHalf, OwnedWriteHalf};
+use tokio::net::{TcpListener, TcpStream};
+
+/// Upper bound for anything that should happen promptly; only reached when a test fails.
+const LIMIT: Duration = Duration::from_secs(20);
+
+/// The gripper's side of one connection: reads the client's lines, writes replies.
+struct Gripper {
+    lines: tokio::io::Lines<BufReader<OwnedReadHalf>>,
+    write: OwnedWriteHalf,
+}
+
+impl Gripper {
+    /// The next line the client wrote (`None` once it closed the connection).
+    async fn line(&mut self) -> Option<String> {
+        tokio::time::timeout(LIMIT, self.lines.next_line())
+            .await
+            .expect("the client wrote nothing")
+            .unwrap()
+    }
+
+    async fn reply(&mut self, line: &str) {
+        self.write
+            .write_all(format!("{line}\n").as_bytes())
+            .await
+            .unwrap();
+    }
+}
+
+/// A client with `config` connected to a scripted gripper.
+async fn pair(config: ClientConfig) -> (Client, Gripper) {
+    let listener = TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let addr = listener.local_addr().unwrap();
+    let (client, accepted) = tokio::join!(Client::connect_with(addr, config), listener.accept());
+    let (stream, _) = accepted.unwrap();
+    (client.unwrap(), gripper(stream))
+}
+
+fn gripper(stream: TcpStream) -> Gripper {
+    let (read, write) = stream.into_split();
+    Gripper {
+        lines: BufReader::new(read).lines(),
+        write,
+    }
+}
+
+/// Issue 29 O: `queue_len` and `push_buffer` `usize::MAX` (unbounded in practice) are taken as
+/// tokio's largest channel, not a panic in its semaphore.
+#[tokio::test]
+async fn queue_len_and_push_buffer_usize_max_serve_calls() {
+    let config = ClientConfig {
+        queue_len: usize::MAX,
+        push_buffer: usize::MAX,
+        ..ClientConfig::default()
+    };
+    let (client, mut gripper) = pair(config).await;
+    let mut pushes = client.pushes();
+    let call = tokio::spawn({
+        let client = client.clone();
+        async move { client.position_mm().await }
+    });
+    assert_eq!(gripper.line().await.as_deref(), Some("POS?"));
+    gripper.reply("@POS=12.5").await;
+    gripper.reply("POS=12.5").await;
+    assert_eq!(call.await.unwrap().unwrap(), 12.5);
+    assert_eq!(pushes.recv().await.unwrap().value, 12.5);
+}
+
+/// The next line the client wrote, within `within` (a line that never comes fails the test).
+async fn line_within(gripper: &mut Gripper, within: Duration, what: &str) -> String {
+    tokio::time::timeout(within, gripper.lines.next_line())
+        .await
+        .unwrap_or_else(|_| panic!("not written within {within:?}: {what}"))
+        .unwrap()
+        .expect("the client closed the connection")
+}
+
+/// A MOVE acknowledged and running (its FIN not sent), and a second MOVE waiting for the name:
+/// with `queue_len` 1 the client's queue is full.
+async fn full_queue(client: &Client, gripper: &mut Gripper) -> [tokio::task::JoinHandle<()>; 1] {
+    let first = tokio::spawn({
+        let client = client.clone();
+        async move { client.move_to(10.0, None).await.unwrap() }
+    });
+    let line = gripper.line().await.unwrap();
+    assert!(line.starts_with("MOVE(10"), "{line}");
+    gripper.reply("ACK MOVE").await;
+    [first]
+}
+
+/// Issue 29 K: `STOP()` is written at once while the queue is full of calls waiting for a busy
+/// name (and the channel holds a call behind them): a stop never waits behind the queue.
+#[tokio::test]
+async fn stop_is_written_at_once_behind_a_full_queue() {
+    let config = ClientConfig {
+        queue_len: 1,
+        ..ClientConfig::default()
+    };
+    let (client, mut gripper) = pair(config).await;
+    let [first] = full_queue(&client, &mut gripper).await;
+    let second = tokio::spawn({
+        let client = client.clone();
+        async move { client.move_to(20.0, None).await }
+    });
+    let query = tokio::spawn({
+        let client = client.clone();
+        async move { client.position_mm().await }
+    });
+    let stop = tokio::spawn({
+        let client = client.clone();
+        async move { client.stop().await }
+    });
+    let line = line_within(&mut gripper, Duration::from_secs(5), "STOP()").await;
+    assert_eq!(line, "STOP()");
+    gripper.reply("ACK STOP").await;
+    stop.await.unwrap().unwrap();
+    // The queue then drains in order as names free.
+    gripper.reply("FIN MOVE").await;
+    first.await.unwrap();
+    let line = gripper.line().await.unwrap();
+    assert!(line.starts_with("MOVE(20"), "{line}");
+    gripper.reply("ACK MOVE").await;
+    gripper.reply("FIN MOVE").await;
+    second.await.unwrap().unwrap();
+    assert_eq!(gripper.line().await.as_deref(), Some("POS?"));
+    gripper.reply("POS=20").await;
+    assert_eq!(query.await.unwrap().unwrap(), 20.0);
+}
+
+/// Issue 29 K: a call that gave up while waiting for its name leaves the queue when it gives
+/// up, not when its name frees: the calls behind it go out meanwhile.
+#[tokio::test]
+async fn a_call_given_up_leaves_a_full_queue() {
+    let config = ClientConfig {
+        queue_len: 1,
+        ..ClientConfig::default()
+    };
+    let (client, mut gripper) = pair(config).await;
+    let [_first] = full_queue(&client, &mut gripper).await;
+    let gave_up = client
+        .with_timeout(Duration::from_millis(200))
+        .move_to(20.0, None)
+        .await;
+    assert!(
+        matches!(gave_up, Err(gripper::wsg::text::Error::Timeout { .. })),
+        "{gave_up:?}"
+    );
+    let query = tokio::spawn({
+        let client = client.clone();
+        async move { client.position_mm().await }
+    });
+    let line = line_within(&mut gripper, Duration::from_secs(5), "POS?").await;
+    assert_eq!(line, "POS?");
+    gripper.reply("POS=10").await;
+    assert_eq!(query.await.unwrap().unwrap(), 10.0);
+}
+
+/// The connection's end as the gripper sees it: every line the client writes until it closes
+/// the connection (bounded: a connection left open fails the test).
+async fn lines_until_closed(gripper: &mut Gripper) -> Vec<String> {
+    let mut lines = Vec::new();
+    while let Some(line) = gripper.line().await {
+        lines.push(line);
+    }
+    lines
+}
+
+/// Issue 29 N: a call waiting for a busy name when `BYE()` goes out is never written, even
+/// when a reply frees its name before `ACK BYE`; it fails `Closed`.
+#[tokio::test]
+async fn nothing_is_written_after_bye() {
+    let config = ClientConfig {
+        queue_len: 4,
+        ..ClientConfig::default()
+    };
+    let (client, mut gripper) = pair(config).await;
+    let [first] = full_queue(&client, &mut gripper).await;
+    let second = tokio::spawn({
+        let client = client.clone();
+        async move { client.move_to(20.0, None).await }
+    });
+    // Written once MOVE(20) waits in the task (the channel is read in order).
+    let query = tokio::spawn({
+        let client = client.clone();
+        async move { client.position_mm().await }
+    });
+    assert_eq!(gripper.line().await.as_deref(), Some("POS?"));
+    gripper.reply("POS=10").await;
+    query.await.unwrap().unwrap();
+    let close = tokio::spawn({
+        let client = client.clone();
+        async move { client.close().await }
+    });
+    assert_eq!(gripper.line().await.as_deref(), Some("BYE()"));
+    gripper.reply("FIN MOVE").await;
+    first.await.unwrap();
+    let waited = second.await.unwrap();
+    assert!(
+        matches!(waited, Err(gripper::wsg::text::Error::Closed)),
+        "{waited:?}"
+    );
+    gripper.reply("ACK BYE").await;
+    close.await.unwrap().unwrap();
+    assert_eq!(lines_until_closed(&mut gripper).await, Vec::<String>::new());
+}
+
+/// Issue 29 N: `BYE()` refused (`ERR BYE …`): `close()` returns the refusal, and the
+/// connection is closed all the same: a later call fails `Closed` at once.
+#[tokio::test]
+async fn bye_refused_still_closes() {
+    let (client, mut gripper) = pair(ClientConfig::default()).await;
+    let close = tokio::spawn({
+        let client = client.clone();
+        async move { client.close().await }
+    });
+    assert_eq!(gripper.line().await.as_deref(), Some("BYE()"));
+    gripper.reply("ERR BYE 2").await;
+    let refused = close.await.unwrap();
+    assert!(
+        matches!(refused, Err(gripper::wsg::text::Error::Device { .. })),
+        "{refused:?}"
+    );
+    assert_eq!(lines_until_closed(&mut gripper).await, Vec::<String>::new());
+    let after = tokio::time::timeout(LIMIT, client.position_mm()).await;
+    assert!(
+        matches!(after, Ok(Err(gripper::wsg::text::Error::Closed))),
+        "{after:?}"
+    );
+}
+
+/// Issue 29 N: `BYE()` unanswered: `close()` times out, and the connection is closed then: a
+/// later call fails `Closed`, not `Timeout`.
+#[tokio::test]
+async fn bye_unanswered_closes_when_close_times_out() {
+    let (client, mut gripper) = pair(ClientConfig::default()).await;
+    let impatient = client.with_timeout(Duration::from_millis(200));
+    let (closed, line) = tokio::join!(impatient.close(), gripper.line());
+    assert_eq!(line.as_deref(), Some("BYE()"));
+    assert!(
+        matches!(closed, Err(gripper::wsg::text::Error::Timeout { .. })),
+        "{closed:?}"
+    );
+    let after = client.position_mm().await;
+    assert!(
+        matches!(after, Err(gripper::wsg::text::Error::Closed)),
+        "{after:?}"
+    );
+    assert_eq!(lines_until_closed(&mut gripper).await, Vec::<String>::new());
+}
+
+/// Issue 29 M: a call without timeout whose reply arrives damaged (here `damaged`) ends: the
+/// client probes with a query, and once a reply written after the damaged line arrives, the
+/// call fails `MalformedReply` and its name is free for the next call.
+async fn damaged_reply_of_a_call_without_timeout(damaged: &str) {
+    let (client, mut gripper) = pair(ClientConfig::default()).await;
+    let forever = client.with_timeout(Duration::MAX);
+    let call = tokio::spawn({
+        let forever = forever.clone();
+        async move { forever.set_verbose(false).await }
+    });
+    assert_eq!(gripper.line().await.as_deref(), Some("VERBOSE=0"));
+    gripper.reply(damaged).await;
+    assert_eq!(gripper.line().await.as_deref(), Some("GRIPSTATE?"));
+    gripper.reply("GRIPSTATE=0").await;
+    let failed = tokio::time::timeout(LIMIT, call)
+        .await
+        .expect("the call never ended");
+    assert!(
+        matches!(
+            failed,
+            Ok(Err(gripper::wsg::text::Error::MalformedReply { .. }))
+        ),
+        "{failed:?}"
+    );
+    // VERBOSE is free again.
+    let again = tokio::spawn(async move { forever.set_verbose(true).await });
+    assert_eq!(gripper.line().await.as_deref(), Some("VERBOSE=1"));
+    gripper.reply("VERBOSE=1").await;
+    assert!(again.await.unwrap().unwrap());
+}
+
+#[tokio::test]
+async fn call_without_timeout_ends_when_its_reply_is_err_without_a_name() {
+    damaged_reply_of_a_call_without_timeout("ERR 2").await;
+}
+
+#[tokio::test]
+async fn call_without_timeout_ends_when_its_reply_is_malformed() {
+    damaged_reply_of_a_call_without_timeout("VERBOSE 0").await;
+}
+
+#[tokio::test]
+async fn call_without_timeout_ends_when_its_reply_names_another_command() {
+    damaged_reply_of_a_call_without_timeout("VERBOSF=0").await;
+}
+
+/// A client (`give_up_after` 200 ms) whose `MOVE(10)` with a 100 ms timeout was acknowledged
+/// (then answered `after_ack`) and timed out; returned once, past its timeout +
+/// `give_up_after`, the client asked `GRIPSTATE?` (issue 29 L).
+async fn overdue_move(after_ack: &[&str]) -> (Client, Gripper) {
+    let config = ClientConfig {
+        give_up_after: Duration::from_millis(200),
+        ..ClientConfig::default()
+    };
+    let (client, mut gripper) = pair(config).await;
+    let slow = client.with_timeout(Duration::from_millis(100));
+    let (moved, line) = tokio::join!(slow.move_to(10.0, None), async {
+        let line = gripper.line().await.unwrap();
+        gripper.reply("ACK MOVE").await;
+        for reply in after_ack {
+            gripper.reply(reply).await;
+        }
+        line
+    });
+    assert!(line.starts_with("MOVE(10"), "{line}");
+    assert!(
+        matches!(moved, Err(gripper::wsg::text::Error::Timeout { .. })),
+        "{moved:?}"
+    );
+    let line = line_within(&mut gripper, Duration::from_secs(5), "GRIPSTATE?").await;
+    assert_eq!(line, "GRIPSTATE?");
+    (client, gripper)
+}
+
+/// Issue 29 L: an acknowledged motion whose `FIN` comes later than its timeout +
+/// `give_up_after` is checked with `GRIPSTATE?`, not given up on time alone: while the gripper
+/// reports it running, the connection stays, and its late `FIN` is consumed when it comes.
+#[tokio::test]
+async fn a_slow_acknowledged_motion_is_checked_not_given_up() {
+    let (client, mut gripper) = overdue_move(&[]).await;
+    // The motion still runs (6: positioning).
+    gripper.reply("GRIPSTATE=6").await;
+    // Asked again later, still running; then the FIN comes.
+    let line = line_within(&mut gripper, Duration::from_secs(5), "GRIPSTATE?").await;
+    assert_eq!(line, "GRIPSTATE?");
+    gripper.reply("GRIPSTATE=6").await;
+    gripper.reply("FIN MOVE").await;
+    // The connection is up and MOVE is free.
+    let again = tokio::spawn({
+        let client = client.clone();
+        async move { client.move_to(20.0, None).await }
+    });
+    let line = gripper.line().await.unwrap();
+    assert!(line.starts_with("MOVE(20"), "{line}");
+    gripper.reply("ACK MOVE").await;
+    gripper.reply("FIN MOVE").await;
+    again.await.unwrap().unwrap();
+}
+
+/// Issue 29 L: a motion the gripper reports over whose `FIN` still does not come gets the
+/// connection given up (for cause: a later `FIN` could no longer be paired).
+#[tokio::test]
+async fn a_motion_reported_over_without_its_fin_gives_the_connection_up() {
+    let (client, mut gripper) = overdue_move(&[]).await;
+    gripper.reply("GRIPSTATE=0").await;
+    assert_eq!(lines_until_closed(&mut gripper).await, Vec::<String>::new());
+    let after = client.position_mm().await;
+    assert!(
+        matches!(after, Err(gripper::wsg::text::Error::ConnectionLost { .. })),
+        "{after:?}"
+    );
+}
+
+/// Issue 29 M for motions, found through L's check: an acknowledged motion whose `FIN` arrived
+/// damaged ends once the gripper reports it over, and its name is free; the connection stays.
+#[tokio::test]
+async fn a_motion_whose_fin_was_damaged_ends_when_reported_over() {
+    let (client, mut gripper) = overdue_move(&["FIN MOVX"]).await;
+    gripper.reply("GRIPSTATE=0").await;
+    let again = tokio::spawn({
+        let client = client.clone();
+        async move { client.move_to(20.0, None).await }
+    });
+    let line = line_within(&mut gripper, Duration::from_secs(5), "MOVE(20)").await;
+    assert!(line.starts_with("MOVE(20"), "{line}");
+    gripper.reply("ACK MOVE").await;
+    gripper.reply("FIN MOVE").await;
+    again.await.unwrap().unwrap();
+}
