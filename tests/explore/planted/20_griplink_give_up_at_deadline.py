@@ -8,6 +8,8 @@ KIND = "6 (a connection is lost only for cause)"
 
 plant(
     "src/griplink/client/task.rs",
-    "let give_up_at = crate::deadline::after(request.deadline, config.give_up_after);",
-    "let give_up_at = request.deadline;",
+    """                    request.deadline,
+                    config.give_up_after,""",
+    """                    request.deadline,
+                    std::time::Duration::ZERO,""",
 )

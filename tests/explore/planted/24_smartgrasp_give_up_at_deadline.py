@@ -7,6 +7,8 @@ KIND = "6 (a connection is lost only for cause)"
 
 plant(
     "src/smartgrasp/client/link.rs",
-    "let give_up_at = after(deadline, self.give_up_after);",
-    "let give_up_at = deadline;",
+    """            deadline,
+            self.give_up_after,""",
+    """            deadline,
+            std::time::Duration::ZERO,""",
 )

@@ -7,9 +7,9 @@ KIND = "9 (a stop is sent at once, faults or not)"
 
 plant(
     "src/wsg/text/task.rs",
-    """                if book.on_wire.contains_key(request.name) {""",
-    """                let behind = request.name == "STOP" && !book.waiting.is_empty();
-                if book.on_wire.contains_key(request.name) || behind {""",
+    """        if self.on_wire.contains_key(request.name) {""",
+    """        let behind = request.name == "STOP" && !self.waiting.is_empty();
+        if self.on_wire.contains_key(request.name) || behind {""",
 )
 plant(
     "src/wsg/text/task.rs",

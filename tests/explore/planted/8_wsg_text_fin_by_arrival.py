@@ -9,13 +9,12 @@ plant(
     "src/wsg/text/task.rs",
     """        let Some((&key, slot)) = self
             .on_wire
-            .iter()
+            .iter_mut()
             .find(|(k, _)| k.eq_ignore_ascii_case(name))""",
-    """        let by_arrival = matches!(reply, ReplyLine::Fin(_))
-            .then(|| self.on_wire.iter().find(|(_, s)| s.expect == Expect::Fin))
-            .flatten();
-        let Some((&key, slot)) = by_arrival.or_else(|| self
+    """        let fin = matches!(reply, ReplyLine::Fin(_))
+            && self.on_wire.values().any(|s| s.expect == Expect::Fin);
+        let Some((&key, slot)) = self
             .on_wire
-            .iter()
-            .find(|(k, _)| k.eq_ignore_ascii_case(name)))""",
+            .iter_mut()
+            .find(|(k, s)| if fin { s.expect == Expect::Fin } else { k.eq_ignore_ascii_case(name) })""",
 )

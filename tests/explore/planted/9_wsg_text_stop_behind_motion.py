@@ -7,9 +7,9 @@ KIND = "3 (a stop goes out at once)"
 
 plant(
     "src/wsg/text/task.rs",
-    """                if book.on_wire.contains_key(request.name) {""",
-    """                let motion = book.on_wire.values().any(|s| s.expect == Expect::Fin);
-                if book.on_wire.contains_key(request.name) || (request.name == "STOP" && motion) {""",
+    """        if self.on_wire.contains_key(request.name) {""",
+    """        let motion = self.on_wire.values().any(|s| s.expect == Expect::Fin);
+        if self.on_wire.contains_key(request.name) || (request.name == "STOP" && motion) {""",
 )
 plant(
     "src/wsg/text/task.rs",
