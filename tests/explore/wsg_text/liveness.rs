@@ -208,16 +208,50 @@ fn timeout(
     let r = reply_read(log, c.name, c.expect, (seq, deadline), max)?;
     (r.at + MARGIN <= deadline).then(|| {
         format!(
-            "7 (a Timeout only when its reply did not arrive in time): client {} {} (timeout {:?}) ended Timeout, yet the client wrote it {:?} after the call began and read {:?} {:?} after, {:?} before its deadline",
+            "7 (a Timeout only when its reply did not arrive in time): client {} {} (timeout {:?}) ended Timeout, yet the client wrote it {:?} after the call began and read {:?} {:?} after, {:?} before its deadline{}",
             c.client,
             c.line,
             c.timeout,
             w - c.start,
             r.text,
             r.at - w,
-            deadline - r.at
+            deadline - r.at,
+            own_probe(i, calls, own, log, deadline)
         )
     })
+}
+
+/// The tag of a Timeout next to a line of the call's text that the client wrote on its own, no
+/// call's write (the probes of issue 29 L and M: `GRIPSTATE?`, `POS?`, `SPEED?`), within
+/// `PROBE_REACH` before the call began and its deadline: which of the two writes a reply answers
+/// cannot be told from the wire, and the call may have waited behind the probe (an open finding
+/// of the text client, `wsg-text:0x3b91b8f4d71e229e`).
+fn own_probe(
+    i: usize,
+    calls: &[CallRec],
+    own: &[Option<(Instant, u64)>],
+    log: &TapLog,
+    deadline: Instant,
+) -> &'static str {
+    const PROBE_REACH: Duration = Duration::from_secs(5);
+    let c = &calls[i];
+    let attributed: std::collections::BTreeSet<u64> = calls
+        .iter()
+        .zip(own)
+        .filter(|(o, _)| o.client == c.client && o.conn == c.conn)
+        .filter_map(|(_, w)| w.map(|(_, seq)| seq))
+        .collect();
+    let probe = log.written.lines.iter().any(|l| {
+        l.text == c.line
+            && l.at <= deadline
+            && l.at + PROBE_REACH >= c.start
+            && !attributed.contains(&l.seq)
+    });
+    if probe {
+        " [a line of its text the client wrote on its own (a probe) was on the wire]"
+    } else {
+        ""
+    }
 }
 
 /// Rule 6 for the first loss of a connection.
