@@ -374,3 +374,41 @@ fn polling_with_a_zero_interval_pauses_the_minimum_between_reads() {
         "{reads} state reads in {took:?} (bound {bound})"
     );
 }
+
+/// `SimServer::held_replies` counts a connection whose blocking command (here WSTR, manual
+/// 3.4.10) holds its reply, and stops counting it once the reply is sent: the explorer's quiet
+/// phase waits for 0 before it judges calls that queue behind such a command.
+#[tokio::test]
+async fn held_replies_counts_a_connection_held_by_wstr_until_it_answers() {
+    // Time scale 1: the WSTR timeout (60 s) cannot end the wait during the test.
+    let config = SimConfig::et4().wstr_timeout(Duration::from_secs(60));
+    let (server, client) = homed(config).await;
+    slow_down(&server, 1.0);
+    let g = client.port(0);
+    // Report HOME's transition, then the same state again ("issued twice"), so that the next
+    // WSTR waits for a new one.
+    g.wait_for_transition().await.unwrap();
+    g.wait_for_transition().await.unwrap();
+    assert_eq!(server.held_replies(), 0);
+
+    let stream = TcpStream::connect(server.local_addr()).await.unwrap();
+    let (read, mut write) = stream.into_split();
+    let mut lines = BufReader::new(read).lines();
+    write.write_all(b"WSTR[0]?\n").await.unwrap();
+    // Bounded: the simulator reads the line as soon as it is scheduled.
+    let held = async {
+        while server.held_replies() == 0 {
+            tokio::task::yield_now().await;
+        }
+    };
+    tokio::time::timeout(Duration::from_secs(5), held)
+        .await
+        .expect("the WSTR was never counted as held");
+    assert_eq!(server.held_replies(), 1);
+
+    // A transition (the device faults) answers the WSTR (3.4.10).
+    server.inject_device_fault(0);
+    let line = lines.next_line().await.unwrap();
+    assert_eq!(line.as_deref(), Some("WSTR[0]=7"));
+    assert_eq!(server.held_replies(), 0);
+}

@@ -8,6 +8,7 @@ use std::future::poll_fn;
 use std::io;
 use std::net::SocketAddr;
 use std::pin::Pin;
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
 
@@ -84,6 +85,9 @@ struct Shared {
     /// Each request processed and the reply sent, per session (off until
     /// [`SimServer::start_recording`]).
     recording: Mutex<Option<Recording>>,
+    /// How many connections hold a reply until a blocking command is done
+    /// ([`SimServer::held_replies`]).
+    held: AtomicUsize,
 }
 
 /// One command line a session processed and the reply line it sent (a test's oracle checks
@@ -179,6 +183,7 @@ impl SimServer {
             epoch: Instant::now(),
             max_line_len: DEFAULT_MAX_LINE_LEN,
             recording: Mutex::new(None),
+            held: AtomicUsize::new(0),
         });
         let (shutdown, _) = watch::channel(false);
         SimServer {
@@ -266,6 +271,15 @@ impl SimServer {
     /// Puts a part of `width_mm` between the fingers on `port` (`None`: take it away).
     pub fn set_part(&self, port: PortNumber, width_mm: Option<f64>) {
         self.with_controller(|c, _| c.set_part(usize::from(port), width_mm));
+    }
+
+    /// How many connections are held by a blocking command (HOME, a GRIP/RELEASE/FLEX… with
+    /// do_block=1, WSTR, WAITVAL) whose reply is not due yet: the controller reads nothing
+    /// else from such a connection until it answers (manual 2.1). A test that needs the
+    /// controller to have answered everything it was given waits for 0 (commands still on
+    /// their way to the controller, or queued behind a held one, are not counted).
+    pub fn held_replies(&self) -> usize {
+        self.shared.held.load(Ordering::SeqCst)
     }
 
     /// Faults the device on `port` now.
@@ -406,10 +420,28 @@ async fn execute(shared: &Shared, session: &mut Session, command: &Command) -> (
         Outcome::Reply(line) => (line, false),
         Outcome::Bye => ("ACK".to_owned(), true),
         Outcome::Wait(wait) => {
+            let _held = Held::count(&shared.held);
             let line = hold(shared, session, &wait).await;
             shared.changed.notify_waiters();
             (line, false)
         }
+    }
+}
+
+/// A connection counted in [`SimServer::held_replies`] while it lives (also when the
+/// connection ends mid-wait: the count never stays up for a connection that is gone).
+struct Held<'a>(&'a AtomicUsize);
+
+impl<'a> Held<'a> {
+    fn count(held: &'a AtomicUsize) -> Self {
+        held.fetch_add(1, Ordering::SeqCst);
+        Held(held)
+    }
+}
+
+impl Drop for Held<'_> {
+    fn drop(&mut self) {
+        self.0.fetch_sub(1, Ordering::SeqCst);
     }
 }
 

@@ -38,9 +38,15 @@ pub struct Griplink;
 const RECORD_CAPACITY: usize = 1 << 20;
 
 /// How long a call without timeout may take before the caller's guard calls it hung (rule 8):
-/// far beyond anything the run's faults allow (a motion of at most 10 s, a 3 s stall, a
-/// give-up of at most 1 s, reconnects every 0.5 s).
+/// far beyond anything the run's faults allow (a 3 s stall, a give-up of at most 1 s,
+/// reconnects every 0.5 s) -- unless the controller still holds a reply then: a blocking
+/// motion may be slow for real (a FLEX… drawn at 1 µm/s takes a day over the whole stroke;
+/// griplink-tcp:0x05d4b74b6354804d, 82 µm/s, 889 s), and WSTRs pipelined one behind another
+/// hold the line up to 10 s each. The guard then waits on, up to [`HELD_LIMIT`].
 const FOREVER_GUARD: Duration = Duration::from_secs(600);
+
+/// The longest a run waits for the controller to answer what it holds (see [`FOREVER_GUARD`]).
+const HELD_LIMIT: Duration = Duration::from_secs(48 * 3600);
 
 impl Scenario for Griplink {
     fn variants(&self) -> &'static [&'static str] {
@@ -88,6 +94,8 @@ struct RunWide {
     forever: bool,
     log: Mutex<Vec<CallRec>>,
     trace: SharedTrace,
+    /// The controller of the moment (whether it still holds a reply).
+    sims: Sims,
 }
 
 /// The client's configuration: every option drawn (pipeline depths beyond the default 1 up to
@@ -177,6 +185,7 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
         forever: drops == 0,
         log: Mutex::new(Vec::new()),
         trace: trace.clone(),
+        sims: sims.clone(),
     });
     let caller = |ctx: &Arc<Ctx>, k, rng, ops| caller(ctx.clone(), k, rng, ops, run_wide.clone());
     let faults = |rng: &mut Prng| {
@@ -197,8 +206,11 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
     // limit, which a call without timeout does not have.
     // The recovery bound: the longest the controller may hold a line (a WSTR, 10 s, manual
     // 3.4.10) beyond the shared 5 s of `quiet_call`, so that no call of the fault phase is
-    // still on the wire.
+    // still on the wire -- and longer while the controller still holds a reply of the fault
+    // phase (a slow motion, WSTRs pipelined one behind another: griplink-tcp:0xcd95b950468dad5f
+    // held the line until 42 s with four WSTRs).
     tokio::time::sleep(Duration::from_secs(8)).await;
+    until_answered(&sims, &trace).await;
     for ctx in &ctxs {
         if ctx.closing.load(Ordering::SeqCst) || drops > 0 {
             continue;
@@ -251,6 +263,51 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
     drop(ctxs);
     drop(sims);
     violations
+}
+
+/// Waits until the controller holds no reply (see [`FOREVER_GUARD`]; at most [`HELD_LIMIT`]),
+/// and notes it if it had to wait.
+async fn until_answered(sims: &Sims, trace: &SharedTrace) {
+    let start = Instant::now();
+    while start.elapsed() < HELD_LIMIT && held(sims).await {
+        tokio::time::sleep(Duration::from_secs(1)).await;
+    }
+    if start.elapsed() > Duration::from_millis(1) {
+        note(
+            trace,
+            format!(
+                "quiet: the controller held a reply {:?} longer",
+                start.elapsed()
+            ),
+        );
+    }
+}
+
+/// Whether the controller holds a reply. A held reply may end at the instant the next blocking
+/// command behind it starts (pipelined WSTRs): none held counts only if none is held a
+/// millisecond later either.
+async fn held(sims: &Sims) -> bool {
+    if sims.current().0.held_replies() > 0 {
+        return true;
+    }
+    tokio::time::sleep(Duration::from_millis(1)).await;
+    sims.current().0.held_replies() > 0
+}
+
+/// A call without timeout, given up on only by rule 8's guard (see [`FOREVER_GUARD`]).
+async fn unless_hung<T>(call: impl Future<Output = T>, sims: &Sims) -> Option<T> {
+    tokio::pin!(call);
+    let start = Instant::now();
+    let mut guard = FOREVER_GUARD;
+    loop {
+        if let Some(result) = unless_given_up(Some(guard), call.as_mut()).await {
+            return Some(result);
+        }
+        if start.elapsed() >= HELD_LIMIT || !held(sims).await {
+            return None;
+        }
+        guard = Duration::from_secs(60);
+    }
 }
 
 /// The device faults of a fault phase: now and then, at 0–5 s, a device faults at once or its
@@ -499,12 +556,12 @@ async fn one_call(ctx: Arc<Ctx>, k: usize, op: Op, mut rng: Prng, run_wide: Arc<
     let start = Instant::now();
     // Now and then the caller gives up on the call (its future dropped); a call without
     // timeout is given up on only by the guard of rule 8.
-    let cancel = if timeout == Duration::MAX {
-        Some(FOREVER_GUARD)
+    let result = if timeout == Duration::MAX {
+        unless_hung(perform(&client, &op, &mut rng), &run_wide.sims).await
     } else {
-        rng.one_in(8).then(|| rng.millis(1, 500))
+        let cancel = rng.one_in(8).then(|| rng.millis(1, 500));
+        unless_given_up(cancel, perform(&client, &op, &mut rng)).await
     };
-    let result = unless_given_up(cancel, perform(&client, &op, &mut rng)).await;
     let end = Instant::now();
     note(
         &run_wide.trace,
