@@ -495,13 +495,19 @@ fn timeouts(
         let view = &views[c.client];
         let found = sent[c.client].iter().find(|s| {
             let Some(d) = s.delivered else { return false };
-            // Another call that may have sent that line: one overlapping, or an earlier one
-            // that got no answer (its reply may still have been on its way).
+            // Another call that may have sent that line: one overlapping, an earlier one
+            // that got no answer (its reply may still have been on its way), or an earlier
+            // helper of several lines (a watch or a wait), which may end with its answer while
+            // a poll of its own is still on the wire: that poll's reply, identical to the
+            // call's, comes later (griplink-tcp:0x06d10a7303e68adc: a watch's DEVSTATE[0]?,
+            // abandoned at 64 ms, answered at the instant the call began, 318 ms).
             let others = calls.iter().any(|o| {
+                let helper = o.op.line().is_none();
                 !std::ptr::eq(o, c)
                     && o.client == c.client
                     && o.start <= d
                     && (o.end >= c.start
+                        || helper
                         || !matches!(o.result, Some(Ok(_) | Err(Error::Device { .. }))))
                     && o.op.line().is_none_or(|l| l == line)
             });
