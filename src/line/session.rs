@@ -10,7 +10,7 @@ use tokio::sync::mpsc;
 
 use super::client::{LineConn, LineError, Opener};
 use crate::reconnect::{EventSender, ReconnectPolicy};
-use crate::supervisor::{Restore, Served, Session};
+use crate::supervisor::{CloseRequest, Restore, Served, Session};
 
 /// What a line protocol's task supplies.
 pub(crate) trait LineTask: Send + Sync + Sized + 'static {
@@ -23,6 +23,10 @@ pub(crate) trait LineTask: Send + Sync + Sized + 'static {
     fn requests(&mut self) -> &mut mpsc::Receiver<Self::Request>;
     /// Every handle is gone (the queue is closed).
     fn abandoned(&self) -> bool;
+    /// Set by `close()` before it queues its `BYE()`: a reconnect stops at once (a `BYE()`
+    /// waiting in the queue would wait out the backoff, and there is no connection to send it
+    /// on).
+    fn close_request(&self) -> &CloseRequest;
     /// Where the connection's events go.
     fn events(&self) -> &EventSender;
     /// The reconnect policy (`None`: a lost connection stays closed).
@@ -73,6 +77,10 @@ impl<T: LineTask> Restore for LineRestore<'_, T> {
 
     fn abandoned(&self) -> bool {
         self.0.abandoned()
+    }
+
+    fn close_request(&self) -> &CloseRequest {
+        self.0.close_request()
     }
 
     async fn connect(&self) -> Result<LineConn, T::Error> {

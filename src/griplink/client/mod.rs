@@ -660,9 +660,19 @@ impl Client {
     /// is closed once the reply is in, whatever it says; calls made afterwards, on any clone,
     /// fail with [`Error::Closed`].
     ///
+    /// While the client reconnects ([`ClientConfig::reconnect`]), in a backoff wait or an
+    /// attempt, it stops at once and this returns `Ok(())` without any `BYE()`: there is no
+    /// connection to send it on (the controller saw the old one end already). The client is
+    /// closed; calls still queued fail with [`Error::Closed`], and so does every later call. A
+    /// second `close()` fails with [`Error::Closed`], as after any close.
+    ///
     /// [Cancel-safe](self#cancellation): once `BYE()` was sent the connection closes whether or not
-    /// the call is still waiting.
+    /// the call is still waiting. From its first poll the client no longer reconnects: dropped
+    /// before `BYE()` was sent, the connection is still served, but a loss closes the client.
     pub async fn close(&self) -> Result<()> {
-        self.ack(Command::Bye).await
+        // Seen by a reconnecting task at once (it reads no queue in a backoff wait).
+        let first = self.shared.close.request();
+        let asked = self.ack(Command::Bye).await;
+        self.shared.close.outcome(first, asked)
     }
 }

@@ -21,7 +21,7 @@ use crate::line::{
     io_error, peer_closed, Failure, LineConn, LineError, LineSession, LineTask, Opener,
 };
 use crate::reconnect::{BoxStream, EventSender, ReconnectPolicy};
-use crate::supervisor::supervise;
+use crate::supervisor::{supervise, CloseRequest};
 
 /// A caller's command, on its way to the task.
 #[derive(Debug)]
@@ -42,6 +42,8 @@ pub(crate) struct Request {
 #[derive(Debug, Default)]
 pub(crate) struct Shared {
     failure: Failure<Error>,
+    /// Set by [`Client::close`](super::Client::close) before it queues `BYE()`.
+    pub(crate) close: CloseRequest,
     /// The last `VERBOSE` mode the controller accepted.
     verbose: Mutex<Option<bool>>,
 }
@@ -157,6 +159,10 @@ impl LineTask for Task {
 
     fn abandoned(&self) -> bool {
         self.requests.is_closed()
+    }
+
+    fn close_request(&self) -> &CloseRequest {
+        &self.shared.close
     }
 
     fn events(&self) -> &EventSender {

@@ -327,7 +327,7 @@ impl ClientBuilder {
                 },
             });
         let events = task.events.subscriber();
-        let closing = task.closing.clone();
+        let close = task.close.clone();
         let connection = Connection::spawn(task.run());
         Client {
             shared: Arc::new(Shared {
@@ -339,7 +339,7 @@ impl ClientBuilder {
                 kind,
                 lost,
                 events,
-                closing,
+                close,
             }),
             query_timeout: self.query_timeout,
             motion_timeout: self.motion_timeout,

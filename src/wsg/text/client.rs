@@ -403,8 +403,19 @@ impl Client {
     /// after `BYE()`. Answered otherwise (`ERR BYE …`, returned as [`Error::Device`]) or not
     /// within its timeout ([`Error::Timeout`]), the connection is closed all the same (the
     /// gripper may then raise FAST STOP).
+    ///
+    /// While the client reconnects ([`ClientConfig::reconnect`]), in a backoff wait or an
+    /// attempt, it stops at once and this returns `Ok(())` without any `BYE()`: there is no
+    /// connection to send it on (the loss itself, unannounced, may have raised FAST STOP). The
+    /// client is closed; calls still queued fail with [`Error::Closed`], and so does every
+    /// later call. A second `close()` fails with [`Error::Closed`], as after any close. From
+    /// its first poll the client no longer reconnects: dropped before `BYE()` was sent, the
+    /// connection is still served, but a loss closes the client.
     pub async fn close(&self) -> Result<()> {
-        self.ack("BYE", "BYE()".into()).await
+        // Seen by a reconnecting task at once (it reads no queue in a backoff wait).
+        let first = self.shared.close.request();
+        let asked = self.ack("BYE", "BYE()".into()).await;
+        self.shared.close.outcome(first, asked)
     }
 
     /// `VERBOSE=0|1`: whether `ERR` lines carry a text besides the code (per connection, our

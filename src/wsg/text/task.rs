@@ -23,7 +23,7 @@ use crate::line::{
     io_error, peer_closed, Failure, LineConn, LineError, LineSession, LineTask, Opener,
 };
 use crate::reconnect::{BoxStream, EventSender, ReconnectPolicy};
-use crate::supervisor::supervise;
+use crate::supervisor::{supervise, CloseRequest};
 use crate::wsg::{GripState, Status};
 
 /// What a command's call waits for.
@@ -98,6 +98,8 @@ const PROBES: [(&str, &str); 3] = [
 #[derive(Debug, Default)]
 pub(crate) struct Shared {
     failure: Failure<Error>,
+    /// Set by [`Client::close`](super::Client::close) before it queues `BYE()`.
+    pub(crate) close: CloseRequest,
     pub(crate) subscribers: Mutex<Vec<PushSubscriber>>,
     /// What the program set up on the connection that a reconnect restores, by what it sets
     /// (`VERBOSE`, `PWT`, `CLT`, one `AUTOSEND` per quantity): the last line the gripper
@@ -633,6 +635,10 @@ impl LineTask for Task {
 
     fn abandoned(&self) -> bool {
         self.requests.is_closed()
+    }
+
+    fn close_request(&self) -> &CloseRequest {
+        &self.shared.close
     }
 
     fn events(&self) -> &EventSender {
