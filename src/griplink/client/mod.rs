@@ -360,7 +360,7 @@ impl Client {
     }
 
     fn spawn(stream: BoxStream, opener: Opener, config: ClientConfig) -> Client {
-        let (requests, rx) = mpsc::channel(crate::line::channel_capacity(config.queue_len));
+        let (requests, rx) = mpsc::channel(crate::queue::channel_capacity(config.queue_len));
         let shared = Arc::new(Shared::default());
         let events = EventSender::new("griplink", EVENT_BUFFER);
         let task = Task {

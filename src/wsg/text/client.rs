@@ -13,7 +13,8 @@ use super::line::{encode_call, encode_set, parse_number, BadArgument, DEFAULT_MA
 use super::push::{Pushes, Quantity};
 use super::task::{self, after, Answer, Expect, Request, Shared, Task, TaskConfig};
 use crate::connection::Connection;
-use crate::line::{channel_capacity, Opener};
+use crate::line::Opener;
+use crate::queue::channel_capacity;
 use crate::reconnect::{
     BoxStream, ConnectionEvents, EventSender, EventSubscriber, ReconnectPolicy,
 };
