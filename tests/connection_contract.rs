@@ -26,32 +26,17 @@
 //! the wrong caller is caught (tests/*_cancel.rs).
 #![cfg(feature = "sim")]
 
+mod common;
+
 use std::future::Future;
 use std::net::SocketAddr;
 use std::task::Poll;
 use std::time::Duration;
 
+use common::{events_until, policy, within};
 use futures_util::StreamExt as _;
 use gripper::fault::{FaultProxy, Framing, ProxyConfig};
 use gripper::reconnect::{ConnectionEvent, ConnectionEvents, ReconnectPolicy};
-
-/// Upper bound for anything that should happen promptly; only reached when a test fails.
-const LIMIT: Duration = Duration::from_secs(20);
-
-async fn within<F: Future>(what: &str, future: F) -> F::Output {
-    tokio::time::timeout(LIMIT, future)
-        .await
-        .unwrap_or_else(|_| panic!("hung: {what}"))
-}
-
-fn policy(max_attempts: Option<u32>) -> ReconnectPolicy {
-    ReconnectPolicy {
-        initial_delay: Duration::from_millis(5),
-        max_delay: Duration::from_millis(20),
-        factor: 2.0,
-        max_attempts,
-    }
-}
 
 /// How a call ended, in the terms of the contract.
 #[derive(Debug, PartialEq, Eq)]
@@ -97,22 +82,6 @@ async fn proxied<C: Contracted>(
     let client = within("connect", C::connect(proxy.local_addr(), policy)).await;
     let events = client.events();
     (sim, proxy, client, events)
-}
-
-/// The next events, up to and including the first that `last` accepts.
-async fn events_until(
-    events: &mut ConnectionEvents,
-    last: impl Fn(&ConnectionEvent) -> bool,
-) -> Vec<ConnectionEvent> {
-    let mut got = Vec::new();
-    while let Some(event) = within("event", events.next()).await {
-        let done = last(&event);
-        got.push(event);
-        if done {
-            return got;
-        }
-    }
-    panic!("the event stream ended after {got:?}");
 }
 
 async fn a_cut_is_reported_reconnected_and_restored<C: Contracted>() {
