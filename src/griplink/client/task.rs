@@ -245,7 +245,7 @@ async fn serve(
             // Replies first: they free slots and callers.
             biased;
             line = reader.next_line() => match line {
-                Some(Ok(line)) => match pipeline.on_line(line.text()) {
+                Some(Ok(line)) => match pipeline.on_line(line.text(), Instant::now) {
                     Delivery::Resync(probe) if !closing => {
                         tracing::warn!(%probe, "griplink: a reply was out of step, resynchronising");
                         let limit = pipeline.give_up_at(Instant::now).unwrap_or_else(Instant::now);
