@@ -135,7 +135,7 @@ use super::state::DeviceState;
 use super::value::Value;
 use crate::connection::Connection;
 use crate::line::codec::DEFAULT_MAX_LINE_LEN;
-use crate::line::Opener;
+use crate::line::{LineLink, Opener};
 use crate::reconnect::{
     BoxStream, ConnectionEvents, EventSender, EventSubscriber, ReconnectPolicy,
 };
@@ -368,18 +368,21 @@ impl Client {
             config: TaskConfig {
                 pipeline_depth: config.pipeline_depth,
                 give_up_after: config.give_up_after,
-                max_line_len: config.max_line_len,
                 probe_timeout: config.query_timeout.saturating_add(config.give_up_after),
                 query_timeout: config.query_timeout,
-                connect_timeout: config.connect_timeout,
             },
             shared: Arc::clone(&shared),
-            reconnect: config.reconnect,
+        };
+        let link = LineLink {
             events: events.clone(),
-            opener,
+            policy: config.reconnect,
+            opener: Some(opener),
+            connect_timeout: config.connect_timeout,
+            max_line_len: config.max_line_len,
+            close: shared.close.clone(),
         };
         Client {
-            connection: Connection::spawn(task::run(stream, task)),
+            connection: Connection::spawn(crate::line::run(stream, task, link)),
             requests,
             shared,
             events: events.subscriber(),

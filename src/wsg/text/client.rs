@@ -11,9 +11,9 @@ use tokio::time::Instant;
 use super::error::{Error, Result};
 use super::line::{encode_call, encode_set, parse_number, BadArgument, DEFAULT_MAX_LINE_LEN};
 use super::push::{Pushes, Quantity};
-use super::task::{self, after, Answer, Expect, Request, Shared, Task, TaskConfig};
+use super::task::{after, Answer, Expect, Request, Shared, Task, TaskConfig};
 use crate::connection::Connection;
-use crate::line::Opener;
+use crate::line::{LineLink, Opener};
 use crate::queue::channel_capacity;
 use crate::reconnect::{
     BoxStream, ConnectionEvents, EventSender, EventSubscriber, ReconnectPolicy,
@@ -190,18 +190,21 @@ impl Client {
             stops: stops_rx,
             config: TaskConfig {
                 give_up_after: config.give_up_after,
-                max_line_len: config.max_line_len,
                 waiting_len: channel_capacity(config.queue_len),
                 query_timeout: config.query_timeout,
-                connect_timeout: config.connect_timeout,
             },
             shared: shared.clone(),
+        };
+        let link = LineLink {
             events: events.clone(),
-            reconnect: config.reconnect,
+            policy: config.reconnect,
             opener,
+            connect_timeout: config.connect_timeout,
+            max_line_len: config.max_line_len,
+            close: shared.close.clone(),
         };
         Client {
-            connection: Connection::spawn(task::run(stream, task)),
+            connection: Connection::spawn(crate::line::run(stream, task, link)),
             requests,
             stops,
             shared,
