@@ -82,6 +82,7 @@ mod give_up;
 pub mod griplink;
 mod int_map;
 mod line;
+mod queue;
 /// Reconnecting after a lost connection: backoff policy and connection events, shared by the
 /// `smartgrasp`, `griplink` and `wsg` clients (wsg over TCP and serial; UDP has no connection).
 pub mod reconnect;

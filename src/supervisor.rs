@@ -12,7 +12,10 @@
 //!   meanwhile wait in the queue within their own timeouts; without one, or when the policy
 //!   gives up, the connection is closed for good;
 //! - it stops reconnecting when every handle is gone or the program closes the client, in a
-//!   backoff wait or in the middle of an attempt ([`Session::close_requested`]);
+//!   backoff wait or in the middle of an attempt, at once ([`CloseRequest`], set by every
+//!   protocol's `close()` before it asks its task: a close that goes through the queue would
+//!   wait out the backoff behind it); the client then ends as closed, and that `close()`
+//!   succeeds ([`CloseRequest::outcome`]);
 //! - when it ends, the reason is recorded first, then the queue is closed, and every call still
 //!   in it gets the reason: drained with `recv`, not `try_recv` (a call that took its place in
 //!   the queue before it closed puts its request in afterwards; `try_recv` would report the
@@ -20,8 +23,11 @@
 
 use std::fmt;
 use std::future::Future;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 
 use tokio::sync::mpsc;
+use tokio_util::sync::CancellationToken;
 
 use crate::reconnect::{self, ConnectionEvent, EventSender, ReconnectPolicy};
 
@@ -33,6 +39,65 @@ pub(crate) enum Served<C, E> {
     Closed(C),
     /// Lost (the peer closed it, I/O failed, or the client gave up on it), for this reason.
     Lost(E),
+}
+
+/// The program's request to close a client, shared by its handles and its connection task: set
+/// by `close()` before it asks the task (which may be waiting out a reconnect backoff and read
+/// no queue), so the supervisor stops a backoff wait or an attempt at once. Cheap to clone.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct CloseRequest(Arc<CloseState>);
+
+#[derive(Debug, Default)]
+struct CloseState {
+    /// Set by the first request (before `token` is cancelled).
+    requested: AtomicBool,
+    /// Cancelled by the first request: wakes whoever waits for it.
+    token: CancellationToken,
+    /// Set by the supervisor when the request stopped a reconnect (before the queue closes):
+    /// the client ended with no connection, so what `close()` asked its task never ran.
+    stopped_reconnect: AtomicBool,
+}
+
+impl CloseRequest {
+    /// Asks to close; whether this was the first request.
+    pub(crate) fn request(&self) -> bool {
+        let first = !self.0.requested.swap(true, Ordering::SeqCst);
+        self.0.token.cancel();
+        first
+    }
+
+    /// The request stopped a reconnect: the client ends closed without a connection.
+    fn stopped_reconnect(&self) {
+        self.0.stopped_reconnect.store(true, Ordering::SeqCst);
+    }
+
+    /// Whether the program asked to close.
+    pub(crate) fn is_requested(&self) -> bool {
+        self.0.requested.load(Ordering::SeqCst)
+    }
+
+    /// Completes when the program asks to close.
+    pub(crate) fn requested(&self) -> impl Future<Output = ()> + Send + '_ {
+        self.0.token.cancelled()
+    }
+
+    /// The token cancelled by the request, for a serve loop that waits on it itself.
+    pub(crate) fn token(&self) -> &CancellationToken {
+        &self.0.token
+    }
+
+    /// What a `close()` returns that made the `first` request and then asked its task
+    /// (`asked`). If the request stopped a reconnect, the client is closed and nothing was
+    /// left to send (no connection: no `BYE()`, no disconnect announcement), and what it asked
+    /// was refused with the client's end: the close did what it was for, and succeeds. Otherwise
+    /// (a connection served it, or another `close()` came first) what the task answered.
+    pub(crate) fn outcome<E>(&self, first: bool, asked: Result<(), E>) -> Result<(), E> {
+        if first && self.0.stopped_reconnect.load(Ordering::SeqCst) {
+            Ok(())
+        } else {
+            asked
+        }
+    }
 }
 
 /// What a reconnect attempt needs of a session: a view of it that may be shared with the
@@ -51,16 +116,9 @@ pub(crate) trait Restore: Sync {
     /// reconnecting.
     fn abandoned(&self) -> bool;
 
-    /// Whether the program asked to close: a reconnect stopped then ends as closed, not lost.
-    fn close_requested(&self) -> bool {
-        false
-    }
-
-    /// Completes when the program asks to close, to stop a backoff wait or an attempt at once.
-    /// A protocol whose close goes through the queue (`BYE()`) never completes it.
-    fn closing(&self) -> impl Future<Output = ()> + Send {
-        std::future::pending()
-    }
+    /// The program's request to close: it stops a backoff wait or an attempt at once, and the
+    /// client then ends as closed, not lost.
+    fn close_request(&self) -> &CloseRequest;
 
     /// Opens a new connection (one attempt, bounded by the connect timeout).
     fn connect(&self) -> impl Future<Output = Result<Self::Link, Self::Error>> + Send;
@@ -84,12 +142,8 @@ impl<R: Restore> Restore for &R {
         (**self).abandoned()
     }
 
-    fn close_requested(&self) -> bool {
-        (**self).close_requested()
-    }
-
-    fn closing(&self) -> impl Future<Output = ()> + Send {
-        (**self).closing()
+    fn close_request(&self) -> &CloseRequest {
+        (**self).close_request()
     }
 
     fn connect(&self) -> impl Future<Output = Result<Self::Link, Self::Error>> + Send {
@@ -117,7 +171,8 @@ pub(crate) trait Session: Send + Sized + 'static {
     type Error: fmt::Display + Send + Sync;
     /// A call waiting in the queue.
     type Request: Send;
-    /// What a close by the program carries to the end.
+    /// What a close by the program carries to the end (`Default`: a close that stopped a
+    /// reconnect, whose caller learns it from [`CloseRequest::outcome`]).
     type Close: Default + Send;
 
     /// Serves calls over the current connection until it is closed or lost. The calls in flight
@@ -195,13 +250,17 @@ pub(crate) async fn supervise<S: Session>(mut session: S) {
                 // close still counts, and the close is seen at the next poll either way.
                 biased;
                 restored = retry => restored,
-                () = restorer.closing() => None,
+                () = restorer.close_request().requested() => None,
             };
-            (restored, restorer.close_requested())
+            (restored, restorer.close_request().is_requested())
         };
         match restored {
             Some(link) => session.restored(link),
-            None if close_requested => break Served::Closed(S::Close::default()),
+            None if close_requested => {
+                // Before the queue closes: the `close()` refused with it reads it.
+                session.restorer().close_request().stopped_reconnect();
+                break Served::Closed(S::Close::default());
+            }
             None => break Served::Lost(reason),
         }
     };

@@ -3,38 +3,22 @@
 //! that was in flight again.
 #![cfg(feature = "sim")]
 
-use std::future::Future;
+mod common;
+
 use std::time::Duration;
 
+use common::{events_until, policy, within};
 use futures_util::StreamExt as _;
 use gripper::fault::{FaultProxy, Framing, ProxyConfig};
 use gripper::griplink::sim::{SimConfig, SimDevice, SimServer};
 use gripper::griplink::{Blocking, Client, ClientConfig, DeviceState, Error, Status};
-use gripper::reconnect::{ConnectionEvent, ConnectionEvents, ReconnectPolicy};
-
-/// Upper bound for anything that should happen promptly; only reached when a test fails.
-const LIMIT: Duration = Duration::from_secs(20);
-
-async fn within<F: Future>(what: &str, future: F) -> F::Output {
-    tokio::time::timeout(LIMIT, future)
-        .await
-        .unwrap_or_else(|_| panic!("hung: {what}"))
-}
+use gripper::reconnect::ConnectionEvent;
 
 async fn sim() -> SimServer {
     let config = SimConfig::et4()
         .device(0, Some(SimDevice::ieg_55_020().with_part(12.0)))
         .time_scale(0.0);
     SimServer::bind("127.0.0.1:0", config).await.unwrap()
-}
-
-fn policy(max_attempts: Option<u32>) -> ReconnectPolicy {
-    ReconnectPolicy {
-        initial_delay: Duration::from_millis(5),
-        max_delay: Duration::from_millis(20),
-        factor: 2.0,
-        max_attempts,
-    }
 }
 
 fn reconnecting(max_attempts: Option<u32>) -> ClientConfig {
@@ -55,22 +39,6 @@ async fn proxied() -> (SimServer, FaultProxy, Client) {
         .await
         .unwrap();
     (server, proxy, client)
-}
-
-/// The next events, up to and including the first that `last` accepts.
-async fn events_until(
-    events: &mut ConnectionEvents,
-    last: impl Fn(&ConnectionEvent) -> bool,
-) -> Vec<ConnectionEvent> {
-    let mut got = Vec::new();
-    while let Some(event) = within("event", events.next()).await {
-        let done = last(&event);
-        got.push(event);
-        if done {
-            return got;
-        }
-    }
-    panic!("the event stream ended after {got:?}");
 }
 
 #[tokio::test]

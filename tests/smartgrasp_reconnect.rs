@@ -4,10 +4,10 @@
 //! `within`; the real clock runs (short backoff).
 #![cfg(feature = "sim")]
 
-use std::future::Future;
+mod common;
+
 use std::time::Duration;
 
-use futures_util::StreamExt;
 use gripper::fault::{FaultProxy, Framing, ProxyConfig};
 use gripper::reconnect::{ConnectionEvent, ConnectionEvents, ReconnectPolicy};
 use gripper::smartgrasp::codec;
@@ -21,24 +21,10 @@ fn v3_sim() -> SimConfig {
         ..SimConfig::default()
     }
 }
+use common::{events_until, next_event, policy, within};
 use gripper::smartgrasp::{
     AbcPose, Client, ClientConfig, Error, GetGraspOutcome, GraspMode, GraspRequest, Pose,
     PoseFormat, RobotSystem, Tool,
-};
-
-const LIMIT: Duration = Duration::from_secs(10);
-
-async fn within<F: Future>(what: &str, future: F) -> F::Output {
-    tokio::time::timeout(LIMIT, future)
-        .await
-        .unwrap_or_else(|_| panic!("hung: {what}"))
-}
-
-const POLICY: ReconnectPolicy = ReconnectPolicy {
-    initial_delay: Duration::from_millis(10),
-    max_delay: Duration::from_millis(40),
-    factor: 2.0,
-    max_attempts: None,
 };
 
 /// The demo project, and an empty one as project 1.
@@ -84,23 +70,9 @@ async fn setup(
     (server, proxy, client, events)
 }
 
-async fn next(events: &mut ConnectionEvents) -> Option<ConnectionEvent> {
-    within("next connection event", events.next()).await
-}
-
 /// Reads events up to and including the first `Restored`.
 async fn until_restored(events: &mut ConnectionEvents) -> Vec<ConnectionEvent> {
-    let mut seen = Vec::new();
-    loop {
-        let event = next(events)
-            .await
-            .expect("the stream ended before Restored");
-        let done = matches!(event, ConnectionEvent::Restored { .. });
-        seen.push(event);
-        if done {
-            return seen;
-        }
-    }
+    events_until(events, |e| matches!(e, ConnectionEvent::Restored { .. })).await
 }
 
 fn grasp_request() -> GraspRequest {
@@ -125,7 +97,7 @@ async fn assert_grasp_works(client: &Client) {
 
 #[tokio::test]
 async fn a_cut_is_reported_and_the_session_restored() {
-    let (server, proxy, client, mut events) = setup(Some(POLICY)).await;
+    let (server, proxy, client, mut events) = setup(Some(policy(None))).await;
     // The program switches project and registers as another robot itself: a reconnect must
     // restore that, not the configuration's.
     client.set_project(1).await.unwrap();
@@ -136,7 +108,7 @@ async fn a_cut_is_reported_and_the_session_restored() {
     requests.stall();
     proxy.cut_connections();
     assert!(matches!(
-        next(&mut events).await,
+        next_event(&mut events).await,
         Some(ConnectionEvent::Lost { .. })
     ));
     within(
@@ -160,7 +132,7 @@ async fn a_cut_is_reported_and_the_session_restored() {
         [
             ConnectionEvent::Reconnecting {
                 attempt: 1,
-                delay: POLICY.initial_delay
+                delay: policy(None).initial_delay
             },
             ConnectionEvent::Connected,
             ConnectionEvent::Restored { attempts: 1 },
@@ -190,7 +162,7 @@ async fn a_cut_is_reported_and_the_session_restored() {
 
 #[tokio::test]
 async fn calls_in_flight_fail_and_are_never_sent_again() {
-    let (server, proxy, client, mut events) = setup(Some(POLICY)).await;
+    let (server, proxy, client, mut events) = setup(Some(policy(None))).await;
     let replies = proxy.server_to_client();
     replies.stall();
     let pose = Pose::Abc(AbcPose {
@@ -207,7 +179,7 @@ async fn calls_in_flight_fail_and_are_never_sent_again() {
     let err = within("call", call).await.unwrap().unwrap_err();
     assert!(matches!(err, Error::ConnectionLost { .. }), "{err}");
     assert!(matches!(
-        next(&mut events).await,
+        next_event(&mut events).await,
         Some(ConnectionEvent::Lost { .. })
     ));
     replies.release();
@@ -218,19 +190,22 @@ async fn calls_in_flight_fail_and_are_never_sent_again() {
 
 #[tokio::test]
 async fn calls_made_while_reconnecting_wait_for_the_restored_session() {
-    let (_server, proxy, client, mut events) = setup(Some(POLICY)).await;
+    let (_server, proxy, client, mut events) = setup(Some(policy(None))).await;
     let requests = proxy.client_to_server();
     requests.stall();
     proxy.cut_connections();
     assert!(matches!(
-        next(&mut events).await,
+        next_event(&mut events).await,
         Some(ConnectionEvent::Lost { .. })
     ));
     assert!(matches!(
-        next(&mut events).await,
+        next_event(&mut events).await,
         Some(ConnectionEvent::Reconnecting { attempt: 1, .. })
     ));
-    assert_eq!(next(&mut events).await, Some(ConnectionEvent::Connected));
+    assert_eq!(
+        next_event(&mut events).await,
+        Some(ConnectionEvent::Connected)
+    );
     // The opening sequence is held at the stall: this call waits for it.
     let call = tokio::spawn({
         let client = client.clone();
@@ -246,22 +221,19 @@ async fn calls_made_while_reconnecting_wait_for_the_restored_session() {
     let outcome = within("call", call).await.unwrap().unwrap();
     assert!(matches!(outcome, GetGraspOutcome::Grasp(_)), "{outcome:?}");
     assert_eq!(
-        next(&mut events).await,
+        next_event(&mut events).await,
         Some(ConnectionEvent::Restored { attempts: 1 })
     );
 }
 
 #[tokio::test]
 async fn gives_up_after_max_attempts_and_closes() {
-    let policy = ReconnectPolicy {
-        max_attempts: Some(2),
-        ..POLICY
-    };
+    let policy = policy(Some(2));
     let (server, _proxy, client, mut events) = setup(Some(policy)).await;
     // The server goes away for good: the proxy still accepts, but closes each connection.
     drop(server);
     let mut seen = Vec::new();
-    while let Some(event) = next(&mut events).await {
+    while let Some(event) = next_event(&mut events).await {
         seen.push(event);
     }
     assert!(
@@ -273,12 +245,12 @@ async fn gives_up_after_max_attempts_and_closes() {
         [
             ConnectionEvent::Reconnecting {
                 attempt: 1,
-                delay: Duration::from_millis(10)
+                delay: policy.initial_delay
             },
             ConnectionEvent::Connected,
             ConnectionEvent::Reconnecting {
                 attempt: 2,
-                delay: Duration::from_millis(20)
+                delay: policy.initial_delay * 2
             },
             ConnectionEvent::Connected,
             ConnectionEvent::GaveUp { attempts: 2 },
@@ -314,7 +286,7 @@ async fn close_ends_the_connection_and_fails_pending_and_later_calls() {
     assert!(matches!(client.close().await, Err(Error::Closed)));
     assert!(client.is_closed());
     // Closing is not a loss: no event, the stream just ends.
-    assert_eq!(next(&mut events).await, None);
+    assert_eq!(next_event(&mut events).await, None);
     within("the connection is closed", async {
         while proxy.stats().connections_open != 0 {
             tokio::time::sleep(Duration::from_millis(1)).await;
@@ -329,20 +301,24 @@ async fn close_stops_reconnecting() {
     let policy = ReconnectPolicy {
         initial_delay: Duration::from_secs(3600),
         max_delay: Duration::from_secs(3600),
-        ..POLICY
+        ..policy(None)
     };
     let (_server, proxy, client, mut events) = setup(Some(policy)).await;
     proxy.cut_connections();
     assert!(matches!(
-        next(&mut events).await,
+        next_event(&mut events).await,
         Some(ConnectionEvent::Lost { .. })
     ));
     assert!(matches!(
-        next(&mut events).await,
+        next_event(&mut events).await,
         Some(ConnectionEvent::Reconnecting { attempt: 1, .. })
     ));
     within("close", client.close()).await.unwrap();
-    assert_eq!(next(&mut events).await, None, "no attempt after close");
+    assert_eq!(
+        next_event(&mut events).await,
+        None,
+        "no attempt after close"
+    );
     let r = client.get_state().await;
     assert!(matches!(r, Err(Error::Closed)), "{r:?}");
     assert!(client.is_closed());
@@ -359,7 +335,7 @@ async fn a_slow_set_project_is_restored_with_the_timeout_that_worked() {
     let proxy = proxy(&server).await;
     let config = ClientConfig {
         detection_timeout: Duration::from_millis(200),
-        ..config(Some(POLICY))
+        ..config(Some(policy(None)))
     };
     let client = Client::connect(proxy.local_addr(), config).await.unwrap();
     let mut events = client.connection_events();
@@ -403,7 +379,7 @@ async fn without_opening_a_reconnect_keeps_speaking_v3() {
     .unwrap();
     let proxy = proxy(&server).await;
     let config = ClientConfig {
-        reconnect: Some(POLICY),
+        reconnect: Some(policy(None)),
         ..ClientConfig::default()
     };
     let client = Client::connect_without_opening(proxy.local_addr(), config)

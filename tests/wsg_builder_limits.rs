@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::bounded;
+use common::within;
 use std::time::Duration;
 
 use futures_util::StreamExt;
@@ -28,15 +28,15 @@ async fn usize_max_queue_and_subscription_buffer_are_clamped() {
         .connect_tcp(sim.local_addr().unwrap())
         .await
         .unwrap();
-    let echo = bounded("loop", client.loop_back(&b"q"[..])).await.unwrap();
+    let echo = within("loop", client.loop_back(&b"q"[..])).await.unwrap();
     assert_eq!(&echo[..], b"q");
-    let mut widths = bounded(
+    let mut widths = within(
         "subscribe",
         client.subscribe_width_mm(UpdateOptions::periodic(Duration::from_millis(10))),
     )
     .await
     .unwrap();
-    assert!(bounded("update", widths.next()).await.is_some());
+    assert!(within("update", widths.next()).await.is_some());
 }
 
 /// `max_payload_len(usize::MAX)` over UDP overflowed the receive buffer's size (a panic in
@@ -49,7 +49,7 @@ async fn usize_max_payload_len_over_udp_is_clamped() {
         .connect_udp(sim.local_addr().unwrap())
         .await
         .unwrap();
-    let echo = bounded("udp loop", client.loop_back(&b"max"[..]))
+    let echo = within("udp loop", client.loop_back(&b"max"[..]))
         .await
         .unwrap();
     assert_eq!(&echo[..], b"max");
@@ -67,9 +67,9 @@ async fn a_tiny_max_payload_len_still_reads_barrier_sized_replies() {
         .connect_tcp(sim.local_addr().unwrap())
         .await
         .unwrap();
-    bounded("stop", client.stop()).await.unwrap();
+    within("stop", client.stop()).await.unwrap();
     // 24 bytes of payload: the length of a barrier's (prefix + token).
-    let echo = bounded("loop", client.loop_back(&[7u8; 24][..]))
+    let echo = within("loop", client.loop_back(&[7u8; 24][..]))
         .await
         .unwrap();
     assert_eq!(&echo[..], &[7u8; 24]);

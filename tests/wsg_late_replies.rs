@@ -2,24 +2,19 @@
 //! follow-up, found by the explorer): raw "grippers" on loopback sockets that answer exactly
 //! as the schedule needs, each answer naming the request it answers.
 
+mod common;
+
 use std::net::SocketAddr;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
 use bytes::BytesMut;
+use common::within;
 use gripper::wsg::command::id;
 use gripper::wsg::frame::{self, Frame};
 use gripper::wsg::Client;
 use tokio::net::UdpSocket;
-
-/// Bounds a call that must end by itself well before this (a hang fails the test, it does not
-/// block the suite).
-async fn bounded<F: std::future::Future>(what: &str, call: F) -> F::Output {
-    tokio::time::timeout(Duration::from_secs(20), call)
-        .await
-        .unwrap_or_else(|_| panic!("{what}: no answer within 20 s"))
-}
 
 /// A reply frame of `command` with E_SUCCESS and `data`.
 fn reply(command: u8, data: &[u8]) -> Vec<u8> {
@@ -74,7 +69,7 @@ async fn a_duplicated_reply_already_received_never_answers_the_next_request_of_i
     let client = Client::builder().connect_udp(addr).await.unwrap();
     // The second call queues behind the first (one request per id on the wire) and goes out
     // when the first's reply is paired.
-    let (first, second) = bounded("widths", async {
+    let (first, second) = within("widths", async {
         tokio::join!(client.width_mm(), client.width_mm())
     })
     .await;
@@ -141,7 +136,7 @@ async fn a_reply_stalled_past_the_grace_never_answers_the_next_request_on_tcp() 
         .await
         .unwrap();
     let impatient = client.with_timeouts(Duration::from_millis(100), Duration::from_secs(1));
-    let first = bounded("first width", impatient.width_mm()).await;
+    let first = within("first width", impatient.width_mm()).await;
     assert!(
         matches!(first, Err(gripper::wsg::Error::Timeout { .. })),
         "{first:?}"
@@ -149,14 +144,14 @@ async fn a_reply_stalled_past_the_grace_never_answers_the_next_request_on_tcp() 
     // Queued behind the first request, the second goes out once its id is released (the
     // first's deadline plus the grace), while the first's reply is still on its way.
     let patient = client.with_timeouts(Duration::from_secs(5), Duration::from_secs(5));
-    let second = bounded("second width", patient.width_mm()).await.unwrap();
+    let second = within("second width", patient.width_mm()).await.unwrap();
     assert_eq!(
         second, 2.0,
         "the stalled reply of the first request answered the second"
     );
     // The link goes on.
     assert_eq!(
-        &bounded("loop", client.loop_back(&b"after"[..]))
+        &within("loop", client.loop_back(&b"after"[..]))
             .await
             .unwrap()[..],
         b"after"
@@ -181,7 +176,7 @@ async fn a_device_that_refuses_every_barrier_gets_three_and_the_id_goes_on() {
         .await
         .unwrap();
     let impatient = client.with_timeouts(Duration::from_millis(100), Duration::from_secs(1));
-    let first = bounded("first width", impatient.width_mm()).await;
+    let first = within("first width", impatient.width_mm()).await;
     assert!(
         matches!(first, Err(gripper::wsg::Error::Timeout { .. })),
         "{first:?}"
@@ -189,7 +184,7 @@ async fn a_device_that_refuses_every_barrier_gets_three_and_the_id_goes_on() {
     let patient = client.with_timeouts(Duration::from_secs(5), Duration::from_secs(5));
     // The stalled reply came before the refusals: still not taken for this call.
     assert_eq!(
-        bounded("second width", patient.width_mm()).await.unwrap(),
+        within("second width", patient.width_mm()).await.unwrap(),
         2.0
     );
     assert_eq!(loops.load(Ordering::SeqCst), 3, "barriers sent");

@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::bounded;
+use common::within;
 use std::net::SocketAddr;
 use std::time::Duration;
 
@@ -70,7 +70,7 @@ async fn client(addr: SocketAddr) -> Client {
 async fn an_acknowledged_motion_without_timeout_whose_final_reply_is_lost_ends() {
     let client = client(device_losing_final_replies().await).await;
     let forever = client.with_timeouts(Duration::from_millis(200), Duration::MAX);
-    let moved = bounded("pre_position", forever.pre_position(20.0, 50.0)).await;
+    let moved = within("pre_position", forever.pre_position(20.0, 50.0)).await;
     assert!(
         matches!(moved, Err(Error::ReplyLost { command: 0x21 })),
         "{moved:?}"
@@ -83,7 +83,7 @@ async fn an_acknowledged_motion_without_timeout_whose_final_reply_is_lost_ends()
 async fn an_acknowledged_finger_power_on_without_timeout_whose_final_reply_is_lost_ends() {
     let client = client(device_losing_final_replies().await).await;
     let forever = client.with_timeouts(Duration::MAX, Duration::MAX);
-    let powered = bounded(
+    let powered = within(
         "finger power on",
         forever.set_finger_power(Finger::One, true),
     )
@@ -98,14 +98,14 @@ async fn an_acknowledged_finger_power_on_without_timeout_whose_final_reply_is_lo
 #[tokio::test]
 async fn a_probe_answered_through_a_barrier_still_counts() {
     let client = client(device_losing_final_replies().await).await;
-    let _states = bounded(
+    let _states = within(
         "subscribe",
         client.subscribe_system_state(UpdateOptions::periodic(Duration::from_millis(100))),
     )
     .await
     .unwrap();
     let forever = client.with_timeouts(Duration::from_millis(200), Duration::MAX);
-    let moved = bounded("pre_position", forever.pre_position(20.0, 50.0)).await;
+    let moved = within("pre_position", forever.pre_position(20.0, 50.0)).await;
     assert!(
         matches!(moved, Err(Error::ReplyLost { command: 0x21 })),
         "{moved:?}"

@@ -4,33 +4,17 @@
 //! `connection_events()`, and never sends a call that was in flight again.
 #![cfg(feature = "sim")]
 
-use std::future::Future;
+mod common;
+
 use std::time::Duration;
 
+use common::{events_until, policy, within};
 use futures_util::StreamExt as _;
 use gripper::fault::{FaultProxy, Framing, ProxyConfig};
-use gripper::reconnect::{ConnectionEvent, ConnectionEvents, ReconnectPolicy};
+use gripper::reconnect::ConnectionEvent;
 use gripper::wsg::sim::{Model, SimConfig, SimServer};
 use gripper::wsg::text::{Client, ClientConfig, Error, Quantity};
 use gripper::wsg::HomingDirection;
-
-/// Upper bound for anything that should happen promptly; only reached when a test fails.
-const LIMIT: Duration = Duration::from_secs(20);
-
-async fn within<F: Future>(what: &str, future: F) -> F::Output {
-    tokio::time::timeout(LIMIT, future)
-        .await
-        .unwrap_or_else(|_| panic!("hung: {what}"))
-}
-
-fn policy(max_attempts: Option<u32>) -> ReconnectPolicy {
-    ReconnectPolicy {
-        initial_delay: Duration::from_millis(5),
-        max_delay: Duration::from_millis(20),
-        factor: 2.0,
-        max_attempts,
-    }
-}
 
 fn reconnecting(max_attempts: Option<u32>) -> ClientConfig {
     ClientConfig {
@@ -51,22 +35,6 @@ async fn proxied(config: ClientConfig) -> (SimServer, FaultProxy, Client) {
         .await
         .unwrap();
     (server, proxy, client)
-}
-
-/// The next events, up to and including the first that `last` accepts.
-async fn events_until(
-    events: &mut ConnectionEvents,
-    last: impl Fn(&ConnectionEvent) -> bool,
-) -> Vec<ConnectionEvent> {
-    let mut got = Vec::new();
-    while let Some(event) = within("event", events.next()).await {
-        let done = last(&event);
-        got.push(event);
-        if done {
-            return got;
-        }
-    }
-    panic!("the event stream ended after {got:?}");
 }
 
 #[tokio::test]

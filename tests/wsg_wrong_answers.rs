@@ -2,6 +2,8 @@
 //! before its fix: over loopback sockets against the in-process simulator.
 #![cfg(feature = "sim")]
 
+mod common;
+
 use std::net::SocketAddr;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
@@ -14,20 +16,13 @@ use tokio::io::AsyncWriteExt;
 use tokio::net::{TcpListener, UdpSocket};
 use tokio_util::codec::FramedRead;
 
+use common::within;
 use gripper::wsg::command::id;
 use gripper::wsg::sim::{Model, SimConfig, SimServer};
 use gripper::wsg::{Client, Error, HomingDirection, Status, SystemState};
 
 fn config() -> SimConfig {
     SimConfig::new(Model::Wsg50).with_part(40.0, 2.0)
-}
-
-/// Bounds a call that must end by itself well before this (a hang fails the test, it does not
-/// block the suite).
-async fn bounded<F: std::future::Future>(what: &str, call: F) -> F::Output {
-    tokio::time::timeout(Duration::from_secs(20), call)
-        .await
-        .unwrap_or_else(|_| panic!("{what}: no answer within 20 s"))
 }
 
 /// "No timeout" (`Duration::MAX`) is ordinary input: every duration the builder and the calls
@@ -45,36 +40,34 @@ async fn duration_max_anywhere_never_panics() {
         .connect_tcp(addr)
         .await
         .unwrap();
-    bounded("loop", client.loop_back(&b"max"[..]))
+    within("loop", client.loop_back(&b"max"[..])).await.unwrap();
+    within("home", client.home(HomingDirection::Default))
         .await
         .unwrap();
-    bounded("home", client.home(HomingDirection::Default))
-        .await
-        .unwrap();
-    bounded(
+    within(
         "power on",
         client.set_finger_power(gripper::wsg::Finger::One, false),
     )
     .await
     .unwrap();
-    bounded("width", client.width_mm()).await.unwrap();
-    bounded(
+    within("width", client.width_mm()).await.unwrap();
+    within(
         "raw",
         client.request_with_timeout(0x06, &b"raw"[..], Duration::MAX),
     )
     .await
     .unwrap();
     let short = client.with_timeouts(Duration::MAX, Duration::MAX);
-    bounded("stop", short.stop()).await.unwrap();
-    bounded("width", short.width_mm()).await.unwrap();
+    within("stop", short.stop()).await.unwrap();
+    within("width", short.width_mm()).await.unwrap();
     // Finger power on waits the query timeout plus 500 ms: that sum saturates too.
-    bounded(
+    within(
         "power on",
         short.set_finger_power(gripper::wsg::Finger::One, true),
     )
     .await
     .unwrap();
-    bounded("close", client.close()).await.unwrap();
+    within("close", client.close()).await.unwrap();
 
     // The same over UDP, whose client has no connect step; the simulator's idle timeout of a
     // UDP session is a `Duration` too.
@@ -87,10 +80,10 @@ async fn duration_max_anywhere_never_panics() {
         .connect_udp(sim.local_addr().unwrap())
         .await
         .unwrap();
-    bounded("udp loop", client.loop_back(&b"max"[..]))
+    within("udp loop", client.loop_back(&b"max"[..]))
         .await
         .unwrap();
-    bounded("udp close", client.close()).await.unwrap();
+    within("udp close", client.close()).await.unwrap();
 }
 
 /// A UDP client with a short late-reply grace (the spacing of the "not moving" probes), homed,
@@ -102,7 +95,7 @@ async fn udp_moving(grace: Duration) -> (SimServer, Client) {
         .connect_udp(sim.local_addr().unwrap())
         .await
         .unwrap();
-    bounded("home", client.home(HomingDirection::Default))
+    within("home", client.home(HomingDirection::Default))
         .await
         .unwrap();
     sim.set_time_scale(1000.0);
@@ -116,7 +109,7 @@ async fn start_move(client: &Client) -> tokio::task::JoinHandle<gripper::wsg::Re
         let c = client.clone();
         tokio::spawn(async move { c.pre_position(20.0, 50.0).await })
     };
-    bounded("moving", async {
+    within("moving", async {
         while !client
             .system_state()
             .await
@@ -142,7 +135,7 @@ async fn a_lost_final_reply_does_not_make_the_client_invent_already_running() {
     // The move's final reply is lost; the move ends.
     sim.drop_next_reply(id::PRE_POSITION);
     sim.set_time_scale(0.0);
-    bounded("idle", async {
+    within("idle", async {
         while client
             .system_state()
             .await
@@ -151,13 +144,13 @@ async fn a_lost_final_reply_does_not_make_the_client_invent_already_running() {
         {}
     })
     .await;
-    bounded("second move", client.pre_position(60.0, 100.0))
+    within("second move", client.pre_position(60.0, 100.0))
         .await
         .expect("the device is idle: the move must be sent and answered by it");
-    assert_eq!(bounded("width", client.width_mm()).await.unwrap(), 60.0);
+    assert_eq!(within("width", client.width_mm()).await.unwrap(), 60.0);
     assert_eq!(count(&sim, id::PRE_POSITION), 2);
     // The first call learns that its answer is lost, not a status the device never sent.
-    let first = bounded("first move", first).await.unwrap().unwrap_err();
+    let first = within("first move", first).await.unwrap().unwrap_err();
     assert!(
         matches!(
             first,
@@ -179,13 +172,13 @@ async fn stop_then_move_works_when_the_abort_arrives_after_the_stop_reply() {
     let (sim, client) = udp_moving(Duration::from_secs(2)).await;
     let first = start_move(&client).await;
     sim.delay_next_reply(id::PRE_POSITION, Duration::from_millis(200));
-    bounded("stop", client.stop()).await.unwrap();
+    within("stop", client.stop()).await.unwrap();
     sim.set_time_scale(0.0);
-    bounded("next move", client.pre_position(60.0, 100.0))
+    within("next move", client.pre_position(60.0, 100.0))
         .await
         .expect("the device stopped: the next move must be sent and answered by it");
-    assert_eq!(bounded("width", client.width_mm()).await.unwrap(), 60.0);
-    let first = bounded("first move", first).await.unwrap().unwrap_err();
+    assert_eq!(within("width", client.width_mm()).await.unwrap(), 60.0);
+    let first = within("first move", first).await.unwrap().unwrap_err();
     assert_eq!(first.status(), Some(Status::CmdAborted), "{first}");
 }
 
@@ -238,7 +231,7 @@ async fn stop_is_ok_only_for_a_stop_the_device_received_after_the_call() {
     let sim = SimServer::bind_udp("127.0.0.1:0", config()).await.unwrap();
     let relay = Relay::start(sim.local_addr().unwrap()).await;
     let client = Client::builder().connect_udp(relay.addr).await.unwrap();
-    bounded("home", client.home(HomingDirection::Default))
+    within("home", client.home(HomingDirection::Default))
         .await
         .unwrap();
     sim.set_time_scale(1000.0);
@@ -248,7 +241,7 @@ async fn stop_is_ok_only_for_a_stop_the_device_received_after_the_call() {
         let c = client.clone();
         tokio::spawn(async move { c.stop().await })
     };
-    bounded("early stop sent", async {
+    within("early stop sent", async {
         while count(&sim, id::STOP) == 0 {
             tokio::task::yield_now().await;
         }
@@ -257,15 +250,15 @@ async fn stop_is_ok_only_for_a_stop_the_device_received_after_the_call() {
     // Then a move starts, and a stop whose datagram is lost.
     let mover = start_move(&client).await;
     relay.lose.lock().unwrap().push(id::STOP);
-    bounded("stop", client.stop()).await.unwrap();
+    within("stop", client.stop()).await.unwrap();
     // Asked after the stop's reply: the device processes it after the stop it answered.
-    let state = bounded("state", client.system_state()).await.unwrap();
+    let state = within("state", client.system_state()).await.unwrap();
     assert!(
         !state.contains(SystemState::MOVING),
         "stop() returned Ok while the fingers move: {state:?}"
     );
-    bounded("early stop", early).await.unwrap().unwrap();
-    let moved = bounded("move", mover).await.unwrap().unwrap_err();
+    within("early stop", early).await.unwrap().unwrap();
+    let moved = within("move", mover).await.unwrap().unwrap_err();
     assert_eq!(moved.status(), Some(Status::CmdAborted), "{moved}");
 }
 
@@ -337,7 +330,7 @@ async fn a_corrupted_length_with_traffic_behind_it_is_dropped_from_its_first_byt
         .await
         .unwrap();
     // The first request triggers the bogus header; its reply is held behind it.
-    let echo = bounded("loop", client.loop_back(&b"held"[..])).await;
+    let echo = within("loop", client.loop_back(&b"held"[..])).await;
     assert_eq!(&echo.expect("the held reply is delivered")[..], b"held");
 }
 
@@ -359,11 +352,11 @@ async fn a_held_reply_never_goes_to_a_newer_request() {
         .unwrap();
     // The first width's answer (1.0) is held; its call times out, its grace passes ...
     let impatient = client.with_timeouts(Duration::from_millis(100), Duration::from_secs(1));
-    let first = bounded("first width", impatient.width_mm()).await;
+    let first = within("first width", impatient.width_mm()).await;
     assert!(matches!(first, Err(Error::Timeout { .. })), "{first:?}");
     // ... and the next width call must get its own answer, not the held 1.0.
     let patient = client.with_timeouts(Duration::from_secs(5), Duration::from_secs(5));
-    let second = bounded("second width", patient.width_mm()).await.unwrap();
+    let second = within("second width", patient.width_mm()).await.unwrap();
     assert_eq!(
         second, 2.0,
         "the held reply of the first request went to the second"

@@ -11,12 +11,4 @@ pub mod codec;
 mod session;
 
 pub(crate) use client::{io_error, peer_closed, Failure, LineConn, LineError, Opener};
-pub(crate) use session::{LineSession, LineTask};
-
-/// The capacity of a bounded tokio channel for a configured queue length `n`: at least 1 (tokio
-/// panics on 0) and at most [`tokio::sync::Semaphore::MAX_PERMITS`] (tokio panics above it, e.g.
-/// on `usize::MAX`). A queue that long is unbounded in practice; the channel allocates per use,
-/// not up front.
-pub(crate) fn channel_capacity(n: usize) -> usize {
-    n.clamp(1, tokio::sync::Semaphore::MAX_PERMITS)
-}
+pub(crate) use session::{run, LineLink, LineTask};

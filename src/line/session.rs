@@ -1,6 +1,6 @@
 //! A line protocol's connection task as the supervisor (`crate::supervisor`) runs it: one
-//! connection at a time, closed at once when it is lost, opened again by the task's opener and
-//! restored by the task. GRIPLINK and the WSG text client differ only in how they serve a
+//! connection at a time, closed at once when it is lost, opened again as its [`LineLink`] says
+//! and restored by the task. GRIPLINK and the WSG text client differ only in how they serve a
 //! connection and what they restore ([`LineTask`]).
 
 use std::future::Future;
@@ -9,10 +9,10 @@ use std::time::Duration;
 use tokio::sync::mpsc;
 
 use super::client::{LineConn, LineError, Opener};
-use crate::reconnect::{EventSender, ReconnectPolicy};
-use crate::supervisor::{Restore, Served, Session};
+use crate::reconnect::{BoxStream, EventSender, ReconnectPolicy};
+use crate::supervisor::{supervise, CloseRequest, Restore, Served, Session};
 
-/// What a line protocol's task supplies.
+/// What a line protocol's task supplies: how it serves a connection and what it restores.
 pub(crate) trait LineTask: Send + Sync + Sized + 'static {
     /// The protocol's error.
     type Error: LineError + std::fmt::Display + Send + Sync;
@@ -23,16 +23,14 @@ pub(crate) trait LineTask: Send + Sync + Sized + 'static {
     fn requests(&mut self) -> &mut mpsc::Receiver<Self::Request>;
     /// Every handle is gone (the queue is closed).
     fn abandoned(&self) -> bool;
-    /// Where the connection's events go.
-    fn events(&self) -> &EventSender;
-    /// The reconnect policy (`None`: a lost connection stays closed).
-    fn policy(&self) -> Option<ReconnectPolicy>;
-    /// How to open a new connection (`None`: a stream that cannot be opened again), within
-    /// which time, and its longest line.
-    fn opener(&self) -> (Option<&Opener>, Duration, usize);
     /// Serves calls over `conn` until it closes (the reason is then [`LineError::closed`]) or
-    /// is lost; fails the calls in flight with the reason, which it returns.
-    fn serve(&mut self, conn: &mut LineConn) -> impl Future<Output = Self::Error> + Send;
+    /// is lost; fails the calls in flight with the reason, which it returns. `reconnects`: a
+    /// loss is followed by a reconnect (the client is not over with it).
+    fn serve(
+        &mut self,
+        conn: &mut LineConn,
+        reconnects: bool,
+    ) -> impl Future<Output = Self::Error> + Send;
     /// Restores the session on a new connection before any call is served on it.
     fn restore<'a>(
         &'a self,
@@ -44,44 +42,73 @@ pub(crate) trait LineTask: Send + Sync + Sized + 'static {
     fn refuse(request: Self::Request, reason: &Self::Error);
 }
 
-/// A line task and its connection (`None` from a loss until a reconnect).
-pub(crate) struct LineSession<T> {
+/// How a line client's connection is reported, opened again and closed: the same for both
+/// protocols, so the session holds it, not the protocol's task.
+pub(crate) struct LineLink {
+    /// Where the connection's events go.
+    pub events: EventSender,
+    /// The reconnect policy (`None`: a lost connection stays closed).
+    pub policy: Option<ReconnectPolicy>,
+    /// How to open a new connection (`None`: a stream the program handed over, which cannot be
+    /// opened again; it takes no reconnect policy).
+    pub opener: Option<Opener>,
+    /// Within which time a new connection must be open.
+    pub connect_timeout: Duration,
+    /// The longest line read.
+    pub max_line_len: usize,
+    /// Set by `close()` before it queues its `BYE()`: a reconnect stops at once (a `BYE()`
+    /// waiting in the queue would wait out the backoff, and there is no connection to send it
+    /// on).
+    pub close: CloseRequest,
+}
+
+/// Runs a line client's connection task over `stream` until the client ends (the loop is the
+/// shared supervisor's, `crate::supervisor`).
+pub(crate) async fn run<T: LineTask>(stream: BoxStream, task: T, link: LineLink) {
+    let conn = LineConn::new(stream, link.max_line_len);
+    supervise(LineSession {
+        task,
+        conn: Some(conn),
+        link,
+    })
+    .await;
+}
+
+/// A line task, its connection (`None` from a loss until a reconnect) and how to open another.
+struct LineSession<T> {
     task: T,
     conn: Option<LineConn>,
+    link: LineLink,
 }
 
-impl<T> LineSession<T> {
-    /// The session serving `conn` first.
-    pub(crate) fn new(task: T, conn: LineConn) -> Self {
-        LineSession {
-            task,
-            conn: Some(conn),
-        }
-    }
+/// What a reconnect attempt borrows: the task (to restore) and how to open a connection.
+struct LineRestore<'a, T> {
+    task: &'a T,
+    link: &'a LineLink,
 }
-
-/// What a reconnect attempt borrows: the task.
-pub(crate) struct LineRestore<'a, T>(&'a T);
 
 impl<T: LineTask> Restore for LineRestore<'_, T> {
     type Link = LineConn;
     type Error = T::Error;
 
     fn events(&self) -> &EventSender {
-        self.0.events()
+        &self.link.events
     }
 
     fn abandoned(&self) -> bool {
-        self.0.abandoned()
+        self.task.abandoned()
+    }
+
+    fn close_request(&self) -> &CloseRequest {
+        &self.link.close
     }
 
     async fn connect(&self) -> Result<LineConn, T::Error> {
-        match self.0.opener() {
-            (Some(opener), timeout, max_line_len) => {
-                LineConn::open(opener, timeout, max_line_len).await
-            }
+        let link = self.link;
+        match &link.opener {
+            Some(opener) => LineConn::open(opener, link.connect_timeout, link.max_line_len).await,
             // Not reached: a task without an opener takes no reconnect policy.
-            (None, ..) => Err(T::Error::connection_lost(
+            None => Err(T::Error::connection_lost(
                 "the stream cannot be opened again".into(),
             )),
         }
@@ -91,7 +118,7 @@ impl<T: LineTask> Restore for LineRestore<'_, T> {
         &'a self,
         conn: &'a mut LineConn,
     ) -> impl Future<Output = Result<(), T::Error>> + Send + 'a {
-        self.0.restore(conn)
+        self.task.restore(conn)
     }
 }
 
@@ -116,7 +143,8 @@ impl<T: LineTask> Session for LineSession<T> {
             return Served::Lost(T::Error::connection_lost("not connected".into()));
         };
         // Closed: `BYE()`, or nobody left to call; nothing to report or restore.
-        match self.task.serve(conn).await {
+        let reconnects = self.link.policy.is_some();
+        match self.task.serve(conn, reconnects).await {
             end if end.is_closed() => Served::Closed(()),
             lost => Served::Lost(lost),
         }
@@ -127,11 +155,14 @@ impl<T: LineTask> Session for LineSession<T> {
     }
 
     fn restorer(&self) -> LineRestore<'_, T> {
-        LineRestore(&self.task)
+        LineRestore {
+            task: &self.task,
+            link: &self.link,
+        }
     }
 
     fn policy(&self) -> Option<ReconnectPolicy> {
-        self.task.policy()
+        self.link.policy
     }
 
     fn lost(&mut self, _reason: &T::Error) {

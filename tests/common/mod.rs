@@ -100,11 +100,54 @@ pub async fn smartgrasp_peer(
     addr
 }
 
-/// Bounds a call that must end by itself well before 20 s: a hang fails the test (naming
+/// Upper bound for anything that should happen promptly; only reached when a test fails.
+#[allow(dead_code)] // only some tests use it
+pub const LIMIT: std::time::Duration = std::time::Duration::from_secs(20);
+
+/// Bounds a call that must end by itself well before [`LIMIT`]: a hang fails the test (naming
 /// `what`) instead of blocking the suite.
 #[allow(dead_code)] // only some tests use it
-pub async fn bounded<F: std::future::Future>(what: &str, call: F) -> F::Output {
-    tokio::time::timeout(std::time::Duration::from_secs(20), call)
+pub async fn within<F: std::future::Future>(what: &str, call: F) -> F::Output {
+    tokio::time::timeout(LIMIT, call)
         .await
-        .unwrap_or_else(|_| panic!("{what}: no answer within 20 s"))
+        .unwrap_or_else(|_| panic!("hung: {what} (no end within {LIMIT:?})"))
+}
+
+/// A reconnect policy quick enough for a test: 5 ms, doubling up to 20 ms, for at most
+/// `max_attempts` attempts (`None`: until it reconnects).
+#[allow(dead_code)] // only the reconnect tests use it
+pub fn policy(max_attempts: Option<u32>) -> gripper::reconnect::ReconnectPolicy {
+    gripper::reconnect::ReconnectPolicy {
+        initial_delay: std::time::Duration::from_millis(5),
+        max_delay: std::time::Duration::from_millis(20),
+        factor: 2.0,
+        max_attempts,
+    }
+}
+
+/// The next connection event (`None`: the stream ended), within [`LIMIT`].
+#[allow(dead_code)] // only the reconnect tests use it
+pub async fn next_event(
+    events: &mut gripper::reconnect::ConnectionEvents,
+) -> Option<gripper::reconnect::ConnectionEvent> {
+    use futures_util::StreamExt as _;
+    within("the next connection event", events.next()).await
+}
+
+/// The next connection events, up to and including the first that `last` accepts; panics if
+/// the stream ends first.
+#[allow(dead_code)] // only the reconnect tests use it
+pub async fn events_until(
+    events: &mut gripper::reconnect::ConnectionEvents,
+    last: impl Fn(&gripper::reconnect::ConnectionEvent) -> bool,
+) -> Vec<gripper::reconnect::ConnectionEvent> {
+    let mut got = Vec::new();
+    while let Some(event) = next_event(events).await {
+        let done = last(&event);
+        got.push(event);
+        if done {
+            return got;
+        }
+    }
+    panic!("the event stream ended after {got:?}");
 }

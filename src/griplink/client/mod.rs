@@ -135,7 +135,7 @@ use super::state::DeviceState;
 use super::value::Value;
 use crate::connection::Connection;
 use crate::line::codec::DEFAULT_MAX_LINE_LEN;
-use crate::line::Opener;
+use crate::line::{LineLink, Opener};
 use crate::reconnect::{
     BoxStream, ConnectionEvents, EventSender, EventSubscriber, ReconnectPolicy,
 };
@@ -360,7 +360,7 @@ impl Client {
     }
 
     fn spawn(stream: BoxStream, opener: Opener, config: ClientConfig) -> Client {
-        let (requests, rx) = mpsc::channel(crate::line::channel_capacity(config.queue_len));
+        let (requests, rx) = mpsc::channel(crate::queue::channel_capacity(config.queue_len));
         let shared = Arc::new(Shared::default());
         let events = EventSender::new("griplink", EVENT_BUFFER);
         let task = Task {
@@ -368,18 +368,21 @@ impl Client {
             config: TaskConfig {
                 pipeline_depth: config.pipeline_depth,
                 give_up_after: config.give_up_after,
-                max_line_len: config.max_line_len,
                 probe_timeout: config.query_timeout.saturating_add(config.give_up_after),
                 query_timeout: config.query_timeout,
-                connect_timeout: config.connect_timeout,
             },
             shared: Arc::clone(&shared),
-            reconnect: config.reconnect,
+        };
+        let link = LineLink {
             events: events.clone(),
-            opener,
+            policy: config.reconnect,
+            opener: Some(opener),
+            connect_timeout: config.connect_timeout,
+            max_line_len: config.max_line_len,
+            close: shared.close.clone(),
         };
         Client {
-            connection: Connection::spawn(task::run(stream, task)),
+            connection: Connection::spawn(crate::line::run(stream, task, link)),
             requests,
             shared,
             events: events.subscriber(),
@@ -660,9 +663,19 @@ impl Client {
     /// is closed once the reply is in, whatever it says; calls made afterwards, on any clone,
     /// fail with [`Error::Closed`].
     ///
+    /// While the client reconnects ([`ClientConfig::reconnect`]), in a backoff wait or an
+    /// attempt, it stops at once and this returns `Ok(())` without any `BYE()`: there is no
+    /// connection to send it on (the controller saw the old one end already). The client is
+    /// closed; calls still queued fail with [`Error::Closed`], and so does every later call. A
+    /// second `close()` fails with [`Error::Closed`], as after any close.
+    ///
     /// [Cancel-safe](self#cancellation): once `BYE()` was sent the connection closes whether or not
-    /// the call is still waiting.
+    /// the call is still waiting. From its first poll the client no longer reconnects: dropped
+    /// before `BYE()` was sent, the connection is still served, but a loss closes the client.
     pub async fn close(&self) -> Result<()> {
-        self.ack(Command::Bye).await
+        // Seen by a reconnecting task at once (it reads no queue in a backoff wait).
+        let first = self.shared.close.request();
+        let asked = self.ack(Command::Bye).await;
+        self.shared.close.outcome(first, asked)
     }
 }

@@ -137,8 +137,15 @@ impl Pipeline {
     }
 
     /// Pairs a received line (its text, or why the codec discarded it) with the oldest
-    /// outstanding command.
-    pub(crate) fn on_line(&mut self, line: std::result::Result<&str, Discarded>) -> Delivery {
+    /// outstanding command. `now` is the time the line was received; it is read only when the
+    /// line starts a resynchronisation (the probe's give-up clock starts then). The caller
+    /// supplies the clock (no I/O here, the time included: quinn-proto's sans-I/O model), so a
+    /// test can run the pairing on a clock of its own.
+    pub(crate) fn on_line(
+        &mut self,
+        line: std::result::Result<&str, Discarded>,
+        now: impl FnOnce() -> Instant,
+    ) -> Delivery {
         let Some(slot) = self.slots.pop_front() else {
             tracing::warn!(
                 ?line,
@@ -181,10 +188,7 @@ impl Pipeline {
                     line: probe.to_owned(),
                     expect,
                     waiter: slot.waiter,
-                    give_up: GiveUp::fixed(crate::deadline::after(
-                        Instant::now(),
-                        self.probe_timeout,
-                    )),
+                    give_up: GiveUp::fixed(crate::deadline::after(now(), self.probe_timeout)),
                     probe: Some(error),
                 });
                 Delivery::Resync(probe)
@@ -243,11 +247,14 @@ mod tests {
         p.push(a);
         p.push(b);
         drop(rx_a); // the caller of HOME timed out
-        assert_eq!(p.on_line(text("ACK")), Delivery::Discarded);
+        assert_eq!(p.on_line(text("ACK"), Instant::now), Delivery::Discarded);
         assert!(rx_b.try_recv().is_err(), "B must not get A's reply");
-        assert_eq!(p.on_line(text("DEVSTATE[0]=3")), Delivery::Delivered);
+        assert_eq!(
+            p.on_line(text("DEVSTATE[0]=3"), Instant::now),
+            Delivery::Delivered
+        );
         assert!(matches!(rx_b.try_recv(), Ok(Ok(Checked::Data(_)))));
-        assert_eq!(p.on_line(text("ACK")), Delivery::Unsolicited);
+        assert_eq!(p.on_line(text("ACK"), Instant::now), Delivery::Unsolicited);
     }
 
     #[tokio::test]
@@ -257,12 +264,12 @@ mod tests {
         let (b, mut rx_b) = slot("HOME(0)", Expect::Ack);
         p.push(a);
         p.push(b);
-        p.on_line(Err(Discarded::TooLong));
+        p.on_line(Err(Discarded::TooLong), Instant::now);
         assert!(matches!(
             rx_a.try_recv(),
             Ok(Err(Error::MalformedReply { .. }))
         ));
-        p.on_line(text("ACK"));
+        p.on_line(text("ACK"), Instant::now);
         assert!(matches!(rx_b.try_recv(), Ok(Ok(Checked::Ack))));
         assert!(p.is_empty());
     }
@@ -289,15 +296,21 @@ mod tests {
         let (b, mut rx_b) = slot("SN?", sn);
         p.push(b);
         // A duplicate of the previous `ID?` reply arrives for `SN?`.
-        let d = p.on_line(text("ID=\"GRIPLINK-ET4\""));
+        let d = p.on_line(text("ID=\"GRIPLINK-ET4\""), Instant::now);
         assert!(matches!(d, Delivery::Resync("ID?")), "{d:?}");
         assert!(rx_b.try_recv().is_err(), "told before the probe answered");
         assert!(!p.has_room(), "nothing is sent while resynchronising");
         // SN?'s own reply, then an ERR: leftovers, skipped.
-        assert!(matches!(p.on_line(text("SN=\"1\"")), Delivery::Discarded));
-        assert!(matches!(p.on_line(text("ERR 04")), Delivery::Discarded));
         assert!(matches!(
-            p.on_line(text("ID=\"GRIPLINK-ET4\"")),
+            p.on_line(text("SN=\"1\""), Instant::now),
+            Delivery::Discarded
+        ));
+        assert!(matches!(
+            p.on_line(text("ERR 04"), Instant::now),
+            Delivery::Discarded
+        ));
+        assert!(matches!(
+            p.on_line(text("ID=\"GRIPLINK-ET4\""), Instant::now),
             Delivery::Resynced
         ));
         assert!(matches!(
@@ -313,9 +326,27 @@ mod tests {
         let (a, _rx) = slot("ID?", Expect::Any);
         p.push(a);
         assert!(matches!(
-            p.on_line(Err(Discarded::NotAscii)),
+            p.on_line(Err(Discarded::NotAscii), Instant::now),
             Delivery::Resync("SN?")
         ));
+    }
+
+    /// The pairing reads no clock of its own: the probe's give-up counts from the time the
+    /// caller says the out-of-step line came, and a line in step does not ask for the time.
+    #[tokio::test]
+    async fn the_probes_give_up_counts_from_the_callers_now() {
+        let timeout = Duration::from_secs(3);
+        let mut p = Pipeline::new(1).with_probe_timeout(timeout);
+        let (a, _rx_a) = slot("HOME(0)", Expect::Ack);
+        p.push(a);
+        let never = || -> Instant { panic!("a line in step read the clock") };
+        assert_eq!(p.on_line(text("ACK"), never), Delivery::Delivered);
+        let (b, _rx_b) = slot("HOME(0)", Expect::Ack);
+        p.push(b);
+        let received = Instant::now() + Duration::from_secs(3600);
+        let d = p.on_line(text("ID=\"x\""), || received);
+        assert_eq!(d, Delivery::Resync("ID?"));
+        assert_eq!(p.give_up_at(never), Some(received + timeout));
     }
 
     #[tokio::test]
@@ -325,7 +356,10 @@ mod tests {
         let (b, _rx_b) = slot("LED(0,1)", Expect::Ack);
         p.push(a);
         p.push(b);
-        assert!(matches!(p.on_line(text("ID=\"x\"")), Delivery::Lost));
+        assert!(matches!(
+            p.on_line(text("ID=\"x\""), Instant::now),
+            Delivery::Lost
+        ));
         assert!(matches!(
             rx_a.try_recv(),
             Ok(Err(Error::UnexpectedReply { .. }))

@@ -17,11 +17,8 @@ use crate::give_up::GiveUp;
 use crate::griplink::command::{Command, Expect};
 use crate::griplink::error::Error;
 use crate::griplink::reply::interpret;
-use crate::line::{
-    io_error, peer_closed, Failure, LineConn, LineError, LineSession, LineTask, Opener,
-};
-use crate::reconnect::{BoxStream, EventSender, ReconnectPolicy};
-use crate::supervisor::supervise;
+use crate::line::{io_error, peer_closed, Failure, LineConn, LineError, LineTask};
+use crate::supervisor::CloseRequest;
 
 /// A caller's command, on its way to the task.
 #[derive(Debug)]
@@ -42,6 +39,8 @@ pub(crate) struct Request {
 #[derive(Debug, Default)]
 pub(crate) struct Shared {
     failure: Failure<Error>,
+    /// Set by [`Client::close`](super::Client::close) before it queues `BYE()`.
+    pub(crate) close: CloseRequest,
     /// The last `VERBOSE` mode the controller accepted.
     verbose: Mutex<Option<bool>>,
 }
@@ -72,24 +71,18 @@ impl Shared {
 pub(crate) struct TaskConfig {
     pub pipeline_depth: usize,
     pub give_up_after: Duration,
-    pub max_line_len: usize,
     /// How long a resynchronisation probe may take before the connection is given up.
     pub probe_timeout: Duration,
     /// Timeout of the commands that restore the session after a reconnect.
     pub query_timeout: Duration,
-    pub connect_timeout: Duration,
 }
 
-/// Everything the task needs besides the first connection.
+/// Everything the task needs besides the connection (and how to open it again: the line
+/// session's `LineLink`).
 pub(crate) struct Task {
     pub requests: mpsc::Receiver<Request>,
     pub config: TaskConfig,
     pub shared: Arc<Shared>,
-    pub events: EventSender,
-    /// Reconnect with this backoff (`None`: a lost connection stays closed).
-    pub reconnect: Option<ReconnectPolicy>,
-    /// How to reconnect.
-    pub opener: Opener,
 }
 
 impl LineError for Error {
@@ -138,13 +131,6 @@ async fn exchange(conn: &mut LineConn, command: Command, timeout: Duration) -> R
     }
 }
 
-/// Runs until every handle is dropped, the program closes the connection, or it is lost for
-/// good (the loop is the shared supervisor's, `crate::supervisor`).
-pub(crate) async fn run(stream: BoxStream, task: Task) {
-    let conn = LineConn::new(stream, task.config.max_line_len);
-    supervise(LineSession::new(task, conn)).await;
-}
-
 /// The GRIPLINK session the supervisor runs: one connection at a time, restored with the
 /// last `VERBOSE` the controller accepted.
 impl LineTask for Task {
@@ -159,25 +145,7 @@ impl LineTask for Task {
         self.requests.is_closed()
     }
 
-    fn events(&self) -> &EventSender {
-        &self.events
-    }
-
-    fn policy(&self) -> Option<ReconnectPolicy> {
-        self.reconnect
-    }
-
-    fn opener(&self) -> (Option<&Opener>, Duration, usize) {
-        let config = &self.config;
-        (
-            Some(&self.opener),
-            config.connect_timeout,
-            config.max_line_len,
-        )
-    }
-
-    async fn serve(&mut self, conn: &mut LineConn) -> Error {
-        let reconnects = self.reconnect.is_some();
+    async fn serve(&mut self, conn: &mut LineConn, reconnects: bool) -> Error {
         serve(
             conn,
             &mut self.requests,
@@ -239,7 +207,7 @@ async fn serve(
             // Replies first: they free slots and callers.
             biased;
             line = reader.next_line() => match line {
-                Some(Ok(line)) => match pipeline.on_line(line.text()) {
+                Some(Ok(line)) => match pipeline.on_line(line.text(), Instant::now) {
                     Delivery::Resync(probe) if !closing => {
                         tracing::warn!(%probe, "griplink: a reply was out of step, resynchronising");
                         let limit = pipeline.give_up_at(Instant::now).unwrap_or_else(Instant::now);

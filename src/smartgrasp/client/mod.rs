@@ -9,7 +9,7 @@ mod shutdown;
 mod task;
 
 use std::net::SocketAddr;
-use std::sync::atomic::{AtomicBool, AtomicU16, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicU16, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, OnceLock};
 use std::time::Duration;
 
@@ -17,7 +17,6 @@ use tokio::net::ToSocketAddrs;
 use tokio::sync::mpsc::error::TrySendError;
 use tokio::sync::{mpsc, oneshot};
 use tokio::time::Timeout;
-use tokio_util::sync::CancellationToken;
 
 use super::error::{Error, Result};
 use super::frame::AnyResponseFrame;
@@ -29,6 +28,7 @@ use super::types::{
 use crate::client_stream::ClientStream;
 use crate::connection::Connection;
 use crate::reconnect::{ConnectionEvents, EventSender, EventSubscriber, ReconnectPolicy};
+use crate::supervisor::CloseRequest;
 use link::{Call, Link, Opener};
 use session::{success, unexpected_body, Opened, Session};
 
@@ -272,17 +272,10 @@ pub struct Client {
     closed: Arc<OnceLock<Error>>,
     events: EventSubscriber,
     timeouts: Timeouts,
-    close: Arc<Close>,
+    /// Set by the first `close()` (later calls fail with [`Error::Closed`]); tells the task to
+    /// end (see `task.rs`).
+    close: CloseRequest,
     shared: Arc<Shared>,
-}
-
-/// What [`Client::close`] shares between the handles and the task.
-#[derive(Debug, Default)]
-struct Close {
-    /// Set by the first `close()`: later calls fail with [`Error::Closed`].
-    requested: AtomicBool,
-    /// Tells the task to end (see `task.rs`).
-    shutdown: CancellationToken,
 }
 
 impl Client {
@@ -382,7 +375,7 @@ impl Client {
         let (calls, rx) = mpsc::channel(CALL_QUEUE);
         let closed = Arc::new(OnceLock::new());
         let events = EventSender::new("smartgrasp", EVENT_BUFFER);
-        let close = Arc::new(Close::default());
+        let close = CloseRequest::default();
         let (subscriber, timeouts) = (events.subscriber(), config.timeouts());
         let task = task::Task {
             calls: rx,
@@ -391,7 +384,7 @@ impl Client {
             config,
             opener,
             events,
-            shutdown: close.shutdown.clone(),
+            shutdown: close.clone(),
             shared: Arc::clone(&shared),
         };
         Client {
@@ -467,10 +460,9 @@ impl Client {
     ///
     /// Cancel-safe: dropping the future after its first poll does not undo the close.
     pub async fn close(&self) -> Result<()> {
-        if self.close.requested.swap(true, Ordering::SeqCst) {
+        if !self.close.request() {
             return Err(Error::Closed);
         }
-        self.close.shutdown.cancel();
         // The task closes the channel (or drops it) when it ends, and the socket with it.
         self.calls.closed().await;
         Ok(())
@@ -708,7 +700,7 @@ impl Client {
 
     /// The error of a call on a connection that is gone.
     fn closed(&self) -> Error {
-        if self.close.requested.load(Ordering::SeqCst) {
+        if self.close.is_requested() {
             return Error::Closed;
         }
         link::closed_error(self.closed.get())

@@ -9,14 +9,13 @@
 use std::sync::{Arc, OnceLock};
 
 use tokio::sync::mpsc;
-use tokio_util::sync::CancellationToken;
 
 use super::link::{closed_error, Call, Link, Opener};
 use super::session::Session;
 use super::{ClientConfig, Shared};
 use crate::reconnect::{EventSender, ReconnectPolicy};
 use crate::smartgrasp::error::Error;
-use crate::supervisor::{supervise, Restore, Served, Session as Supervised};
+use crate::supervisor::{supervise, CloseRequest, Restore, Served, Session as Supervised};
 
 /// Everything the task needs besides the first connection.
 pub(crate) struct Task {
@@ -29,7 +28,7 @@ pub(crate) struct Task {
     pub opener: Opener,
     pub events: EventSender,
     /// Cancelled by `Client::close`.
-    pub shutdown: CancellationToken,
+    pub shutdown: CloseRequest,
     /// Counters the handles read.
     pub shared: Arc<Shared>,
 }
@@ -72,12 +71,8 @@ impl Restore for Task {
         self.calls.is_closed()
     }
 
-    fn close_requested(&self) -> bool {
-        self.shutdown.is_cancelled()
-    }
-
-    async fn closing(&self) {
-        self.shutdown.cancelled().await
+    fn close_request(&self) -> &CloseRequest {
+        &self.shutdown
     }
 
     async fn connect(&self) -> Result<Link, Error> {
@@ -111,7 +106,7 @@ impl Supervised for SmartGrasp {
             .serve(
                 &mut task.calls,
                 &mut |request, response, timeout| session.record(request, response, timeout),
-                &task.shutdown,
+                task.shutdown.token(),
             )
             .await;
         match served {

@@ -20,6 +20,7 @@ use super::{
 };
 use crate::connection::Connection;
 use crate::deadline::after;
+use crate::queue::channel_capacity;
 use crate::reconnect::ReconnectPolicy;
 use crate::wsg::transport::{AsyncReadWrite, Link, TransportKind};
 use crate::wsg::Result;
@@ -327,7 +328,7 @@ impl ClientBuilder {
                 },
             });
         let events = task.events.subscriber();
-        let closing = task.closing.clone();
+        let close = task.close.clone();
         let connection = Connection::spawn(task.run());
         Client {
             shared: Arc::new(Shared {
@@ -339,16 +340,10 @@ impl ClientBuilder {
                 kind,
                 lost,
                 events,
-                closing,
+                close,
             }),
             query_timeout: self.query_timeout,
             motion_timeout: self.motion_timeout,
         }
     }
-}
-
-/// A tokio channel's capacity for a configured length `n`: tokio panics on 0 and above
-/// [`tokio::sync::Semaphore::MAX_PERMITS`] (`usize::MAX` included).
-fn channel_capacity(n: usize) -> usize {
-    n.clamp(1, tokio::sync::Semaphore::MAX_PERMITS)
 }

@@ -31,7 +31,7 @@ mod task;
 
 pub use self::builder::ClientBuilder;
 
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, OnceLock};
 use std::time::Duration;
 
@@ -51,6 +51,7 @@ use super::{Error, Frame, GripState, Reply, Result, Status, SystemState};
 use crate::connection::Connection;
 use crate::deadline::after;
 use crate::reconnect::{ConnectionEvents, EventSubscriber};
+use crate::supervisor::CloseRequest;
 
 /// Default timeout of queries and settings.
 pub const DEFAULT_QUERY_TIMEOUT: Duration = Duration::from_secs(1);
@@ -90,8 +91,8 @@ struct Shared {
     /// Why the connection broke for good, once it did.
     lost: Arc<OnceLock<String>>,
     events: EventSubscriber,
-    /// Set when a handle asks to close: the task stops reconnecting.
-    closing: Arc<AtomicBool>,
+    /// Set when a handle asks to close: the task stops reconnecting at once.
+    close: CloseRequest,
 }
 
 impl Shared {
@@ -528,15 +529,21 @@ impl Client {
     /// Greifmoduls unmittelbar gestoppt"), whichever client started it: a move in flight, of
     /// this or any other handle, ends with E_CMD_ABORTED. Calls still waiting fail with
     /// [`Error::Closed`], streams end, and every other handle's calls fail with
-    /// [`Error::Closed`] (or [`Error::ConnectionLost`] if the connection had broken). While the
-    /// client reconnects ([`ClientBuilder::reconnect`]), it gives up before its next attempt
-    /// and this returns [`Error::ConnectionLost`].
+    /// [`Error::Closed`] (or [`Error::ConnectionLost`] if the connection had broken).
+    ///
+    /// While the client reconnects ([`ClientBuilder::reconnect`]), in a backoff wait or an
+    /// attempt, it stops at once and this returns `Ok(())`: the client is closed, calls still
+    /// queued fail with [`Error::Closed`], and so does every later call. Nothing is announced:
+    /// there is no connection (on TCP the loss put the gripper into FAST STOP already, as its
+    /// [`ConnectionEvent::Lost`](crate::reconnect::ConnectionEvent::Lost) said). A second
+    /// `close()` returns what a close after the end returns ([`Error::Closed`]).
     ///
     /// Cancel-safe: once the request reached the task, the close completes even if this call is
     /// dropped.
     pub async fn close(&self) -> Result<()> {
-        // Seen by a reconnecting task before its next attempt: it gives up instead.
-        self.shared.closing.store(true, Ordering::Release);
+        // Seen by a reconnecting task at once, in a backoff wait or an attempt: it stops and
+        // the client ends closed (the request below waits in the queue it no longer reads).
+        let first = self.shared.close.request();
         let (done, rx) = oneshot::channel();
         let close = async {
             self.shared
@@ -546,7 +553,8 @@ impl Client {
                 .map_err(|_| self.shared.gone())?;
             rx.await.map_err(|_| self.shared.gone())?
         };
-        self.shared.connection.call(close).await
+        let asked = self.shared.connection.call(close).await;
+        self.shared.close.outcome(first, asked)
     }
 }
 

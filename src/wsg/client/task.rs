@@ -4,7 +4,6 @@
 
 use std::io;
 use std::pin::pin;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, OnceLock};
 use std::time::Duration;
 
@@ -19,7 +18,7 @@ use super::Reconnect;
 use crate::deadline::{after, move_timer};
 use crate::int_map::IntMap;
 use crate::reconnect::{EventSender, ReconnectPolicy};
-use crate::supervisor::{supervise, Restore, Served, Session};
+use crate::supervisor::{supervise, CloseRequest, Restore, Served, Session};
 use crate::wsg::command::{id, Command, UpdateMode};
 use crate::wsg::subscription::{Subscriber, UpdateOptions};
 use crate::wsg::transport::Link;
@@ -102,8 +101,9 @@ pub(crate) struct Task {
     pub(crate) events: EventSender,
     /// How to reconnect after a loss; `None`: the client ends with the connection.
     pub(crate) reconnect: Option<Reconnect>,
-    /// Set by [`Client::close`](super::Client::close) before it asks: stops reconnecting.
-    pub(crate) closing: Arc<AtomicBool>,
+    /// Set by [`Client::close`](super::Client::close) before it asks: stops reconnecting, a
+    /// backoff wait or an attempt at once.
+    pub(crate) close: CloseRequest,
     /// The transport is TCP: a loss puts the gripper into FAST STOP.
     pub(crate) tcp: bool,
     waiters: IntMap<Token, Waiter>,
@@ -173,7 +173,7 @@ impl Task {
             partial_since: None,
             events: EventSender::new("wsg", super::EVENT_BUFFER),
             reconnect: None,
-            closing: Arc::new(AtomicBool::new(false)),
+            close: CloseRequest::default(),
             tcp: false,
             lost,
             link,
@@ -692,11 +692,11 @@ impl Task {
     }
 }
 
-/// What a WSG reconnect borrows of the task: the queue and the close flag (to stop), where
+/// What a WSG reconnect borrows of the task: the queue and the close request (to stop), where
 /// events go, how to connect, and the streams to ask for again.
 pub(crate) struct Reopen<'a> {
     rx: &'a mpsc::Receiver<Msg>,
-    closing: &'a AtomicBool,
+    close: &'a CloseRequest,
     events: &'a EventSender,
     reconnect: Option<&'a Reconnect>,
     restore: &'a [Frame],
@@ -712,7 +712,11 @@ impl Restore for Reopen<'_> {
     }
 
     fn abandoned(&self) -> bool {
-        self.rx.is_closed() || self.closing.load(Ordering::Acquire)
+        self.rx.is_closed() || self.close.is_requested()
+    }
+
+    fn close_request(&self) -> &CloseRequest {
+        self.close
     }
 
     async fn connect(&self) -> std::result::Result<Link, String> {
@@ -761,7 +765,7 @@ impl Session for Task {
     fn restorer(&self) -> Reopen<'_> {
         Reopen {
             rx: &self.rx,
-            closing: &self.closing,
+            close: &self.close,
             events: &self.events,
             reconnect: self.reconnect.as_ref(),
             restore: &self.restore,

@@ -11,9 +11,10 @@ use tokio::time::Instant;
 use super::error::{Error, Result};
 use super::line::{encode_call, encode_set, parse_number, BadArgument, DEFAULT_MAX_LINE_LEN};
 use super::push::{Pushes, Quantity};
-use super::task::{self, after, Answer, Expect, Request, Shared, Task, TaskConfig};
+use super::task::{after, Answer, Expect, Request, Shared, Task, TaskConfig};
 use crate::connection::Connection;
-use crate::line::{channel_capacity, Opener};
+use crate::line::{LineLink, Opener};
+use crate::queue::channel_capacity;
 use crate::reconnect::{
     BoxStream, ConnectionEvents, EventSender, EventSubscriber, ReconnectPolicy,
 };
@@ -189,18 +190,21 @@ impl Client {
             stops: stops_rx,
             config: TaskConfig {
                 give_up_after: config.give_up_after,
-                max_line_len: config.max_line_len,
                 waiting_len: channel_capacity(config.queue_len),
                 query_timeout: config.query_timeout,
-                connect_timeout: config.connect_timeout,
             },
             shared: shared.clone(),
+        };
+        let link = LineLink {
             events: events.clone(),
-            reconnect: config.reconnect,
+            policy: config.reconnect,
             opener,
+            connect_timeout: config.connect_timeout,
+            max_line_len: config.max_line_len,
+            close: shared.close.clone(),
         };
         Client {
-            connection: Connection::spawn(task::run(stream, task)),
+            connection: Connection::spawn(crate::line::run(stream, task, link)),
             requests,
             stops,
             shared,
@@ -403,8 +407,19 @@ impl Client {
     /// after `BYE()`. Answered otherwise (`ERR BYE …`, returned as [`Error::Device`]) or not
     /// within its timeout ([`Error::Timeout`]), the connection is closed all the same (the
     /// gripper may then raise FAST STOP).
+    ///
+    /// While the client reconnects ([`ClientConfig::reconnect`]), in a backoff wait or an
+    /// attempt, it stops at once and this returns `Ok(())` without any `BYE()`: there is no
+    /// connection to send it on (the loss itself, unannounced, may have raised FAST STOP). The
+    /// client is closed; calls still queued fail with [`Error::Closed`], and so does every
+    /// later call. A second `close()` fails with [`Error::Closed`], as after any close. From
+    /// its first poll the client no longer reconnects: dropped before `BYE()` was sent, the
+    /// connection is still served, but a loss closes the client.
     pub async fn close(&self) -> Result<()> {
-        self.ack("BYE", "BYE()".into()).await
+        // Seen by a reconnecting task at once (it reads no queue in a backoff wait).
+        let first = self.shared.close.request();
+        let asked = self.ack("BYE", "BYE()".into()).await;
+        self.shared.close.outcome(first, asked)
     }
 
     /// `VERBOSE=0|1`: whether `ERR` lines carry a text besides the code (per connection, our

@@ -112,7 +112,7 @@ pub struct Pushes {
 
 impl Pushes {
     pub(crate) fn new(filter: Option<Quantity>, buffer: usize) -> (Pushes, PushSubscriber) {
-        let (tx, rx) = mpsc::channel(crate::line::channel_capacity(buffer));
+        let (tx, rx) = mpsc::channel(crate::queue::channel_capacity(buffer));
         let missed = Arc::new(AtomicU64::new(0));
         (
             Pushes {

@@ -19,11 +19,8 @@ use super::error::Error;
 use super::line::{parse_number, parse_reply, ReplyLine};
 use super::push::{Push, PushSubscriber, Quantity};
 use crate::deadline::move_timer;
-use crate::line::{
-    io_error, peer_closed, Failure, LineConn, LineError, LineSession, LineTask, Opener,
-};
-use crate::reconnect::{BoxStream, EventSender, ReconnectPolicy};
-use crate::supervisor::supervise;
+use crate::line::{io_error, peer_closed, Failure, LineConn, LineError, LineTask};
+use crate::supervisor::CloseRequest;
 use crate::wsg::{GripState, Status};
 
 /// What a command's call waits for.
@@ -98,6 +95,8 @@ const PROBES: [(&str, &str); 3] = [
 #[derive(Debug, Default)]
 pub(crate) struct Shared {
     failure: Failure<Error>,
+    /// Set by [`Client::close`](super::Client::close) before it queues `BYE()`.
+    pub(crate) close: CloseRequest,
     pub(crate) subscribers: Mutex<Vec<PushSubscriber>>,
     /// What the program set up on the connection that a reconnect restores, by what it sets
     /// (`VERBOSE`, `PWT`, `CLT`, one `AUTOSEND` per quantity): the last line the gripper
@@ -164,15 +163,14 @@ impl Shared {
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct TaskConfig {
     pub give_up_after: Duration,
-    pub max_line_len: usize,
     /// Requests held while a command of their name is on the wire, at most.
     pub waiting_len: usize,
     /// Timeout of each command that restores the session after a reconnect.
     pub query_timeout: Duration,
-    pub connect_timeout: Duration,
 }
 
-/// Everything the task needs besides the first connection.
+/// Everything the task needs besides the connection (and how to open it again: the line
+/// session's `LineLink`).
 pub(crate) struct Task {
     pub requests: mpsc::Receiver<Request>,
     /// `STOP()` and `FASTSTOP()`, apart from the other calls: a stop must never wait behind
@@ -181,12 +179,6 @@ pub(crate) struct Task {
     pub stops: mpsc::Receiver<Request>,
     pub config: TaskConfig,
     pub shared: Arc<Shared>,
-    pub events: EventSender,
-    /// Reconnect with this backoff (`None`: a lost connection stays closed).
-    pub reconnect: Option<ReconnectPolicy>,
-    /// How to reconnect (`None`: a stream the program handed over, which cannot be opened
-    /// again).
-    pub opener: Option<Opener>,
 }
 
 pub(crate) use crate::deadline::after;
@@ -614,13 +606,6 @@ async fn any_caller_gone(waiting: &mut VecDeque<Request>) {
     .await
 }
 
-/// Runs until every handle is dropped, `BYE()` is acknowledged, or the connection is lost for
-/// good (the loop is the shared supervisor's, `crate::supervisor`).
-pub(crate) async fn run(stream: BoxStream, task: Task) {
-    let conn = LineConn::new(stream, task.config.max_line_len);
-    supervise(LineSession::new(task, conn)).await;
-}
-
 /// The text session the supervisor runs: restored with the settings the gripper accepted
 /// (`VERBOSE`, `PWT`, `CLT`, `AUTOSEND`), in the order they were first set.
 impl LineTask for Task {
@@ -635,25 +620,7 @@ impl LineTask for Task {
         self.requests.is_closed()
     }
 
-    fn events(&self) -> &EventSender {
-        &self.events
-    }
-
-    fn policy(&self) -> Option<ReconnectPolicy> {
-        self.reconnect
-    }
-
-    fn opener(&self) -> (Option<&Opener>, Duration, usize) {
-        let config = &self.config;
-        (
-            self.opener.as_ref(),
-            config.connect_timeout,
-            config.max_line_len,
-        )
-    }
-
-    async fn serve(&mut self, conn: &mut LineConn) -> Error {
-        let reconnects = self.reconnect.is_some();
+    async fn serve(&mut self, conn: &mut LineConn, reconnects: bool) -> Error {
         serve(
             conn,
             &mut self.requests,
