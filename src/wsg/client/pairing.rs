@@ -89,7 +89,7 @@ use tokio::time::Instant;
 
 use self::in_flight::{IdState, InFlight, Settle};
 use super::stops::{StopDue, Stops};
-use crate::deadline::after;
+use crate::deadline::{after, is_unbounded};
 use crate::int_map::IntMap;
 use crate::wsg::command::id;
 use crate::wsg::{Frame, Reply, Status};
@@ -260,7 +260,19 @@ impl Pairing {
     /// the error of the release. A caller waiting with a timeout of its own is bounded by its
     /// deadline only, however much longer than `reply` or `motion` it is: the call gets the
     /// timeout it asked for.
+    ///
+    /// A motion hold of "no timeout" (`Duration::MAX`: the connection's motion timeout is
+    /// none) bounds nothing: the reply hold stands in for it. Recovery releases a motion only
+    /// on the device's evidence that its final reply is lost (two "not moving" a grace apart,
+    /// [`Pairing::on_probe`]), so starting it early is sound: a move that runs on is probed
+    /// once per grace until it ends, and its final reply still completes the call. Without
+    /// it an acknowledged motion of a caller without timeout whose final reply was lost (a
+    /// damaged frame is dropped like a lost one) was never probed, and held its id and its
+    /// caller until another call of the id came (issue 29 B, rule 8 of the explorer:
+    /// `wsg-serial:0xac729dceeaab2b0d`, `wsg-udp:0x66132f2f8481310d`,
+    /// `wsg-tcp:0xf9a242cb8cee5995`, each on a client drawn with no motion timeout).
     pub(crate) fn set_holds(&mut self, reply: Duration, motion: Duration) {
+        let motion = if is_unbounded(motion) { reply } else { motion };
         self.holds = (reply, motion);
     }
 

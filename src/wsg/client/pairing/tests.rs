@@ -198,6 +198,52 @@ fn a_request_without_deadline_keeps_its_id_only_for_the_holds() {
     assert_eq!(p.due(now + motion), vec![Due::Probe(0x21, 3)]);
 }
 
+/// A connection without motion timeout (`Duration::MAX`) has no motion hold: an acknowledged
+/// motion of a caller without timeout whose final reply is lost must still go under recovery
+/// (issue 29 B, rule 8: `wsg-serial:0xac729dceeaab2b0d`, a home whose final reply arrived
+/// damaged was never probed and held its caller 350 s, until another home came). It is probed
+/// from the reply hold after it was sent, once per grace while the device moves, and released
+/// on two "not moving" a grace apart, as any motion under recovery.
+#[test]
+fn a_connection_without_motion_timeout_still_recovers_a_motion_without_deadline() {
+    let now = Instant::now();
+    let never = after(now, Duration::MAX);
+    let grace = Duration::from_millis(100);
+    let query = Duration::from_secs(1);
+    let mut p = Pairing::new(grace);
+    p.set_holds(query, Duration::MAX);
+    assert_eq!(sent(p.submit(req(1, 0x20, never), now)), Some(1));
+    assert_eq!(
+        p.on_reply(reply(0x20, Status::CmdPending)),
+        Event::Accepted(1)
+    );
+    // Its final reply is lost: the first probe is due the reply hold after the send.
+    assert_eq!(p.next_due(), Some(now + query));
+    assert!(p.due(now + query - Duration::from_millis(1)).is_empty());
+    assert_eq!(p.due(now + query), vec![Due::Probe(0x20, 1)]);
+    // Still moving: asked again a grace later, the caller still waits.
+    let t = now + query;
+    assert_eq!(
+        p.on_probe(0x20, 1, Observation::Moving, t, 10),
+        Verdict::Running(vec![])
+    );
+    assert_eq!(p.next_due(), Some(t + grace));
+    assert_eq!(p.due(t + grace), vec![Due::Probe(0x20, 1)]);
+    // The move ended; its final reply never comes: two "not moving" a grace apart end it.
+    let t = t + grace;
+    assert_eq!(
+        p.on_probe(0x20, 1, Observation::Idle, t, 11),
+        Verdict::Undecided
+    );
+    assert_eq!(p.due(t + grace), vec![Due::Probe(0x20, 1)]);
+    assert_eq!(
+        p.on_probe(0x20, 1, Observation::Idle, t + grace, 12),
+        Verdict::Abandoned
+    );
+    assert!(!p.done(0x20));
+    assert_eq!(p.next_due(), None);
+}
+
 #[test]
 fn an_acknowledged_non_motion_request_is_released_after_its_deadline_and_grace() {
     // Finger power (0x62) answers E_CMD_PENDING and its final reply "nach etwa 500 ms"
