@@ -56,8 +56,15 @@
 //! immediate reply is fenced so: a final reply comes when its command ends. So a released
 //! motion is taken back on the wire under recovery (below) when its E_CMD_PENDING comes before
 //! the echo, and also when none came at all by the echo (a corrupted E_CMD_PENDING is dropped
-//! like a lost one, and the move's final reply would complete the next request of the id), and
-//! an acknowledged non-motion command (finger power on) is released as before. Stops are never
+//! like a lost one, and the move's final reply would complete the next request of the id). An
+//! acknowledged non-motion command (finger power on, 3.6.3) is fenced too: its final reply
+//! comes when it ends, "nach etwa 500 ms" ([`FINGER_POWER_ON_DURATION`](super::FINGER_POWER_ON_DURATION)), and its release
+//! comes later than that (its caller's deadline, by default the query timeout +
+//! that duration, plus the grace; at least that duration + grace after it was sent), so the device has sent that reply before it
+//! receives the barrier, and the echo comes after it. Released as before, a final reply stalled
+//! past the grace completed the next call of the id (the explorer's
+//! `wsg-serial:0xfdb842249ad7b4b3`); the residual risk is a device that ends the command later
+//! than its release (then the reply after the echo answers the next call). Stops are never
 //! given up on time on an ordered transport: a barrier proves their replies lost
 //! ([`super::stops`], [`Due::StopBarrier`]).
 //!
@@ -149,7 +156,7 @@ pub(crate) enum Due {
     /// released. Call [`Pairing::next`] for the id.
     Released(u8, Token),
     /// Like [`Due::Released`], on an ordered transport, for a request that got no reply at
-    /// all: the id stays fenced (its next request waits) until the echo of a loop-back sent
+    /// all, or an acknowledged one that is no motion (finger power on): the id stays fenced (its next request waits) until the echo of a loop-back sent
     /// now comes back. On a stream the device answers in order, so that echo comes after any
     /// reply to a request sent before it (see [`Pairing::unfence`]).
     Fenced(u8, Token),
@@ -672,11 +679,12 @@ impl Pairing {
             if f.acknowledged && is_motion(*id) {
                 f.probe_at = None;
                 out.push(Due::Probe(*id, f.token));
-            } else if self.ordered && !f.acknowledged && *id != id::LOOP {
-                // No reply at all: on an ordered stream the next request of the id waits for
-                // a barrier. (A loop reply needs none: it must echo its own payload. The final
-                // reply of an acknowledged command may come at any time: no barrier proves
-                // it will not.)
+            } else if self.ordered && *id != id::LOOP {
+                // No (final) reply: on an ordered stream the next request of the id waits for
+                // a barrier. (A loop reply needs none: it must echo its own payload.) An
+                // acknowledged one here is no motion (those are probed above): finger power on,
+                // whose command has ended by now, so its final reply comes before the echo
+                // (module docs; wsg-serial:0xfdb842249ad7b4b3).
                 st.fenced = true;
                 out.push(Due::Fenced(*id, f.token));
                 st.released = st.in_flight.take().filter(|_| is_motion(*id));
