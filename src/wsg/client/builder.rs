@@ -63,7 +63,9 @@ impl Default for ClientBuilder {
 }
 
 impl ClientBuilder {
-    /// Timeout of queries and settings (default 1 s).
+    /// Timeout of queries and settings (default 1 s). `Duration::MAX`: no timeout; a request
+    /// whose reply is lost still gives its command id up (and a call without timeout fails)
+    /// [`DEFAULT_QUERY_TIMEOUT`] + grace after it was sent (see [`Client::with_timeouts`]).
     pub fn query_timeout(mut self, t: Duration) -> Self {
         self.query_timeout = t;
         self

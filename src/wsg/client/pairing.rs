@@ -278,9 +278,27 @@ impl Pairing {
     /// caller until another call of the id came (issue 29 B, rule 8 of the explorer:
     /// `wsg-serial:0xac729dceeaab2b0d`, `wsg-udp:0x66132f2f8481310d`,
     /// `wsg-tcp:0xf9a242cb8cee5995`, each on a client drawn with no motion timeout).
+    ///
+    /// A reply hold of "no timeout" (the connection's query timeout is none) bounds nothing
+    /// either: the default query timeout stands in for it (the device answers a command, or
+    /// acknowledges it, at once: 1.2.2, 1.3). The holds are what bound the client's own
+    /// requests, which have no caller and no deadline: a loop-back barrier whose echo was lost
+    /// was never sent again with an unbounded reply hold, and its id stayed fenced for good
+    /// (`tests/wsg_barrier_pace.rs`).
     pub(crate) fn set_holds(&mut self, reply: Duration, motion: Duration) {
+        let reply = if is_unbounded(reply) {
+            super::DEFAULT_QUERY_TIMEOUT
+        } else {
+            reply
+        };
         let motion = if is_unbounded(motion) { reply } else { motion };
         self.holds = (reply, motion);
+    }
+
+    /// The reply hold in force ([`Pairing::set_holds`]): what a caller without timeout whose
+    /// request was released waited for.
+    pub(crate) fn reply_hold(&self) -> Duration {
+        self.holds.0
     }
 
     /// Says whether the transport keeps replies in order (TCP, serial, an attached stream):

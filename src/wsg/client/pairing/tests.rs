@@ -245,6 +245,41 @@ fn a_connection_without_motion_timeout_still_recovers_a_motion_without_deadline(
     assert_eq!(p.next_due(), None);
 }
 
+/// A connection without query timeout either (`Duration::MAX`): the default query timeout
+/// stands in for the reply hold, so nothing the holds bound is kept for ever. Above all the
+/// client's own loop-back barriers, which have no deadline: one whose echo was lost was never
+/// released, so never sent again, and its id stayed fenced for good.
+#[test]
+fn a_connection_without_any_timeout_still_bounds_its_holds() {
+    let now = Instant::now();
+    let never = after(now, Duration::MAX);
+    let grace = Duration::from_millis(100);
+    let resync = Duration::from_millis(500);
+    let hold = super::super::DEFAULT_QUERY_TIMEOUT;
+    let mut p = Pairing::new(grace);
+    p.set_ordered(true);
+    p.set_resync(resync);
+    p.set_holds(Duration::MAX, Duration::MAX);
+    assert_eq!(p.reply_hold(), hold);
+    // A barrier (a loop-back without deadline) whose echo is lost: released, to be sent again.
+    assert_eq!(sent(p.submit(req(1, id::LOOP, never), now)), Some(1));
+    assert_eq!(p.next_due(), Some(now + hold + resync + grace));
+    assert_eq!(
+        p.due(now + hold + resync + grace),
+        vec![Due::Released(id::LOOP, 1)]
+    );
+    // A call without timeout whose reply is lost: fenced after the hold.
+    assert_eq!(sent(p.submit(req(2, 0x50, never), now)), Some(2));
+    assert_eq!(p.due(now + hold + grace), vec![Due::Fenced(0x50, 2)]);
+    // An acknowledged motion without timeout: probed from the hold on.
+    assert_eq!(sent(p.submit(req(3, 0x20, never), now)), Some(3));
+    assert_eq!(
+        p.on_reply(reply(0x20, Status::CmdPending)),
+        Event::Accepted(3)
+    );
+    assert_eq!(p.due(now + hold), vec![Due::Probe(0x20, 3)]);
+}
+
 #[test]
 fn an_acknowledged_non_motion_request_is_released_after_its_deadline_and_grace() {
     // Finger power (0x62) answers E_CMD_PENDING and its final reply "nach etwa 500 ms"
