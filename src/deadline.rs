@@ -73,6 +73,12 @@ pub(crate) fn is_never(deadline: Instant, now: Instant) -> bool {
         .is_none_or(|half| deadline > half)
 }
 
+/// Whether a timeout `d` means "no timeout": long enough that [`after`] makes a deadline of it
+/// that [`is_never`] takes for "never" (`Duration::MAX`, or any duration over 15 years).
+pub(crate) fn is_unbounded(d: Duration) -> bool {
+    d > FAR_FUTURE / 2
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -98,5 +104,15 @@ mod tests {
             now
         ));
         assert!(!is_never(now, now));
+        // A timeout is unbounded exactly when the deadline it makes is never.
+        for d in [
+            Duration::MAX,
+            FAR_FUTURE / 2 + Duration::from_nanos(1),
+            FAR_FUTURE / 2,
+            Duration::from_secs(86_400 * 365),
+        ] {
+            assert_eq!(is_unbounded(d), is_never(after(now, d), now), "{d:?}");
+        }
+        assert!(is_unbounded(Duration::MAX));
     }
 }

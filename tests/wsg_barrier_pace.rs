@@ -144,3 +144,67 @@ async fn a_device_stuck_on_a_corrupted_length_gets_the_silence_it_needs() {
         device.abort();
     }
 }
+
+/// A device that answers neither the first width query nor the first loop-back (both lost),
+/// then echoes every loop-back and answers every width query (12.5 mm). Returns when each
+/// loop-back came.
+async fn losing_first_device(io: tokio::io::DuplexStream) -> Vec<Duration> {
+    use gripper::wsg::{Reply, Status};
+    use tokio::io::AsyncWriteExt;
+    let (rd, mut wr) = tokio::io::split(io);
+    let mut frames = tokio_util::codec::FramedRead::new(rd, gripper::wsg::WsgCodec::new());
+    let (mut widths, mut loops) = (0, Vec::new());
+    let start = Instant::now();
+    while let Some(Ok(f)) = frames.next().await {
+        let reply = match f.id {
+            id::LOOP => {
+                loops.push(Instant::now() - start);
+                if loops.len() == 1 {
+                    continue;
+                }
+                Reply::new(id::LOOP, Status::Success, f.payload)
+            }
+            id::WIDTH => {
+                widths += 1;
+                if widths == 1 {
+                    continue;
+                }
+                Reply::new(id::WIDTH, Status::Success, 12.5f32.to_le_bytes().to_vec())
+            }
+            _ => continue,
+        };
+        let mut out = bytes::BytesMut::new();
+        gripper::wsg::frame::encode(&reply.to_frame(), &mut out).unwrap();
+        if wr.write_all(&out).await.is_err() {
+            break;
+        }
+    }
+    loops
+}
+
+/// A client built without query timeout (`query_timeout(Duration::MAX)`): a barrier is a
+/// loop-back without deadline, kept by the reply hold, which was that Duration::MAX. A barrier
+/// whose echo was lost was then never sent again, and its id stayed fenced for good: every
+/// later call of the id timed out. The reply hold falls back to the default query timeout, so
+/// the barrier goes out again, paced (the default query timeout + the resync pause + grace
+/// after the first), and the id works again.
+#[tokio::test(start_paused = true)]
+async fn a_lost_barrier_is_sent_again_on_a_client_without_query_timeout() {
+    let (ours, theirs) = tokio::io::duplex(1 << 16);
+    let device = tokio::spawn(losing_first_device(theirs));
+    let client = Client::builder()
+        .query_timeout(Duration::MAX)
+        .late_reply_grace(GRACE)
+        .attach(ours);
+    let impatient = client.with_timeouts(QUERY, QUERY);
+    assert!(impatient.width_mm().await.is_err());
+    let patient = client.with_timeouts(Duration::from_secs(30), Duration::from_secs(30));
+    assert_eq!(patient.width_mm().await.unwrap(), 12.5);
+    drop((client, impatient, patient));
+    let loops = device.await.unwrap();
+    assert_eq!(loops.len(), 2, "loop-backs received: {loops:?}");
+    assert!(
+        loops[1] - loops[0] >= gripper::wsg::client::DEFAULT_QUERY_TIMEOUT + RESYNC + GRACE,
+        "the barrier went out again too soon: {loops:?}"
+    );
+}

@@ -240,7 +240,8 @@ async fn a_stop_reply_stalled_past_the_grace_does_not_complete_a_later_stop() {
 #[tokio::test]
 async fn a_lost_final_reply_of_finger_power_fails_the_call_and_frees_the_id() {
     // Finger power on (0x62): E_CMD_PENDING, then the final reply "nach etwa 500 ms" (3.6.3);
-    // the first final reply is lost.
+    // the first final reply is lost. Loop-backs are echoed (3.1.1): on a stream the released
+    // finger power on fences its id until a barrier's echo comes back.
     let mut counts = [0; 256];
     let fake = Fake::start(move |f, wire| match f.id {
         0x62 => {
@@ -249,6 +250,7 @@ async fn a_lost_final_reply_of_finger_power_fails_the_call_and_frees_the_id() {
                 wire.reply(f.id, Status::Success, &[]);
             }
         }
+        id::LOOP => wire.reply(f.id, Status::Success, &f.payload),
         _ => wire.reply(f.id, Status::Success, &[]),
     })
     .await;
@@ -282,12 +284,16 @@ async fn a_lost_final_reply_of_finger_power_fails_the_call_and_frees_the_id() {
 async fn a_lost_final_reply_of_a_raw_request_frees_the_id_after_its_timeout_and_grace() {
     const RAW: u8 = 0x5A;
     let mut counts = [0; 256];
+    // Loop-backs are echoed (3.1.1): on a stream the released request fences its id until a
+    // barrier's echo comes back.
     let fake = Fake::start(move |f, wire| {
         if f.id == RAW {
             wire.reply(RAW, Status::CmdPending, &[]);
             if nth(&mut counts, RAW) > 1 {
                 wire.reply(RAW, Status::Success, b"done");
             }
+        } else if f.id == id::LOOP {
+            wire.reply(f.id, Status::Success, &f.payload);
         } else {
             wire.reply(f.id, Status::Success, &[]);
         }

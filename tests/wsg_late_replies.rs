@@ -189,3 +189,94 @@ async fn a_device_that_refuses_every_barrier_gets_three_and_the_id_goes_on() {
     );
     assert_eq!(loops.load(Ordering::SeqCst), 3, "barriers sent");
 }
+
+/// A reply frame of `command` with status `status` and no data.
+fn status_reply(command: u8, status: u16) -> Vec<u8> {
+    let mut b = BytesMut::new();
+    frame::encode(&Frame::new(command, status.to_le_bytes().to_vec()), &mut b).unwrap();
+    b.to_vec()
+}
+
+/// E_CMD_PENDING and E_CMD_FAILED (manual, Anhang A).
+const CMD_PENDING: u16 = 26;
+const CMD_FAILED: u16 = 18;
+
+/// A TCP "gripper" that acknowledges the first finger power on (0x62, manual 3.6.3) at once,
+/// then stalls its output: the on's final E_SUCCESS, sent when the power-on ended, waits on the
+/// link until the device has read its next request, and is written just before that request's
+/// own answer (the stream keeps the order the device sent in). Loop-backs are echoed; every
+/// later finger power on is acknowledged and then fails (E_CMD_FAILED), so its answer tells it
+/// apart from the first one's.
+async fn stalled_finger_power_device() -> SocketAddr {
+    use futures_util::StreamExt;
+    use tokio::io::AsyncWriteExt;
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let addr = listener.local_addr().unwrap();
+    tokio::spawn(async move {
+        let (socket, _) = listener.accept().await.unwrap();
+        let (read, mut write) = socket.into_split();
+        let mut requests = tokio_util::codec::FramedRead::new(read, gripper::wsg::WsgCodec::new());
+        let mut stalled: Vec<u8> = Vec::new();
+        let mut powers = 0;
+        while let Some(Ok(request)) = requests.next().await {
+            let mut answer = std::mem::take(&mut stalled);
+            match request.id {
+                id::FINGER1_POWER if powers == 0 => {
+                    powers += 1;
+                    answer.extend(status_reply(id::FINGER1_POWER, CMD_PENDING));
+                    stalled = status_reply(id::FINGER1_POWER, 0);
+                }
+                id::FINGER1_POWER => {
+                    answer.extend(status_reply(id::FINGER1_POWER, CMD_PENDING));
+                    answer.extend(status_reply(id::FINGER1_POWER, CMD_FAILED));
+                }
+                id::LOOP => answer.extend(echo(&request)),
+                other => answer.extend(reply(other, &[])),
+            }
+            if write.write_all(&answer).await.is_err() {
+                return;
+            }
+        }
+    });
+    addr
+}
+
+/// (c) TCP: finger power on, acknowledged, its caller timed out; its final reply, stalled on
+/// the link past the grace, completed the next finger power call
+/// (`wsg-serial:0xfdb842249ad7b4b3`). On an ordered stream the id is fenced: the final reply
+/// was sent before the device received the barrier, so it comes before the echo, and the next
+/// call is answered by its own replies.
+#[tokio::test]
+async fn a_finger_power_final_reply_stalled_past_the_grace_never_answers_the_next_call() {
+    let client = Client::builder()
+        .late_reply_grace(Duration::from_millis(50))
+        .connect_tcp(stalled_finger_power_device().await)
+        .await
+        .unwrap();
+    let impatient = client.with_timeouts(Duration::from_millis(100), Duration::from_secs(1));
+    let first = bounded(
+        "first finger power on",
+        impatient.set_finger_power(gripper::wsg::Finger::One, true),
+    )
+    .await;
+    assert!(
+        matches!(first, Err(gripper::wsg::Error::Timeout { .. })),
+        "{first:?}"
+    );
+    let patient = client.with_timeouts(Duration::from_secs(5), Duration::from_secs(5));
+    let second = bounded(
+        "second finger power on",
+        patient.set_finger_power(gripper::wsg::Finger::One, true),
+    )
+    .await;
+    assert!(
+        matches!(
+            second,
+            Err(gripper::wsg::Error::Device {
+                command: id::FINGER1_POWER,
+                status: gripper::wsg::Status::CmdFailed
+            })
+        ),
+        "the stalled final reply of the first call answered the second: {second:?}"
+    );
+}

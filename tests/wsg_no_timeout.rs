@@ -111,3 +111,24 @@ async fn a_probe_answered_through_a_barrier_still_counts() {
         "{moved:?}"
     );
 }
+
+/// A connection without motion timeout (`ClientBuilder::motion_timeout(Duration::MAX)`): a
+/// motion called with the connection's timeouts has no deadline, and no motion hold bounds it
+/// either. Its final reply lost, it must still go under recovery and end (issue 29 B, rule 8
+/// of the explorer: `wsg-serial:0xac729dceeaab2b0d`, a home whose final reply arrived damaged
+/// was never probed and held its caller until another home came 350 s later).
+#[tokio::test]
+async fn a_motion_on_a_connection_without_motion_timeout_whose_final_reply_is_lost_ends() {
+    let client = Client::builder()
+        .query_timeout(Duration::from_millis(200))
+        .motion_timeout(Duration::MAX)
+        .late_reply_grace(Duration::from_millis(50))
+        .connect_tcp(device_losing_final_replies().await)
+        .await
+        .unwrap();
+    let moved = bounded("pre_position", client.pre_position(20.0, 50.0)).await;
+    assert!(
+        matches!(moved, Err(Error::ReplyLost { command: 0x21 })),
+        "{moved:?}"
+    );
+}

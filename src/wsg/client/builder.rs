@@ -64,7 +64,9 @@ impl Default for ClientBuilder {
 }
 
 impl ClientBuilder {
-    /// Timeout of queries and settings (default 1 s).
+    /// Timeout of queries and settings (default 1 s). `Duration::MAX`: no timeout; a request
+    /// whose reply is lost still gives its command id up (and a call without timeout fails)
+    /// [`DEFAULT_QUERY_TIMEOUT`] + grace after it was sent (see [`Client::with_timeouts`]).
     pub fn query_timeout(mut self, t: Duration) -> Self {
         self.query_timeout = t;
         self
@@ -73,6 +75,9 @@ impl ClientBuilder {
     /// Timeout of motion commands (homing, pre-position, grasp, release) up to their final reply
     /// (default 30 s). Past it, the client asks the device whether the move still runs before it
     /// takes the command id back (see [Lost final replies](Client#lost-final-replies)).
+    /// `Duration::MAX`: no timeout; a motion whose final reply is lost is then asked about
+    /// from the query timeout after it was sent (it ends with [`Error::ReplyLost`](crate::wsg::Error::ReplyLost) only once
+    /// the device says twice, a grace period apart, that it does not move).
     pub fn motion_timeout(mut self, t: Duration) -> Self {
         self.motion_timeout = t;
         self

@@ -56,8 +56,15 @@
 //! immediate reply is fenced so: a final reply comes when its command ends. So a released
 //! motion is taken back on the wire under recovery (below) when its E_CMD_PENDING comes before
 //! the echo, and also when none came at all by the echo (a corrupted E_CMD_PENDING is dropped
-//! like a lost one, and the move's final reply would complete the next request of the id), and
-//! an acknowledged non-motion command (finger power on) is released as before. Stops are never
+//! like a lost one, and the move's final reply would complete the next request of the id). An
+//! acknowledged non-motion command (finger power on, 3.6.3) is fenced too: its final reply
+//! comes when it ends, "nach etwa 500 ms" ([`FINGER_POWER_ON_DURATION`](super::FINGER_POWER_ON_DURATION)), and its release
+//! comes later than that (its caller's deadline, by default the query timeout +
+//! that duration, plus the grace; at least that duration + grace after it was sent), so the device has sent that reply before it
+//! receives the barrier, and the echo comes after it. Released as before, a final reply stalled
+//! past the grace completed the next call of the id (the explorer's
+//! `wsg-serial:0xfdb842249ad7b4b3`); the residual risk is a device that ends the command later
+//! than its release (then the reply after the echo answers the next call). Stops are never
 //! given up on time on an ordered transport: a barrier proves their replies lost
 //! ([`super::stops`], [`Due::StopBarrier`]).
 //!
@@ -89,7 +96,7 @@ use tokio::time::Instant;
 
 use self::in_flight::{IdState, InFlight, Settle};
 use super::stops::{StopDue, Stops};
-use crate::deadline::after;
+use crate::deadline::{after, is_unbounded};
 use crate::int_map::IntMap;
 use crate::wsg::command::id;
 use crate::wsg::{Frame, Reply, Status};
@@ -149,7 +156,7 @@ pub(crate) enum Due {
     /// released. Call [`Pairing::next`] for the id.
     Released(u8, Token),
     /// Like [`Due::Released`], on an ordered transport, for a request that got no reply at
-    /// all: the id stays fenced (its next request waits) until the echo of a loop-back sent
+    /// all, or an acknowledged one that is no motion (finger power on): the id stays fenced (its next request waits) until the echo of a loop-back sent
     /// now comes back. On a stream the device answers in order, so that echo comes after any
     /// reply to a request sent before it (see [`Pairing::unfence`]).
     Fenced(u8, Token),
@@ -260,8 +267,38 @@ impl Pairing {
     /// the error of the release. A caller waiting with a timeout of its own is bounded by its
     /// deadline only, however much longer than `reply` or `motion` it is: the call gets the
     /// timeout it asked for.
+    ///
+    /// A motion hold of "no timeout" (`Duration::MAX`: the connection's motion timeout is
+    /// none) bounds nothing: the reply hold stands in for it. Recovery releases a motion only
+    /// on the device's evidence that its final reply is lost (two "not moving" a grace apart,
+    /// [`Pairing::on_probe`]), so starting it early is sound: a move that runs on is probed
+    /// once per grace until it ends, and its final reply still completes the call. Without
+    /// it an acknowledged motion of a caller without timeout whose final reply was lost (a
+    /// damaged frame is dropped like a lost one) was never probed, and held its id and its
+    /// caller until another call of the id came (issue 29 B, rule 8 of the explorer:
+    /// `wsg-serial:0xac729dceeaab2b0d`, `wsg-udp:0x66132f2f8481310d`,
+    /// `wsg-tcp:0xf9a242cb8cee5995`, each on a client drawn with no motion timeout).
+    ///
+    /// A reply hold of "no timeout" (the connection's query timeout is none) bounds nothing
+    /// either: the default query timeout stands in for it (the device answers a command, or
+    /// acknowledges it, at once: 1.2.2, 1.3). The holds are what bound the client's own
+    /// requests, which have no caller and no deadline: a loop-back barrier whose echo was lost
+    /// was never sent again with an unbounded reply hold, and its id stayed fenced for good
+    /// (`tests/wsg_barrier_pace.rs`).
     pub(crate) fn set_holds(&mut self, reply: Duration, motion: Duration) {
+        let reply = if is_unbounded(reply) {
+            super::DEFAULT_QUERY_TIMEOUT
+        } else {
+            reply
+        };
+        let motion = if is_unbounded(motion) { reply } else { motion };
         self.holds = (reply, motion);
+    }
+
+    /// The reply hold in force ([`Pairing::set_holds`]): what a caller without timeout whose
+    /// request was released waited for.
+    pub(crate) fn reply_hold(&self) -> Duration {
+        self.holds.0
     }
 
     /// Says whether the transport keeps replies in order (TCP, serial, an attached stream):
@@ -660,11 +697,12 @@ impl Pairing {
             if f.acknowledged && is_motion(*id) {
                 f.probe_at = None;
                 out.push(Due::Probe(*id, f.token));
-            } else if self.ordered && !f.acknowledged && *id != id::LOOP {
-                // No reply at all: on an ordered stream the next request of the id waits for
-                // a barrier. (A loop reply needs none: it must echo its own payload. The final
-                // reply of an acknowledged command may come at any time: no barrier proves
-                // it will not.)
+            } else if self.ordered && *id != id::LOOP {
+                // No (final) reply: on an ordered stream the next request of the id waits for
+                // a barrier. (A loop reply needs none: it must echo its own payload.) An
+                // acknowledged one here is no motion (those are probed above): finger power on,
+                // whose command has ended by now, so its final reply comes before the echo
+                // (module docs; wsg-serial:0xfdb842249ad7b4b3).
                 st.fenced = true;
                 out.push(Due::Fenced(*id, f.token));
                 st.released = st.in_flight.take().filter(|_| is_motion(*id));

@@ -30,6 +30,11 @@ pub(super) struct InFlight {
     /// [`super::Pairing::set_holds`]'s reply hold + grace (1.2.2, 1.3: the device answers a command,
     /// or acknowledges it with E_CMD_PENDING, at once).
     pub(super) unacked_release_at: Instant,
+    /// When an acknowledged command that is no motion (finger power on) gives its id up at the
+    /// earliest: sent + [`FINGER_POWER_ON_DURATION`] + grace. The device ends it that long after
+    /// it received it (3.6.3: "nach etwa 500 ms"), so its final reply has been sent by then,
+    /// whatever its caller's timeout (zero included).
+    pub(super) ended_release_at: Instant,
     /// When an acknowledged motion goes under recovery if not [`InFlight::held`]: sent +
     /// the motion hold (recovery releases only on evidence, so starting it early is sound).
     pub(super) motion_probe_at: Instant,
@@ -80,6 +85,7 @@ impl InFlight {
             release_at: after(req.deadline, grace),
             held: !is_never(req.deadline, now),
             unacked_release_at: after(after(now, holds.0), grace),
+            ended_release_at: after(after(now, FINGER_POWER_ON_DURATION), grace),
             motion_probe_at: after(now, holds.1),
             probe_at: None,
             idle_seen: None,
@@ -114,13 +120,20 @@ impl InFlight {
             // deadline bounds nothing, so the holds do. Its final reply comes about
             // FINGER_POWER_ON_DURATION after the acknowledgement (finger power on, manual
             // 3.6.3, is the only asynchronous command that is no motion): a lost one is given
-            // up that much after the reply hold (issue 29 B: the call never ended).
+            // up that much after the reply hold (issue 29 B: the call never ended). Never
+            // before the command has ended (a caller gone before its short deadline): below.
             Some(
                 self.release_at
-                    .min(after(self.unacked_release_at, FINGER_POWER_ON_DURATION)),
+                    .min(after(self.unacked_release_at, FINGER_POWER_ON_DURATION))
+                    .max(self.ended_release_at),
             )
-        } else if self.acknowledged || self.held && !is_motion(id) {
-            // Acknowledged (not a motion): its final reply is owed, the deadline bounds it.
+        } else if self.acknowledged {
+            // Acknowledged (not a motion): its final reply is owed, the deadline bounds it, but
+            // not before the command has ended (a caller with a short timeout): released (or
+            // fenced, on an ordered transport) earlier, its final reply would come after the
+            // release and answer the next call of the id.
+            Some(self.release_at.max(self.ended_release_at))
+        } else if self.held && !is_motion(id) {
             // Held: its caller's own deadline wins over the reply hold. Not a motion's: its
             // deadline is the motion timeout (30 s by default), while its E_CMD_PENDING comes
             // at once (1.3), so the reply hold still bounds the wait for that: a motion

@@ -4,6 +4,7 @@
 use bytes::Bytes;
 
 use super::*;
+use crate::wsg::client::FINGER_POWER_ON_DURATION;
 
 fn req(token: Token, id: u8, deadline: Instant) -> Request {
     Request {
@@ -198,12 +199,97 @@ fn a_request_without_deadline_keeps_its_id_only_for_the_holds() {
     assert_eq!(p.due(now + motion), vec![Due::Probe(0x21, 3)]);
 }
 
+/// A connection without motion timeout (`Duration::MAX`) has no motion hold: an acknowledged
+/// motion of a caller without timeout whose final reply is lost must still go under recovery
+/// (issue 29 B, rule 8: `wsg-serial:0xac729dceeaab2b0d`, a home whose final reply arrived
+/// damaged was never probed and held its caller 350 s, until another home came). It is probed
+/// from the reply hold after it was sent, once per grace while the device moves, and released
+/// on two "not moving" a grace apart, as any motion under recovery.
+#[test]
+fn a_connection_without_motion_timeout_still_recovers_a_motion_without_deadline() {
+    let now = Instant::now();
+    let never = after(now, Duration::MAX);
+    let grace = Duration::from_millis(100);
+    let query = Duration::from_secs(1);
+    let mut p = Pairing::new(grace);
+    p.set_holds(query, Duration::MAX);
+    assert_eq!(sent(p.submit(req(1, 0x20, never), now)), Some(1));
+    assert_eq!(
+        p.on_reply(reply(0x20, Status::CmdPending)),
+        Event::Accepted(1)
+    );
+    // Its final reply is lost: the first probe is due the reply hold after the send.
+    assert_eq!(p.next_due(), Some(now + query));
+    assert!(p.due(now + query - Duration::from_millis(1)).is_empty());
+    assert_eq!(p.due(now + query), vec![Due::Probe(0x20, 1)]);
+    // Still moving: asked again a grace later, the caller still waits.
+    let t = now + query;
+    assert_eq!(
+        p.on_probe(0x20, 1, Observation::Moving, t, 10),
+        Verdict::Running(vec![])
+    );
+    assert_eq!(p.next_due(), Some(t + grace));
+    assert_eq!(p.due(t + grace), vec![Due::Probe(0x20, 1)]);
+    // The move ended; its final reply never comes: two "not moving" a grace apart end it.
+    let t = t + grace;
+    assert_eq!(
+        p.on_probe(0x20, 1, Observation::Idle, t, 11),
+        Verdict::Undecided
+    );
+    assert_eq!(p.due(t + grace), vec![Due::Probe(0x20, 1)]);
+    assert_eq!(
+        p.on_probe(0x20, 1, Observation::Idle, t + grace, 12),
+        Verdict::Abandoned
+    );
+    assert!(!p.done(0x20));
+    assert_eq!(p.next_due(), None);
+}
+
+/// A connection without query timeout either (`Duration::MAX`): the default query timeout
+/// stands in for the reply hold, so nothing the holds bound is kept for ever. Above all the
+/// client's own loop-back barriers, which have no deadline: one whose echo was lost was never
+/// released, so never sent again, and its id stayed fenced for good.
+#[test]
+fn a_connection_without_any_timeout_still_bounds_its_holds() {
+    let now = Instant::now();
+    let never = after(now, Duration::MAX);
+    let grace = Duration::from_millis(100);
+    let resync = Duration::from_millis(500);
+    let hold = super::super::DEFAULT_QUERY_TIMEOUT;
+    let mut p = Pairing::new(grace);
+    p.set_ordered(true);
+    p.set_resync(resync);
+    p.set_holds(Duration::MAX, Duration::MAX);
+    assert_eq!(p.reply_hold(), hold);
+    // A barrier (a loop-back without deadline) whose echo is lost: released, to be sent again.
+    assert_eq!(sent(p.submit(req(1, id::LOOP, never), now)), Some(1));
+    assert_eq!(p.next_due(), Some(now + hold + resync + grace));
+    assert_eq!(
+        p.due(now + hold + resync + grace),
+        vec![Due::Released(id::LOOP, 1)]
+    );
+    // A call without timeout whose reply is lost: fenced after the hold.
+    assert_eq!(sent(p.submit(req(2, 0x50, never), now)), Some(2));
+    assert_eq!(p.due(now + hold + grace), vec![Due::Fenced(0x50, 2)]);
+    // An acknowledged motion without timeout: probed from the hold on.
+    assert_eq!(sent(p.submit(req(3, 0x20, never), now)), Some(3));
+    assert_eq!(
+        p.on_reply(reply(0x20, Status::CmdPending)),
+        Event::Accepted(3)
+    );
+    assert_eq!(p.due(now + hold), vec![Due::Probe(0x20, 3)]);
+}
+
 #[test]
 fn an_acknowledged_non_motion_request_is_released_after_its_deadline_and_grace() {
     // Finger power (0x62) answers E_CMD_PENDING and its final reply "nach etwa 500 ms"
-    // (3.6.3): a lost final reply must not hold the id for good.
+    // (3.6.3): a lost final reply must not hold the id for good. Its caller's deadline (here
+    // at once) is not enough: the command has not ended then, and its final reply would come
+    // after the release; the id is kept until it has ended (FINGER_POWER_ON_DURATION after
+    // the send), plus the grace.
     let now = Instant::now();
     let grace = Duration::from_millis(500);
+    let ended = now + FINGER_POWER_ON_DURATION + grace;
     let mut p = Pairing::new(grace);
     assert!(matches!(p.submit(req(1, 0x62, now), now), Submit::Send(_)));
     assert_eq!(
@@ -211,8 +297,9 @@ fn an_acknowledged_non_motion_request_is_released_after_its_deadline_and_grace()
         Event::Accepted(1)
     );
     assert!(matches!(p.submit(req(2, 0x62, now), now), Submit::Queued));
-    assert_eq!(p.next_due(), Some(now + grace));
-    assert_eq!(p.due(now + grace), vec![Due::Released(0x62, 1)]);
+    assert_eq!(p.next_due(), Some(ended));
+    assert!(p.due(now + grace).is_empty());
+    assert_eq!(p.due(ended), vec![Due::Released(0x62, 1)]);
     assert_eq!(
         p.next(0x62, |_| true, Instant::now()).0.map(|r| r.token),
         Some(2)
@@ -572,16 +659,8 @@ fn an_id_released_without_a_reply_waits_for_its_barrier_on_an_ordered_transport(
         Submit::Send(_)
     ));
     assert_eq!(p.due(t + grace), vec![Due::Released(id::LOOP, 4)]);
-    // Nor does an acknowledged command (its final reply may come at any time).
-    assert!(matches!(
-        p.submit(req(5, id::FINGER2_POWER, t), now),
-        Submit::Send(_)
-    ));
-    assert_eq!(
-        p.on_reply(reply(id::FINGER2_POWER, Status::CmdPending)),
-        Event::Accepted(5)
-    );
-    assert_eq!(p.due(t + grace), vec![Due::Released(id::FINGER2_POWER, 5)]);
+    // (An acknowledged finger power on is fenced too, once its command has ended:
+    // an_acknowledged_finger_power_on_is_fenced_on_an_ordered_transport.)
     // A released motion whose E_CMD_PENDING comes before the barrier runs after all: it is
     // back on the wire under recovery (probed at once), its final reply ends it.
     assert!(matches!(
@@ -604,6 +683,67 @@ fn an_id_released_without_a_reply_waits_for_its_barrier_on_an_ordered_transport(
     let mut p = Pairing::new(grace);
     assert!(matches!(p.submit(req(1, 0x43, t), now), Submit::Send(_)));
     assert_eq!(p.due(t + grace), vec![Due::Released(0x43, 1)]);
+}
+
+/// The explorer's `wsg-serial:0xfdb842249ad7b4b3`, distilled: finger power on is acknowledged,
+/// its caller times out, and its final reply, sent when the command ended (3.6.3: "nach etwa
+/// 500 ms"), is stalled on the stream past the grace. Released on time, that reply completed
+/// the next finger power call. On an ordered transport the id is fenced instead: the device
+/// sent the final reply before it received the barrier, so it comes before the echo and
+/// answers nobody, and the next call goes out after the echo. On UDP it is released as before.
+#[test]
+fn an_acknowledged_finger_power_on_is_fenced_on_an_ordered_transport() {
+    let now = Instant::now();
+    let t = now + Duration::from_millis(100);
+    let grace = Duration::from_millis(50);
+    let ended = now + FINGER_POWER_ON_DURATION + grace;
+    for ordered in [true, false] {
+        let mut p = Pairing::new(grace);
+        p.set_ordered(ordered);
+        assert_eq!(sent(p.submit(req(1, id::FINGER1_POWER, t), now)), Some(1));
+        assert_eq!(
+            p.on_reply(reply(id::FINGER1_POWER, Status::CmdPending)),
+            Event::Accepted(1)
+        );
+        assert!(matches!(
+            p.submit(req(2, id::FINGER1_POWER, t), now),
+            Submit::Queued
+        ));
+        // Not before the command has ended, whatever the caller's deadline.
+        assert!(p.due(t + grace).is_empty());
+        if !ordered {
+            assert_eq!(p.due(ended), vec![Due::Released(id::FINGER1_POWER, 1)]);
+            continue;
+        }
+        assert_eq!(p.due(ended), vec![Due::Fenced(id::FINGER1_POWER, 1)]);
+        assert_eq!(
+            p.next(id::FINGER1_POWER, |_| true, ended)
+                .0
+                .map(|r| r.token),
+            None
+        );
+        // The stalled final reply, before the echo: it answers nobody.
+        assert!(matches!(
+            p.on_reply(reply(id::FINGER1_POWER, Status::Success)),
+            Event::Unsolicited(_)
+        ));
+        p.unfence(id::FINGER1_POWER, ended);
+        assert_eq!(
+            p.next(id::FINGER1_POWER, |_| true, ended)
+                .0
+                .map(|r| r.token),
+            Some(2)
+        );
+        // The next call is answered by its own replies only.
+        assert_eq!(
+            p.on_reply(reply(id::FINGER1_POWER, Status::CmdPending)),
+            Event::Accepted(2)
+        );
+        assert!(matches!(
+            p.on_reply(reply(id::FINGER1_POWER, Status::CmdFailed)),
+            Event::Resolved(2, _)
+        ));
+    }
 }
 
 /// The explorer's `wsg-tcp:0xbd5fd685504fe279`, distilled: a home's E_CMD_PENDING is

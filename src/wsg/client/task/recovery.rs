@@ -80,12 +80,13 @@ impl Task {
             }
             // A caller still waiting is one without timeout (`Duration::MAX`), or a motion
             // command's whose acknowledgement did not come, released by the hold of
-            // `Pairing::set_holds`: the timeout applied was the connection's query timeout. (A caller with a timeout keeps its id past its own deadline, by which
-            // its call has failed with its own timeout.)
+            // `Pairing::set_holds`: the timeout applied was the connection's query timeout
+            // (the default one when the connection has none). (A caller with a timeout keeps
+            // its id past its own deadline, by which its call has failed with its own timeout.)
             Some(Waiter::Caller(tx)) => {
                 let _ = tx.send(Err(Error::Timeout {
                     command: id,
-                    timeout: self.query_timeout,
+                    timeout: self.pairing.reply_hold(),
                 }));
                 Ok(())
             }
