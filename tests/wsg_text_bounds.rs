@@ -385,3 +385,79 @@ async fn a_motion_whose_fin_was_damaged_ends_when_reported_over() {
     gripper.reply("FIN MOVE").await;
     again.await.unwrap().unwrap();
 }
+
+/// The hang of issue 29 M's residual (`wsg-text:0x3bac8274f6da31e9`): `close()` without
+/// timeout whose `ACK BYE` arrives damaged (`@CK BYE`). Nothing is written after `BYE()`, so
+/// no later reply could tell; the damaged line came where `ACK BYE` was due: `close()` fails
+/// `MalformedReply` and the connection is closed (a later call fails `Closed`).
+#[tokio::test]
+async fn close_without_timeout_ends_when_ack_bye_is_damaged() {
+    let (client, mut gripper) = pair(ClientConfig::default()).await;
+    let forever = client.with_timeout(Duration::MAX);
+    let close = tokio::spawn(async move { forever.close().await });
+    assert_eq!(gripper.line().await.as_deref(), Some("BYE()"));
+    gripper.reply("@CK BYE").await;
+    let closed = tokio::time::timeout(LIMIT, close)
+        .await
+        .expect("close() never ended");
+    assert!(
+        matches!(
+            closed,
+            Ok(Err(gripper::wsg::text::Error::MalformedReply { .. }))
+        ),
+        "{closed:?}"
+    );
+    assert_eq!(lines_until_closed(&mut gripper).await, Vec::<String>::new());
+    let after = tokio::time::timeout(LIMIT, client.position_mm()).await;
+    assert!(
+        matches!(after, Ok(Err(gripper::wsg::text::Error::Closed))),
+        "{after:?}"
+    );
+}
+
+/// The bound above is not eager: with a query written before `BYE()` still unanswered, its
+/// reply and `ACK BYE` are both due, so one damaged line may have been the query's and
+/// `ACK BYE` may still come: `close()` waits for it (then the query fails `Closed`, as every
+/// call still on the wire when the session ends).
+#[tokio::test]
+async fn close_without_timeout_waits_for_every_reply_due_before_it() {
+    let (client, mut gripper) = pair(ClientConfig::default()).await;
+    let forever = client.with_timeout(Duration::MAX);
+    let query = tokio::spawn({
+        let forever = forever.clone();
+        async move { forever.position_mm().await }
+    });
+    assert_eq!(gripper.line().await.as_deref(), Some("POS?"));
+    let close = tokio::spawn(async move { forever.close().await });
+    assert_eq!(gripper.line().await.as_deref(), Some("BYE()"));
+    gripper.reply("P0S=1").await;
+    // Still open: the next line is the gripper's to read.
+    gripper.reply("ACK BYE").await;
+    let closed = tokio::time::timeout(LIMIT, close).await.expect("close()");
+    assert!(matches!(closed, Ok(Ok(()))), "{closed:?}");
+    let failed = query.await.unwrap();
+    assert!(
+        matches!(failed, Err(gripper::wsg::text::Error::Closed)),
+        "{failed:?}"
+    );
+    assert_eq!(lines_until_closed(&mut gripper).await, Vec::<String>::new());
+}
+
+/// `close()` without timeout given up by its caller (its future dropped) before `ACK BYE`:
+/// nobody waits for the reply and nothing more is written, so the connection is closed then,
+/// not held open for ever (the explorer's bound on a `close()` without timeout drops it so).
+#[tokio::test]
+async fn close_without_timeout_given_up_closes_the_connection() {
+    let (client, mut gripper) = pair(ClientConfig::default()).await;
+    let forever = client.with_timeout(Duration::MAX);
+    let close = tokio::spawn(async move { forever.close().await });
+    assert_eq!(gripper.line().await.as_deref(), Some("BYE()"));
+    close.abort();
+    let _ = close.await;
+    assert_eq!(lines_until_closed(&mut gripper).await, Vec::<String>::new());
+    let after = tokio::time::timeout(LIMIT, client.position_mm()).await;
+    assert!(
+        matches!(after, Ok(Err(gripper::wsg::text::Error::Closed))),
+        "{after:?}"
+    );
+}

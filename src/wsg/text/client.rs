@@ -400,9 +400,12 @@ impl Client {
     /// `BYE()`: announces the disconnect, so closing does not raise FAST STOP; waits for
     /// `ACK BYE`, then closes the connection. Calls made afterwards, on any clone, fail with
     /// [`Error::Closed`], and so do calls still waiting for a busy name: nothing is written
-    /// after `BYE()`. Answered otherwise (`ERR BYE …`, returned as [`Error::Device`]) or not
-    /// within its timeout ([`Error::Timeout`]), the connection is closed all the same (the
-    /// gripper may then raise FAST STOP).
+    /// after `BYE()`. Answered otherwise (`ERR BYE …`, returned as [`Error::Device`]), not
+    /// within its timeout ([`Error::Timeout`]), or with a line that could not be read where
+    /// `ACK BYE` was due ([`Error::MalformedReply`]: nothing written after `BYE()` could tell
+    /// whether it was `ACK BYE`, so a `close()` without timeout would wait for ever), the
+    /// connection is closed all the same (the gripper may then raise FAST STOP). So it is
+    /// when the future of `close()` is dropped before `ACK BYE`.
     pub async fn close(&self) -> Result<()> {
         self.ack("BYE", "BYE()".into()).await
     }

@@ -81,6 +81,8 @@ struct Slot {
     over: bool,
     /// `Book::damages` when its `ACK` was read.
     damages_at_ack: u64,
+    /// `Book::damages` when it was written.
+    damages_at_write: u64,
 }
 
 /// The least time between two checks of an overdue motion (issue 29 L): `give_up_after` may be
@@ -269,6 +271,7 @@ impl Book {
             checking: false,
             over: false,
             damages_at_ack: 0,
+            damages_at_write: self.damages,
         };
         self.on_wire.insert(name, slot);
     }
@@ -429,6 +432,21 @@ impl Book {
                 self.freed.push(name);
             }
         }
+    }
+
+    /// After `BYE()`: whether `ACK BYE` may have been a reply line that could not be read. The
+    /// gripper answers in order, one reply per command answered at once (shared note §3.7):
+    /// once as many unreadable lines came since the oldest such command on the wire was
+    /// written as there are such commands, `BYE()` included, each of them (`ACK BYE` too) may
+    /// have been one. Nothing is written after `BYE()` (issue 29 N), so no later reply can
+    /// settle it as `settle` does, nor a probe: without this, a `BYE()` without timeout whose
+    /// `ACK BYE` arrived damaged waited for ever (`wsg-text:0x3bac8274f6da31e9`).
+    fn bye_unreadable(&self) -> bool {
+        let due = self.on_wire.values().filter(|s| Book::answered_at_once(s));
+        let (count, oldest) = due.fold((0u64, u64::MAX), |(n, oldest), s| {
+            (n + 1, oldest.min(s.damages_at_write))
+        });
+        self.on_wire.contains_key("BYE") && self.damages.saturating_sub(oldest) >= count
     }
 
     /// The earliest give-up time of the commands on the wire.
@@ -597,6 +615,16 @@ fn usable(request: Request) -> Option<Request> {
         return None;
     }
     Some(request)
+}
+
+/// Resolves when the caller of `BYE()` has left (its future dropped); never if `BYE()` is not
+/// on the wire.
+async fn bye_caller_gone(on_wire: &mut BTreeMap<&'static str, Slot>) {
+    std::future::poll_fn(|cx| match on_wire.get_mut("BYE") {
+        Some(slot) => slot.waiter.poll_closed(cx),
+        None => std::task::Poll::Pending,
+    })
+    .await
 }
 
 /// Resolves when the caller of a waiting request has left (its future dropped).
@@ -806,6 +834,10 @@ async fn serve(
                 }
                 break Error::Closed;
             }
+            // Nobody waits for `ACK BYE` any more and nothing is written after `BYE()`: the
+            // session is over (a `BYE()` without timeout whose caller left kept the connection
+            // and its task alive for ever).
+            () = bye_caller_gone(&mut book.on_wire), if closing.is_some() => break Error::Closed,
             // A stop is read whatever the queue holds (issue 29 K).
             request = stops.recv(), if closing.is_none() => {
                 let Some(request) = request else { break Error::Closed };
@@ -819,6 +851,25 @@ async fn serve(
             // leaves, and the channel is read again.
             () = &mut queue_timer, if queue_deadline.is_some() => {}
             () = any_caller_gone(&mut book.waiting), if full => {}
+        }
+        // `ACK BYE` may have been a line that could not be read, and nothing written after
+        // `BYE()` can ever tell (`Book::bye_unreadable`): the session ends as at `BYE()`'s
+        // deadline, its caller told why.
+        if closing.is_some() && book.bye_unreadable() {
+            if let Some(slot) = book.on_wire.remove("BYE") {
+                let line = book
+                    .damaged
+                    .take()
+                    .map(|(_, line)| line)
+                    .unwrap_or_default();
+                tracing::warn!(%line, "wsg text: ACK BYE could not be read, connection closed");
+                let _ = slot.waiter.send(Err(Error::MalformedReply {
+                    command: slot.line,
+                    line,
+                    reason: "a line that could not be read came where ACK BYE was due".into(),
+                }));
+            }
+            break Error::Closed;
         }
         let mut outgoing: VecDeque<Request> = to_send.into_iter().collect();
         // Names freed by calls whose reply was damaged: their next waiting requests go out

@@ -177,7 +177,7 @@ pub fn check(
             continue;
         };
         let log = tap.lock().unwrap();
-        out.extend(closed(a, &log));
+        out.extend(closed(a, &log, configs[a.client].max_line_len));
     }
     out
 }
@@ -378,8 +378,21 @@ fn queued_before(i: usize, calls: &[CallRec], own: &[Option<(Instant, u64)>]) ->
 
 /// Promise 5 after a `close()` of the fault phase: nothing is written after `BYE()`, and the
 /// call made right after `close()` fails with `Closed` (or `ConnectionLost`), not a timeout.
-fn closed(a: &AfterClose, log: &TapLog) -> Vec<String> {
+fn closed(a: &AfterClose, log: &TapLog, max: usize) -> Vec<String> {
     let mut out = Vec::new();
+    if a.close.1 == Res::Hung {
+        // Dropped at `a.after.0`; judged strictly before (as a call's `Hung`, rule 8).
+        let dropped = a.after.0 - Duration::from_nanos(1);
+        let tag = if busy(log, "BYE", Expect::Ack, dropped, max) {
+            " [no reply of its name reached the client]"
+        } else {
+            ""
+        };
+        out.push(format!(
+            "8 (a call without timeout ends, and frees what it held): client {} BYE() (close(), no timeout) had not ended {FOREVER_BOUND:?} after it began{tag}",
+            a.client
+        ));
+    }
     let bye_acked = a.close.1 == Res::Done;
     let tag = if bye_acked {
         ""
