@@ -461,3 +461,79 @@ async fn close_without_timeout_given_up_closes_the_connection() {
         "{after:?}"
     );
 }
+
+/// Polls `future` once (it must not be ready yet): a call made then is in the client's channel.
+async fn poll_once<F: std::future::Future + Unpin>(future: &mut F)
+where
+    F::Output: std::fmt::Debug,
+{
+    let polled = std::future::poll_fn(|cx| {
+        std::task::Poll::Ready(std::future::Future::poll(
+            std::pin::Pin::new(&mut *future),
+            cx,
+        ))
+    })
+    .await;
+    assert!(polled.is_pending(), "{polled:?}");
+}
+
+/// Issue 29, rule 7 (`wsg-text:0xe5281323574dafa8`): a program's query made before the client
+/// wrote its own probe of that query (here M's `GRIPSTATE?` after a damaged reply), and read
+/// by the task only after it, takes the probe's answer: the gripper read that very line after
+/// the call was made. Before, the call waited for the probe's answer, then wrote its line again
+/// and could time out although the answer had come in time.
+#[tokio::test]
+async fn a_query_made_before_the_clients_own_probe_takes_its_answer() {
+    let config = ClientConfig {
+        queue_len: 2,
+        query_timeout: Duration::from_secs(30),
+        ..ClientConfig::default()
+    };
+    let (client, mut gripper) = pair(config).await;
+    let first = tokio::spawn({
+        let client = client.clone();
+        async move { client.set_verbose(false).await }
+    });
+    assert_eq!(gripper.line().await.as_deref(), Some("VERBOSE=0"));
+    // VERBOSE is busy: this one waits in the task (one of the two it holds, queue_len 2)...
+    let second = tokio::spawn({
+        let client = client.clone();
+        async move { client.set_verbose(true).await }
+    });
+    // ...read before this one (one channel, in order), which shows it.
+    let temp = tokio::spawn({
+        let client = client.clone();
+        async move { client.temperature_c().await }
+    });
+    assert_eq!(gripper.line().await.as_deref(), Some("TEMP?"));
+    gripper.reply("TEMP=20").await;
+    assert_eq!(temp.await.unwrap().unwrap(), 20.0);
+    // A third VERBOSE call fills the task's waiting calls, and the query, made after it, stays
+    // in the channel until one of them leaves.
+    let mut third = Box::pin(client.set_verbose(false));
+    poll_once(&mut third).await;
+    let mut query = Box::pin(client.grip_state());
+    poll_once(&mut query).await;
+    // VERBOSE=0's reply damaged: the client probes with GRIPSTATE? (issue 29 M).
+    gripper.reply("VERBOSX=0").await;
+    assert_eq!(gripper.line().await.as_deref(), Some("GRIPSTATE?"));
+    gripper.reply("GRIPSTATE=4").await;
+    assert!(first.await.unwrap().is_err());
+    // VERBOSE is free: the waiting call goes out; the query is answered by the probe's answer,
+    // not written again.
+    assert_eq!(gripper.line().await.as_deref(), Some("VERBOSE=1"));
+    let state = tokio::time::timeout(LIMIT, query).await.expect("the query");
+    assert_eq!(state.unwrap(), gripper::wsg::GripState::Holding);
+    gripper.reply("VERBOSE=1").await;
+    assert!(second.await.unwrap().unwrap());
+    assert_eq!(gripper.line().await.as_deref(), Some("VERBOSE=0"));
+    gripper.reply("VERBOSE=0").await;
+    assert!(!third.await.unwrap());
+    let pos = tokio::spawn({
+        let client = client.clone();
+        async move { client.position_mm().await }
+    });
+    assert_eq!(gripper.line().await.as_deref(), Some("POS?"));
+    gripper.reply("POS=10").await;
+    assert_eq!(pos.await.unwrap().unwrap(), 10.0);
+}

@@ -248,7 +248,8 @@ impl Client {
             Expect::Fin => self.config.motion_timeout,
             Expect::Ack | Expect::Value => self.config.query_timeout,
         });
-        let deadline = after(Instant::now(), timeout);
+        let start = Instant::now();
+        let deadline = after(start, timeout);
         let (waiter, answer) = oneshot::channel();
         // The line goes to the task; a timeout error needs it too, rarely.
         let line_again = line.clone();
@@ -259,6 +260,8 @@ impl Client {
             deadline,
             timeout,
             waiter,
+            start,
+            probe: false,
         };
         let channel = match name {
             "STOP" | "FASTSTOP" => &self.stops,

@@ -59,6 +59,10 @@ pub(crate) struct Request {
     pub deadline: Instant,
     pub timeout: Duration,
     pub waiter: Waiter,
+    /// When the call was made.
+    pub start: Instant,
+    /// A query the client writes on its own (issue 29 L and M), not a caller's.
+    pub probe: bool,
 }
 
 /// A command on the wire.
@@ -83,6 +87,8 @@ struct Slot {
     damages_at_ack: u64,
     /// `Book::damages` when it was written.
     damages_at_write: u64,
+    /// When it was written, if it is a probe (`Request::probe`).
+    probe_at: Option<Instant>,
 }
 
 /// The least time between two checks of an overdue motion (issue 29 L): `give_up_after` may be
@@ -236,6 +242,9 @@ struct Book {
     give_up_after: Duration,
     /// Reply lines that could not be paired so far.
     damages: u64,
+    /// The last answer to a probe of each name not yet handed to a call: when the probe was
+    /// written, its line, its value (`Book::answer_from_probe`).
+    probe_answers: BTreeMap<&'static str, (Instant, String, String)>,
 }
 
 impl Book {
@@ -248,6 +257,7 @@ impl Book {
             sent: 0,
             damaged: None,
             freed: Vec::new(),
+            probe_answers: BTreeMap::new(),
         }
     }
 
@@ -259,6 +269,7 @@ impl Book {
         expect: Expect,
         waiter: Waiter,
         give_up_at: Instant,
+        probe_at: Option<Instant>,
     ) {
         self.sent += 1;
         let slot = Slot {
@@ -272,6 +283,7 @@ impl Book {
             over: false,
             damages_at_ack: 0,
             damages_at_write: self.damages,
+            probe_at,
         };
         self.on_wire.insert(name, slot);
     }
@@ -345,6 +357,8 @@ impl Book {
             deadline: after(Instant::now(), query_timeout),
             timeout: query_timeout,
             waiter,
+            start: Instant::now(),
+            probe: true,
         })
     }
 
@@ -388,6 +402,8 @@ impl Book {
             deadline: after(now, query_timeout),
             timeout: query_timeout,
             waiter,
+            start: now,
+            probe: true,
         }))
     }
 
@@ -485,7 +501,7 @@ impl Book {
     /// Takes a request read from a channel: the request to send now if its name is free,
     /// else it waits for its name.
     fn admit(&mut self, request: Request) -> Option<Request> {
-        let request = usable(request)?;
+        let request = self.answer_from_probe(usable(request)?)?;
         if self.on_wire.contains_key(request.name) {
             self.prune();
             self.waiting.push_back(request);
@@ -495,12 +511,33 @@ impl Book {
         }
     }
 
+    /// Answers `request` with a probe's answer if it is the probe's very query and was made
+    /// before the probe was written (`None`), else gives it back. The probe is the same line,
+    /// read by the gripper after the call was made, so its answer is the gripper's answer to
+    /// that query during the call; without this a call that came in behind the client's own
+    /// probe of its name waited for the probe's answer, then wrote its line again and could
+    /// time out while the answer had come in time (rule 7, `wsg-text:0xe5281323574dafa8`). One
+    /// answer serves one call: a later call of the name asks the gripper itself.
+    fn answer_from_probe(&mut self, request: Request) -> Option<Request> {
+        let fits = self
+            .probe_answers
+            .get(request.name)
+            .is_some_and(|(at, line, _)| request.start <= *at && *line == request.line);
+        if !fits || request.expect != Expect::Value {
+            return Some(request);
+        }
+        let (_, _, value) = self.probe_answers.remove(request.name)?;
+        tracing::debug!(command = %request.line, %value, "wsg text: answered by the client's own probe");
+        let _ = request.waiter.send(Ok(Answer::Value(value)));
+        None
+    }
+
     /// The next waiting request of `name` that still has a caller and time, if any.
     fn next_waiting(&mut self, name: &str) -> Option<Request> {
         loop {
             let i = self.waiting.iter().position(|r| r.name == name)?;
             let request = self.waiting.remove(i)?;
-            if let Some(request) = usable(request) {
+            if let Some(request) = usable(request).and_then(|r| self.answer_from_probe(r)) {
                 return Some(request);
             }
         }
@@ -574,7 +611,14 @@ impl Book {
             (ReplyLine::Ack(_), Expect::Ack) | (ReplyLine::Fin(_), Expect::Fin) => Ok(Answer::Done),
             // The motion was accepted; its FIN or ERR follows.
             (ReplyLine::Ack(_), Expect::Fin) => return Handled::Nothing,
-            (ReplyLine::Value { value, .. }, Expect::Value) => Ok(Answer::Value(value.to_owned())),
+            (ReplyLine::Value { value, .. }, Expect::Value) => {
+                // A probe's answer: kept for a call of its query made before it was written.
+                if let Some(at) = slot.probe_at {
+                    let answer = (at, slot.line.clone(), value.to_owned());
+                    self.probe_answers.insert(key, answer);
+                }
+                Ok(Answer::Value(value.to_owned()))
+            }
             _ => Err(Error::UnexpectedReply {
                 command: slot.line.clone(),
                 line: text.to_owned(),
@@ -731,7 +775,14 @@ async fn exchange(
     conn.writer.send::<Error>(&setting.line, deadline).await?;
     let (waiter, mut answer) = oneshot::channel();
     let mut book = Book::new(timeout);
-    book.on_wire(setting.name, setting.line, setting.expect, waiter, deadline);
+    book.on_wire(
+        setting.name,
+        setting.line,
+        setting.expect,
+        waiter,
+        deadline,
+        None,
+    );
     loop {
         let line = match tokio::time::timeout_at(deadline, conn.reader.next_line()).await {
             Err(_) => return Err(Error::Timeout { command, timeout }),
@@ -920,12 +971,14 @@ async fn serve(
                 }
                 probed = true;
             }
+            let probe_at = request.probe.then(Instant::now);
             book.on_wire(
                 request.name,
                 request.line,
                 request.expect,
                 request.waiter,
                 give_up_at,
+                probe_at,
             );
         }
     };
