@@ -537,3 +537,94 @@ async fn a_query_made_before_the_clients_own_probe_takes_its_answer() {
     gripper.reply("POS=10").await;
     assert_eq!(pos.await.unwrap().unwrap(), 10.0);
 }
+
+/// A client (`give_up_after` 200 ms) with `MOVE(10)` (100 ms timeout) and `TEMP?` on the wire,
+/// its gripper's side, and the `MOVE` call.
+async fn move_and_query() -> (
+    Client,
+    Gripper,
+    tokio::task::JoinHandle<gripper::wsg::text::Result<()>>,
+    tokio::task::JoinHandle<gripper::wsg::text::Result<f64>>,
+) {
+    let config = ClientConfig {
+        give_up_after: Duration::from_millis(200),
+        ..ClientConfig::default()
+    };
+    let (client, mut gripper) = pair(config).await;
+    let motion = tokio::spawn({
+        let slow = client.with_timeout(Duration::from_millis(100));
+        async move { slow.move_to(10.0, None).await }
+    });
+    let line = gripper.line().await.unwrap();
+    assert!(line.starts_with("MOVE(10"), "{line}");
+    let temp = tokio::spawn({
+        let client = client.clone();
+        async move { client.temperature_c().await }
+    });
+    assert_eq!(gripper.line().await.as_deref(), Some("TEMP?"));
+    (client, gripper, motion, temp)
+}
+
+/// The rest of both tests below: the overdue `MOVE` is checked with `GRIPSTATE?`, ends once
+/// the gripper reports no motion, and the connection stays: `MOVE` is free again.
+async fn overdue_motion_ends_and_the_connection_stays(client: &Client, gripper: &mut Gripper) {
+    let line = line_within(gripper, Duration::from_secs(5), "GRIPSTATE?").await;
+    assert_eq!(line, "GRIPSTATE?");
+    gripper.reply("GRIPSTATE=0").await;
+    let again = tokio::spawn({
+        let client = client.clone();
+        async move { client.move_to(20.0, None).await }
+    });
+    let line = line_within(gripper, Duration::from_secs(5), "MOVE(20)").await;
+    assert!(line.starts_with("MOVE(20"), "{line}");
+    gripper.reply("ACK MOVE").await;
+    gripper.reply("FIN MOVE").await;
+    again.await.unwrap().unwrap();
+}
+
+/// Issue 29 L (`wsg-text:0xaa891d063fc824a5` and its two siblings): two replies run together by
+/// a damaged LF (0x0A read as 0x08) are one line that is neither. It was taken for the first
+/// reply (`TEMP=20…`) and swallowed `FIN MOVE` unseen: the acknowledged `MOVE`, reported over
+/// without its `FIN` and no damaged line counted, got the connection given up. Now the line
+/// counts as damaged: `TEMP?` fails once a later reply shows its reply lost, and the `MOVE`
+/// ends when the gripper reports it over.
+#[tokio::test]
+async fn two_replies_run_together_by_a_damaged_lf_count_as_damaged() {
+    let (client, mut gripper, motion, temp) = move_and_query().await;
+    gripper.reply("ACK MOVE").await;
+    gripper.reply("TEMP=20\u{8}FIN MOVE").await;
+    // Issue 29 M's probe, written after the damaged line.
+    assert_eq!(gripper.line().await.as_deref(), Some("GRIPSTATE?"));
+    gripper.reply("GRIPSTATE=6").await;
+    let temp = temp.await.unwrap();
+    assert!(
+        matches!(temp, Err(gripper::wsg::text::Error::MalformedReply { .. })),
+        "{temp:?}"
+    );
+    let moved = motion.await.unwrap();
+    assert!(
+        matches!(moved, Err(gripper::wsg::text::Error::Timeout { .. })),
+        "{moved:?}"
+    );
+    overdue_motion_ends_and_the_connection_stays(&client, &mut gripper).await;
+}
+
+/// Issue 29 L with M: a motion whose first reply (`ACK` or `ERR`) arrived damaged, shown lost
+/// by a later reply (the probe's), is taken as acknowledged: once overdue it is checked with
+/// `GRIPSTATE?` and ends when the gripper reports no motion. Before, it stayed unacknowledged
+/// and its give-up time gave the connection up.
+#[tokio::test]
+async fn a_motion_whose_first_reply_was_damaged_is_checked_not_given_up() {
+    let (client, mut gripper, motion, temp) = move_and_query().await;
+    gripper.reply("ERR MOVF 4").await;
+    gripper.reply("TEMP=20").await;
+    assert_eq!(temp.await.unwrap().unwrap(), 20.0);
+    assert_eq!(gripper.line().await.as_deref(), Some("GRIPSTATE?"));
+    gripper.reply("GRIPSTATE=0").await;
+    let moved = motion.await.unwrap();
+    assert!(
+        matches!(moved, Err(gripper::wsg::text::Error::Timeout { .. })),
+        "{moved:?}"
+    );
+    overdue_motion_ends_and_the_connection_stays(&client, &mut gripper).await;
+}

@@ -297,7 +297,7 @@ impl Book {
     /// answered at once that is on the wire.
     fn damage(&mut self, text: &str) {
         self.damages += 1;
-        if self.on_wire.values().any(|s| s.expect != Expect::Fin) {
+        if self.on_wire.values().any(Book::answered_at_once) {
             self.damaged = Some((self.sent, text.to_owned()));
         }
     }
@@ -305,11 +305,22 @@ impl Book {
     /// A reply to the command written as `seq` arrived: the commands answered at once written
     /// before the damaged line and still unanswered lost their reply to it. They fail, and
     /// their names are free (no reply of theirs can come any more). A motion not yet
-    /// acknowledged is left alone: if its `ACK` was damaged, its `FIN` may still come.
+    /// acknowledged lost its first reply too, an `ACK` (its `FIN` may still come) or an `ERR`
+    /// (none will): it is taken as acknowledged, with that damaged line after its `ACK`, so
+    /// that once overdue it is checked with `GRIPSTATE?` and ends when the gripper reports no
+    /// motion (issue 29 L; before, it was given up as unanswered: wsg-text:0xaa891d063fc824a5,
+    /// `ERR HOME 4` lost in a line run together with `ERR MOVE 19`).
     fn settle(&mut self, seq: u64) {
         let Some((upto, line)) = self.damaged.take_if(|(upto, _)| seq > *upto) else {
             return;
         };
+        for slot in self.on_wire.values_mut() {
+            if slot.seq <= upto && slot.expect == Expect::Fin && !slot.acked {
+                tracing::debug!(command = %slot.line, %line, "wsg text: a motion's first reply damaged, taken as acknowledged");
+                slot.acked = true;
+                slot.damages_at_ack = slot.damages_at_write;
+            }
+        }
         let lost: Vec<&'static str> = self
             .on_wire
             .iter()
@@ -337,7 +348,7 @@ impl Book {
         let suspects = self
             .on_wire
             .values()
-            .any(|s| s.seq <= *upto && s.expect != Expect::Fin);
+            .any(|s| s.seq <= *upto && Book::answered_at_once(s));
         let barrier = self
             .on_wire
             .values()
