@@ -227,8 +227,8 @@ fn timeout(
 /// The queries the text client writes on its own (its probes, issue 29 L and M).
 const PROBES: [&str; 3] = ["GRIPSTATE?", "POS?", "SPEED?"];
 
-/// The tag of a Timeout whose only write of its text may have been the client's own probe:
-/// [`own_probe`]'s, or a probe's query behind a full queue. A probe's answer serves a call of
+/// The tag of a Timeout whose write of its text may have been the client's own probe: a
+/// probe's query behind a full queue, else [`own_probe`]'s. A probe's answer serves a call of
 /// its query made before the probe was written, once the call leaves the client's queue (the
 /// client's `Book::answer_from_probe`); a call held in the queue (`queue_len` calls ahead of it still
 /// not written when the answer was read) may never leave it in time, and its text written by
@@ -242,10 +242,6 @@ fn probe_tag(
     log: &TapLog,
     (deadline, read, queue_len): (Instant, Instant, usize),
 ) -> &'static str {
-    let tag = own_probe(i, calls, own, log, deadline);
-    if !tag.is_empty() {
-        return tag;
-    }
     let c = &calls[i];
     let ahead = calls
         .iter()
@@ -261,10 +257,12 @@ fn probe_tag(
                         && own[j].is_none())
         })
         .count();
+    // The full queue first: it explains the Timeout (the call never reached the task), a
+    // probe on the wire alone does not since a probe's answer serves the calls behind it.
     if PROBES.contains(&c.line.as_str()) && ahead >= queue_len.max(1) {
         " [a probe's query behind a full queue: its write may have been the client's own probe]"
     } else {
-        ""
+        own_probe(i, calls, own, log, deadline)
     }
 }
 
