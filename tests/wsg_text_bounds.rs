@@ -628,3 +628,63 @@ async fn a_motion_whose_first_reply_was_damaged_is_checked_not_given_up() {
     );
     overdue_motion_ends_and_the_connection_stays(&client, &mut gripper).await;
 }
+
+/// An overdue acknowledged motion on a client whose `query_timeout` is `Duration::MAX`: its
+/// `GRIPSTATE?` check is the client's own query, bounded all the same. Here that check's
+/// request arrives damaged (answered `ERR GRIPSTATM 14`) and fails once a later reply shows it
+/// (issue 29 M); the motion is checked again, and ends when reported over. Before, the
+/// recheck was due at `query_timeout` + …, never: the motion held its name for good
+/// (`wsg-text:0xfa9c7f60b0e57de1`). On a paused clock, over an in-memory stream.
+#[tokio::test(start_paused = true)]
+async fn an_overdue_motion_is_checked_again_without_a_query_timeout() {
+    use tokio::io::AsyncBufReadExt as _;
+    let config = ClientConfig {
+        query_timeout: Duration::MAX,
+        give_up_after: Duration::from_millis(200),
+        ..ClientConfig::default()
+    };
+    let (near, far) = tokio::io::duplex(4096);
+    let client = Client::from_io(near, config);
+    let (read, mut write) = tokio::io::split(far);
+    let mut lines = tokio::io::BufReader::new(read).lines();
+    let mut reply = async |line: &str| {
+        write
+            .write_all(format!("{line}\n").as_bytes())
+            .await
+            .unwrap()
+    };
+    let motion = tokio::spawn({
+        let slow = client.with_timeout(Duration::from_millis(100));
+        async move { slow.move_to(10.0, None).await }
+    });
+    let line = lines.next_line().await.unwrap().unwrap();
+    assert!(line.starts_with("MOVE(10"), "{line}");
+    reply("ACK MOVE").await;
+    assert!(matches!(
+        motion.await.unwrap(),
+        Err(gripper::wsg::text::Error::Timeout { .. })
+    ));
+    assert_eq!(
+        lines.next_line().await.unwrap().as_deref(),
+        Some("GRIPSTATE?")
+    );
+    reply("ERR GRIPSTATM 14").await;
+    // M's probe after the damaged line; its answer shows the check's reply lost.
+    assert_eq!(lines.next_line().await.unwrap().as_deref(), Some("POS?"));
+    reply("POS=50").await;
+    let again = tokio::time::timeout(Duration::from_secs(60), lines.next_line())
+        .await
+        .expect("the motion was never checked again");
+    assert_eq!(again.unwrap().as_deref(), Some("GRIPSTATE?"));
+    reply("GRIPSTATE=0").await;
+    // Reported over with a damaged line after its ACK: the motion ended, MOVE is free.
+    let next = tokio::spawn({
+        let client = client.with_timeout(Duration::from_secs(5));
+        async move { client.move_to(20.0, None).await }
+    });
+    let line = lines.next_line().await.unwrap().unwrap();
+    assert!(line.starts_with("MOVE(20"), "{line}");
+    reply("ACK MOVE").await;
+    reply("FIN MOVE").await;
+    next.await.unwrap().unwrap();
+}

@@ -95,6 +95,20 @@ struct Slot {
 /// zero, and a check every instant would spin.
 const RECHECK_FLOOR: Duration = Duration::from_millis(100);
 
+/// The longest a probe waits for its answer. A probe is the client's own query, which the
+/// gripper answers at once (shared note §3.7); a program's `query_timeout` of
+/// `Duration::MAX` (no timeout for its calls) must not make it wait for ever: an overdue
+/// motion checked by a probe whose request was damaged on the way (answered `ERR GRIPSTATM
+/// 14`) was then never checked again and held its name for good
+/// (`wsg-text:0xfa9c7f60b0e57de1`). A probe unanswered this long past its give-up time gives
+/// the connection up, as any unanswered query does.
+const PROBE_TIMEOUT_MAX: Duration = Duration::from_secs(10);
+
+/// A probe's timeout: the program's query timeout, at most [`PROBE_TIMEOUT_MAX`].
+fn probe_timeout(query_timeout: Duration) -> Duration {
+    query_timeout.min(PROBE_TIMEOUT_MAX)
+}
+
 /// The names a probe may use (queries answered at once, harmless), in order of preference.
 const PROBES: [(&str, &str); 3] = [
     ("GRIPSTATE", "GRIPSTATE?"),
@@ -344,6 +358,7 @@ impl Book {
     /// A query to write after a damaged line, when nothing written since waits for a reply
     /// the gripper sends at once: its answer tells which replies were lost.
     fn probe(&self, query_timeout: Duration) -> Option<Request> {
+        let query_timeout = probe_timeout(query_timeout);
         let (upto, _) = self.damaged.as_ref()?;
         let suspects = self
             .on_wire
@@ -384,6 +399,7 @@ impl Book {
         give_up_after: Duration,
     ) -> Result<Option<Request>, String> {
         let now = Instant::now();
+        let query_timeout = probe_timeout(query_timeout);
         let probe_free = !self.on_wire.contains_key("GRIPSTATE");
         let Some(slot) = self.on_wire.values_mut().min_by_key(|s| s.give_up_at) else {
             return Ok(None);
