@@ -588,3 +588,18 @@ async fn a_command_cut_off_by_the_end_of_the_stream_is_not_run() {
         .collect();
     assert_eq!(read, [Some("FSACK()".to_owned())]);
 }
+
+/// The simulator: another connection's `BYE()` stops a running motion ("all running finger
+/// movements are stopped immediately", 3.1.2), and a stop returns the grip state to IDLE
+/// (Anhang C), as `STOP()` does. Found by the explorer (`wsg-text:0x8febd7af0c4e9b77`): the
+/// state stayed POSITIONING for good, and a client checking an overdue motion with
+/// `GRIPSTATE?` was told it still ran.
+#[tokio::test]
+async fn a_motion_stopped_by_another_connections_bye_leaves_the_grip_state_idle() {
+    let (server, g, mover) = slow_move().await;
+    let other = Client::connect(server.local_addr().unwrap()).await.unwrap();
+    other.close().await.unwrap();
+    let aborted = within("the move's ERR", mover).await.unwrap().unwrap_err();
+    assert_eq!(aborted.status(), Some(Status::CmdAborted), "{aborted}");
+    assert_eq!(g.grip_state().await.unwrap(), GripState::Idle);
+}

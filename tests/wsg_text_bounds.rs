@@ -385,3 +385,306 @@ async fn a_motion_whose_fin_was_damaged_ends_when_reported_over() {
     gripper.reply("FIN MOVE").await;
     again.await.unwrap().unwrap();
 }
+
+/// The hang of issue 29 M's residual (`wsg-text:0x3bac8274f6da31e9`): `close()` without
+/// timeout whose `ACK BYE` arrives damaged (`@CK BYE`). Nothing is written after `BYE()`, so
+/// no later reply could tell; the damaged line came where `ACK BYE` was due: `close()` fails
+/// `MalformedReply` and the connection is closed (a later call fails `Closed`).
+#[tokio::test]
+async fn close_without_timeout_ends_when_ack_bye_is_damaged() {
+    let (client, mut gripper) = pair(ClientConfig::default()).await;
+    let forever = client.with_timeout(Duration::MAX);
+    let close = tokio::spawn(async move { forever.close().await });
+    assert_eq!(gripper.line().await.as_deref(), Some("BYE()"));
+    gripper.reply("@CK BYE").await;
+    let closed = tokio::time::timeout(LIMIT, close)
+        .await
+        .expect("close() never ended");
+    assert!(
+        matches!(
+            closed,
+            Ok(Err(gripper::wsg::text::Error::MalformedReply { .. }))
+        ),
+        "{closed:?}"
+    );
+    assert_eq!(lines_until_closed(&mut gripper).await, Vec::<String>::new());
+    let after = tokio::time::timeout(LIMIT, client.position_mm()).await;
+    assert!(
+        matches!(after, Ok(Err(gripper::wsg::text::Error::Closed))),
+        "{after:?}"
+    );
+}
+
+/// The bound above is not eager: with a query written before `BYE()` still unanswered, its
+/// reply and `ACK BYE` are both due, so one damaged line may have been the query's and
+/// `ACK BYE` may still come: `close()` waits for it (then the query fails `Closed`, as every
+/// call still on the wire when the session ends).
+#[tokio::test]
+async fn close_without_timeout_waits_for_every_reply_due_before_it() {
+    let (client, mut gripper) = pair(ClientConfig::default()).await;
+    let forever = client.with_timeout(Duration::MAX);
+    let query = tokio::spawn({
+        let forever = forever.clone();
+        async move { forever.position_mm().await }
+    });
+    assert_eq!(gripper.line().await.as_deref(), Some("POS?"));
+    let close = tokio::spawn(async move { forever.close().await });
+    assert_eq!(gripper.line().await.as_deref(), Some("BYE()"));
+    gripper.reply("P0S=1").await;
+    // Still open: the next line is the gripper's to read.
+    gripper.reply("ACK BYE").await;
+    let closed = tokio::time::timeout(LIMIT, close).await.expect("close()");
+    assert!(matches!(closed, Ok(Ok(()))), "{closed:?}");
+    let failed = query.await.unwrap();
+    assert!(
+        matches!(failed, Err(gripper::wsg::text::Error::Closed)),
+        "{failed:?}"
+    );
+    assert_eq!(lines_until_closed(&mut gripper).await, Vec::<String>::new());
+}
+
+/// `close()` without timeout given up by its caller (its future dropped) before `ACK BYE`:
+/// nobody waits for the reply and nothing more is written, so the connection is closed then,
+/// not held open for ever (the explorer's bound on a `close()` without timeout drops it so).
+#[tokio::test]
+async fn close_without_timeout_given_up_closes_the_connection() {
+    let (client, mut gripper) = pair(ClientConfig::default()).await;
+    let forever = client.with_timeout(Duration::MAX);
+    let close = tokio::spawn(async move { forever.close().await });
+    assert_eq!(gripper.line().await.as_deref(), Some("BYE()"));
+    close.abort();
+    let _ = close.await;
+    assert_eq!(lines_until_closed(&mut gripper).await, Vec::<String>::new());
+    let after = tokio::time::timeout(LIMIT, client.position_mm()).await;
+    assert!(
+        matches!(after, Ok(Err(gripper::wsg::text::Error::Closed))),
+        "{after:?}"
+    );
+}
+
+/// Polls `future` once (it must not be ready yet): a call made then is in the client's channel.
+async fn poll_once<F: std::future::Future + Unpin>(future: &mut F)
+where
+    F::Output: std::fmt::Debug,
+{
+    let polled = std::future::poll_fn(|cx| {
+        std::task::Poll::Ready(std::future::Future::poll(
+            std::pin::Pin::new(&mut *future),
+            cx,
+        ))
+    })
+    .await;
+    assert!(polled.is_pending(), "{polled:?}");
+}
+
+/// Issue 29, rule 7 (`wsg-text:0xe5281323574dafa8`): a program's query made before the client
+/// wrote its own probe of that query (here M's `GRIPSTATE?` after a damaged reply), and read
+/// by the task only after it, takes the probe's answer: the gripper read that very line after
+/// the call was made. Before, the call waited for the probe's answer, then wrote its line again
+/// and could time out although the answer had come in time.
+#[tokio::test]
+async fn a_query_made_before_the_clients_own_probe_takes_its_answer() {
+    let config = ClientConfig {
+        queue_len: 2,
+        query_timeout: Duration::from_secs(30),
+        ..ClientConfig::default()
+    };
+    let (client, mut gripper) = pair(config).await;
+    let first = tokio::spawn({
+        let client = client.clone();
+        async move { client.set_verbose(false).await }
+    });
+    assert_eq!(gripper.line().await.as_deref(), Some("VERBOSE=0"));
+    // VERBOSE is busy: this one waits in the task (one of the two it holds, queue_len 2)...
+    let second = tokio::spawn({
+        let client = client.clone();
+        async move { client.set_verbose(true).await }
+    });
+    // ...read before this one (one channel, in order), which shows it.
+    let temp = tokio::spawn({
+        let client = client.clone();
+        async move { client.temperature_c().await }
+    });
+    assert_eq!(gripper.line().await.as_deref(), Some("TEMP?"));
+    gripper.reply("TEMP=20").await;
+    assert_eq!(temp.await.unwrap().unwrap(), 20.0);
+    // A third VERBOSE call fills the task's waiting calls, and the query, made after it, stays
+    // in the channel until one of them leaves.
+    let mut third = Box::pin(client.set_verbose(false));
+    poll_once(&mut third).await;
+    let mut query = Box::pin(client.grip_state());
+    poll_once(&mut query).await;
+    // VERBOSE=0's reply damaged: the client probes with GRIPSTATE? (issue 29 M).
+    gripper.reply("VERBOSX=0").await;
+    assert_eq!(gripper.line().await.as_deref(), Some("GRIPSTATE?"));
+    gripper.reply("GRIPSTATE=4").await;
+    assert!(first.await.unwrap().is_err());
+    // VERBOSE is free: the waiting call goes out; the query is answered by the probe's answer,
+    // not written again.
+    assert_eq!(gripper.line().await.as_deref(), Some("VERBOSE=1"));
+    let state = tokio::time::timeout(LIMIT, query).await.expect("the query");
+    assert_eq!(state.unwrap(), gripper::wsg::GripState::Holding);
+    gripper.reply("VERBOSE=1").await;
+    assert!(second.await.unwrap().unwrap());
+    assert_eq!(gripper.line().await.as_deref(), Some("VERBOSE=0"));
+    gripper.reply("VERBOSE=0").await;
+    assert!(!third.await.unwrap());
+    let pos = tokio::spawn({
+        let client = client.clone();
+        async move { client.position_mm().await }
+    });
+    assert_eq!(gripper.line().await.as_deref(), Some("POS?"));
+    gripper.reply("POS=10").await;
+    assert_eq!(pos.await.unwrap().unwrap(), 10.0);
+}
+
+/// A client (`give_up_after` 200 ms) with `MOVE(10)` (100 ms timeout) and `TEMP?` on the wire,
+/// its gripper's side, and the `MOVE` call.
+async fn move_and_query() -> (
+    Client,
+    Gripper,
+    tokio::task::JoinHandle<gripper::wsg::text::Result<()>>,
+    tokio::task::JoinHandle<gripper::wsg::text::Result<f64>>,
+) {
+    let config = ClientConfig {
+        give_up_after: Duration::from_millis(200),
+        ..ClientConfig::default()
+    };
+    let (client, mut gripper) = pair(config).await;
+    let motion = tokio::spawn({
+        let slow = client.with_timeout(Duration::from_millis(100));
+        async move { slow.move_to(10.0, None).await }
+    });
+    let line = gripper.line().await.unwrap();
+    assert!(line.starts_with("MOVE(10"), "{line}");
+    let temp = tokio::spawn({
+        let client = client.clone();
+        async move { client.temperature_c().await }
+    });
+    assert_eq!(gripper.line().await.as_deref(), Some("TEMP?"));
+    (client, gripper, motion, temp)
+}
+
+/// The rest of both tests below: the overdue `MOVE` is checked with `GRIPSTATE?`, ends once
+/// the gripper reports no motion, and the connection stays: `MOVE` is free again.
+async fn overdue_motion_ends_and_the_connection_stays(client: &Client, gripper: &mut Gripper) {
+    let line = line_within(gripper, Duration::from_secs(5), "GRIPSTATE?").await;
+    assert_eq!(line, "GRIPSTATE?");
+    gripper.reply("GRIPSTATE=0").await;
+    let again = tokio::spawn({
+        let client = client.clone();
+        async move { client.move_to(20.0, None).await }
+    });
+    let line = line_within(gripper, Duration::from_secs(5), "MOVE(20)").await;
+    assert!(line.starts_with("MOVE(20"), "{line}");
+    gripper.reply("ACK MOVE").await;
+    gripper.reply("FIN MOVE").await;
+    again.await.unwrap().unwrap();
+}
+
+/// Issue 29 L (`wsg-text:0xaa891d063fc824a5` and its two siblings): two replies run together by
+/// a damaged LF (0x0A read as 0x08) are one line that is neither. It was taken for the first
+/// reply (`TEMP=20…`) and swallowed `FIN MOVE` unseen: the acknowledged `MOVE`, reported over
+/// without its `FIN` and no damaged line counted, got the connection given up. Now the line
+/// counts as damaged: `TEMP?` fails once a later reply shows its reply lost, and the `MOVE`
+/// ends when the gripper reports it over.
+#[tokio::test]
+async fn two_replies_run_together_by_a_damaged_lf_count_as_damaged() {
+    let (client, mut gripper, motion, temp) = move_and_query().await;
+    gripper.reply("ACK MOVE").await;
+    gripper.reply("TEMP=20\u{8}FIN MOVE").await;
+    // Issue 29 M's probe, written after the damaged line.
+    assert_eq!(gripper.line().await.as_deref(), Some("GRIPSTATE?"));
+    gripper.reply("GRIPSTATE=6").await;
+    let temp = temp.await.unwrap();
+    assert!(
+        matches!(temp, Err(gripper::wsg::text::Error::MalformedReply { .. })),
+        "{temp:?}"
+    );
+    let moved = motion.await.unwrap();
+    assert!(
+        matches!(moved, Err(gripper::wsg::text::Error::Timeout { .. })),
+        "{moved:?}"
+    );
+    overdue_motion_ends_and_the_connection_stays(&client, &mut gripper).await;
+}
+
+/// Issue 29 L with M: a motion whose first reply (`ACK` or `ERR`) arrived damaged, shown lost
+/// by a later reply (the probe's), is taken as acknowledged: once overdue it is checked with
+/// `GRIPSTATE?` and ends when the gripper reports no motion. Before, it stayed unacknowledged
+/// and its give-up time gave the connection up.
+#[tokio::test]
+async fn a_motion_whose_first_reply_was_damaged_is_checked_not_given_up() {
+    let (client, mut gripper, motion, temp) = move_and_query().await;
+    gripper.reply("ERR MOVF 4").await;
+    gripper.reply("TEMP=20").await;
+    assert_eq!(temp.await.unwrap().unwrap(), 20.0);
+    assert_eq!(gripper.line().await.as_deref(), Some("GRIPSTATE?"));
+    gripper.reply("GRIPSTATE=0").await;
+    let moved = motion.await.unwrap();
+    assert!(
+        matches!(moved, Err(gripper::wsg::text::Error::Timeout { .. })),
+        "{moved:?}"
+    );
+    overdue_motion_ends_and_the_connection_stays(&client, &mut gripper).await;
+}
+
+/// An overdue acknowledged motion on a client whose `query_timeout` is `Duration::MAX`: its
+/// `GRIPSTATE?` check is the client's own query, bounded all the same. Here that check's
+/// request arrives damaged (answered `ERR GRIPSTATM 14`) and fails once a later reply shows it
+/// (issue 29 M); the motion is checked again, and ends when reported over. Before, the
+/// recheck was due at `query_timeout` + …, never: the motion held its name for good
+/// (`wsg-text:0xfa9c7f60b0e57de1`). On a paused clock, over an in-memory stream.
+#[tokio::test(start_paused = true)]
+async fn an_overdue_motion_is_checked_again_without_a_query_timeout() {
+    use tokio::io::AsyncBufReadExt as _;
+    let config = ClientConfig {
+        query_timeout: Duration::MAX,
+        give_up_after: Duration::from_millis(200),
+        ..ClientConfig::default()
+    };
+    let (near, far) = tokio::io::duplex(4096);
+    let client = Client::from_io(near, config);
+    let (read, mut write) = tokio::io::split(far);
+    let mut lines = tokio::io::BufReader::new(read).lines();
+    let mut reply = async |line: &str| {
+        write
+            .write_all(format!("{line}\n").as_bytes())
+            .await
+            .unwrap()
+    };
+    let motion = tokio::spawn({
+        let slow = client.with_timeout(Duration::from_millis(100));
+        async move { slow.move_to(10.0, None).await }
+    });
+    let line = lines.next_line().await.unwrap().unwrap();
+    assert!(line.starts_with("MOVE(10"), "{line}");
+    reply("ACK MOVE").await;
+    assert!(matches!(
+        motion.await.unwrap(),
+        Err(gripper::wsg::text::Error::Timeout { .. })
+    ));
+    assert_eq!(
+        lines.next_line().await.unwrap().as_deref(),
+        Some("GRIPSTATE?")
+    );
+    reply("ERR GRIPSTATM 14").await;
+    // M's probe after the damaged line; its answer shows the check's reply lost.
+    assert_eq!(lines.next_line().await.unwrap().as_deref(), Some("POS?"));
+    reply("POS=50").await;
+    let again = tokio::time::timeout(Duration::from_secs(60), lines.next_line())
+        .await
+        .expect("the motion was never checked again");
+    assert_eq!(again.unwrap().as_deref(), Some("GRIPSTATE?"));
+    reply("GRIPSTATE=0").await;
+    // Reported over with a damaged line after its ACK: the motion ended, MOVE is free.
+    let next = tokio::spawn({
+        let client = client.with_timeout(Duration::from_secs(5));
+        async move { client.move_to(20.0, None).await }
+    });
+    let line = lines.next_line().await.unwrap().unwrap();
+    assert!(line.starts_with("MOVE(20"), "{line}");
+    reply("ACK MOVE").await;
+    reply("FIN MOVE").await;
+    next.await.unwrap().unwrap();
+}

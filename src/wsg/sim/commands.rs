@@ -109,8 +109,16 @@ impl Device {
             Command::Loop(d) => out.push(data(session, id, d)),
             Command::AnnounceDisconnect => {
                 if self.sessions.kind(session) == Some(SessionKind::Tcp) {
-                    // "All running finger movements are stopped immediately" (3.1.2).
-                    out.extend(self.abort_motion());
+                    // "All running finger movements are stopped immediately" (3.1.2): a stop,
+                    // which returns to IDLE in any state except ERROR (Anhang C) as STOP does.
+                    // Before, a motion stopped so left the grip state POSITIONING for good: a
+                    // client checking an overdue motion with GRIPSTATE? was told it still ran
+                    // (wsg-text:0x8febd7af0c4e9b77, another connection's BYE() during HOME).
+                    let aborted = self.abort_motion();
+                    if aborted.is_some() && self.grip != GripState::Error {
+                        self.grip = GripState::Idle;
+                    }
+                    out.extend(aborted);
                     self.sessions.announce(session);
                     ok(out);
                 } else {

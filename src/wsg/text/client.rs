@@ -252,7 +252,8 @@ impl Client {
             Expect::Fin => self.config.motion_timeout,
             Expect::Ack | Expect::Value => self.config.query_timeout,
         });
-        let deadline = after(Instant::now(), timeout);
+        let start = Instant::now();
+        let deadline = after(start, timeout);
         let (waiter, answer) = oneshot::channel();
         // The line goes to the task; a timeout error needs it too, rarely.
         let line_again = line.clone();
@@ -263,6 +264,8 @@ impl Client {
             deadline,
             timeout,
             waiter,
+            start,
+            probe: false,
         };
         let channel = match name {
             "STOP" | "FASTSTOP" => &self.stops,
@@ -404,9 +407,12 @@ impl Client {
     /// `BYE()`: announces the disconnect, so closing does not raise FAST STOP; waits for
     /// `ACK BYE`, then closes the connection. Calls made afterwards, on any clone, fail with
     /// [`Error::Closed`], and so do calls still waiting for a busy name: nothing is written
-    /// after `BYE()`. Answered otherwise (`ERR BYE …`, returned as [`Error::Device`]) or not
-    /// within its timeout ([`Error::Timeout`]), the connection is closed all the same (the
-    /// gripper may then raise FAST STOP).
+    /// after `BYE()`. Answered otherwise (`ERR BYE …`, returned as [`Error::Device`]), not
+    /// within its timeout ([`Error::Timeout`]), or with a line that could not be read where
+    /// `ACK BYE` was due ([`Error::MalformedReply`]: nothing written after `BYE()` could tell
+    /// whether it was `ACK BYE`, so a `close()` without timeout would wait for ever), the
+    /// connection is closed all the same (the gripper may then raise FAST STOP). So it is
+    /// when the future of `close()` is dropped after `BYE()` was written, before `ACK BYE`.
     ///
     /// While the client reconnects ([`ClientConfig::reconnect`]), in a backoff wait or an
     /// attempt, it stops at once and this returns `Ok(())` without any `BYE()`: there is no

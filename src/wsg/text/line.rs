@@ -91,6 +91,15 @@ pub fn parse_reply(line: &str) -> Result<ReplyLine<'_>, Malformed> {
     if line.is_empty() {
         return Err(Malformed::Empty);
     }
+    // GCL replies are printable ASCII (§2). A control character inside a line is a damaged
+    // byte, most often the LF between two replies with a bit flipped (0x0A read as 0x0B, 0x08,
+    // 0x0E, 0x02 or 0x1A): the line then holds two replies, and taken for the first one's it
+    // swallows the second unseen (`ERR HOME 4\u{b}ERR MOVE 19` ended HOME's call and lost
+    // MOVE's ERR, wsg-text:0xaa891d063fc824a5). Such a line is none of the forms: the client
+    // counts it as a reply it could not read (issue 29 M, L).
+    if line.chars().any(|c| c.is_ascii_control()) {
+        return Err(Malformed::Unknown);
+    }
     if let Some(rest) = line.strip_prefix('@') {
         let (n, value) = rest.split_once('=').ok_or(Malformed::Unknown)?;
         return Ok(ReplyLine::Push {
@@ -251,6 +260,12 @@ mod tests {
         assert_eq!(parse_reply("ACK MO VE"), Err(Malformed::BadName));
         assert_eq!(parse_reply("hello"), Err(Malformed::Unknown));
         assert_eq!(parse_reply("  "), Err(Malformed::Empty));
+        // Two replies run together by a damaged LF are neither.
+        assert_eq!(
+            parse_reply("ERR HOME 4\u{b}ERR MOVE 19"),
+            Err(Malformed::Unknown)
+        );
+        assert_eq!(parse_reply("POS=1\u{8}POS=2"), Err(Malformed::Unknown));
     }
 
     #[test]

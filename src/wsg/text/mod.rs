@@ -68,6 +68,12 @@
 //! confidence. An `ERR` line without a command name, or a line that is not GCL, is logged and
 //! dropped (its caller times out) rather than failing a caller it may not belong to.
 //!
+//! The client writes a query on its own now and then (`GRIPSTATE?`, `POS?` or `SPEED?`): after
+//! a reply line it could not read, to learn which calls lost their reply, and for an
+//! acknowledged motion past its give-up time, to learn whether it still runs. A call of the
+//! same query made before such a line was written takes its answer (the gripper read that
+//! very line after the call was made) instead of writing the query again.
+//!
 //! # Memory bounds
 //! Reply lines longer than [`ClientConfig::max_line_len`] are skipped to their LF without being
 //! buffered; calls wait in a channel of [`ClientConfig::queue_len`] and at most as many again

@@ -56,6 +56,10 @@ pub(crate) struct Request {
     pub deadline: Instant,
     pub timeout: Duration,
     pub waiter: Waiter,
+    /// When the call was made.
+    pub start: Instant,
+    /// A query the client writes on its own (issue 29 L and M), not a caller's.
+    pub probe: bool,
 }
 
 /// A command on the wire.
@@ -78,11 +82,29 @@ struct Slot {
     over: bool,
     /// `Book::damages` when its `ACK` was read.
     damages_at_ack: u64,
+    /// `Book::damages` when it was written.
+    damages_at_write: u64,
+    /// When it was written, if it is a probe (`Request::probe`).
+    probe_at: Option<Instant>,
 }
 
 /// The least time between two checks of an overdue motion (issue 29 L): `give_up_after` may be
 /// zero, and a check every instant would spin.
 const RECHECK_FLOOR: Duration = Duration::from_millis(100);
+
+/// The longest a probe waits for its answer. A probe is the client's own query, which the
+/// gripper answers at once (shared note §3.7); a program's `query_timeout` of
+/// `Duration::MAX` (no timeout for its calls) must not make it wait for ever: an overdue
+/// motion checked by a probe whose request was damaged on the way (answered `ERR GRIPSTATM
+/// 14`) was then never checked again and held its name for good
+/// (`wsg-text:0xfa9c7f60b0e57de1`). A probe unanswered this long past its give-up time gives
+/// the connection up, as any unanswered query does.
+const PROBE_TIMEOUT_MAX: Duration = Duration::from_secs(10);
+
+/// A probe's timeout: the program's query timeout, at most [`PROBE_TIMEOUT_MAX`].
+fn probe_timeout(query_timeout: Duration) -> Duration {
+    query_timeout.min(PROBE_TIMEOUT_MAX)
+}
 
 /// The names a probe may use (queries answered at once, harmless), in order of preference.
 const PROBES: [(&str, &str); 3] = [
@@ -226,6 +248,9 @@ struct Book {
     give_up_after: Duration,
     /// Reply lines that could not be paired so far.
     damages: u64,
+    /// The last answer to a probe of each name not yet handed to a call: when the probe was
+    /// written, its line, its value (`Book::answer_from_probe`).
+    probe_answers: BTreeMap<&'static str, (Instant, String, String)>,
 }
 
 impl Book {
@@ -238,6 +263,7 @@ impl Book {
             sent: 0,
             damaged: None,
             freed: Vec::new(),
+            probe_answers: BTreeMap::new(),
         }
     }
 
@@ -249,6 +275,7 @@ impl Book {
         expect: Expect,
         waiter: Waiter,
         give_up_at: Instant,
+        probe_at: Option<Instant>,
     ) {
         self.sent += 1;
         let slot = Slot {
@@ -261,6 +288,8 @@ impl Book {
             checking: false,
             over: false,
             damages_at_ack: 0,
+            damages_at_write: self.damages,
+            probe_at,
         };
         self.on_wire.insert(name, slot);
     }
@@ -274,7 +303,7 @@ impl Book {
     /// answered at once that is on the wire.
     fn damage(&mut self, text: &str) {
         self.damages += 1;
-        if self.on_wire.values().any(|s| s.expect != Expect::Fin) {
+        if self.on_wire.values().any(Book::answered_at_once) {
             self.damaged = Some((self.sent, text.to_owned()));
         }
     }
@@ -282,11 +311,22 @@ impl Book {
     /// A reply to the command written as `seq` arrived: the commands answered at once written
     /// before the damaged line and still unanswered lost their reply to it. They fail, and
     /// their names are free (no reply of theirs can come any more). A motion not yet
-    /// acknowledged is left alone: if its `ACK` was damaged, its `FIN` may still come.
+    /// acknowledged lost its first reply too, an `ACK` (its `FIN` may still come) or an `ERR`
+    /// (none will): it is taken as acknowledged, with that damaged line after its `ACK`, so
+    /// that once overdue it is checked with `GRIPSTATE?` and ends when the gripper reports no
+    /// motion (issue 29 L; before, it was given up as unanswered: wsg-text:0xaa891d063fc824a5,
+    /// `ERR HOME 4` lost in a line run together with `ERR MOVE 19`).
     fn settle(&mut self, seq: u64) {
         let Some((upto, line)) = self.damaged.take_if(|(upto, _)| seq > *upto) else {
             return;
         };
+        for slot in self.on_wire.values_mut() {
+            if slot.seq <= upto && slot.expect == Expect::Fin && !slot.acked {
+                tracing::debug!(command = %slot.line, %line, "wsg text: a motion's first reply damaged, taken as acknowledged");
+                slot.acked = true;
+                slot.damages_at_ack = slot.damages_at_write;
+            }
+        }
         let lost: Vec<&'static str> = self
             .on_wire
             .iter()
@@ -310,11 +350,12 @@ impl Book {
     /// A query to write after a damaged line, when nothing written since waits for a reply
     /// the gripper sends at once: its answer tells which replies were lost.
     fn probe(&self, query_timeout: Duration) -> Option<Request> {
+        let query_timeout = probe_timeout(query_timeout);
         let (upto, _) = self.damaged.as_ref()?;
         let suspects = self
             .on_wire
             .values()
-            .any(|s| s.seq <= *upto && s.expect != Expect::Fin);
+            .any(|s| s.seq <= *upto && Book::answered_at_once(s));
         let barrier = self
             .on_wire
             .values()
@@ -334,6 +375,8 @@ impl Book {
             deadline: after(Instant::now(), query_timeout),
             timeout: query_timeout,
             waiter,
+            start: Instant::now(),
+            probe: true,
         })
     }
 
@@ -348,6 +391,7 @@ impl Book {
         give_up_after: Duration,
     ) -> Result<Option<Request>, String> {
         let now = Instant::now();
+        let query_timeout = probe_timeout(query_timeout);
         let probe_free = !self.on_wire.contains_key("GRIPSTATE");
         let Some(slot) = self.on_wire.values_mut().min_by_key(|s| s.give_up_at) else {
             return Ok(None);
@@ -377,6 +421,8 @@ impl Book {
             deadline: after(now, query_timeout),
             timeout: query_timeout,
             waiter,
+            start: now,
+            probe: true,
         }))
     }
 
@@ -423,6 +469,21 @@ impl Book {
         }
     }
 
+    /// After `BYE()`: whether `ACK BYE` may have been a reply line that could not be read. The
+    /// gripper answers in order, one reply per command answered at once (shared note §3.7):
+    /// once as many unreadable lines came since the oldest such command on the wire was
+    /// written as there are such commands, `BYE()` included, each of them (`ACK BYE` too) may
+    /// have been one. Nothing is written after `BYE()` (issue 29 N), so no later reply can
+    /// settle it as `settle` does, nor a probe: without this, a `BYE()` without timeout whose
+    /// `ACK BYE` arrived damaged waited for ever (`wsg-text:0x3bac8274f6da31e9`).
+    fn bye_unreadable(&self) -> bool {
+        let due = self.on_wire.values().filter(|s| Book::answered_at_once(s));
+        let (count, oldest) = due.fold((0u64, u64::MAX), |(n, oldest), s| {
+            (n + 1, oldest.min(s.damages_at_write))
+        });
+        self.on_wire.contains_key("BYE") && self.damages.saturating_sub(oldest) >= count
+    }
+
     /// The earliest give-up time of the commands on the wire.
     fn give_up_at(&self) -> Option<Instant> {
         self.on_wire.values().map(|s| s.give_up_at).min()
@@ -459,7 +520,7 @@ impl Book {
     /// Takes a request read from a channel: the request to send now if its name is free,
     /// else it waits for its name.
     fn admit(&mut self, request: Request) -> Option<Request> {
-        let request = usable(request)?;
+        let request = self.answer_from_probe(usable(request)?)?;
         if self.on_wire.contains_key(request.name) {
             self.prune();
             self.waiting.push_back(request);
@@ -469,12 +530,33 @@ impl Book {
         }
     }
 
+    /// Answers `request` with a probe's answer if it is the probe's very query and was made
+    /// before the probe was written (`None`), else gives it back. The probe is the same line,
+    /// read by the gripper after the call was made, so its answer is the gripper's answer to
+    /// that query during the call; without this a call that came in behind the client's own
+    /// probe of its name waited for the probe's answer, then wrote its line again and could
+    /// time out while the answer had come in time (rule 7, `wsg-text:0xe5281323574dafa8`). One
+    /// answer serves one call: a later call of the name asks the gripper itself.
+    fn answer_from_probe(&mut self, request: Request) -> Option<Request> {
+        let fits = self
+            .probe_answers
+            .get(request.name)
+            .is_some_and(|(at, line, _)| request.start <= *at && *line == request.line);
+        if !fits || request.expect != Expect::Value {
+            return Some(request);
+        }
+        let (_, _, value) = self.probe_answers.remove(request.name)?;
+        tracing::debug!(command = %request.line, %value, "wsg text: answered by the client's own probe");
+        let _ = request.waiter.send(Ok(Answer::Value(value)));
+        None
+    }
+
     /// The next waiting request of `name` that still has a caller and time, if any.
     fn next_waiting(&mut self, name: &str) -> Option<Request> {
         loop {
             let i = self.waiting.iter().position(|r| r.name == name)?;
             let request = self.waiting.remove(i)?;
-            if let Some(request) = usable(request) {
+            if let Some(request) = usable(request).and_then(|r| self.answer_from_probe(r)) {
                 return Some(request);
             }
         }
@@ -548,7 +630,14 @@ impl Book {
             (ReplyLine::Ack(_), Expect::Ack) | (ReplyLine::Fin(_), Expect::Fin) => Ok(Answer::Done),
             // The motion was accepted; its FIN or ERR follows.
             (ReplyLine::Ack(_), Expect::Fin) => return Handled::Nothing,
-            (ReplyLine::Value { value, .. }, Expect::Value) => Ok(Answer::Value(value.to_owned())),
+            (ReplyLine::Value { value, .. }, Expect::Value) => {
+                // A probe's answer: kept for a call of its query made before it was written.
+                if let Some(at) = slot.probe_at {
+                    let answer = (at, slot.line.clone(), value.to_owned());
+                    self.probe_answers.insert(key, answer);
+                }
+                Ok(Answer::Value(value.to_owned()))
+            }
             _ => Err(Error::UnexpectedReply {
                 command: slot.line.clone(),
                 line: text.to_owned(),
@@ -589,6 +678,16 @@ fn usable(request: Request) -> Option<Request> {
         return None;
     }
     Some(request)
+}
+
+/// Resolves when the caller of `BYE()` has left (its future dropped); never if `BYE()` is not
+/// on the wire.
+async fn bye_caller_gone(on_wire: &mut BTreeMap<&'static str, Slot>) {
+    std::future::poll_fn(|cx| match on_wire.get_mut("BYE") {
+        Some(slot) => slot.waiter.poll_closed(cx),
+        None => std::task::Poll::Pending,
+    })
+    .await
 }
 
 /// Resolves when the caller of a waiting request has left (its future dropped).
@@ -670,7 +769,14 @@ async fn exchange(
     conn.writer.send::<Error>(&setting.line, deadline).await?;
     let (waiter, mut answer) = oneshot::channel();
     let mut book = Book::new(timeout);
-    book.on_wire(setting.name, setting.line, setting.expect, waiter, deadline);
+    book.on_wire(
+        setting.name,
+        setting.line,
+        setting.expect,
+        waiter,
+        deadline,
+        None,
+    );
     loop {
         let line = match tokio::time::timeout_at(deadline, conn.reader.next_line()).await {
             Err(_) => return Err(Error::Timeout { command, timeout }),
@@ -773,6 +879,10 @@ async fn serve(
                 }
                 break Error::Closed;
             }
+            // Nobody waits for `ACK BYE` any more and nothing is written after `BYE()`: the
+            // session is over (a `BYE()` without timeout whose caller left kept the connection
+            // and its task alive for ever).
+            () = bye_caller_gone(&mut book.on_wire), if closing.is_some() => break Error::Closed,
             // A stop is read whatever the queue holds (issue 29 K).
             request = stops.recv(), if closing.is_none() => {
                 let Some(request) = request else { break Error::Closed };
@@ -786,6 +896,25 @@ async fn serve(
             // leaves, and the channel is read again.
             () = &mut queue_timer, if queue_deadline.is_some() => {}
             () = any_caller_gone(&mut book.waiting), if full => {}
+        }
+        // `ACK BYE` may have been a line that could not be read, and nothing written after
+        // `BYE()` can ever tell (`Book::bye_unreadable`): the session ends as at `BYE()`'s
+        // deadline, its caller told why.
+        if closing.is_some() && book.bye_unreadable() {
+            if let Some(slot) = book.on_wire.remove("BYE") {
+                let line = book
+                    .damaged
+                    .take()
+                    .map(|(_, line)| line)
+                    .unwrap_or_default();
+                tracing::warn!(%line, "wsg text: ACK BYE could not be read, connection closed");
+                let _ = slot.waiter.send(Err(Error::MalformedReply {
+                    command: slot.line,
+                    line,
+                    reason: "a line that could not be read came where ACK BYE was due".into(),
+                }));
+            }
+            break Error::Closed;
         }
         let mut outgoing: VecDeque<Request> = to_send.into_iter().collect();
         // Names freed by calls whose reply was damaged: their next waiting requests go out
@@ -836,12 +965,14 @@ async fn serve(
                 }
                 probed = true;
             }
+            let probe_at = request.probe.then(Instant::now);
             book.on_wire(
                 request.name,
                 request.line,
                 request.expect,
                 request.waiter,
                 give_up_at,
+                probe_at,
             );
         }
     };

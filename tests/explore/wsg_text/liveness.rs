@@ -142,7 +142,10 @@ pub fn check(
         let max = configs[c.client].max_line_len;
         let who = format!("client {} {}", c.client, c.line);
         match &c.res {
-            Res::Timeout => out.extend(timeout(i, calls, &own, &log, max)),
+            Res::Timeout => {
+                let queue_len = configs[c.client].queue_len;
+                out.extend(timeout(i, calls, &own, &log, (max, queue_len)));
+            }
             Res::Lost(why) if judged_losses.insert((c.client, c.conn)) => {
                 out.extend(loss(c, why, calls, &log, max));
             }
@@ -177,7 +180,7 @@ pub fn check(
             continue;
         };
         let log = tap.lock().unwrap();
-        out.extend(closed(a, &log));
+        out.extend(closed(a, &log, configs[a.client].max_line_len));
     }
     out
 }
@@ -188,7 +191,7 @@ fn timeout(
     calls: &[CallRec],
     own: &[Option<(Instant, u64)>],
     log: &TapLog,
-    max: usize,
+    (max, queue_len): (usize, usize),
 ) -> Option<String> {
     let c = &calls[i];
     let deadline = c.start.checked_add(c.timeout)?;
@@ -216,9 +219,51 @@ fn timeout(
             r.text,
             r.at - w,
             deadline - r.at,
-            own_probe(i, calls, own, log, deadline)
+            probe_tag(i, calls, own, log, (deadline, r.at, queue_len))
         )
     })
+}
+
+/// The queries the text client writes on its own (its probes, issue 29 L and M).
+const PROBES: [&str; 3] = ["GRIPSTATE?", "POS?", "SPEED?"];
+
+/// The tag of a Timeout whose write of its text may have been the client's own probe: a
+/// probe's query behind a full queue, else [`own_probe`]'s. A probe's answer serves a call of
+/// its query made before the probe was written, once the call leaves the client's queue (the
+/// client's `Book::answer_from_probe`); a call held in the queue (`queue_len` calls ahead of it still
+/// not written when the answer was read) may never leave it in time, and its text written by
+/// then is then the probe's, not its own: the wire cannot tell which
+/// (`wsg-text:0x3b91b8f4d71e229e`: `GRIPSTATE?` in the channel behind `GRIP(32,40,21.5)`,
+/// which waited for the running grip).
+fn probe_tag(
+    i: usize,
+    calls: &[CallRec],
+    own: &[Option<(Instant, u64)>],
+    log: &TapLog,
+    (deadline, read, queue_len): (Instant, Instant, usize),
+) -> &'static str {
+    let c = &calls[i];
+    let ahead = calls
+        .iter()
+        .enumerate()
+        .filter(|&(j, o)| {
+            j != i
+                && o.client == c.client
+                && o.conn == c.conn
+                && o.start <= c.start
+                && own[j].is_none_or(|(w, _)| w > read)
+                && (o.end > read
+                    || matches!(o.res, Res::Timeout | Res::Cancelled | Res::Hung)
+                        && own[j].is_none())
+        })
+        .count();
+    // The full queue first: it explains the Timeout (the call never reached the task), a
+    // probe on the wire alone does not since a probe's answer serves the calls behind it.
+    if PROBES.contains(&c.line.as_str()) && ahead >= queue_len.max(1) {
+        " [a probe's query behind a full queue: its write may have been the client's own probe]"
+    } else {
+        own_probe(i, calls, own, log, deadline)
+    }
 }
 
 /// The tag of a Timeout next to a line of the call's text that the client wrote on its own, no
@@ -378,8 +423,21 @@ fn queued_before(i: usize, calls: &[CallRec], own: &[Option<(Instant, u64)>]) ->
 
 /// Promise 5 after a `close()` of the fault phase: nothing is written after `BYE()`, and the
 /// call made right after `close()` fails with `Closed` (or `ConnectionLost`), not a timeout.
-fn closed(a: &AfterClose, log: &TapLog) -> Vec<String> {
+fn closed(a: &AfterClose, log: &TapLog, max: usize) -> Vec<String> {
     let mut out = Vec::new();
+    if a.close.1 == Res::Hung {
+        // Dropped at `a.after.0`; judged strictly before (as a call's `Hung`, rule 8).
+        let dropped = a.after.0 - Duration::from_nanos(1);
+        let tag = if busy(log, "BYE", Expect::Ack, dropped, max) {
+            " [no reply of its name reached the client]"
+        } else {
+            ""
+        };
+        out.push(format!(
+            "8 (a call without timeout ends, and frees what it held): client {} BYE() (close(), no timeout) had not ended {FOREVER_BOUND:?} after it began{tag}",
+            a.client
+        ));
+    }
     let bye_acked = a.close.1 == Res::Done;
     let tag = if bye_acked {
         ""

@@ -471,7 +471,15 @@ pub async fn caller(
             ctx.start_closing();
             let (c, conn) = ctx.current();
             let start = Instant::now();
-            let r = c.close().await;
+            // Rule 8 for `close()` too: a client whose default timeout is `Duration::MAX`
+            // closes without one; past `FOREVER_BOUND` it is dropped and reported, not left to
+            // hang the run (wsg-text:0x3bac8274f6da31e9 waited for a damaged `ACK BYE`).
+            let timeout = c.config().query_timeout;
+            let r = forever_bounded(timeout, async {
+                (res(c.close().await, |()| Res::Done), Instant::now())
+            })
+            .await
+            .0;
             note(
                 &trace,
                 format!("client {} caller {k}: close {r:?}", ctx.index),
@@ -491,7 +499,7 @@ pub async fn caller(
             log.after_close.lock().unwrap().push(AfterClose {
                 client: ctx.index,
                 conn,
-                close: (start, res(r, |()| Res::Done)),
+                close: (start, r),
                 after: (after_start, Instant::now(), res(after, Res::Value)),
             });
             return;
