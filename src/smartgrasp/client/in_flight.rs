@@ -73,8 +73,9 @@ pub(crate) enum Event<'a, C> {
         caller: C,
         /// The request answered.
         request: &'a RequestFrame,
-        /// Its response.
-        response: ResponseFrame,
+        /// Its response (by reference: a frame is large, and the link copies it once, into the
+        /// reply).
+        response: &'a ResponseFrame,
         /// The call's timeout.
         timeout: Duration,
     },
@@ -99,6 +100,8 @@ pub(crate) struct InFlight<C> {
     give_up_after: Duration,
 }
 
+// The small methods a round trip calls are `#[inline]`: out of line, the queue's boundary cost
+// about 20 instructions per call (BENCHMARKS.md, "Issue 30: SmartGrasp's queue in flight").
 impl<C: Caller> InFlight<C> {
     /// An empty queue; `strict`: trust the response counter ([`Pairing::strict`]).
     pub(crate) fn new(strict: bool, give_up_after: Duration) -> Self {
@@ -115,6 +118,7 @@ impl<C: Caller> InFlight<C> {
     }
 
     /// Whether another call may be sent.
+    #[inline]
     pub(crate) fn has_room(&self) -> bool {
         self.waiting.len() < MAX_IN_FLIGHT
     }
@@ -133,6 +137,7 @@ impl<C: Caller> InFlight<C> {
     /// [`limit`](GiveUp::limit) bounds the request's write too. Behind other requests its clock
     /// starts again when it reaches the front, with the time its caller had left when it was
     /// sent (`crate::give_up`): `now` is read only then.
+    #[inline]
     pub(crate) fn give_up_for(&self, deadline: Instant, now: impl FnOnce() -> Instant) -> GiveUp {
         GiveUp::new(
             deadline,
@@ -143,6 +148,7 @@ impl<C: Caller> InFlight<C> {
     }
 
     /// Queues a request that was written, with its clock from [`InFlight::give_up_for`].
+    #[inline]
     pub(crate) fn push(
         &mut self,
         request: RequestFrame,
@@ -161,6 +167,7 @@ impl<C: Caller> InFlight<C> {
     /// When the oldest request's response is so late that the connection must be given up
     /// (later responses cannot come before it); `None` with nothing in flight. `now` is read only
     /// when a request has just reached the front behind another (its give-up clock starts then).
+    #[inline]
     pub(crate) fn give_up_at(&mut self, now: impl FnOnce() -> Instant) -> Option<Instant> {
         self.waiting.front_mut().map(|w| w.give_up.at_front(now))
     }
@@ -296,8 +303,16 @@ impl<C: Caller> InFlight<C> {
             }
         }
         self.last_response = Some(*frame);
+        // Copied only to be normalised: a frame is large, and the link copies it into the reply.
+        let erratum;
+        let response = if frame.header().message_type == w.request.header().message_type {
+            frame
+        } else {
+            erratum = normalised(&w.request, frame);
+            &erratum
+        };
         out(Event::Paired {
-            response: normalised(&w.request, frame),
+            response,
             request: &w.request,
             caller: w.caller,
             timeout: w.timeout,
@@ -448,7 +463,7 @@ mod tests {
                 response,
                 timeout,
                 ..
-            } => Done::Paired(caller.id, response, timeout),
+            } => Done::Paired(caller.id, *response, timeout),
             Event::Failed { caller, error } => Done::Failed(caller.id, error),
         }
     }

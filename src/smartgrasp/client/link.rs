@@ -306,7 +306,9 @@ impl Link {
 }
 
 /// Does what the queue in flight asks of the link: records a counter gap, answers a call (a
-/// paired response goes to `on_paired` first).
+/// paired response goes to `on_paired` first). Inlined into the callback the queue calls: a
+/// round trip passes here once (BENCHMARKS.md, "Issue 30: SmartGrasp's queue in flight").
+#[inline(always)]
 fn on_event(shared: &Shared, on_paired: Option<&mut OnPaired<'_>>, event: Event<'_, Reply>) {
     match event {
         Event::Gap {
@@ -321,9 +323,9 @@ fn on_event(shared: &Shared, on_paired: Option<&mut OnPaired<'_>>, event: Event<
             timeout,
         } => {
             if let Some(on_paired) = on_paired {
-                on_paired(request, &response, timeout);
+                on_paired(request, response, timeout);
             }
-            if caller.send(Ok(response)).is_err() {
+            if caller.send(Ok(*response)).is_err() {
                 tracing::debug!(request = %request.header().message_type, counter = response.header().response_counter, "late reply discarded");
             }
         }

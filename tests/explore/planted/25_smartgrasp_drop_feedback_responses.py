@@ -7,12 +7,12 @@ KIND = "7 (a Timeout only when its reply did not arrive in time)"
 
 plant(
     "src/smartgrasp/client/in_flight.rs",
-    """        self.last_response = Some(*frame);
-        out(Event::Paired {""",
-    """        self.last_response = Some(*frame);
-        if frame.header().message_type == MessageType::GraspFeedback {
+    """        out(Event::Paired {
+            response,""",
+    """        if response.header().message_type == MessageType::GraspFeedback {
             std::mem::forget(w.caller);
             return Ok(());
         }
-        out(Event::Paired {""",
+        out(Event::Paired {
+            response,""",
 )

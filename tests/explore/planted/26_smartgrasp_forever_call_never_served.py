@@ -6,12 +6,12 @@ KIND = "8 (a call without timeout ends)"
 
 plant(
     "src/smartgrasp/client/in_flight.rs",
-    """        self.last_response = Some(*frame);
-        out(Event::Paired {""",
-    """        self.last_response = Some(*frame);
-        if w.give_up.limit() > Instant::now() + std::time::Duration::from_secs(86_400 * 3650) {
+    """        out(Event::Paired {
+            response,""",
+    """        if w.give_up.limit() > Instant::now() + std::time::Duration::from_secs(86_400 * 3650) {
             std::mem::forget(w.caller);
             return Ok(());
         }
-        out(Event::Paired {""",
+        out(Event::Paired {
+            response,""",
 )
