@@ -1,8 +1,8 @@
-//! One TCP connection to the server: sends requests in arrival order, reads responses, pairs them
-//! (see [`pairing`](super::pairing)) and answers each waiting call. A call whose caller timed out
-//! or went away keeps its place; its reply is consumed and discarded.
+//! One TCP connection to the server, the thin shell around its requests in flight
+//! ([`InFlight`], where the pairing rules live, without I/O): sends requests in arrival order,
+//! reads responses and hands them to the queue, reads the clock and runs its give-up timer, and
+//! does what the queue asks (answer a call, record a counter gap, give the connection up).
 
-use std::collections::VecDeque;
 use std::future::poll_fn;
 use std::net::SocketAddr;
 use std::pin::{pin, Pin};
@@ -18,25 +18,19 @@ use tokio::time::Instant;
 use tokio_util::codec::FramedRead;
 use tokio_util::sync::CancellationToken;
 
-use super::pairing::{ambiguous, check_response, Counted, Pairing};
+use super::in_flight::{Caller, Event, InFlight};
 use super::shutdown::Shutdown;
 use super::{ClientConfig, Shared, Timeouts};
 use crate::client_stream::ClientStream;
 use crate::deadline::{after, move_timer, write_all_by};
-use crate::give_up::GiveUp;
 use crate::reconnect::Open;
 use crate::smartgrasp::codec::ClientCodec;
-use crate::smartgrasp::error::{Error, Malformed, Result};
+use crate::smartgrasp::error::{Error, Result};
 use crate::smartgrasp::frame::{
     AnyRequestFrame as RequestFrame, AnyResponseFrame as ResponseFrame,
 };
 use crate::smartgrasp::message::{Request, Response};
 use crate::smartgrasp::types::MessageType;
-
-/// Requests sent and not yet answered, at most (plus one marker, see `marker_before`). Bounds the
-/// waiting queue when a server stops answering; further calls wait in the channel and run into
-/// their timeouts.
-pub(crate) const MAX_IN_FLIGHT: usize = 16;
 
 /// One call from a handle to the task.
 pub(crate) struct Call {
@@ -56,16 +50,14 @@ pub(crate) struct Call {
     pub timeout: Duration,
 }
 
-/// A request on the wire, waiting for its response.
-struct Waiting {
-    request: RequestFrame,
-    reply: oneshot::Sender<Result<ResponseFrame>>,
-    /// Its call's deadline plus [`ClientConfig::give_up_after`], counted again from when it
-    /// reaches the front (`crate::give_up`): a server that has not answered by then is not
-    /// answering, and the connection is given up.
-    give_up: GiveUp,
-    /// Its call's timeout (see [`Call::timeout`]), for `on_paired`.
-    timeout: Duration,
+/// The caller of a call in flight: its reply channel, closed when the caller timed out or went
+/// away.
+type Reply = oneshot::Sender<Result<ResponseFrame>>;
+
+impl Caller for Reply {
+    fn gave_up(&self) -> bool {
+        self.is_closed()
+    }
 }
 
 /// What [`Link::serve`] tells its owner about each response it pairs: the request, its
@@ -81,17 +73,11 @@ pub(crate) struct Link {
     /// around every read and write would buy nothing, at about 200 instructions per call
     /// (BENCHMARKS.md, "SmartGrasp: the stream unsplit, TCP unboxed").
     stream: FramedRead<ClientStream, ClientCodec>,
-    /// At most [`MAX_IN_FLIGHT`].
-    waiting: VecDeque<Waiting>,
-    pairing: Pairing,
-    /// The last response paired, to recognise an exact repeat of it in strict counter mode
-    /// (see `on_response`).
-    last_response: Option<ResponseFrame>,
+    /// The requests in flight and the pairing rules.
+    in_flight: InFlight<Reply>,
     /// The configured timeouts, for the marker queries this link sends on its own (see
     /// `marker_before`); a caller's request is bounded by its call's own deadline (see `send`).
     timeouts: Timeouts,
-    /// See [`ClientConfig::give_up_after`].
-    give_up_after: Duration,
     /// Counters the handles read (counter gaps).
     shared: Arc<Shared>,
 }
@@ -139,15 +125,8 @@ impl Link {
         Link {
             // V3 until the opening sequence chose a version (see `set_version`).
             stream: FramedRead::new(stream, ClientCodec::default()),
-            waiting: VecDeque::with_capacity(MAX_IN_FLIGHT),
-            pairing: if config.strict_response_counter {
-                Pairing::strict()
-            } else {
-                Pairing::default()
-            },
-            last_response: None,
+            in_flight: InFlight::new(config.strict_response_counter, config.give_up_after),
             timeouts: config.timeouts(),
-            give_up_after: config.give_up_after,
             shared: Arc::clone(shared),
         }
     }
@@ -177,11 +156,9 @@ impl Link {
                 None => return Err(server_closed()),
                 Some(frame) => frame?,
             };
-            let counted = self.pairing.counter(frame.header().response_counter, 1)?;
-            self.record_gap(&counted, &frame);
-            check_response(&request, &frame)?;
-            self.last_response = Some(frame);
-            Ok(normalised(&request, &frame))
+            let shared = &self.shared;
+            self.in_flight
+                .on_exchange(&request, &frame, &mut |event| on_event(shared, None, event))
         };
         let frame = timeouts.run(request.header().message_type, answer).await?;
         Ok(Response::from_any_frame(&frame)?)
@@ -213,10 +190,7 @@ impl Link {
         let mut shutdown = Shutdown::new(shutdown);
         let mut give_up = pin!(tokio::time::sleep_until(Instant::now()));
         let reason = loop {
-            let give_up_at = self
-                .waiting
-                .front_mut()
-                .map(|w| w.give_up.at_front(Instant::now));
+            let give_up_at = self.in_flight.give_up_at(Instant::now);
             if let Some(at) = give_up_at {
                 move_timer(give_up.as_mut(), at);
             }
@@ -235,18 +209,11 @@ impl Link {
                     }
                 },
                 () = give_up.as_mut(), if give_up_at.is_some() => {
-                    let request = self.waiting.front().map(|w| w.request.header().message_type);
-                    tracing::error!(?request, give_up_after = ?self.give_up_after, "smartgrasp: response overdue, giving up on the connection");
-                    break Error::ConnectionLost {
-                        reason: format!(
-                            "no response to {} within its timeout and {:?} more: the server stopped answering",
-                            request.unwrap_or(MessageType::Unknown(0)),
-                            self.give_up_after
-                        )
-                        .into(),
-                    };
+                    if let Some(overdue) = self.in_flight.on_timeout(Instant::now()) {
+                        break overdue;
+                    }
                 },
-                call = calls.recv(), if self.waiting.len() < MAX_IN_FLIGHT => match call {
+                call = calls.recv(), if self.in_flight.has_room() => match call {
                     // Every handle is gone, so no call can be waiting: nothing left to do.
                     None => return None,
                     Some(mut call) => {
@@ -260,7 +227,7 @@ impl Link {
                             let _ = call.reply.send(Err(e));
                             continue;
                         }
-                        if let Some(marker) = self.marker_before(&call.frame) {
+                        if let Some(marker) = self.in_flight.marker_before(&call.frame, self.version()) {
                             // Its reply goes to nobody: the receiver is dropped at once. A query,
                             // within the configured timeout of its type.
                             let (reply, _) = oneshot::channel();
@@ -279,48 +246,33 @@ impl Link {
                 },
             }
         };
-        for w in self.waiting.drain(..) {
-            let _ = w.reply.send(Err(waiting_error(&reason)));
-        }
+        self.in_flight.drain(&reason, |reply, error| {
+            let _ = reply.send(Err(error));
+        });
         Some(reason)
     }
 
-    /// Writes a request and queues its reply slot. On a write error the call gets it too.
+    /// Writes a request and queues it in flight. On a write error the call gets it too.
     ///
-    /// The response is awaited until the call's `deadline` plus [`ClientConfig::give_up_after`]
-    /// (the call's own timeout, not the configured one of its type: a handle made with
-    /// [`Client::with_timeout`](super::Client::with_timeout) for a slow detection must not lose
-    /// a healthy connection at the configured timeout; issue 21). The write is bounded by the
-    /// same limit: a server that stops reading (its receive window full) must not wedge the
-    /// task, which also reads the responses and serves `close()`. A write cut short leaves part
-    /// of a frame on the wire, so on expiry the connection is given up as lost.
+    /// The write is bounded by the request's give-up limit
+    /// ([`InFlight::give_up_for`]): a server that stops reading (its receive window full) must
+    /// not wedge the task, which also reads the responses and serves `close()`. A write cut
+    /// short leaves part of a frame on the wire, so on expiry the connection is given up as lost.
     async fn send(
         &mut self,
         request: RequestFrame,
-        reply: oneshot::Sender<Result<ResponseFrame>>,
+        reply: Reply,
         deadline: Instant,
         timeout: Duration,
     ) -> Result<()> {
-        // Behind other requests its clock starts again when it reaches the front, with the
-        // time its caller had left when it was sent (`crate::give_up`).
-        let give_up = GiveUp::new(
-            deadline,
-            self.give_up_after,
-            self.waiting.is_empty(),
-            || deadline.saturating_duration_since(Instant::now()),
-        );
+        let give_up = self.in_flight.give_up_for(deadline, Instant::now);
         if let Err(error) =
             write_within(self.stream.get_mut(), give_up.limit(), &request.encode()).await
         {
             let _ = reply.send(Err(error.clone()));
             return Err(error);
         }
-        self.waiting.push_back(Waiting {
-            request,
-            reply,
-            give_up,
-            timeout,
-        });
+        self.in_flight.push(request, reply, give_up, timeout);
         Ok(())
     }
 
@@ -343,126 +295,57 @@ impl Link {
         Ok(())
     }
 
-    /// Responses carry no request id. Right behind a request whose caller gave up, the response
-    /// to a request of the same type could be either's: the abandoned one's, late, or this one's
-    /// if the abandoned request never reached the server. A request of another type in between
-    /// (a side-effect-free query) tells them apart: whichever way the abandoned request went, its
-    /// slot is settled by the time the marker's response arrives (see `on_response`), and the
-    /// next response is this request's. Costs one query, only after a call was given up.
-    fn marker_before(&self, next: &RequestFrame) -> Option<RequestFrame> {
-        let back = self.waiting.back()?;
-        let ambiguous = ambiguous(
-            back.request.header().message_type,
-            next.header().message_type,
-        );
-        if !ambiguous || !back.reply.is_closed() {
-            return None;
-        }
-        let marker = match next.header().message_type {
-            MessageType::GetProtocolVersion => Request::GetState,
-            _ => Request::GetProtocolVersion,
-        };
-        marker.to_any_frame(self.version()).ok()
-    }
-
-    /// Records a counter gap: a warning and the count the handles read
-    /// ([`Client::counter_gaps`](super::Client::counter_gaps)).
-    fn record_gap(&self, counted: &Counted, frame: &ResponseFrame) {
-        if counted.gap == 0 {
-            return;
-        }
-        let gaps = self.shared.counter_gaps.fetch_add(1, Ordering::Relaxed) + 1;
-        tracing::warn!(
-            expected = counted.expected,
-            received = frame.header().response_counter,
-            message_type = %frame.header().message_type,
-            gaps,
-            "smartgrasp: the response counter skipped (manual 3.2.2.3 does not say whether it counts per connection)"
-        );
-    }
-
-    /// Pairs one response; `Err` breaks the connection (the paired call, if any, gets the error
-    /// too).
+    /// Hands one response to the queue in flight and does what it asks; `Err` breaks the
+    /// connection (the paired call, if any, got the error too).
     fn on_response(&mut self, on_paired: &mut OnPaired<'_>, frame: &ResponseFrame) -> Result<()> {
-        if self.pairing.is_strict() && self.last_response.as_ref() == Some(frame) {
-            // The same bytes again, counter included, from a server known to count its responses
-            // per connection (strict mode): a copy, not a new answer. Skipped. Only in strict
-            // mode: a server whose counter never moves (SCHUNK's KRL never reads it) or counts
-            // across its clients (the same value after 256 responses) sends identical responses
-            // that are real answers (issue 21), and TCP itself never duplicates a segment.
-            tracing::warn!(
-                counter = frame.header().response_counter,
-                "repeated response skipped"
-            );
-            return Ok(());
-        }
-        let received = frame.header().response_counter;
-        let counted = self.pairing.counter(received, self.waiting.len())?;
-        self.record_gap(&counted, frame);
-        for i in 0..counted.lost {
-            if let Some(w) = self.waiting.pop_front() {
-                let expected = counted.expected.wrapping_add(i as u8);
-                tracing::warn!(expected, received, request = %w.request.header().message_type, "response lost");
-                let _ = w
-                    .reply
-                    .send(Err(Error::ResponseLost { expected, received }));
-            }
-        }
-        let Some(mut w) = self.waiting.pop_front() else {
-            // `counter` guarantees one is left; treat it as unsolicited all the same.
-            return Err(Malformed::Unsolicited { counter: received }.into());
-        };
-        if let Err(e) = check_response(&w.request, frame) {
-            // The server answers in order, so a response that does not fit the oldest request
-            // but fits the next one means the oldest was never answered: it was lost before it
-            // reached the server (no counter gap), or the server answered nothing (the counter
-            // skipped). If its caller has already given up, nobody is owed anything: drop its
-            // slot and go on. A caller still waiting gets [`Error::ResponseLost`] when the
-            // counter skipped too (two signs agree); otherwise the error, and the connection is
-            // closed.
-            let fits_next = counted.lost == 0
-                && self
-                    .waiting
-                    .front()
-                    .is_some_and(|next| check_response(&next.request, frame).is_ok());
-            if !fits_next || !(w.reply.is_closed() || counted.gap != 0) {
-                let e = Error::from(e);
-                let _ = w.reply.send(Err(e.clone()));
-                return Err(e);
-            }
-            tracing::warn!(request = %w.request.header().message_type, "a request was never answered; its slot is dropped");
-            let _ = w.reply.send(Err(Error::ResponseLost {
-                expected: counted.expected,
-                received,
-            }));
-            match self.waiting.pop_front() {
-                Some(next) => w = next,
-                None => return Err(Malformed::Unsolicited { counter: received }.into()),
-            }
-        }
-        self.last_response = Some(*frame);
-        let frame = normalised(&w.request, frame);
-        on_paired(&w.request, &frame, w.timeout);
-        if w.reply.send(Ok(frame)).is_err() {
-            tracing::debug!(request = %w.request.header().message_type, counter = received, "late reply discarded");
-        }
-        Ok(())
+        let shared = &self.shared;
+        self.in_flight.on_response(frame, &mut |event| {
+            on_event(shared, Some(&mut *on_paired), event)
+        })
     }
 }
 
-/// A paired response with the message type of its request: a GET_OBJECT_COUNT answered as type
-/// 17 (see [`answers`](super::pairing::answers)) is read as the count it is.
-fn normalised(request: &RequestFrame, frame: &ResponseFrame) -> ResponseFrame {
-    let mut frame = *frame;
-    if frame.header().message_type != request.header().message_type {
-        tracing::warn!(
-            request = %request.header().message_type,
-            response = %frame.header().message_type,
-            "smartgrasp: response with the manual's erratum message type accepted"
-        );
-        frame.header_mut().message_type = request.header().message_type;
+/// Does what the queue in flight asks of the link: records a counter gap, answers a call (a
+/// paired response goes to `on_paired` first). Inlined into the callback the queue calls: a
+/// round trip passes here once (BENCHMARKS.md, "Issue 30: SmartGrasp's queue in flight").
+#[inline(always)]
+fn on_event(shared: &Shared, on_paired: Option<&mut OnPaired<'_>>, event: Event<'_, Reply>) {
+    match event {
+        Event::Gap {
+            expected,
+            received,
+            message_type,
+        } => record_gap(shared, expected, received, message_type),
+        Event::Paired {
+            caller,
+            request,
+            response,
+            timeout,
+        } => {
+            if let Some(on_paired) = on_paired {
+                on_paired(request, response, timeout);
+            }
+            if caller.send(Ok(*response)).is_err() {
+                tracing::debug!(request = %request.header().message_type, counter = response.header().response_counter, "late reply discarded");
+            }
+        }
+        Event::Failed { caller, error } => {
+            let _ = caller.send(Err(error));
+        }
     }
-    frame
+}
+
+/// Records a counter gap: a warning and the count the handles read
+/// ([`Client::counter_gaps`](super::Client::counter_gaps)).
+fn record_gap(shared: &Shared, expected: u8, received: u8, message_type: MessageType) {
+    let gaps = shared.counter_gaps.fetch_add(1, Ordering::Relaxed) + 1;
+    tracing::warn!(
+        expected,
+        received,
+        %message_type,
+        gaps,
+        "smartgrasp: the response counter skipped (manual 3.2.2.3 does not say whether it counts per connection)"
+    );
 }
 
 /// Writes `bytes` by `limit`; on expiry the connection is lost (see [`Link::send`]).
@@ -500,39 +383,6 @@ pub(crate) async fn within_connect_timeout<T>(
 fn server_closed() -> Error {
     Error::ConnectionLost {
         reason: "the server closed the connection".into(),
-    }
-}
-
-/// What a call that was sent and still waits gets when the connection breaks. A header error
-/// was already given to the call whose response carried it; the others only lost the connection.
-fn waiting_error(reason: &Error) -> Error {
-    match reason {
-        Error::MalformedReply(
-            Malformed::MessageType { .. }
-            | Malformed::CommunicationType(_)
-            | Malformed::Version { .. }
-            | Malformed::Echo { .. }
-            | Malformed::Unsolicited { .. },
-        ) => closed_error(Some(reason)),
-        // Stream-level reasons (I/O, bad length, too old, lost responses) concern every call.
-        other => other.clone(),
-    }
-}
-
-/// What a call gets on a connection that is already gone (or never got to send its request).
-pub(crate) fn closed_error(reason: Option<&Error>) -> Error {
-    match reason {
-        Some(Error::ConnectionLost { reason }) => Error::ConnectionLost {
-            reason: Arc::clone(reason),
-        },
-        // Still the answer to every later call, and typed so a program can tell the user.
-        Some(e @ (Error::ServerTooOld { .. } | Error::Closed)) => e.clone(),
-        Some(reason) => Error::ConnectionLost {
-            reason: reason.to_string().into(),
-        },
-        None => Error::ConnectionLost {
-            reason: "the connection task has ended".into(),
-        },
     }
 }
 

@@ -2,6 +2,7 @@
 //! (calls poll it inline to send their requests, see
 //! [Where a client's work runs](crate#where-a-clients-work-runs)).
 
+mod in_flight;
 mod link;
 mod pairing;
 mod session;
@@ -703,7 +704,7 @@ impl Client {
         if self.close.is_requested() {
             return Error::Closed;
         }
-        link::closed_error(self.closed.get())
+        in_flight::closed_error(self.closed.get())
     }
 }
 

@@ -10,7 +10,8 @@ use std::sync::{Arc, OnceLock};
 
 use tokio::sync::mpsc;
 
-use super::link::{closed_error, Call, Link, Opener};
+use super::in_flight::closed_error;
+use super::link::{Call, Link, Opener};
 use super::session::Session;
 use super::{ClientConfig, Shared};
 use crate::reconnect::{EventSender, ReconnectPolicy};

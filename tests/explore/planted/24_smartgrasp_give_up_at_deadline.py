@@ -6,7 +6,7 @@ from _plant import plant
 KIND = "6 (a connection is lost only for cause)"
 
 plant(
-    "src/smartgrasp/client/link.rs",
+    "src/smartgrasp/client/in_flight.rs",
     """            deadline,
             self.give_up_after,""",
     """            deadline,

@@ -6,11 +6,13 @@ from _plant import plant
 KIND = "7 (a Timeout only when its reply did not arrive in time)"
 
 plant(
-    "src/smartgrasp/client/link.rs",
-    "        if w.reply.send(Ok(frame)).is_err() {",
-    """        if frame.header().message_type == MessageType::GraspFeedback {
-            std::mem::forget(w.reply);
+    "src/smartgrasp/client/in_flight.rs",
+    """        out(Event::Paired {
+            response,""",
+    """        if response.header().message_type == MessageType::GraspFeedback {
+            std::mem::forget(w.caller);
             return Ok(());
         }
-        if w.reply.send(Ok(frame)).is_err() {""",
+        out(Event::Paired {
+            response,""",
 )

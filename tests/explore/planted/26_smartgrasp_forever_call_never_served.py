@@ -5,11 +5,13 @@ from _plant import plant
 KIND = "8 (a call without timeout ends)"
 
 plant(
-    "src/smartgrasp/client/link.rs",
-    "        if w.reply.send(Ok(frame)).is_err() {",
-    """        if w.give_up_at > Instant::now() + std::time::Duration::from_secs(86_400 * 3650) {
-            std::mem::forget(w.reply);
+    "src/smartgrasp/client/in_flight.rs",
+    """        out(Event::Paired {
+            response,""",
+    """        if w.give_up.limit() > Instant::now() + std::time::Duration::from_secs(86_400 * 3650) {
+            std::mem::forget(w.caller);
             return Ok(());
         }
-        if w.reply.send(Ok(frame)).is_err() {""",
+        out(Event::Paired {
+            response,""",
 )

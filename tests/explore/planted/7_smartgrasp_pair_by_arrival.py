@@ -6,7 +6,7 @@ from _plant import plant
 KIND = "2 (the server's answer"
 
 plant(
-    "src/smartgrasp/client/link.rs",
+    "src/smartgrasp/client/in_flight.rs",
     "if let Err(e) = check_response(&w.request, frame) {",
     "if let Err(e) = std::result::Result::<(), Malformed>::Ok(()) {",
 )

@@ -377,8 +377,8 @@ fn behind(
     reason: &str,
 ) -> bool {
     // The client's own marker query (GET_PROTOCOL_VERSION or GET_STATE, sent before a call of
-    // the type of an abandoned request, `client/link.rs`) is no caller's: it counts when a call
-    // it may have preceded was sent before the last response and got none.
+    // the type of an abandoned request, `client/in_flight.rs` `marker_before`) is no caller's: it
+    // counts when a call it may have preceded was sent before the last response and got none.
     let marker = ["GET_PROTOCOL_VERSION", "GET_STATE"]
         .iter()
         .any(|m| reason.contains(&format!("no response to {m} ")));
@@ -425,7 +425,7 @@ fn timeouts(
             let Some(d) = s.delivered else { return false };
             let e = s.exchange;
             // The client sends GET_PROTOCOL_VERSION or GET_STATE on its own as a marker behind
-            // an abandoned request (`client/link.rs`): then any call overlapping counts.
+            // an abandoned request (`client/in_flight.rs`): then any call overlapping counts.
             let marker = matches!(
                 e.request.header().message_type,
                 MessageType::GetProtocolVersion | MessageType::GetState
