@@ -254,7 +254,7 @@ async fn a_finger_power_final_reply_stalled_past_the_grace_never_answers_the_nex
         .await
         .unwrap();
     let impatient = client.with_timeouts(Duration::from_millis(100), Duration::from_secs(1));
-    let first = bounded(
+    let first = within(
         "first finger power on",
         impatient.set_finger_power(gripper::wsg::Finger::One, true),
     )
@@ -264,7 +264,7 @@ async fn a_finger_power_final_reply_stalled_past_the_grace_never_answers_the_nex
         "{first:?}"
     );
     let patient = client.with_timeouts(Duration::from_secs(5), Duration::from_secs(5));
-    let second = bounded(
+    let second = within(
         "second finger power on",
         patient.set_finger_power(gripper::wsg::Finger::One, true),
     )

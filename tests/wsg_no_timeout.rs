@@ -126,7 +126,7 @@ async fn a_motion_on_a_connection_without_motion_timeout_whose_final_reply_is_lo
         .connect_tcp(device_losing_final_replies().await)
         .await
         .unwrap();
-    let moved = bounded("pre_position", client.pre_position(20.0, 50.0)).await;
+    let moved = within("pre_position", client.pre_position(20.0, 50.0)).await;
     assert!(
         matches!(moved, Err(Error::ReplyLost { command: 0x21 })),
         "{moved:?}"
