@@ -337,6 +337,27 @@ impl Pairing {
         false
     }
 
+    /// A request of `id` is handed to the task to send: a motion command the device accepts
+    /// makes the stops sent before it no longer owed to the device once nobody waits for them
+    /// ([`super::stops`]: a late stop would abort this newer motion).
+    fn sending(&mut self, id: u8) {
+        if is_motion(id) && !self.stops.is_empty() {
+            for stops in self.stops.values_mut() {
+                stops.motion_sent(id);
+            }
+        }
+    }
+
+    /// Motion command `id` got its first answer: acknowledged (`accepted`, E_CMD_PENDING) or
+    /// a final one without that (refused: it never ran). See [`Pairing::sending`].
+    fn motion_answered(&mut self, id: u8, accepted: bool) {
+        if is_motion(id) && !self.stops.is_empty() {
+            for stops in self.stops.values_mut() {
+                stops.motion_answered(id, accepted);
+            }
+        }
+    }
+
     /// Takes `req` in at `now`: send it, queue it, or refuse it.
     pub(crate) fn submit(&mut self, req: Request, now: Instant) -> Submit {
         let id = req.frame.id;
@@ -352,6 +373,7 @@ impl Pairing {
         let st = self.ids.entry(id).or_default();
         if st.in_flight.is_none() && st.queue.is_empty() && !st.fenced {
             st.in_flight = Some(InFlight::new(&req, self.grace, holds, now));
+            self.sending(id);
             return Submit::Send(req);
         }
         st.queue.push_back(req);
@@ -451,6 +473,7 @@ impl Pairing {
                 f.probe_at = Some(f.recovery_at());
                 let token = f.token;
                 st.in_flight = Some(f);
+                self.motion_answered(reply.id, true);
                 return Event::Accepted(token);
             }
         }
@@ -474,17 +497,24 @@ impl Pairing {
             return Event::Unsolicited(reply);
         }
         if reply.status == Status::CmdPending {
+            let token = f.token;
             if !f.acknowledged {
                 f.acknowledged = true;
                 f.ack_doubtful = std::mem::take(&mut st.pending_owed);
                 f.probe_at = Some(f.recovery_at());
+                self.motion_answered(reply.id, true);
             }
-            return Event::Accepted(f.token);
+            return Event::Accepted(token);
         }
         let token = f.token;
+        let acknowledged = f.acknowledged;
         // E_ALREADY_RUNNING is only ever an immediate refusal (no E_CMD_PENDING before it).
-        st.pending_owed = !f.acknowledged && reply.status != Status::AlreadyRunning;
+        st.pending_owed = !acknowledged && reply.status != Status::AlreadyRunning;
         st.in_flight = None;
+        if !acknowledged {
+            // Refused at once (or answered without E_CMD_PENDING): the motion never ran.
+            self.motion_answered(reply.id, false);
+        }
         Event::Resolved(token, reply)
     }
 
@@ -582,6 +612,7 @@ impl Pairing {
         while let Some(req) = st.queue.pop_front() {
             if alive(req.token) {
                 st.in_flight = Some(InFlight::new(&req, self.grace, holds, now));
+                self.sending(id);
                 return (Some(req), skipped);
             }
             skipped.push(req.token);

@@ -21,6 +21,28 @@
 //!   to every command sent before it, 1.2.2) proves every stop sent before it and still
 //!   unanswered lost ([`Stops::unfence`]); only then is the stop sent again. Sound; the count
 //!   is two numbers, so no bound drops a stop unproven.
+//!
+//!   A stop the program asked for is a safety command: it is **delivered even after its caller
+//!   stopped waiting** (timed out, or dropped the call). A stop whose reply has not come
+//!   [`RESEND_AFTER`] after it was sent gets a barrier whether or not anybody waits, and a stop
+//!   the echo proves lost is sent again ([`Stops::unfence`]) until the device answers one, at
+//!   most [`MAX_OWED_RESENDS`] times in a row (each one proven lost by a barrier the device
+//!   answered). Without it a stop whose *request* was damaged on the wire (the device drops
+//!   it unanswered, 1.2.1) was never sent again once its caller had timed out, and the fingers
+//!   never stopped (issue 29 E, the explorer's rule 9: `wsg-tcp:0xd11252be6d410fee`). One
+//!   exception, the lead's decision: a stop whose caller is gone is **dropped** (logged) once
+//!   the program has sent a motion command (home, pre-position, grasp, release: 3.2.1, 3.2.2,
+//!   3.2.6, 3.2.7) after it: the program has moved on, and the late stop would abort that
+//!   newer motion (3.2.3: it stops "jede laufende Fingerbewegung"). Only a motion the device
+//!   may run counts: one it acknowledged (E_CMD_PENDING, 1.3). When a motion sent after the
+//!   stop is still unanswered at the echo (sent after the barrier), the decision waits for its
+//!   answer ([`Stops::motion_answered`]; a motion whose answer never comes keeps the stop
+//!   dropped, the cautious side for the motion). A motion the device refused at once
+//!   (E_ALREADY_RUNNING while the move the stop was for still runs, 3.2.2; E_NOT_INITIALIZED;
+//!   E_ACCESS_DENIED after FAST STOP) starts nothing a stop could abort, and the stop is still
+//!   owed (the explorer's `wsg-serial:0xd61c40d7cc3acb90`, `wsg-serial:0x06c24b314c9fa72f`).
+//!   A newer stop of the id supersedes it too: its reply answers both, as for any stop. The
+//!   re-send still goes out only at a barrier's echo, so the ordered count stays sound.
 //! - **UDP** loses datagrams: a lost stop is never answered, so the replies are taken for
 //!   stops one too early, and a call whose own stop was lost, or whose reply was taken for an
 //!   earlier stop, would wait in vain. A call that waits [`RESEND_AFTER`] without its reply
@@ -48,6 +70,14 @@ pub(crate) const RESEND_AFTER: Duration = Duration::from_millis(100);
 
 /// Stops of one id kept unanswered at most on UDP; beyond, the oldest counts as lost.
 pub(crate) const MAX_UNANSWERED: usize = 16;
+
+/// Ordered transport: how many times in a row a stop nobody waits for any more is sent again,
+/// each time after a barrier's echo proved the one before lost, before it is given up (logged).
+/// Each re-send costs [`RESEND_AFTER`] and a round trip, so the last goes out about a second
+/// after the first was proven lost: a link that damages eight stops in a row while it carries
+/// the barriers intact is no link a stop gets through; a bound keeps the task from sending
+/// stops for ever to a device that never answers them.
+pub(crate) const MAX_OWED_RESENDS: u32 = 8;
 
 /// What the stops of one id need from the task ([`Stops::due`]).
 #[derive(Debug, PartialEq)]
@@ -77,9 +107,29 @@ struct Ordered {
     oldest: u64,
     /// A barrier is out: the stops before this one still unanswered at its echo are lost.
     fence: Option<u64>,
-    /// When unanswered stops that nobody waits for get a barrier (the latest caller's deadline
-    /// plus the grace): a reply lost to corruption must not keep later calls one reply behind.
+    /// When unanswered stops get a barrier, whether or not anybody waits: [`RESEND_AFTER`]
+    /// after the earliest stop sent since the last barrier went out. A stop proven lost is
+    /// owed to the device (module docs), and a reply lost to corruption must not keep later
+    /// calls one reply behind.
     check_at: Option<Instant>,
+    /// The sequence number of the next stop when the latest motion command the device
+    /// acknowledged was sent: the stops before it were sent before that motion, and are
+    /// dropped, not sent again, once proven lost while nobody waits for them (module docs).
+    moved_before: u64,
+    /// The motions sent and not answered yet (at most one per motion id, [`super::pairing`]):
+    /// their id, and the sequence number of the next stop when they were sent. Acknowledged,
+    /// one counts for [`Ordered::moved_before`]; refused, it is forgotten; still out at a
+    /// barrier's echo, it defers the decision ([`Ordered::deferred`]).
+    moves_out: Vec<(u8, u64)>,
+    /// A stop nobody waits for, proven lost by the echo of the barrier `fence` while a motion
+    /// sent after it was unanswered: sent again if that motion is refused, dropped if it is
+    /// accepted ([`Stops::motion_answered`]). Its echo's instant: when the re-send is due.
+    deferred: Option<(u64, Instant)>,
+    /// A deferred stop is to be sent again ([`Stops::due`]), from this instant.
+    resend_owed: Option<Instant>,
+    /// How many times in a row a stop nobody waited for was sent again after a barrier proved
+    /// the one before lost ([`MAX_OWED_RESENDS`]); reset by a reply and by a call.
+    owed_resends: u32,
 }
 
 /// The stops of one command id (0x22 or 0x23).
@@ -107,13 +157,15 @@ impl Stops {
         }
     }
 
-    /// Records a stop sent at `now`, counting as lost from `lost_at` (ordered: checked by a
-    /// barrier from then, if still unanswered).
+    /// Records a stop sent at `now`, counting as lost from `lost_at` on UDP (ordered: checked
+    /// by a barrier [`RESEND_AFTER`] after `now`, if still unanswered).
     fn sent(&mut self, now: Instant, lost_at: Instant) -> u64 {
         let seq = self.next_seq;
         self.next_seq += 1;
         if let Some(o) = &mut self.ordered {
-            o.check_at = Some(o.check_at.map_or(lost_at, |at| at.max(lost_at)));
+            // Checked soon whoever waits: a lost stop is owed to the device (module docs).
+            let check = after(now, RESEND_AFTER);
+            o.check_at = Some(o.check_at.map_or(check, |at| at.min(check)));
         } else {
             if self.unanswered.len() >= MAX_UNANSWERED {
                 self.unanswered.pop_front();
@@ -150,6 +202,9 @@ impl Stops {
         grace: Duration,
     ) {
         let first = self.sent(now, after(deadline, grace));
+        if let Some(o) = &mut self.ordered {
+            o.owed_resends = 0;
+        }
         self.waiting.push(Waiting {
             token,
             first,
@@ -164,6 +219,10 @@ impl Stops {
         let answered = match &mut self.ordered {
             Some(o) if o.oldest < self.next_seq => {
                 o.oldest += 1;
+                o.owed_resends = 0;
+                // A stop sent after the deferred one was answered: the device got a stop.
+                o.deferred = None;
+                o.resend_owed = None;
                 o.oldest - 1
             }
             Some(_) => return Vec::new(),
@@ -184,6 +243,47 @@ impl Stops {
             self.resend_at = None;
         }
         done
+    }
+
+    /// The program sent motion command `id` (manual 3.2.1, 3.2.2, 3.2.6, 3.2.7): unless the
+    /// device refuses it ([`Stops::motion_answered`]), the stops sent before it are no longer
+    /// owed to the device once nobody waits for them (module docs).
+    pub(crate) fn motion_sent(&mut self, id: u8) {
+        if let Some(o) = &mut self.ordered {
+            o.moves_out.retain(|(m, _)| *m != id);
+            o.moves_out.push((id, self.next_seq));
+        }
+    }
+
+    /// The motion `id` sent last got its first answer: `accepted` (E_CMD_PENDING, 1.3: it
+    /// runs), or not (refused at once, or some other final reply: it never ran).
+    pub(crate) fn motion_answered(&mut self, id: u8, accepted: bool) {
+        let Some(o) = &mut self.ordered else {
+            return;
+        };
+        let Some(at) = o.moves_out.iter().position(|(m, _)| *m == id) else {
+            return;
+        };
+        let (_, mark) = o.moves_out.swap_remove(at);
+        if accepted {
+            o.moved_before = o.moved_before.max(mark);
+        }
+        let Some((fence, echo)) = o.deferred else {
+            return;
+        };
+        if o.moved_before >= fence {
+            o.deferred = None;
+            o.owed_resends = 0;
+            tracing::warn!(
+                "a stop whose caller stopped waiting was lost (a barrier proved it), and the \
+                 device accepted a motion command sent after it: not sent again, it would abort \
+                 that motion"
+            );
+        } else if o.moves_out.iter().all(|(_, mark)| *mark < fence) {
+            // Every motion sent after it was refused: it ran nothing, the stop is owed.
+            o.deferred = None;
+            o.resend_owed = Some(echo);
+        }
     }
 
     /// Forgets the waiting calls whose caller is gone; returns their tokens.
@@ -207,6 +307,7 @@ impl Stops {
         let lost = match &self.ordered {
             // The barrier's echo (or its own timeout, in the task) comes first.
             Some(o) if o.fence.is_some() => return None,
+            Some(o) if o.resend_owed.is_some() => return o.resend_owed,
             Some(o) => o.check_at.filter(|_| self.has_unanswered()),
             None => self.unanswered.iter().map(|(_, at)| *at).min(),
         };
@@ -227,13 +328,26 @@ impl Stops {
         } else if self.ordered.as_ref().is_some_and(|o| o.fence.is_some()) {
             return None;
         }
+        let unanswered = self.has_unanswered();
+        if let Some(o) = &mut self.ordered {
+            if o.resend_owed.take().is_some() && !unanswered && o.owed_resends < MAX_OWED_RESENDS {
+                // A deferred stop: the motions sent after it were refused (module docs).
+                o.owed_resends += 1;
+                tracing::warn!(
+                    resend = o.owed_resends,
+                    "a stop whose caller stopped waiting was lost (a barrier proved it), and the \
+                     motion sent after it was refused: sent again"
+                );
+                self.sent(now, now);
+                return Some(StopDue::Resend);
+            }
+        }
         let resend = self.resend_at.is_some_and(|at| at <= now);
         let latest = self.latest_waiting(now);
         if resend && latest.is_none() {
             // Only callers past their deadline wait (their futures have ended): no resend.
             self.resend_at = None;
         }
-        let unanswered = self.has_unanswered();
         let next_seq = self.next_seq;
         if let Some(o) = &mut self.ordered {
             let check = o.check_at.is_some_and(|at| at <= now);
@@ -253,9 +367,12 @@ impl Stops {
 
     /// Ordered transport: the echo of the barrier asked by [`Stops::due`] came back at `now`.
     /// The device answers a connection's commands in order (1.2.2) and the stream keeps it, so
-    /// every stop sent before the barrier and still unanswered is lost (its reply corrupted).
-    /// Returns whether the stop is to be sent again now (recorded as sent): a caller waits
-    /// and no stop that could answer it is unanswered.
+    /// every stop sent before the barrier and still unanswered is lost (its request or its
+    /// reply damaged). Returns whether the stop is to be sent again now (recorded as sent): no
+    /// stop sent after the barrier is unanswered (its reply would answer everyone), and a
+    /// caller waits, or a stop was proven lost that is still owed to the device: no motion
+    /// was sent after it, and it was not sent again [`MAX_OWED_RESENDS`] times in a row
+    /// already (module docs).
     pub(crate) fn unfence(&mut self, now: Instant, grace: Duration) -> bool {
         let Some(o) = &mut self.ordered else {
             return false;
@@ -263,10 +380,12 @@ impl Stops {
         let Some(fence) = o.fence.take() else {
             return false;
         };
+        // The newest stop proven lost, if any: `fence - 1` (all before the fence are lost).
+        let lost = o.oldest < fence;
         o.oldest = o.oldest.max(fence);
         let Some(latest) = self.latest_waiting(now) else {
             self.resend_at = None;
-            return false;
+            return self.owed(now, lost, fence);
         };
         if self.has_unanswered() {
             // A stop sent after the barrier is on its way: its reply completes every caller
@@ -275,6 +394,51 @@ impl Stops {
             return false;
         }
         self.sent(now, after(latest, grace));
+        true
+    }
+
+    /// [`Stops::unfence`] with nobody waiting: whether a stop proven lost (`lost`, the newest
+    /// one `fence - 1`) is sent again now (recorded as sent, checked by a barrier
+    /// [`RESEND_AFTER`] later).
+    fn owed(&mut self, now: Instant, lost: bool, fence: u64) -> bool {
+        if !lost || self.has_unanswered() {
+            // Nothing lost, or a stop sent after the barrier is on its way: it gets a barrier
+            // of its own ([`Stops::sent`]).
+            return false;
+        }
+        let Some(o) = &mut self.ordered else {
+            return false;
+        };
+        if o.moved_before >= fence {
+            tracing::warn!(
+                "a stop whose caller stopped waiting was lost (a barrier proved it), but the \
+                 device accepted a motion command sent after it: not sent again, it would abort \
+                 that motion"
+            );
+            o.owed_resends = 0;
+            return false;
+        }
+        if o.moves_out.iter().any(|(_, mark)| *mark >= fence) {
+            // A motion sent after it is not answered yet: accepted, the stop would abort it;
+            // refused, it ran nothing and the stop is owed. Its answer decides.
+            o.deferred = Some((fence, now));
+            return false;
+        }
+        if o.owed_resends >= MAX_OWED_RESENDS {
+            tracing::warn!(
+                resends = o.owed_resends,
+                "a stop whose caller stopped waiting was lost again and again: given up"
+            );
+            o.owed_resends = 0;
+            return false;
+        }
+        o.owed_resends += 1;
+        tracing::warn!(
+            resend = o.owed_resends,
+            "a stop whose caller stopped waiting was lost (a barrier proved it): sent again"
+        );
+        // No caller: it counts as lost only by a barrier's proof (`lost_at` is for UDP).
+        self.sent(now, now);
         true
     }
 
@@ -287,7 +451,9 @@ impl Stops {
     pub(crate) fn is_idle(&self) -> bool {
         self.waiting.is_empty()
             && !self.has_unanswered()
-            && self.ordered.as_ref().is_none_or(|o| o.fence.is_none())
+            && self.ordered.as_ref().is_none_or(|o| {
+                o.fence.is_none() && o.deferred.is_none() && o.resend_owed.is_none()
+            })
     }
 }
 
@@ -412,19 +578,153 @@ mod tests {
         assert!(s.unfence(at + RESEND_AFTER, GRACE), "sent again");
         assert_eq!(s.on_reply(), vec![3]);
         assert!(s.is_idle());
-        // Nobody waits for an unanswered stop: checked by a barrier at its deadline + grace,
-        // so that later calls are not kept one reply behind.
+        // Nobody waits for an unanswered stop: still checked by a barrier RESEND_AFTER after
+        // it was sent, so that later calls are not kept one reply behind (and a lost stop is
+        // owed to the device: the next test).
         s.submit(4, t, at, GRACE);
         assert_eq!(s.prune(|_| false), vec![4]);
-        assert_eq!(s.next_due(), Some(t + GRACE));
-        assert_eq!(s.due(t + GRACE, GRACE), Some(StopDue::Barrier));
+        assert_eq!(s.next_due(), Some(at + RESEND_AFTER));
+        assert_eq!(s.due(at + RESEND_AFTER, GRACE), Some(StopDue::Barrier));
         assert!(!s.is_idle());
-        assert!(!s.unfence(t + GRACE, GRACE));
+        // Its reply comes before the echo: nothing is lost, nothing sent again.
+        assert!(s.on_reply().is_empty(), "nobody waits for it");
+        assert!(!s.unfence(at + RESEND_AFTER, GRACE));
         assert!(s.is_idle());
         assert!(
             s.on_reply().is_empty(),
             "a reply after the echo answers nothing"
         );
+    }
+
+    /// Issue 29 E (the explorer's `wsg-tcp:0xd11252be6d410fee`), distilled: a stop whose
+    /// request was damaged (the device never got it) and whose caller timed out before any
+    /// re-send. A barrier proves it lost, and it is sent again though nobody waits: the device
+    /// must stop. Checked again after each re-send, at most MAX_OWED_RESENDS times in a row.
+    #[test]
+    fn on_an_ordered_transport_a_lost_stop_is_sent_again_after_its_caller_stopped_waiting() {
+        let now = Instant::now();
+        let t = now + Duration::from_millis(50);
+        let mut s = Stops::new(true);
+        s.submit(1, t, now, GRACE);
+        // The caller times out before RESEND_AFTER: no re-send was due while it waited.
+        assert_eq!(s.due(t, GRACE), None);
+        let mut at = now + RESEND_AFTER;
+        assert_eq!(s.next_due(), Some(at));
+        assert_eq!(s.due(at, GRACE), Some(StopDue::Barrier));
+        assert!(
+            s.unfence(at, GRACE),
+            "proven lost: sent again, nobody waiting"
+        );
+        // That one is damaged too: again, up to the bound.
+        for _ in 1..MAX_OWED_RESENDS {
+            assert_eq!(s.next_due(), Some(at + RESEND_AFTER));
+            at += RESEND_AFTER;
+            assert_eq!(s.due(at, GRACE), Some(StopDue::Barrier));
+            assert!(s.unfence(at, GRACE), "sent again");
+        }
+        at += RESEND_AFTER;
+        assert_eq!(s.due(at, GRACE), Some(StopDue::Barrier));
+        assert!(!s.unfence(at, GRACE), "given up after MAX_OWED_RESENDS");
+        assert!(!s.has_unanswered());
+        // The timed-out caller is forgotten when the next stop call prunes.
+        assert_eq!(s.prune(|_| false), vec![1]);
+        assert!(s.is_idle());
+
+        // The device answers a re-sent stop: done, and the count starts again. (This caller
+        // dropped its call: the task prunes it when the next stop call comes.)
+        s.submit(2, at + Duration::from_secs(5), at, GRACE);
+        assert_eq!(s.prune(|_| false), vec![2]);
+        at += RESEND_AFTER;
+        assert_eq!(s.due(at, GRACE), Some(StopDue::Barrier));
+        assert!(s.unfence(at, GRACE));
+        assert!(s.on_reply().is_empty(), "nobody waits for it");
+        assert!(s.is_idle());
+        assert_eq!(s.ordered.as_ref().map(|o| o.owed_resends), Some(0));
+
+        // A newer stop (a call) sent while the barrier is out supersedes it: its reply answers
+        // both, no re-send.
+        s.submit(3, at + Duration::from_secs(5), at, GRACE);
+        assert_eq!(s.prune(|_| false), vec![3]);
+        at += RESEND_AFTER;
+        assert_eq!(s.due(at, GRACE), Some(StopDue::Barrier));
+        s.submit(4, at + Duration::from_secs(1), at, GRACE);
+        assert!(!s.unfence(at, GRACE), "call 4's stop is on its way");
+        assert_eq!(s.on_reply(), vec![4]);
+        assert!(s.is_idle());
+    }
+
+    /// The lead's decision on issue 29 E: a lost stop nobody waits for is not sent again once
+    /// the program sent a motion command after it (the late stop would abort that motion);
+    /// a motion sent before it does not matter, nor does one while its caller still waits.
+    #[test]
+    fn on_an_ordered_transport_a_motion_sent_after_a_lost_stop_drops_it() {
+        let now = Instant::now();
+        let t = now + Duration::from_millis(50);
+        let at = now + RESEND_AFTER;
+        let grasp = crate::wsg::command::id::GRASP;
+        let home = crate::wsg::command::id::HOMING;
+        // A motion after the stop, acknowledged by the device: dropped.
+        let mut s = Stops::new(true);
+        s.submit(1, t, now, GRACE);
+        s.motion_sent(grasp);
+        s.motion_answered(grasp, true);
+        assert_eq!(s.due(at, GRACE), Some(StopDue::Barrier));
+        assert!(!s.unfence(at, GRACE), "the program moved on");
+        assert!(!s.has_unanswered());
+        // Refused at once (E_ALREADY_RUNNING, say: the move the stop was for still runs): the
+        // stop is still owed.
+        let mut s = Stops::new(true);
+        s.submit(1, t, now, GRACE);
+        s.motion_sent(grasp);
+        s.motion_answered(grasp, false);
+        assert_eq!(s.due(at, GRACE), Some(StopDue::Barrier));
+        assert!(
+            s.unfence(at, GRACE),
+            "a refused motion runs nothing: sent again"
+        );
+        // A motion sent after that re-send whose answer is still out at the echo (sent after
+        // the barrier): its answer decides. Refused: the stop is sent again.
+        let echo = at + RESEND_AFTER;
+        assert_eq!(s.due(echo, GRACE), Some(StopDue::Barrier));
+        s.motion_sent(home);
+        assert!(!s.unfence(echo, GRACE), "waits for the motion's answer");
+        assert!(!s.is_idle());
+        assert_eq!(s.next_due(), None);
+        s.motion_answered(home, false);
+        assert_eq!(s.next_due(), Some(echo));
+        assert_eq!(s.due(echo, GRACE), Some(StopDue::Resend));
+        // Lost again, a motion out at the echo again: accepted, the stop is dropped.
+        let echo = echo + RESEND_AFTER;
+        assert_eq!(s.due(echo, GRACE), Some(StopDue::Barrier));
+        s.motion_sent(home);
+        assert!(!s.unfence(echo, GRACE));
+        s.motion_answered(home, true);
+        assert_eq!(s.next_due(), None);
+        assert!(!s.has_unanswered());
+        assert_eq!(s.prune(|_| false), vec![1]);
+        assert!(s.is_idle());
+        // A motion before the stop: the stop is still owed.
+        let mut s = Stops::new(true);
+        s.motion_sent(grasp);
+        s.motion_answered(grasp, true);
+        s.submit(1, t, now, GRACE);
+        assert_eq!(s.due(at, GRACE), Some(StopDue::Barrier));
+        assert!(s.unfence(at, GRACE), "sent again");
+        // Two stops, an accepted motion between them, both lost: the newer one is owed.
+        let mut s = Stops::new(true);
+        s.submit(1, t, now, GRACE);
+        s.motion_sent(grasp);
+        s.submit(2, t, now, GRACE);
+        s.motion_answered(grasp, true);
+        assert_eq!(s.due(at, GRACE), Some(StopDue::Barrier));
+        assert!(s.unfence(at, GRACE), "the stop after the motion is owed");
+        // A caller still waiting gets its stop sent again whatever was sent after it.
+        let mut s = Stops::new(true);
+        s.submit(1, now + Duration::from_secs(1), now, GRACE);
+        s.motion_sent(grasp);
+        s.motion_answered(grasp, true);
+        assert_eq!(s.due(at, GRACE), Some(StopDue::Barrier));
+        assert!(s.unfence(at, GRACE), "its caller waits");
     }
 
     #[test]

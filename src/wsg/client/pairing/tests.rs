@@ -863,6 +863,92 @@ fn a_waiting_stop_call_gets_a_barrier_on_an_ordered_transport() {
     assert!(p.drain().is_empty());
 }
 
+/// Issue 29 E at the pairing: a stop whose caller timed out is still sent again once a barrier
+/// proves it lost. A motion command the pairing hands out afterwards (sent at once, or later
+/// from its id's queue) makes the next lost stop be dropped instead, once the device
+/// acknowledged it or while its answer is still out; one the device refused at once ran
+/// nothing, and a query moves nothing.
+#[test]
+fn a_lost_stop_is_owed_to_the_device_until_a_motion_is_sent_after_it() {
+    let now = Instant::now();
+    let ms = Duration::from_millis;
+    let resend = super::super::stops::RESEND_AFTER;
+    let mut p = Pairing::new(Duration::from_secs(1));
+    p.set_ordered(true);
+    // The caller's timeout (50 ms) ends before any re-send was due.
+    assert_eq!(sent(p.submit(req(1, id::STOP, now + ms(50)), now)), Some(1));
+    // A query sent after it, and a grasp the device refuses (E_ALREADY_RUNNING: the move
+    // the stop was for still runs).
+    assert_eq!(
+        sent(p.submit(req(2, id::SYSTEM_STATE, now + ms(50)), now)),
+        Some(2)
+    );
+    assert_eq!(
+        sent(p.submit(req(3, id::GRASP, now + ms(50)), now)),
+        Some(3)
+    );
+    assert!(matches!(
+        p.on_reply(reply(id::GRASP, Status::AlreadyRunning)),
+        Event::Resolved(3, _)
+    ));
+    let at = now + resend;
+    assert_eq!(p.next_due(), Some(at));
+    assert_eq!(p.due(at), vec![Due::StopBarrier(id::STOP)]);
+    assert!(p.unfence(id::STOP, at), "proven lost: sent again");
+    // A grasp goes out (at once) after the re-sent stop, which is lost too, and the device
+    // accepts it: the stop is dropped.
+    assert_eq!(
+        sent(p.submit(req(4, id::GRASP, at + ms(10_000)), at)),
+        Some(4)
+    );
+    assert_eq!(
+        p.on_reply(reply(id::GRASP, Status::CmdPending)),
+        Event::Accepted(4)
+    );
+    let at = at + resend;
+    assert_eq!(p.due(at), vec![Due::StopBarrier(id::STOP)]);
+    assert!(!p.unfence(id::STOP, at), "the program moved on");
+    // A release goes out, then a stop call, then a release queued behind the first goes out
+    // (from the queue) after the stop; its answer is still out at the echo: it decides.
+    assert_eq!(
+        sent(p.submit(req(5, id::RELEASE, at + ms(10_000)), at)),
+        Some(5)
+    );
+    assert_eq!(sent(p.submit(req(6, id::STOP, at + ms(50)), at)), Some(6));
+    assert!(matches!(
+        p.submit(req(7, id::RELEASE, at + ms(10_000)), at),
+        Submit::Queued
+    ));
+    assert!(matches!(
+        p.on_reply(reply(id::RELEASE, Status::NotInitialized)),
+        Event::Resolved(5, _)
+    ));
+    assert_eq!(
+        p.next(id::RELEASE, |_| true, at).0.map(|r| r.token),
+        Some(7)
+    );
+    let at = at + resend;
+    assert_eq!(p.due(at), vec![Due::StopBarrier(id::STOP)]);
+    assert!(
+        !p.unfence(id::STOP, at),
+        "the queued release went out after it"
+    );
+    assert!(p.due(at).is_empty(), "waits for the release's answer");
+    // Refused: it ran nothing, and the stop goes out again.
+    assert!(matches!(
+        p.on_reply(reply(id::RELEASE, Status::AlreadyRunning)),
+        Event::Resolved(7, _)
+    ));
+    assert!(p.next_due().is_some_and(|due| due <= at));
+    assert_eq!(p.due(at), vec![Due::ResendStop(id::STOP)]);
+    // Its reply: the timed-out calls (never pruned: no stop call since) are answered, and
+    // the task finds their waiters gone.
+    assert_eq!(
+        p.on_reply(reply(id::STOP, Status::Success)),
+        Event::Stopped(vec![1, 6], reply(id::STOP, Status::Success))
+    );
+}
+
 #[test]
 fn prune_drops_only_queued_dead_callers() {
     let now = Instant::now();
