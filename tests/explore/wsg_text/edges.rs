@@ -161,7 +161,7 @@ pub async fn check(rng: &mut Prng, sim: &Arc<SimServer>, trace: &SharedTrace) ->
     let (near, far) = faulty_pipe(rng, profile, on, trace.clone(), "edge".into());
     let session = sim.serve_stream(far, SessionKind::Tcp);
     note(trace, format!("edge client: session {session}"));
-    let (near, _tap) = Tap::new(near);
+    let (near, _tap, _cut) = Tap::new(near);
     // A panic here (a channel of `usize::MAX`) is the core's to count; the run goes on.
     let opened = std::panic::catch_unwind(AssertUnwindSafe(|| Client::from_io(near, config)));
     let Ok(client) = opened else {

@@ -6,14 +6,19 @@
 //! MOVE), closing, then the oracle (`oracle.rs`). GCL has no ids: replies pair with commands by
 //! name, which is what the oracle checks, line by line.
 //!
-//! The text client does not reconnect by itself: a "reconnecting" client here is one whose
-//! callers open a new connection after a loss (or drop theirs without `BYE()` now and then,
-//! which raises FAST STOP on the device).
+//! Every client runs over the connections its opener opens (`Client::open_with`: an in-memory
+//! pipe through the fault layer to a new simulator session, tapped); in one run of two a client
+//! reconnects (`ClientConfig::reconnect`, the explorer's quick policy) after a loss: a cut of
+//! the fault layer, a device restart, or a give-up. Its connection events are followed
+//! (`connection_events`): rule 6 judges each loss it reports. After recovery a reconnecting
+//! client's connection is cut on purpose, and what a reconnect restores must be restored
+//! (`restore.rs`).
 
 mod edges;
 mod liveness;
 mod oracle;
 mod quiet;
+mod restore;
 mod tap;
 mod workload;
 
@@ -23,16 +28,20 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
+use futures_util::StreamExt;
+use gripper::reconnect::{ConnectionEvent, ConnectionEvents};
 use gripper::wsg::sim::{Model, SessionId, SessionKind, SimConfig, SimEvent, SimServer};
 use gripper::wsg::text::{Client, ClientConfig, Error};
 use gripper::wsg::HomingDirection;
 use tokio::time::Instant;
 
-use self::tap::{SharedTap, Tap};
-use self::workload::{classify, CallRec, Expect, Log, Res};
+use self::tap::{Cut, SharedTap, Tap};
+use self::workload::{classify, AfterClose, CallRec, Expect, Log, Res};
 use crate::core::phases::{
-    after_close, draw_restart, draw_shape, fault_phase, run_line, DocumentedErrors,
+    after_close, draw_restart, draw_shape, fault_phase, reconnect_policy, run_line,
+    DocumentedErrors,
 };
+use crate::core::servers::{watch_losses_logged, Losses};
 use crate::core::streams::{faulty_pipe, StreamProfile};
 use crate::core::{note, restart_at, Caps, Prng, Scenario, SharedTrace};
 
@@ -58,17 +67,14 @@ impl Scenario for WsgText {
     }
 }
 
-/// One client slot: the connection of the moment (a reopen replaces it) and what the oracle
-/// needs of it.
+/// One client and what the oracle needs of it.
 pub struct Ctx {
     index: usize,
-    /// The connection of the moment, and its index in `sessions` and `taps`.
-    client: Mutex<(Client, usize)>,
-    /// The simulator sessions it opened, oldest first.
-    sessions: Arc<Mutex<Vec<SessionId>>>,
-    /// What the client wrote and read on each of those connections (`tap.rs`).
-    taps: Mutex<Vec<SharedTap>>,
-    /// Whether its callers open a new connection after a loss.
+    /// The client, over the connections its opener opens (`Client::open_with`).
+    client: Client,
+    /// Its connections, oldest first: the simulator session, the tap, when it opened.
+    conns: Conns,
+    /// Whether it reconnects (`ClientConfig::reconnect`).
     reconnect: bool,
     /// Whether its link may flip bits (GCL has no checksum: a flipped bit is another line).
     corrupting: bool,
@@ -78,18 +84,30 @@ pub struct Ctx {
     stuck: AtomicBool,
     /// When a `close()` began (a `Closed` before it breaks promise 5).
     closed_at: Mutex<Option<Instant>>,
+    /// Each loss the client reported (`connection_events`), with when (rule 6 judges it).
+    losses: Losses,
+    /// When the client was without a connection: from each reported loss to the session's
+    /// restore (`None`: not restored); calls made meanwhile wait (rule 9 judges a stop from the
+    /// restore).
+    downs: Downs,
     config: ClientConfig,
-    net: Net,
 }
 
-/// What opening a connection needs.
-struct Net {
-    sim: Arc<SimServer>,
-    rng: Mutex<Prng>,
-    profile: StreamProfile,
-    on: Arc<AtomicBool>,
-    trace: SharedTrace,
+/// One connection a client's opener opened.
+#[derive(Clone)]
+pub struct Conn {
+    /// The simulator session that serves it.
+    pub session: SessionId,
+    /// What the client wrote and read on it (`tap.rs`).
+    pub tap: SharedTap,
+    /// Cuts it on the client's side (`restore.rs`).
+    pub cut: Arc<Cut>,
+    /// When it was opened.
+    pub opened: Instant,
 }
+
+/// A client's connections, oldest first.
+pub type Conns = Arc<Mutex<Vec<Conn>>>;
 
 impl Ctx {
     /// Marks the client closing; true if it was already.
@@ -101,57 +119,68 @@ impl Ctx {
         self.closing.swap(true, Ordering::SeqCst)
     }
 
-    /// The connection of the moment.
+    /// The client.
     fn client(&self) -> Client {
-        self.client.lock().unwrap().0.clone()
+        self.client.clone()
     }
 
-    /// The connection of the moment and its index (`sessions`, `taps`).
+    /// The client and the index of the connection of the moment (the last opened; a call made
+    /// while a reconnecting client is between connections goes out on the next one, which
+    /// [`resolve_conns`] tells after the run).
     fn current(&self) -> (Client, usize) {
-        self.client.lock().unwrap().clone()
+        let n = self.conns.lock().unwrap().len();
+        (self.client.clone(), n.saturating_sub(1))
     }
 
-    /// A new connection through the fault layer, served by the simulator as a new session.
-    fn open(&self) -> (Client, usize) {
-        let n = &self.net;
-        let label = format!("c{}", self.index);
+    /// The taps of its connections, oldest first.
+    fn taps(&self) -> Vec<SharedTap> {
+        self.conns
+            .lock()
+            .unwrap()
+            .iter()
+            .map(|c| c.tap.clone())
+            .collect()
+    }
+}
+
+/// The opener of client `index`: each call makes a new in-memory pipe through the fault layer
+/// (`profile`, on while `on`), serves its far end on the simulator as a new session, taps the
+/// client's end, and notes the connection in `conns`.
+fn opener(
+    index: usize,
+    sim: Arc<SimServer>,
+    rng: Prng,
+    profile: StreamProfile,
+    on: Arc<AtomicBool>,
+    trace: SharedTrace,
+    conns: Conns,
+) -> impl Fn() -> std::future::Ready<std::io::Result<Tap>> + Send + Sync + 'static {
+    let rng = Mutex::new(rng);
+    move || {
         let (near, far) = faulty_pipe(
-            &mut n.rng.lock().unwrap(),
-            n.profile,
-            n.on.clone(),
-            n.trace.clone(),
-            label,
+            &mut rng.lock().unwrap(),
+            profile,
+            on.clone(),
+            trace.clone(),
+            format!("c{index}"),
         );
-        let session = n.sim.serve_stream(far, SessionKind::Tcp);
-        let conn = {
-            let mut sessions = self.sessions.lock().unwrap();
-            sessions.push(session);
-            sessions.len() - 1
-        };
+        let session = sim.serve_stream(far, SessionKind::Tcp);
+        let (near, tap, cut) = Tap::new(near);
+        let mut conns = conns.lock().unwrap();
+        conns.push(Conn {
+            session,
+            tap,
+            cut,
+            opened: Instant::now(),
+        });
         note(
-            &n.trace,
-            format!("client {}: session {session}", self.index),
+            &trace,
+            format!(
+                "client {index}: connection {} session {session}",
+                conns.len() - 1
+            ),
         );
-        let (near, tap) = Tap::new(near);
-        self.taps.lock().unwrap().push(tap);
-        (Client::from_io(near, self.config.clone()), conn)
-    }
-
-    /// Replaces the connection (the old one is dropped without `BYE()` once no call holds it).
-    fn reopen(&self, why: &str) {
-        note(
-            &self.net.trace,
-            format!("client {}: reopen: {why}", self.index),
-        );
-        let fresh = self.open();
-        *self.client.lock().unwrap() = fresh;
-    }
-
-    /// Replaces the connection if it has ended (another caller may have replaced it already).
-    fn reopen_if_closed(&self, why: &str) {
-        if self.client().is_closed() && !self.closing.load(Ordering::SeqCst) {
-            self.reopen(why);
-        }
+        std::future::ready(Ok(near))
     }
 }
 
@@ -198,30 +227,40 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
             &trace,
             format!("client {index}: {config:?} reconnect {reconnect} {profile:?}"),
         );
-        let net = Net {
-            sim: sim.clone(),
-            rng: Mutex::new(crng.fork()),
+        let conns = Conns::default();
+        let open = opener(
+            index,
+            sim.clone(),
+            crng.fork(),
             profile,
-            on: on.clone(),
-            trace: trace.clone(),
+            on.clone(),
+            trace.clone(),
+            conns.clone(),
+        );
+        let config = ClientConfig {
+            reconnect: reconnect.then(reconnect_policy),
+            ..config
         };
-        let sessions = Arc::new(Mutex::new(Vec::new()));
-        let (near, _) = tokio::io::duplex(1);
+        // The first open cannot fail (an in-memory pipe, the faults off while readying).
+        let client = match Client::open_with(open, config.clone()).await {
+            Ok(client) => client,
+            Err(e) => return vec![format!("5 (recovery): client {index} did not open: {e}")],
+        };
+        let (_, losses) = watch_losses_logged(client.connection_events(), index, trace.clone());
+        let downs = watch_downs(client.connection_events());
         let ctx = Ctx {
             index,
-            // Replaced at once: `open` needs the slot.
-            client: Mutex::new((Client::from_io(near, config.clone()), 0)),
-            sessions,
-            taps: Mutex::new(Vec::new()),
+            client,
+            conns,
             reconnect,
             corrupting,
             closing: AtomicBool::new(false),
             stuck: AtomicBool::new(false),
             closed_at: Mutex::new(None),
+            losses,
+            downs,
             config,
-            net,
         };
-        *ctx.client.lock().unwrap() = ctx.open();
         ctxs.push(Arc::new(ctx));
     }
 
@@ -257,6 +296,9 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
         v.extend(recovery(ctx, &log, &trace).await);
     }
     for ctx in &ctxs {
+        v.extend(restore::check(ctx, &log, &trace).await);
+    }
+    for ctx in &ctxs {
         v.extend(quiet::every_kind(ctx, &log, &trace).await);
     }
     // A client whose quiet phase found a name held for good (issue 29 K, M) may hold STOP too.
@@ -290,11 +332,21 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
     }
 
     let record = crate::wsg::note_record(&sim, &trace);
-    let sessions: Vec<Vec<SessionId>> = ctxs
+    let conns: Vec<Vec<Conn>> = ctxs
         .iter()
-        .map(|c| c.sessions.lock().unwrap().clone())
+        .map(|c| c.conns.lock().unwrap().clone())
         .collect();
-    let calls = log.calls.lock().unwrap().clone();
+    let sessions: Vec<Vec<SessionId>> = conns
+        .iter()
+        .map(|c| c.iter().map(|c| c.session).collect())
+        .collect();
+    let taps: Vec<Vec<SharedTap>> = conns
+        .iter()
+        .map(|c| c.iter().map(|c| c.tap.clone()).collect())
+        .collect();
+    let mut calls = log.calls.lock().unwrap().clone();
+    let mut after_close = log.after_close.lock().unwrap().clone();
+    resolve_conns(&mut calls, &mut after_close, &conns);
     let pushes = log.pushes.lock().unwrap().clone();
     let closed_at: Vec<Option<Instant>> =
         ctxs.iter().map(|c| *c.closed_at.lock().unwrap()).collect();
@@ -302,17 +354,79 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
     let mut all = oracle::check(
         &calls, &pushes, &record, sim_t0, &sessions, &closed_at, exact,
     );
-    let taps: Vec<Vec<SharedTap>> = ctxs
+    let losses: Vec<Vec<(Instant, String)>> = ctxs
         .iter()
-        .map(|c| c.taps.lock().unwrap().clone())
+        .map(|c| c.losses.lock().unwrap().clone())
         .collect();
     let configs: Vec<ClientConfig> = ctxs.iter().map(|c| c.config.clone()).collect();
-    let after_close = log.after_close.lock().unwrap().clone();
-    all.extend(liveness::check(&calls, &taps, &configs, &after_close));
+    let downs: Vec<Vec<Down>> = ctxs
+        .iter()
+        .map(|c| c.downs.lock().unwrap().clone())
+        .collect();
+    // What each reconnect restored on its connection (the first has none).
+    let restores: Vec<Vec<_>> = conns
+        .iter()
+        .zip(&downs)
+        .map(|(conns, downs)| {
+            conns
+                .iter()
+                .enumerate()
+                .map(|(k, c)| {
+                    if k == 0 {
+                        return Default::default();
+                    }
+                    let restored = downs
+                        .iter()
+                        .find(|(lost, r)| *lost <= c.opened && r.is_none_or(|r| r >= c.opened))
+                        .and_then(|d| d.1);
+                    liveness::restore_writes(&c.tap.lock().unwrap(), restored)
+                })
+                .collect()
+        })
+        .collect();
+    all.extend(liveness::check(
+        &calls,
+        &taps,
+        &configs,
+        &after_close,
+        &downs,
+        &restores,
+        exact,
+    ));
+    all.extend(liveness::losses(&losses, &conns, &calls, &configs, exact));
     all.extend(v);
     drop(ctxs);
     drop(sim);
     all
+}
+
+/// A time a client was without a connection: from a reported loss to the restore of the next
+/// session (`None`: never restored).
+pub type Down = (Instant, Option<Instant>);
+
+/// A client's [`Down`] times, oldest first.
+type Downs = Arc<Mutex<Vec<Down>>>;
+
+/// Follows a client's connection events into its [`Down`] times.
+fn watch_downs(mut events: ConnectionEvents) -> Downs {
+    let downs = Downs::default();
+    let log = downs.clone();
+    tokio::spawn(async move {
+        while let Some(ev) = events.next().await {
+            let now = Instant::now();
+            let mut log = log.lock().unwrap();
+            match ev {
+                ConnectionEvent::Lost { .. } => log.push((now, None)),
+                ConnectionEvent::Restored { .. } => {
+                    if let Some(last) = log.last_mut() {
+                        last.1.get_or_insert(now);
+                    }
+                }
+                _ => {}
+            }
+        }
+    });
+    downs
 }
 
 /// The timeout of the recovery calls: longer than the simulator's quiet gap after an `ACK`
@@ -323,8 +437,9 @@ const RECOVERY_TIMEOUT: Duration = Duration::from_secs(2);
 /// Promise 5: once the faults stop, after the longest a reply can stay away (a call's timeout,
 /// at most 5 s or the client's motion timeout, plus its `give_up_after`) and the longest
 /// motion, a client's connection works again: `FSACK()` and `POS?` succeed (a reconnecting
-/// client opens a new connection if its own was lost); one that does not reconnect fails with
-/// `ConnectionLost` if, and only if, its connection ended.
+/// client has reconnected by then if its connection was lost: its backoff is at most 0.5 s);
+/// one that does not reconnect fails with `ConnectionLost` if, and only if, its connection
+/// ended.
 async fn recovery(ctx: &Ctx, log: &Log, trace: &SharedTrace) -> Vec<String> {
     if ctx.closing.load(Ordering::SeqCst) {
         return Vec::new();
@@ -334,9 +449,6 @@ async fn recovery(ctx: &Ctx, log: &Log, trace: &SharedTrace) -> Vec<String> {
     let longest_call = ctx.config.motion_timeout.clamp(Duration::from_secs(5), cap);
     let bound = longest_call + ctx.config.give_up_after.min(cap) + Duration::from_secs(12);
     tokio::time::sleep(bound).await;
-    if ctx.reconnect {
-        ctx.reopen_if_closed("recovery: the connection was lost");
-    }
     if ctx.corrupting {
         // A corrupted LF in the fault phase leaves a fragment in the client's reader that eats
         // the next reply line (it ends it): a query whose answer nobody checks clears it.
@@ -484,5 +596,37 @@ impl DocumentedErrors for Error {
 
     fn is_connection_lost(&self) -> bool {
         matches!(self, Error::ConnectionLost { .. })
+    }
+}
+
+/// Which connection each call went out on: the one its own line was written on during the call
+/// (a call made while a reconnecting client was between connections waits and goes out on the
+/// next one), else the one of the moment when it began (`CallRec::conn`). The same for each
+/// `close()` of the fault phase and its `BYE()`.
+fn resolve_conns(calls: &mut [CallRec], after_close: &mut [AfterClose], conns: &[Vec<Conn>]) {
+    let written_on = |client: usize, from: usize, line: &str, start: Instant, end: Instant| {
+        conns[client]
+            .iter()
+            .enumerate()
+            .skip(from)
+            .find_map(|(k, c)| {
+                let tap = c.tap.lock().unwrap();
+                let written = tap
+                    .written
+                    .lines
+                    .iter()
+                    .any(|l| l.at >= start && l.at <= end && l.text == line);
+                written.then_some(k)
+            })
+    };
+    for c in calls.iter_mut() {
+        if let Some(k) = written_on(c.client, c.conn, &c.line, c.start, c.end) {
+            c.conn = k;
+        }
+    }
+    for a in after_close.iter_mut() {
+        if let Some(k) = written_on(a.client, a.conn, "BYE()", a.close.0, a.after.0) {
+            a.conn = k;
+        }
     }
 }

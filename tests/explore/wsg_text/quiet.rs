@@ -113,7 +113,7 @@ pub const FULL: &str = " [behind a full queue of calls not yet sent]";
 /// [`FULL`] if a call of `line` made at `start` on connection `conn` was never written while at
 /// least `queue_len` earlier calls of the connection had been given up without being written.
 pub fn full_tag(ctx: &Ctx, log: &Log, conn: usize, line: &str, start: Instant) -> &'static str {
-    let Some(tap) = ctx.taps.lock().unwrap().get(conn).cloned() else {
+    let Some(tap) = ctx.taps().get(conn).cloned() else {
         return "";
     };
     let tap = tap.lock().unwrap();
@@ -155,7 +155,7 @@ pub fn held_tag(
     expect: Expect,
     start: Instant,
 ) -> &'static str {
-    let Some(tap) = ctx.taps.lock().unwrap().get(conn).cloned() else {
+    let Some(tap) = ctx.taps().get(conn).cloned() else {
         return "";
     };
     let busy = super::liveness::busy(&tap.lock().unwrap(), name, expect, start, usize::MAX);

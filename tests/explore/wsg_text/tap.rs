@@ -4,13 +4,18 @@
 //! oracle can judge a `Timeout` (rule 7: was a reply of its name read in time?), a lost
 //! connection (rule 6: was the device answering?) and a stop (rule 9: was it written at once?).
 //!
+//! A tap can also be cut ([`Cut`]): the client's reader then sees the end of the stream, as when
+//! a cable is pulled on the client's side (the quiet phase's deliberate loss of a reconnecting
+//! client, `restore.rs`).
+//!
 //! A line is the bytes up to an LF, as the client's line codec splits them (`griplink::codec`,
 //! which the text client uses); its time is when the byte with the LF went through.
 
 use std::io;
 use std::pin::Pin;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
-use std::task::{Context, Poll};
+use std::task::{Context, Poll, Waker};
 
 use tokio::io::{AsyncRead, AsyncWrite, DuplexStream, ReadBuf};
 use tokio::time::Instant;
@@ -69,22 +74,48 @@ pub struct TapLog {
 /// A shared [`TapLog`].
 pub type SharedTap = Arc<Mutex<TapLog>>;
 
+/// Cuts a [`Tap`]: from then on its reader sees the end of the stream and its writes fail.
+#[derive(Debug, Default)]
+pub struct Cut {
+    cut: AtomicBool,
+    /// The reader waiting for bytes, woken by the cut.
+    reader: Mutex<Option<Waker>>,
+}
+
+impl Cut {
+    /// Cuts the link now.
+    pub fn cut(&self) {
+        self.cut.store(true, Ordering::SeqCst);
+        if let Some(w) = self.reader.lock().unwrap().take() {
+            w.wake();
+        }
+    }
+
+    fn is_cut(&self) -> bool {
+        self.cut.load(Ordering::SeqCst)
+    }
+}
+
 /// The client's end of a link, logging what passes.
 pub struct Tap {
     io: DuplexStream,
     log: SharedTap,
+    cut: Arc<Cut>,
 }
 
 impl Tap {
-    /// Wraps the client's end `io`; the log is shared with the oracle.
-    pub fn new(io: DuplexStream) -> (Tap, SharedTap) {
+    /// Wraps the client's end `io`; the log is shared with the oracle, the cut with the run.
+    pub fn new(io: DuplexStream) -> (Tap, SharedTap, Arc<Cut>) {
         let log = SharedTap::default();
+        let cut = Arc::new(Cut::default());
         (
             Tap {
                 io,
                 log: log.clone(),
+                cut: cut.clone(),
             },
             log,
+            cut,
         )
     }
 }
@@ -95,6 +126,10 @@ impl AsyncRead for Tap {
         cx: &mut Context<'_>,
         buf: &mut ReadBuf<'_>,
     ) -> Poll<io::Result<()>> {
+        if self.cut.is_cut() {
+            return Poll::Ready(Ok(())); // The end of the stream.
+        }
+        *self.cut.reader.lock().unwrap() = Some(cx.waker().clone());
         let before = buf.filled().len();
         let r = Pin::new(&mut self.io).poll_read(cx, buf);
         if let Poll::Ready(Ok(())) = r {
@@ -112,6 +147,9 @@ impl AsyncWrite for Tap {
         cx: &mut Context<'_>,
         buf: &[u8],
     ) -> Poll<io::Result<usize>> {
+        if self.cut.is_cut() {
+            return Poll::Ready(Err(io::ErrorKind::BrokenPipe.into()));
+        }
         let r = Pin::new(&mut self.io).poll_write(cx, buf);
         if let Poll::Ready(Ok(n)) = r {
             let log = &mut *self.log.lock().unwrap();

@@ -452,9 +452,7 @@ pub fn draw_config(rng: &mut Prng) -> ClientConfig {
 
 /// One caller: `ops` calls on its client with random timeouts (now and then none,
 /// `Duration::MAX`, or zero) and cancellations; now and then it closes the client (`BYE()`),
-/// then checks that a call fails as documented, or drops its connection without `BYE()` and
-/// opens another (the device raises FAST STOP); after a lost connection a reconnecting client
-/// opens another.
+/// then checks that a call fails as documented. (A reconnecting client reconnects by itself.)
 pub async fn caller(
     ctx: Arc<Ctx>,
     k: usize,
@@ -504,10 +502,6 @@ pub async fn caller(
             });
             return;
         }
-        if ctx.reconnect && rng.one_in(60) {
-            ctx.reopen("a caller drops the connection without BYE()");
-            continue;
-        }
         let op = op(&mut rng);
         let timeout = match rng.below(30) {
             0 => Duration::MAX,
@@ -541,7 +535,6 @@ pub async fn caller(
             ),
         );
         let (res, end) = ended.unwrap_or_else(|| (Res::Cancelled, Instant::now()));
-        let lost = matches!(res, Res::Lost(_));
         log.calls.lock().unwrap().push(CallRec {
             client: ctx.index,
             conn,
@@ -553,9 +546,6 @@ pub async fn caller(
             timeout,
             res,
         });
-        if lost && ctx.reconnect {
-            ctx.reopen_if_closed("the connection was lost");
-        }
         if rng.one_in(3) {
             tokio::time::sleep(rng.millis(0, 300)).await;
         }
