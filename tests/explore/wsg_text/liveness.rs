@@ -473,10 +473,15 @@ fn stop(
 ) -> Option<String> {
     let c = &calls[i];
     let max = config.max_line_len;
-    // Without a connection at its start, the stop goes out once the next session is restored.
-    let down = downs
-        .iter()
-        .find(|(lost, restored)| *lost <= c.start && restored.is_none_or(|r| r >= c.start));
+    // Without a connection at its start (or from a loss within AT_ONCE of it), the stop goes
+    // out once the next session is restored. The latest such episode counts: a session restored
+    // at the very instant a new loss began gave the stop no connection
+    // (wsg-text:0xcf19433c2e45e996: a STOP() made as the restore of one connection and the loss
+    // of the next fell on one instant; wsg-text:0x98ad3703417b4ab0: a FASTSTOP() the same way,
+    // then a failed restore and a second attempt).
+    let down = downs.iter().rev().find(|(lost, restored)| {
+        *lost <= c.start + AT_ONCE && restored.is_none_or(|r| r >= c.start)
+    });
     let from = match down {
         None => c.start,
         Some((_, Some(r))) if *r < c.end => *r,
