@@ -609,6 +609,30 @@ async fn two_replies_run_together_by_a_damaged_lf_count_as_damaged() {
     overdue_motion_ends_and_the_connection_stays(&client, &mut gripper).await;
 }
 
+/// The same, when the character the LF became leaves a line that still parses as the query's
+/// reply: `TEMP=20JFIN MOVE` (0x0A read as 0x4A) is `TEMP`'s value `20JFIN MOVE`, paired with
+/// `TEMP?`, and `FIN MOVE` was swallowed in it (`wsg-text:0x837af21cd1f4f6c7`, `GRIPSTATE=6JFIN
+/// MOVE`). Every value the client asks for is a number, so a value that is none counts as a
+/// damaged line: the caller gets `MalformedReply`, and the `MOVE`, reported over when checked,
+/// ends instead of the connection being given up.
+#[tokio::test]
+async fn a_value_that_is_no_number_counts_as_a_damaged_line() {
+    let (client, mut gripper, motion, temp) = move_and_query().await;
+    gripper.reply("ACK MOVE").await;
+    gripper.reply("TEMP=20JFIN MOVE").await;
+    let temp = temp.await.unwrap();
+    assert!(
+        matches!(temp, Err(gripper::wsg::text::Error::MalformedReply { .. })),
+        "{temp:?}"
+    );
+    let moved = motion.await.unwrap();
+    assert!(
+        matches!(moved, Err(gripper::wsg::text::Error::Timeout { .. })),
+        "{moved:?}"
+    );
+    overdue_motion_ends_and_the_connection_stays(&client, &mut gripper).await;
+}
+
 /// Issue 29 L with M: a motion whose first reply (`ACK` or `ERR`) arrived damaged, shown lost
 /// by a later reply (the probe's), is taken as acknowledged: once overdue it is checked with
 /// `GRIPSTATE?` and ends when the gripper reports no motion. Before, it stayed unacknowledged

@@ -621,6 +621,7 @@ impl Book {
         let Some(slot) = self.on_wire.get(key) else {
             return Handled::Nothing;
         };
+        let mut unreadable = false;
         let result = match (reply, slot.expect) {
             (ReplyLine::Err { code, .. }, _) => Err(Error::Device {
                 command: slot.line.clone(),
@@ -630,6 +631,20 @@ impl Book {
             (ReplyLine::Ack(_), Expect::Ack) | (ReplyLine::Fin(_), Expect::Fin) => Ok(Answer::Done),
             // The motion was accepted; its FIN or ERR follows.
             (ReplyLine::Ack(_), Expect::Fin) => return Handled::Nothing,
+            // Every value the client asks for is a number (`Client::number`): one that is none
+            // was damaged on the way, maybe by an LF read as another character that ran two
+            // replies together (`GRIPSTATE=6JFIN MOVE`: MOVE's FIN swallowed in GRIPSTATE's
+            // value, wsg-text:0x837af21cd1f4f6c7). It counts as a line that could not be read
+            // (below), so that a motion whose reply it may have held is checked as after any
+            // damaged line (issue 29 L).
+            (ReplyLine::Value { value, .. }, Expect::Value) if parse_number(value).is_none() => {
+                unreadable = true;
+                Err(Error::MalformedReply {
+                    command: slot.line.clone(),
+                    line: text.to_owned(),
+                    reason: "not a finite number".into(),
+                })
+            }
             (ReplyLine::Value { value, .. }, Expect::Value) => {
                 // A probe's answer: kept for a call of its query made before it was written.
                 if let Some(at) = slot.probe_at {
@@ -645,6 +660,9 @@ impl Book {
         };
         let bye = key == "BYE" && result.is_ok();
         self.finish(key, result);
+        if unreadable {
+            self.damage(text);
+        }
         if bye {
             Handled::Bye
         } else {
