@@ -1,24 +1,37 @@
-//! The background task that owns the connection: it writes commands in the order callers
-//! submit them and pairs each reply line with the oldest outstanding command. When the
-//! connection is lost it either closes for good or, with [`ClientConfig::reconnect`], connects
-//! again with backoff and restores the session before serving the calls that queued meanwhile.
+//! The background task that owns the connection, the thin shell around its pipeline
+//! ([`Pipeline`], where the pairing rules live, without I/O): it writes commands in the order
+//! callers submit them, reads reply lines and hands them to the pipeline, reads the clock and
+//! runs the give-up timer, and does what the pipeline asks (answer a call, send a probe, give
+//! the connection up). It owns the callers' reply channels; the pipeline holds them only as
+//! tokens. When the connection is lost it either closes for good or, with
+//! [`ClientConfig::reconnect`], connects again with backoff and restores the session before
+//! serving the calls that queued meanwhile.
 //!
 //! [`ClientConfig::reconnect`]: super::ClientConfig::reconnect
 
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use tokio::sync::mpsc;
+use tokio::sync::{mpsc, oneshot};
 use tokio::time::Instant;
 
-use super::pipeline::{Delivery, Pipeline, Slot, Waiter};
+use super::pipeline::{Delivery, Pipeline};
 use crate::deadline::move_timer;
-use crate::give_up::GiveUp;
 use crate::griplink::command::{Command, Expect};
-use crate::griplink::error::Error;
-use crate::griplink::reply::interpret;
+use crate::griplink::error::{Error, Result};
+use crate::griplink::reply::{interpret, Checked};
 use crate::line::{io_error, peer_closed, Failure, LineConn, LineError, LineTask};
 use crate::supervisor::CloseRequest;
+
+/// Where a caller waits for its result (the pipeline's token for it: closed when the caller
+/// timed out or went away).
+pub(crate) type Waiter = oneshot::Sender<Result<Checked>>;
+
+/// Completes a call (a caller that has gone no longer listens: its result goes to nobody).
+#[inline]
+fn complete(waiter: Waiter, result: Result<Checked>) {
+    let _ = waiter.send(result);
+}
 
 /// A caller's command, on its way to the task.
 #[derive(Debug)]
@@ -107,7 +120,7 @@ impl LineError for Error {
 
 /// One command and its reply, before any caller's command is served (restoring the session
 /// on a new connection).
-async fn exchange(conn: &mut LineConn, command: Command, timeout: Duration) -> Result<(), Error> {
+async fn exchange(conn: &mut LineConn, command: Command, timeout: Duration) -> Result<()> {
     let line = command.encode()?;
     let deadline = crate::deadline::after(Instant::now(), timeout);
     conn.writer.send::<Error>(&line, deadline).await?;
@@ -156,7 +169,7 @@ impl LineTask for Task {
         .await
     }
 
-    async fn restore(&self, conn: &mut LineConn) -> Result<(), Error> {
+    async fn restore(&self, conn: &mut LineConn) -> Result<()> {
         if let Some(on) = self.shared.verbose() {
             exchange(conn, Command::SetVerbose(on), self.config.query_timeout).await?;
         }
@@ -187,8 +200,8 @@ async fn serve(
     reconnects: bool,
 ) -> Error {
     let LineConn { reader, writer } = conn;
-    let mut pipeline =
-        Pipeline::new(config.pipeline_depth).with_probe_timeout(config.probe_timeout);
+    let mut pipeline: Pipeline<Waiter> = Pipeline::new(config.pipeline_depth, config.give_up_after)
+        .with_probe_timeout(config.probe_timeout);
     let mut closing = false;
     // A request whose write failed: told why after the queue is closed (below).
     let mut unsent = None;
@@ -207,7 +220,7 @@ async fn serve(
             // Replies first: they free slots and callers.
             biased;
             line = reader.next_line() => match line {
-                Some(Ok(line)) => match pipeline.on_line(line.text(), Instant::now) {
+                Some(Ok(line)) => match pipeline.on_line(line.text(), Instant::now, complete) {
                     Delivery::Resync(probe) if !closing => {
                         tracing::warn!(%probe, "griplink: a reply was out of step, resynchronising");
                         let limit = pipeline.give_up_at(Instant::now).unwrap_or_else(Instant::now);
@@ -246,12 +259,7 @@ async fn serve(
                     }));
                     continue;
                 }
-                let give_up = GiveUp::new(
-                    request.deadline,
-                    config.give_up_after,
-                    pipeline.is_empty(),
-                    || request.timeout,
-                );
+                let give_up = pipeline.give_up_for(request.deadline, request.timeout);
                 match writer.send(&request.line, give_up.limit()).await {
                     Ok(()) => {}
                     Err(err @ Error::InvalidArgument { .. }) => {
@@ -265,13 +273,7 @@ async fn serve(
                 }
                 tracing::trace!(command = %request.line, "griplink: sent");
                 closing |= request.bye;
-                pipeline.push(Slot {
-                    line: request.line,
-                    expect: request.expect,
-                    waiter: request.waiter,
-                    give_up,
-                    probe: None,
-                });
+                pipeline.push(request.line, request.expect, request.waiter, give_up);
             }
         }
     };
@@ -284,7 +286,7 @@ async fn serve(
     if let Some(waiter) = unsent {
         let _ = waiter.send(Err(end.clone()));
     }
-    pipeline.fail_all(&end);
+    pipeline.drain(&end, |waiter, error| complete(waiter, Err(error)));
     writer.shutdown().await;
     // After BYE the program is done with the connection, however it ended.
     if closing {

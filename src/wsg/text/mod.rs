@@ -103,6 +103,7 @@
 //! # fn main() {}
 //! ```
 
+mod book;
 mod client;
 mod error;
 pub mod line;

@@ -7,9 +7,7 @@ from _plant import plant
 KIND = "6 (a connection is lost only for cause)"
 
 plant(
-    "src/griplink/client/task.rs",
-    """                    request.deadline,
-                    config.give_up_after,""",
-    """                    request.deadline,
-                    std::time::Duration::ZERO,""",
+    "src/griplink/client/pipeline.rs",
+    """GiveUp::new(deadline, self.give_up_after, self.slots.is_empty(), || {""",
+    """GiveUp::new(deadline, Duration::ZERO, self.slots.is_empty(), || {""",
 )

@@ -7,10 +7,10 @@ KIND = "7 (a Timeout only when its reply did not arrive in time)"
 
 plant(
     "src/griplink/client/pipeline.rs",
-    "            _ if slot.waiter.is_closed() => {",
+    "            _ if slot.caller.gave_up() => {",
     """            Err(Error::Device { .. }) => {
-                std::mem::forget(slot.waiter);
+                std::mem::forget(slot.caller);
                 Delivery::Discarded
             }
-            _ if slot.waiter.is_closed() => {""",
+            _ if slot.caller.gave_up() => {""",
 )

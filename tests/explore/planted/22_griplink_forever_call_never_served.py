@@ -6,10 +6,10 @@ KIND = "8 (a call without timeout ends)"
 
 plant(
     "src/griplink/client/pipeline.rs",
-    "            _ if slot.waiter.is_closed() => {",
-    """            _ if slot.give_up_at > Instant::now() + Duration::from_secs(86_400 * 3650) => {
-                std::mem::forget(slot.waiter);
+    "            _ if slot.caller.gave_up() => {",
+    """            _ if slot.give_up.limit() > Instant::now() + Duration::from_secs(86_400 * 3650) => {
+                std::mem::forget(slot.caller);
                 Delivery::Discarded
             }
-            _ if slot.waiter.is_closed() => {""",
+            _ if slot.caller.gave_up() => {""",
 )

@@ -6,9 +6,9 @@ from _plant import plant
 KIND = "6 (a connection is lost only for cause)"
 
 plant(
-    "src/wsg/text/task.rs",
+    "src/wsg/text/book.rs",
     """        let result = match (reply, slot.expect) {""",
-    """        if matches!(reply, ReplyLine::Fin(_)) && slot.waiter.is_closed() {
+    """        if matches!(reply, ReplyLine::Fin(_)) && slot.caller.as_ref().is_some_and(Caller::gave_up) {
             return Handled::Nothing;
         }
         let result = match (reply, slot.expect) {""",

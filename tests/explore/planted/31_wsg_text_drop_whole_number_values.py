@@ -6,10 +6,10 @@ from _plant import plant
 KIND = "7 (a Timeout only when its reply did not arrive in time)"
 
 plant(
-    "src/wsg/text/task.rs",
-    """            (ReplyLine::Value { value, .. }, Expect::Value) => Ok(Answer::Value(value.to_owned())),""",
+    "src/wsg/text/book.rs",
+    """            (ReplyLine::Value { value, .. }, Expect::Value) => {""",
     """            (ReplyLine::Value { value, .. }, Expect::Value) if !value.contains('.') => {
                 return Handled::Nothing
             }
-            (ReplyLine::Value { value, .. }, Expect::Value) => Ok(Answer::Value(value.to_owned())),""",
+            (ReplyLine::Value { value, .. }, Expect::Value) => {""",
 )

@@ -6,7 +6,7 @@ from _plant import plant
 KIND = "8 (a call without timeout ends, and frees what it held)"
 
 plant(
-    "src/wsg/text/task.rs",
+    "src/wsg/text/book.rs",
     """            let i = self.waiting.iter().position(|r| r.name == name)?;""",
     """            let i = self
                 .waiting

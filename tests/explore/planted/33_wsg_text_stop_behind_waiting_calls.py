@@ -6,15 +6,16 @@ from _plant import plant
 KIND = "9 (a stop is sent at once, faults or not)"
 
 plant(
-    "src/wsg/text/task.rs",
+    "src/wsg/text/book.rs",
     """        if self.on_wire.contains_key(request.name) {""",
     """        let behind = request.name == "STOP" && !self.waiting.is_empty();
         if self.on_wire.contains_key(request.name) || behind {""",
 )
 plant(
     "src/wsg/text/task.rs",
-    """                        Handled::Freed(name) => to_send = book.next_waiting(name),""",
+    """                        Handled::Freed(name) => to_send = next_waiting(&mut book, name),""",
     """                        Handled::Freed(name) => {
-                            to_send = book.next_waiting(name).or_else(|| book.next_waiting("STOP"))
+                            to_send = next_waiting(&mut book, name)
+                                .or_else(|| next_waiting(&mut book, "STOP"))
                         }""",
 )

@@ -9,7 +9,7 @@ plant(
     "src/griplink/client/pipeline.rs",
     """        let Some(slot) = self.slots.pop_front() else {""",
     """        while self.slots.len() > 1
-            && self.slots.front().is_some_and(|s| s.waiter.is_closed() && s.probe.is_none())
+            && self.slots.front().is_some_and(|s| s.caller.gave_up() && s.probe.is_none())
         {
             self.slots.pop_front();
         }

@@ -6,7 +6,7 @@ from _plant import plant
 KIND = "2 (the device's answer to that request)"
 
 plant(
-    "src/wsg/text/task.rs",
+    "src/wsg/text/book.rs",
     """        let Some((&key, slot)) = self
             .on_wire
             .iter_mut()

@@ -1,0 +1,1032 @@
+//! The WSG text client's book (GCL): the commands on the wire by name and the requests waiting
+//! for their name, as a state machine without I/O (issue 30, quinn-proto's sans-I/O shape;
+//! SmartGrasp's `in_flight.rs` is the model). The task writes a command and puts it in the book
+//! with its caller; it hands every reply line it reads here, with the time it was read; and it
+//! does what comes back: complete calls ([`Book::completions`]), deliver a push, write the next
+//! request of a freed name or a probe, give the connection up. No socket, no clock (`now` is
+//! passed in), no channel: a caller is an opaque token ([`Caller`]) that is only asked whether it
+//! gave up, so the rules are tested with plain `#[test]`s.
+//!
+//! Replies pair with their command **by name** (`ACK MOVE`, `FIN MOVE`, `ERR MOVE 4`, `POS=…`),
+//! so queries answered at once run alongside a motion whose `FIN` comes later (the gripper reads
+//! and answers during motion, shared note §3.7). One command of each name is on the wire at a
+//! time; a second one waits here until the first is answered. A reply carries nothing but the
+//! name, so two `MOVE`s on the wire could not be told apart: the `ERR MOVE 4` refusing the
+//! second (binary E_ALREADY_RUNNING, our reading §6.2) would end whichever call came first.
+//!
+//! The rules it holds besides: what a reply line that cannot be read settles (issue 29 M), the
+//! probes that find out, the check of an overdue motion with `GRIPSTATE?` (issue 29 L), and when
+//! `ACK BYE` may have been an unreadable line (issue 29 N).
+
+use std::collections::{BTreeMap, VecDeque};
+use std::time::Duration;
+
+use tokio::time::Instant;
+
+use super::error::Error;
+use super::line::{parse_number, parse_reply, ReplyLine};
+use super::push::{Push, Quantity};
+use crate::deadline::after;
+use crate::line::Caller;
+use crate::wsg::{GripState, Status};
+
+/// What a command's call waits for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Expect {
+    /// `NAME=value` (queries and setters).
+    Value,
+    /// `ACK NAME` (STOP, FASTSTOP, FSACK, BYE, AUTOSEND).
+    Ack,
+    /// `ACK NAME`, then `FIN NAME` (HOME, MOVE, GRIP, RELEASE).
+    Fin,
+}
+
+/// What a call gets back.
+#[derive(Debug)]
+pub(crate) enum Answer {
+    /// The value text of `NAME=value`.
+    Value(String),
+    /// `ACK` (or `FIN` for a motion).
+    Done,
+}
+
+/// A caller's command, on its way to the task, its caller `C` (the task's is the call's reply
+/// channel; `Option<C>` for a command about to be written, `None` for the client's own probes,
+/// whose answer nobody waits for).
+#[derive(Debug)]
+pub(crate) struct Request<C> {
+    /// The name replies carry (upper case, no arguments).
+    pub name: &'static str,
+    pub line: String,
+    pub expect: Expect,
+    /// The caller stops waiting here; a request not yet sent then is never sent.
+    pub deadline: Instant,
+    pub timeout: Duration,
+    pub waiter: C,
+    /// When the call was made.
+    pub start: Instant,
+    /// A query the client writes on its own (issue 29 L and M), not a caller's.
+    pub probe: bool,
+}
+
+impl<C> Request<C> {
+    /// The request as one about to be written (its caller a caller's, not a probe's `None`).
+    pub(crate) fn outgoing(self) -> Request<Option<C>> {
+        Request {
+            name: self.name,
+            line: self.line,
+            expect: self.expect,
+            deadline: self.deadline,
+            timeout: self.timeout,
+            waiter: Some(self.waiter),
+            start: self.start,
+            probe: self.probe,
+        }
+    }
+}
+
+/// A command on the wire.
+#[derive(Debug)]
+struct Slot<C> {
+    line: String,
+    expect: Expect,
+    /// `None` for the client's own probe: nobody waits for its answer, which is consumed.
+    caller: Option<C>,
+    /// Past this the reply is so late that nothing can be paired with confidence any more.
+    give_up_at: Instant,
+    /// Its place in the order lines were written (the gripper answers in that order).
+    seq: u64,
+    /// A motion's `ACK` was read (its `FIN` or `ERR` comes when the motion ends).
+    acked: bool,
+    /// An acknowledged motion past its give-up time: a `GRIPSTATE?` asks whether it still runs
+    /// (issue 29 L).
+    checking: bool,
+    /// The gripper reported that motion over without its `FIN` read: if none comes within
+    /// `give_up_after` more, the connection is given up.
+    over: bool,
+    /// `Book::damages` when its `ACK` was read.
+    damages_at_ack: u64,
+    /// `Book::damages` when it was written.
+    damages_at_write: u64,
+    /// When it was written, if it is a probe (`Request::probe`).
+    probe_at: Option<Instant>,
+}
+
+/// The least time between two checks of an overdue motion (issue 29 L): `give_up_after` may be
+/// zero, and a check every instant would spin.
+const RECHECK_FLOOR: Duration = Duration::from_millis(100);
+
+/// The longest a probe waits for its answer. A probe is the client's own query, which the
+/// gripper answers at once (shared note §3.7); a program's `query_timeout` of
+/// `Duration::MAX` (no timeout for its calls) must not make it wait for ever: an overdue
+/// motion checked by a probe whose request was damaged on the way (answered `ERR GRIPSTATM
+/// 14`) was then never checked again and held its name for good
+/// (`wsg-text:0xfa9c7f60b0e57de1`). A probe unanswered this long past its give-up time gives
+/// the connection up, as any unanswered query does.
+const PROBE_TIMEOUT_MAX: Duration = Duration::from_secs(10);
+
+/// A probe's timeout: the program's query timeout, at most [`PROBE_TIMEOUT_MAX`].
+fn probe_timeout(query_timeout: Duration) -> Duration {
+    query_timeout.min(PROBE_TIMEOUT_MAX)
+}
+
+/// The names a probe may use (queries answered at once, harmless), in order of preference.
+const PROBES: [(&str, &str); 3] = [
+    ("GRIPSTATE", "GRIPSTATE?"),
+    ("POS", "POS?"),
+    ("SPEED", "SPEED?"),
+];
+
+/// The commands on the wire (one per name) and the requests waiting for their name, their
+/// callers `C`.
+pub(crate) struct Book<C> {
+    /// Ordered by name, not a `HashMap`: its order is random per map, and it is iterated
+    /// when the connection ends (each caller is told, and so woken, in that order) and for
+    /// the overdue command named in the error (the earliest give-up time, ties in map
+    /// order). With a hash order the same schedule woke the callers in another order from
+    /// run to run (`wsg-text:0x5a7dcaabb2430033`, tests/explore/determinism.txt).
+    on_wire: BTreeMap<&'static str, Slot<C>>,
+    waiting: VecDeque<Request<C>>,
+    /// Lines written so far (the next `Slot::seq`).
+    sent: u64,
+    /// A reply line that could not be paired (damaged, `ERR` without a name) and the `seq` of
+    /// the last line written before it: a command answered at once that was written by then
+    /// and is still unanswered when a later command's reply arrives lost its reply to that
+    /// line (the gripper answers in order, shared note §3.7). Issue 29 M.
+    damaged: Option<(u64, String)>,
+    /// Names freed by calls failed because their reply was damaged: their next waiting
+    /// requests go out.
+    freed: Vec<&'static str>,
+    /// `TaskConfig::give_up_after`.
+    give_up_after: Duration,
+    /// Reply lines that could not be paired so far.
+    damages: u64,
+    /// The last answer to a probe of each name not yet handed to a call: when the probe was
+    /// written, its line, its value (`Book::answer_from_probe`).
+    probe_answers: BTreeMap<&'static str, (Instant, String, String)>,
+    /// Calls to complete, with what, in order: taken by the task ([`Book::completions`]) after
+    /// each step, before it awaits anything.
+    done: Vec<(C, Result<Answer, Error>)>,
+}
+
+impl<C: Caller> Book<C> {
+    /// An empty book; `give_up_after`: see [`ClientConfig::give_up_after`].
+    ///
+    /// [`ClientConfig::give_up_after`]: super::ClientConfig::give_up_after
+    pub(crate) fn new(give_up_after: Duration) -> Book<C> {
+        Book {
+            give_up_after,
+            damages: 0,
+            on_wire: BTreeMap::new(),
+            waiting: VecDeque::new(),
+            sent: 0,
+            damaged: None,
+            freed: Vec::new(),
+            probe_answers: BTreeMap::new(),
+            done: Vec::new(),
+        }
+    }
+
+    /// The calls the last steps completed, with what each gets, in order: the task sends them
+    /// before it awaits anything, so that they are told at the same point as when the book
+    /// answered them itself.
+    pub(crate) fn completions(&mut self) -> std::vec::Drain<'_, (C, Result<Answer, Error>)> {
+        self.done.drain(..)
+    }
+
+    /// Completes `caller` (a probe's `None`: nobody).
+    fn complete(&mut self, caller: Option<C>, result: Result<Answer, Error>) {
+        if let Some(caller) = caller {
+            self.done.push((caller, result));
+        }
+    }
+
+    /// Puts a command written to the wire in the book: its caller (`None`: the client's own
+    /// probe), when it is given up, and for a probe when it was written.
+    pub(crate) fn on_wire(
+        &mut self,
+        name: &'static str,
+        line: String,
+        expect: Expect,
+        caller: Option<C>,
+        give_up_at: Instant,
+        probe_at: Option<Instant>,
+    ) {
+        self.sent += 1;
+        let slot = Slot {
+            line,
+            expect,
+            caller,
+            give_up_at,
+            seq: self.sent,
+            acked: false,
+            checking: false,
+            over: false,
+            damages_at_ack: 0,
+            damages_at_write: self.damages,
+            probe_at,
+        };
+        self.on_wire.insert(name, slot);
+    }
+
+    /// Whether `slot` waits for a reply the gripper sends at once (not a motion's `FIN`).
+    fn answered_at_once(slot: &Slot<C>) -> bool {
+        slot.expect != Expect::Fin || !slot.acked
+    }
+
+    /// A reply line that cannot be paired arrived: it may have been the reply of any command
+    /// answered at once that is on the wire.
+    pub(crate) fn damage(&mut self, text: &str) {
+        self.damages += 1;
+        if self.on_wire.values().any(Book::answered_at_once) {
+            self.damaged = Some((self.sent, text.to_owned()));
+        }
+    }
+
+    /// A reply to the command written as `seq` arrived: the commands answered at once written
+    /// before the damaged line and still unanswered lost their reply to it. They fail, and
+    /// their names are free (no reply of theirs can come any more). A motion not yet
+    /// acknowledged lost its first reply too, an `ACK` (its `FIN` may still come) or an `ERR`
+    /// (none will): it is taken as acknowledged, with that damaged line after its `ACK`, so
+    /// that once overdue it is checked with `GRIPSTATE?` and ends when the gripper reports no
+    /// motion (issue 29 L; before, it was given up as unanswered: wsg-text:0xaa891d063fc824a5,
+    /// `ERR HOME 4` lost in a line run together with `ERR MOVE 19`).
+    fn settle(&mut self, seq: u64) {
+        let Some((upto, line)) = self.damaged.take_if(|(upto, _)| seq > *upto) else {
+            return;
+        };
+        for slot in self.on_wire.values_mut() {
+            if slot.seq <= upto && slot.expect == Expect::Fin && !slot.acked {
+                tracing::debug!(command = %slot.line, %line, "wsg text: a motion's first reply damaged, taken as acknowledged");
+                slot.acked = true;
+                slot.damages_at_ack = slot.damages_at_write;
+            }
+        }
+        let lost: Vec<&'static str> = self
+            .on_wire
+            .iter()
+            .filter(|(_, s)| s.seq <= upto && s.expect != Expect::Fin)
+            .map(|(&name, _)| name)
+            .collect();
+        for name in lost {
+            if let Some(slot) = self.on_wire.remove(name) {
+                tracing::warn!(command = %slot.line, %line, "wsg text: reply damaged, call failed");
+                let error = Error::MalformedReply {
+                    command: slot.line,
+                    line: line.clone(),
+                    reason: "its reply could not be read (a later command was answered first)"
+                        .into(),
+                };
+                self.complete(slot.caller, Err(error));
+                self.freed.push(name);
+            }
+        }
+    }
+
+    /// A query to write after a damaged line, when nothing written since waits for a reply
+    /// the gripper sends at once: its answer tells which replies were lost. `now`: when it is
+    /// written.
+    pub(crate) fn probe(
+        &self,
+        query_timeout: Duration,
+        now: Instant,
+    ) -> Option<Request<Option<C>>> {
+        let query_timeout = probe_timeout(query_timeout);
+        let (upto, _) = self.damaged.as_ref()?;
+        let suspects = self
+            .on_wire
+            .values()
+            .any(|s| s.seq <= *upto && Book::answered_at_once(s));
+        let barrier = self
+            .on_wire
+            .values()
+            .any(|s| s.seq > *upto && Book::answered_at_once(s));
+        if !suspects || barrier {
+            return None;
+        }
+        let (name, line) = PROBES
+            .into_iter()
+            .find(|(name, _)| !self.on_wire.contains_key(name))?;
+        Some(Request {
+            name,
+            line: line.to_owned(),
+            expect: Expect::Value,
+            deadline: after(now, query_timeout),
+            timeout: query_timeout,
+            // Nobody waits for its answer: it is consumed when it comes.
+            waiter: None,
+            start: now,
+            probe: true,
+        })
+    }
+
+    /// The command on the wire whose give-up time came: an acknowledged motion is checked
+    /// with `GRIPSTATE?` (a healthy slow motion is not a reason to give the connection up,
+    /// issue 29 L; the gripper answers during motion, shared note §3.7), which this returns if
+    /// it is to be written; anything else (or a motion reported over whose `FIN` still did not
+    /// come) is `Err` with its line: the connection is given up. `now`: the give-up timer fired.
+    pub(crate) fn overdue(
+        &mut self,
+        query_timeout: Duration,
+        give_up_after: Duration,
+        now: Instant,
+    ) -> Result<Option<Request<Option<C>>>, String> {
+        let query_timeout = probe_timeout(query_timeout);
+        let probe_free = !self.on_wire.contains_key("GRIPSTATE");
+        let Some(slot) = self.on_wire.values_mut().min_by_key(|s| s.give_up_at) else {
+            return Ok(None);
+        };
+        if slot.give_up_at > now {
+            return Ok(None);
+        }
+        if slot.expect != Expect::Fin || !slot.acked || slot.over {
+            return Err(slot.line.clone());
+        }
+        slot.checking = true;
+        // Checked again after the probe's own give-up time (an unanswered probe gives the
+        // connection up first), or after a GRIPSTATE? of the program's on the wire.
+        let recheck = give_up_after.max(RECHECK_FLOOR);
+        let wait = query_timeout.saturating_add(recheck);
+        slot.give_up_at = after(now, wait.saturating_add(recheck));
+        if !probe_free {
+            return Ok(None);
+        }
+        tracing::debug!(command = %slot.line, "wsg text: motion overdue, asking its state");
+        Ok(Some(Request {
+            name: "GRIPSTATE",
+            line: "GRIPSTATE?".to_owned(),
+            expect: Expect::Value,
+            deadline: after(now, query_timeout),
+            timeout: query_timeout,
+            // Nobody waits for its answer: it is consumed when it comes (and read by `on_line`).
+            waiter: None,
+            start: now,
+            probe: true,
+        }))
+    }
+
+    /// A `GRIPSTATE=` read (a probe's or a program's): the motions being checked still run, or
+    /// are over (their `FIN` then has one more `give_up_after` to come).
+    fn motion_state(&mut self, value: &str, give_up_after: Duration, now: Instant) {
+        let state = parse_number(value)
+            .filter(|v| v.fract() == 0.0 && (0.0..=255.0).contains(v))
+            .map(|v| GripState::from_u8(v as u8));
+        let over = matches!(
+            state,
+            Some(
+                GripState::Idle
+                    | GripState::NoPartFound
+                    | GripState::PartLost
+                    | GripState::Holding
+                    | GripState::Error
+            )
+        );
+        let damages = self.damages;
+        let mut ended = Vec::new();
+        for (&name, slot) in self.on_wire.iter_mut().filter(|(_, s)| s.checking) {
+            slot.checking = false;
+            slot.over = over;
+            slot.give_up_at = after(now, give_up_after.max(RECHECK_FLOOR));
+            tracing::debug!(command = %slot.line, value, over, "wsg text: overdue motion checked");
+            // Over, and a line that could not be read came after its `ACK`: that was its `FIN`
+            // or `ERR` (the gripper answers in order: it came before this state). The call
+            // ends and the name is free (issue 29 M for motions).
+            if over && damages > slot.damages_at_ack {
+                ended.push(name);
+            }
+        }
+        for name in ended {
+            if let Some(slot) = self.on_wire.remove(name) {
+                let error = Error::MalformedReply {
+                    command: slot.line,
+                    line: format!("GRIPSTATE={value}"),
+                    reason: "the motion is over and its FIN or ERR could not be read".into(),
+                };
+                self.complete(slot.caller, Err(error));
+                self.freed.push(name);
+            }
+        }
+    }
+
+    /// After `BYE()`: whether `ACK BYE` may have been a reply line that could not be read. The
+    /// gripper answers in order, one reply per command answered at once (shared note §3.7):
+    /// once as many unreadable lines came since the oldest such command on the wire was
+    /// written as there are such commands, `BYE()` included, each of them (`ACK BYE` too) may
+    /// have been one. Nothing is written after `BYE()` (issue 29 N), so no later reply can
+    /// settle it as `settle` does, nor a probe: without this, a `BYE()` without timeout whose
+    /// `ACK BYE` arrived damaged waited for ever (`wsg-text:0x3bac8274f6da31e9`).
+    fn bye_unreadable(&self) -> bool {
+        let due = self.on_wire.values().filter(|s| Book::answered_at_once(s));
+        let (count, oldest) = due.fold((0u64, u64::MAX), |(n, oldest), s| {
+            (n + 1, oldest.min(s.damages_at_write))
+        });
+        self.on_wire.contains_key("BYE") && self.damages.saturating_sub(oldest) >= count
+    }
+
+    /// After `BYE()` (`closing`): if its `ACK BYE` may have been a line that could not be read
+    /// ([`Book::bye_unreadable`]), its call fails with why and this is `true`: the session ends
+    /// as at `BYE()`'s deadline, for nothing written after `BYE()` can ever tell.
+    pub(crate) fn bye_lost_in_damage(&mut self) -> bool {
+        if !self.bye_unreadable() {
+            return false;
+        }
+        if let Some(slot) = self.on_wire.remove("BYE") {
+            let line = self
+                .damaged
+                .take()
+                .map(|(_, line)| line)
+                .unwrap_or_default();
+            tracing::warn!(%line, "wsg text: ACK BYE could not be read, connection closed");
+            let error = Error::MalformedReply {
+                command: slot.line,
+                line,
+                reason: "a line that could not be read came where ACK BYE was due".into(),
+            };
+            self.complete(slot.caller, Err(error));
+        }
+        true
+    }
+
+    /// `BYE()`'s call is over (its deadline, its `timeout`) without `ACK BYE`: its caller is told
+    /// it timed out (not `Closed`), and it leaves the book.
+    pub(crate) fn bye_timed_out(&mut self, timeout: Duration) {
+        if let Some(slot) = self.on_wire.remove("BYE") {
+            let error = Error::Timeout {
+                command: slot.line,
+                timeout,
+            };
+            self.complete(slot.caller, Err(error));
+        }
+    }
+
+    /// The callers the task watches for leaving: `BYE()`'s if it is on the wire, and those of
+    /// the requests waiting for their name (borrowed apart, so that both are watched at once).
+    pub(crate) fn watched(&mut self) -> (Option<&mut C>, WaitingCallers<'_, C>) {
+        let bye = self
+            .on_wire
+            .get_mut("BYE")
+            .and_then(|slot| slot.caller.as_mut());
+        (bye, WaitingCallers(&mut self.waiting))
+    }
+
+    /// The earliest give-up time of the commands on the wire.
+    pub(crate) fn give_up_at(&self) -> Option<Instant> {
+        self.on_wire.values().map(|s| s.give_up_at).min()
+    }
+
+    fn finish(&mut self, name: &str, result: Result<Answer, Error>) {
+        if let Some(slot) = self.on_wire.remove(name) {
+            // A caller that left (timeout, dropped future) no longer listens: its reply is
+            // consumed here and goes to nobody else.
+            self.complete(slot.caller, result);
+        }
+    }
+
+    /// Names freed by calls failed because their reply was damaged (or their motion's `FIN`
+    /// could not be read), in order: their next waiting requests go out (not after `BYE()`).
+    pub(crate) fn take_freed(&mut self) -> Vec<&'static str> {
+        std::mem::take(&mut self.freed)
+    }
+
+    /// Drops the waiting requests whose caller left, and fails those whose time ran out
+    /// (`now`), so the queue holds only requests someone still waits for (issue 29 K: a queue
+    /// full of calls given up blocked every other call).
+    pub(crate) fn prune(&mut self, now: Instant) {
+        if self
+            .waiting
+            .iter()
+            .any(|r| r.waiter.gave_up() || now >= r.deadline)
+        {
+            let waiting = std::mem::take(&mut self.waiting);
+            self.waiting = waiting
+                .into_iter()
+                .filter_map(|r| usable(r, now, &mut self.done))
+                .collect();
+        }
+    }
+
+    /// `BYE()` was written: the requests waiting for their name are never sent now, and fail
+    /// [`Error::Closed`] (issue 29 N).
+    pub(crate) fn close_waiting(&mut self) {
+        for request in self.waiting.drain(..) {
+            self.done.push((request.waiter, Err(Error::Closed)));
+        }
+    }
+
+    /// The connection ended for `reason`: every call on the wire (in the order of their names)
+    /// and every call waiting for its name fails with it. The book is empty afterwards.
+    pub(crate) fn drain(&mut self, reason: &Error) {
+        while let Some((_, slot)) = self.on_wire.pop_first() {
+            self.complete(slot.caller, Err(reason.clone()));
+        }
+        for request in self.waiting.drain(..) {
+            self.done.push((request.waiter, Err(reason.clone())));
+        }
+    }
+
+    /// How many requests wait for their name.
+    pub(crate) fn waiting_len(&self) -> usize {
+        self.waiting.len()
+    }
+
+    /// The earliest deadline of the waiting requests.
+    pub(crate) fn waiting_deadline(&self) -> Option<Instant> {
+        self.waiting.iter().map(|r| r.deadline).min()
+    }
+
+    /// Takes a request read from a channel at `now`: the request to send now if its name is
+    /// free, else it waits for its name.
+    pub(crate) fn admit(&mut self, request: Request<C>, now: Instant) -> Option<Request<C>> {
+        let request = usable(request, now, &mut self.done)?;
+        let request = self.answer_from_probe(request)?;
+        if self.on_wire.contains_key(request.name) {
+            self.prune(now);
+            self.waiting.push_back(request);
+            None
+        } else {
+            Some(request)
+        }
+    }
+
+    /// Answers `request` with a probe's answer if it is the probe's very query and was made
+    /// before the probe was written (`None`), else gives it back. The probe is the same line,
+    /// read by the gripper after the call was made, so its answer is the gripper's answer to
+    /// that query during the call; without this a call that came in behind the client's own
+    /// probe of its name waited for the probe's answer, then wrote its line again and could
+    /// time out while the answer had come in time (rule 7, `wsg-text:0xe5281323574dafa8`). One
+    /// answer serves one call: a later call of the name asks the gripper itself.
+    fn answer_from_probe(&mut self, request: Request<C>) -> Option<Request<C>> {
+        let fits = self
+            .probe_answers
+            .get(request.name)
+            .is_some_and(|(at, line, _)| request.start <= *at && *line == request.line);
+        if !fits || request.expect != Expect::Value {
+            return Some(request);
+        }
+        let (_, _, value) = self.probe_answers.remove(request.name)?;
+        tracing::debug!(command = %request.line, %value, "wsg text: answered by the client's own probe");
+        self.done.push((request.waiter, Ok(Answer::Value(value))));
+        None
+    }
+
+    /// The next waiting request of `name` that still has a caller and time (`now`), if any.
+    pub(crate) fn next_waiting(&mut self, name: &str, now: Instant) -> Option<Request<C>> {
+        loop {
+            let i = self.waiting.iter().position(|r| r.name == name)?;
+            let request = self.waiting.remove(i)?;
+            let request = usable(request, now, &mut self.done);
+            if let Some(request) = request.and_then(|r| self.answer_from_probe(r)) {
+                return Some(request);
+            }
+        }
+    }
+
+    /// Handles one reply line, read at `now`.
+    pub(crate) fn on_line(&mut self, text: &str, now: Instant) -> Handled {
+        let reply = match parse_reply(text) {
+            Ok(reply) => reply,
+            Err(why) => {
+                tracing::warn!(line = text, %why, "wsg text: reply that is not GCL, dropped");
+                self.damage(text);
+                return Handled::Nothing;
+            }
+        };
+        let name = match reply {
+            ReplyLine::Push { name, value } => {
+                return match (Quantity::from_name(name), parse_number(value)) {
+                    (Some(quantity), Some(value)) => Handled::Push(Push { quantity, value }),
+                    _ => {
+                        tracing::debug!(line = text, "wsg text: push not understood, dropped");
+                        Handled::Nothing
+                    }
+                };
+            }
+            ReplyLine::Ack(n) | ReplyLine::Fin(n) | ReplyLine::Value { name: n, .. } => n,
+            ReplyLine::Err { name: Some(n), .. } => n,
+            ReplyLine::Err { name: None, .. } => {
+                // No name: it cannot be paired with confidence (§4.3). The caller it was meant
+                // for times out rather than a wrong caller failing.
+                tracing::warn!(line = text, "wsg text: ERR without a command name, dropped");
+                self.damage(text);
+                return Handled::Nothing;
+            }
+        };
+        // Names are compared upper-cased: the manual's replies are upper case (§2), a
+        // lower-case one is still the same command.
+        let Some((&key, slot)) = self
+            .on_wire
+            .iter_mut()
+            .find(|(k, _)| k.eq_ignore_ascii_case(name))
+        else {
+            tracing::debug!(
+                line = text,
+                "wsg text: reply for no command on the wire, dropped"
+            );
+            // A name damaged on the way reads as another name.
+            self.damage(text);
+            return Handled::Nothing;
+        };
+        // A reply to a line written after a damaged one: the replies before it have come.
+        // (A motion's `FIN` is no such sign: it comes when the motion ends.)
+        if !matches!(reply, ReplyLine::Fin(_)) {
+            let seq = slot.seq;
+            if matches!(reply, ReplyLine::Ack(_)) && slot.expect == Expect::Fin {
+                slot.acked = true;
+                slot.damages_at_ack = self.damages;
+            }
+            self.settle(seq);
+        }
+        if let (ReplyLine::Value { value, .. }, "GRIPSTATE") = (reply, key) {
+            self.motion_state(value, self.give_up_after, now);
+        }
+        let Some(slot) = self.on_wire.get(key) else {
+            return Handled::Nothing;
+        };
+        let mut unreadable = false;
+        let result = match (reply, slot.expect) {
+            (ReplyLine::Err { code, .. }, _) => Err(Error::Device {
+                command: slot.line.clone(),
+                status: code.map(Status::from_code),
+                line: text.to_owned(),
+            }),
+            (ReplyLine::Ack(_), Expect::Ack) | (ReplyLine::Fin(_), Expect::Fin) => Ok(Answer::Done),
+            // The motion was accepted; its FIN or ERR follows.
+            (ReplyLine::Ack(_), Expect::Fin) => return Handled::Nothing,
+            // Every value the client asks for is a number (`Client::number`): one that is none
+            // was damaged on the way, maybe by an LF read as another character that ran two
+            // replies together (`GRIPSTATE=6JFIN MOVE`: MOVE's FIN swallowed in GRIPSTATE's
+            // value, wsg-text:0x837af21cd1f4f6c7). It counts as a line that could not be read
+            // (below), so that a motion whose reply it may have held is checked as after any
+            // damaged line (issue 29 L).
+            (ReplyLine::Value { value, .. }, Expect::Value) if parse_number(value).is_none() => {
+                unreadable = true;
+                Err(Error::MalformedReply {
+                    command: slot.line.clone(),
+                    line: text.to_owned(),
+                    reason: "not a finite number".into(),
+                })
+            }
+            (ReplyLine::Value { value, .. }, Expect::Value) => {
+                // A probe's answer: kept for a call of its query made before it was written.
+                if let Some(at) = slot.probe_at {
+                    let answer = (at, slot.line.clone(), value.to_owned());
+                    self.probe_answers.insert(key, answer);
+                }
+                Ok(Answer::Value(value.to_owned()))
+            }
+            _ => Err(Error::UnexpectedReply {
+                command: slot.line.clone(),
+                line: text.to_owned(),
+            }),
+        };
+        let bye = key == "BYE" && result.is_ok();
+        self.finish(key, result);
+        if unreadable {
+            self.damage(text);
+        }
+        if bye {
+            Handled::Bye
+        } else {
+            Handled::Freed(key)
+        }
+    }
+}
+
+/// The callers of the requests waiting for their name ([`Book::watched`]).
+pub(crate) struct WaitingCallers<'a, C>(&'a mut VecDeque<Request<C>>);
+
+impl<C> WaitingCallers<'_, C> {
+    /// Each caller, in the order their requests wait.
+    pub(crate) fn iter_mut(&mut self) -> impl Iterator<Item = &mut C> {
+        self.0.iter_mut().map(|r| &mut r.waiter)
+    }
+}
+
+/// What one reply line did.
+#[derive(Debug)]
+pub(crate) enum Handled {
+    /// Nothing a caller waits for (an `ACK` of a motion, a line for nobody).
+    Nothing,
+    /// A push (`AUTOSEND`): for the subscribers.
+    Push(Push),
+    /// Answered the command of this name: the name is free.
+    Freed(&'static str),
+    /// `ACK BYE`: the session is over.
+    Bye,
+}
+
+/// The request, unless its caller left or its time ran out at `now` (then it is answered, in
+/// `done`, and dropped: a command nobody waits for must not move the fingers later).
+fn usable<C: Caller>(
+    request: Request<C>,
+    now: Instant,
+    done: &mut Vec<(C, Result<Answer, Error>)>,
+) -> Option<Request<C>> {
+    if request.waiter.gave_up() {
+        tracing::debug!(command = %request.line, "wsg text: caller gone before sending, dropped");
+        return None;
+    }
+    if now >= request.deadline {
+        let error = Error::Timeout {
+            command: request.line,
+            timeout: request.timeout,
+        };
+        done.push((request.waiter, Err(error)));
+        return None;
+    }
+    Some(request)
+}
+
+/// The rules driven without a runtime: plain `#[test]`s, the clock passed in, callers that are
+/// numbers.
+#[cfg(test)]
+mod tests {
+    use std::cell::Cell;
+    use std::rc::Rc;
+
+    use super::*;
+
+    const S: Duration = Duration::from_secs(1);
+    const GIVE_UP_AFTER: Duration = Duration::from_secs(5);
+
+    /// A caller: its number, and whether it gave up (shared with the test).
+    #[derive(Debug)]
+    struct Call {
+        id: u8,
+        gone: Rc<Cell<bool>>,
+    }
+
+    impl Caller for Call {
+        fn gave_up(&self) -> bool {
+            self.gone.get()
+        }
+    }
+
+    /// Call `id`'s request `line` (replies name it `name`), made at `now`, its caller waiting
+    /// a second; and the handle that makes its caller give up.
+    fn request(
+        id: u8,
+        name: &'static str,
+        line: &str,
+        expect: Expect,
+        now: Instant,
+    ) -> (Request<Call>, Rc<Cell<bool>>) {
+        let gone = Rc::new(Cell::new(false));
+        let request = Request {
+            name,
+            line: line.into(),
+            expect,
+            deadline: now + S,
+            timeout: S,
+            waiter: Call {
+                id,
+                gone: Rc::clone(&gone),
+            },
+            start: now,
+            probe: false,
+        };
+        (request, gone)
+    }
+
+    /// Writes `request` (as the task does once the book let it go out) at `now`.
+    fn write(book: &mut Book<Call>, request: Request<Option<Call>>, now: Instant) {
+        let give_up_at = after(request.deadline, GIVE_UP_AFTER);
+        let probe_at = request.probe.then_some(now);
+        let Request {
+            name,
+            line,
+            expect,
+            waiter,
+            ..
+        } = request;
+        book.on_wire(name, line, expect, waiter, give_up_at, probe_at);
+    }
+
+    /// Admits call `id` at `now` and writes it if its name is free; whether it was written.
+    fn call(
+        book: &mut Book<Call>,
+        id: u8,
+        name: &'static str,
+        line: &str,
+        expect: Expect,
+        now: Instant,
+    ) -> bool {
+        let (r, _) = request(id, name, line, expect, now);
+        match book.admit(r, now) {
+            Some(r) => {
+                write(book, r.outgoing(), now);
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// The calls completed so far, by number: `Ok(value)` (empty for `ACK`/`FIN`) or the error.
+    fn done(book: &mut Book<Call>) -> Vec<(u8, std::result::Result<String, Error>)> {
+        book.completions()
+            .map(|(c, r)| {
+                let r = r.map(|a| match a {
+                    Answer::Value(v) => v,
+                    Answer::Done => String::new(),
+                });
+                (c.id, r)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn replies_pair_by_name_and_a_query_runs_beside_a_motion() {
+        let t0 = Instant::now();
+        let mut book = Book::new(GIVE_UP_AFTER);
+        assert!(call(&mut book, 1, "MOVE", "MOVE(10)", Expect::Fin, t0));
+        assert!(call(&mut book, 2, "POS", "POS?", Expect::Value, t0));
+        assert!(matches!(book.on_line("ACK MOVE", t0), Handled::Nothing));
+        assert!(matches!(book.on_line("POS=3.5", t0), Handled::Freed("POS")));
+        assert!(matches!(
+            book.on_line("FIN MOVE", t0 + S),
+            Handled::Freed("MOVE")
+        ));
+        let done = done(&mut book);
+        assert!(
+            matches!(&done[..], [(2, Ok(v)), (1, Ok(e))] if v == "3.5" && e.is_empty()),
+            "{done:?}"
+        );
+        assert_eq!(book.give_up_at(), None);
+    }
+
+    #[test]
+    fn a_busy_name_waits_and_goes_out_when_freed() {
+        let t0 = Instant::now();
+        let mut book = Book::new(GIVE_UP_AFTER);
+        assert!(call(&mut book, 1, "POS", "POS?", Expect::Value, t0));
+        assert!(!call(&mut book, 2, "POS", "POS?", Expect::Value, t0));
+        assert_eq!(book.waiting_len(), 1);
+        assert!(matches!(book.on_line("POS=1", t0), Handled::Freed("POS")));
+        let next = book
+            .next_waiting("POS", t0)
+            .expect("the second POS? goes out");
+        assert_eq!(next.waiter.id, 2);
+        assert_eq!(book.waiting_len(), 0);
+        assert!(matches!(&done(&mut book)[..], [(1, Ok(v))] if v == "1"));
+    }
+
+    #[test]
+    fn a_waiting_request_whose_caller_left_or_whose_time_ran_out_is_never_sent() {
+        let t0 = Instant::now();
+        let mut book = Book::new(GIVE_UP_AFTER);
+        assert!(call(&mut book, 1, "POS", "POS?", Expect::Value, t0));
+        let (r2, gone2) = request(2, "POS", "POS?", Expect::Value, t0);
+        let (r3, _) = request(3, "POS", "POS?", Expect::Value, t0);
+        assert!(book.admit(r2, t0).is_none() && book.admit(r3, t0).is_none());
+        gone2.set(true);
+        // Call 3's deadline passes: it fails `Timeout`; call 2 left: dropped, told nothing.
+        book.prune(t0 + S);
+        assert_eq!(book.waiting_len(), 0);
+        let done = done(&mut book);
+        assert!(
+            matches!(&done[..], [(3, Err(Error::Timeout { .. }))]),
+            "{done:?}"
+        );
+    }
+
+    /// Issue 29 M: a line that cannot be read, then the reply of a command written after it:
+    /// the command answered at once written before it lost its reply, fails and frees its name.
+    #[test]
+    fn a_damaged_line_is_settled_by_a_later_reply() {
+        let t0 = Instant::now();
+        let mut book = Book::new(GIVE_UP_AFTER);
+        assert!(call(&mut book, 1, "POS", "POS?", Expect::Value, t0));
+        book.damage("P\u{1}S=1");
+        // Nothing written since waits for an answer at once: a probe asks.
+        let probe = book.probe(S, t0).expect("a probe");
+        assert_eq!(
+            (probe.name, probe.line.as_str()),
+            ("GRIPSTATE", "GRIPSTATE?")
+        );
+        assert!(probe.waiter.is_none(), "nobody waits for a probe's answer");
+        assert_eq!(probe.deadline, t0 + S);
+        write(&mut book, probe, t0);
+        assert!(
+            book.probe(S, t0).is_none(),
+            "the probe is a barrier already"
+        );
+        assert!(matches!(
+            book.on_line("GRIPSTATE=0", t0),
+            Handled::Freed("GRIPSTATE")
+        ));
+        let done = done(&mut book);
+        assert!(
+            matches!(&done[..], [(1, Err(Error::MalformedReply { .. }))]),
+            "{done:?}"
+        );
+        assert_eq!(book.take_freed(), ["POS"]);
+    }
+
+    /// Issue 29 L: an acknowledged motion past its give-up time is checked with `GRIPSTATE?`,
+    /// not given up; a query past it gives the connection up.
+    #[test]
+    fn an_overdue_motion_is_checked_and_an_overdue_query_gives_up() {
+        let t0 = Instant::now();
+        let mut book = Book::new(GIVE_UP_AFTER);
+        assert!(call(&mut book, 1, "HOME", "HOME()", Expect::Fin, t0));
+        assert!(matches!(book.on_line("ACK HOME", t0), Handled::Nothing));
+        let at = book.give_up_at().expect("HOME on the wire");
+        assert_eq!(at, t0 + S + GIVE_UP_AFTER);
+        assert!(matches!(book.overdue(S, GIVE_UP_AFTER, at - S), Ok(None)));
+        let check = book
+            .overdue(S, GIVE_UP_AFTER, at)
+            .unwrap()
+            .expect("a check");
+        assert_eq!(check.line, "GRIPSTATE?");
+        write(&mut book, check, at);
+        // Still moving: HOME is checked again later, its call goes on.
+        assert!(matches!(
+            book.on_line("GRIPSTATE=6", at),
+            Handled::Freed("GRIPSTATE")
+        ));
+        assert!(done(&mut book).is_empty());
+        assert!(book.give_up_at().unwrap() > at);
+        // A query that stays unanswered gives the connection up.
+        let mut book = Book::new(GIVE_UP_AFTER);
+        assert!(call(&mut book, 2, "POS", "POS?", Expect::Value, t0));
+        let at = book.give_up_at().expect("POS on the wire");
+        assert_eq!(
+            book.overdue(S, GIVE_UP_AFTER, at).unwrap_err(),
+            "POS?".to_owned()
+        );
+    }
+
+    #[test]
+    fn a_push_is_handed_back_and_completes_nobody() {
+        let t0 = Instant::now();
+        let mut book: Book<Call> = Book::new(GIVE_UP_AFTER);
+        let handled = book.on_line("@POS=12.5", t0);
+        assert!(
+            matches!(handled, Handled::Push(Push { quantity: Quantity::Position, value }) if value == 12.5),
+            "{handled:?}"
+        );
+        assert!(done(&mut book).is_empty());
+    }
+
+    /// A call of a probe's very query made before the probe was written gets the probe's
+    /// answer (rule 7, `wsg-text:0xe5281323574dafa8`); a later one asks the gripper.
+    #[test]
+    fn a_call_behind_its_probe_gets_the_probes_answer() {
+        let t0 = Instant::now();
+        let mut book = Book::new(GIVE_UP_AFTER);
+        let (early, _) = request(1, "GRIPSTATE", "GRIPSTATE?", Expect::Value, t0);
+        assert!(call(&mut book, 2, "POS", "POS?", Expect::Value, t0));
+        book.damage("garbage");
+        let probe = book.probe(S, t0 + S / 2).expect("a probe");
+        write(&mut book, probe, t0 + S / 2);
+        assert!(
+            book.admit(early, t0 + S / 2).is_none(),
+            "it waits for its name"
+        );
+        book.on_line("GRIPSTATE=4", t0 + S / 2);
+        let next = book.next_waiting("GRIPSTATE", t0 + S / 2);
+        assert!(next.is_none(), "answered by the probe");
+        let done = done(&mut book);
+        assert!(
+            matches!(&done[..], [(2, Err(Error::MalformedReply { .. })), (1, Ok(v))] if v == "4"),
+            "{done:?}"
+        );
+        let (late, _) = request(3, "GRIPSTATE", "GRIPSTATE?", Expect::Value, t0 + S);
+        assert!(
+            book.admit(late, t0 + S).is_some(),
+            "one answer serves one call"
+        );
+    }
+
+    /// Issue 29 N: after `BYE()`, an unreadable line where `ACK BYE` was due ends the session.
+    #[test]
+    fn an_unreadable_ack_bye_ends_the_session() {
+        let t0 = Instant::now();
+        let mut book = Book::new(GIVE_UP_AFTER);
+        assert!(call(&mut book, 1, "BYE", "BYE()", Expect::Ack, t0));
+        assert!(!book.bye_lost_in_damage());
+        book.damage("ACK B\u{7f}E");
+        assert!(book.bye_lost_in_damage());
+        let done = done(&mut book);
+        assert!(
+            matches!(&done[..], [(1, Err(Error::MalformedReply { .. }))]),
+            "{done:?}"
+        );
+        assert_eq!(book.give_up_at(), None);
+    }
+
+    /// The end of a connection: the calls on the wire in the order of their names, then those
+    /// waiting (a fixed order, tests/explore/determinism.txt).
+    #[test]
+    fn drain_fails_everyone_in_a_fixed_order() {
+        let t0 = Instant::now();
+        let mut book = Book::new(GIVE_UP_AFTER);
+        assert!(call(&mut book, 1, "SPEED", "SPEED?", Expect::Value, t0));
+        assert!(call(&mut book, 2, "MOVE", "MOVE(1)", Expect::Fin, t0));
+        assert!(!call(&mut book, 3, "MOVE", "MOVE(2)", Expect::Fin, t0));
+        book.drain(&Error::Closed);
+        let ids: Vec<u8> = done(&mut book).into_iter().map(|(id, _)| id).collect();
+        assert_eq!(ids, [2, 1, 3]);
+        assert_eq!((book.give_up_at(), book.waiting_len()), (None, 0));
+    }
+}
