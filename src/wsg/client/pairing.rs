@@ -1,4 +1,6 @@
 //! Pairing replies with requests: a pure state machine, no I/O (the model of rumqttc's state).
+//! It interprets the answers of its own requests (probes, barriers) too and tells the task
+//! what to do in plain [`Output`]s ([`internal`]).
 //!
 //! The protocol has no sequence numbers: a reply carries only its command id. So:
 //! - at most one request per command id is on the wire; later calls with the same id queue
@@ -47,7 +49,7 @@
 //! On UDP the residual risk is a reply arriving later than that grace (or hold): it would be
 //! taken as the reply to the next request of the same id.
 //! On an ordered transport (TCP, serial: [`Pairing::set_ordered`]) a request released with no
-//! reply at all *fences* its id instead ([`Due::Fenced`]): the task sends a loop-back with a
+//! reply at all *fences* its id instead ([`Due::Fenced`]): the pairing sends a loop-back with a
 //! payload of its own, and the next request of the id waits until its echo comes back
 //! ([`Pairing::unfence`]). The device answers a connection's commands one after the other
 //! (1.2.2: each reply acknowledges "the received command"), and the stream keeps that order,
@@ -70,7 +72,7 @@
 //!
 //! An acknowledged motion command is not released that way: it may still be moving (a move
 //! can outlast its caller's timeout), and its final reply, E_CMD_ABORTED after a stop included,
-//! always comes (1.3). From its caller's deadline on it is under *recovery*: the task asks the
+//! always comes (1.3). From its caller's deadline on it is under *recovery*: the pairing asks the
 //! device's system state ([`Due::Probe`]), and the request is abandoned only on evidence that
 //! its final reply is lost: two "not moving" observations, each from a probe sent after the
 //! deadline, the second probe sent a full grace period after the first answer arrived, with no
@@ -151,7 +153,8 @@ pub(crate) enum Submit {
     Queued,
 }
 
-/// What the task has to do for a request whose time has come ([`Pairing::due`]).
+/// What a request whose time has come needs ([`Pairing::due`]; what the pairing makes of it:
+/// [`Pairing::expire`]).
 #[derive(Debug, PartialEq)]
 pub(crate) enum Due {
     /// The request `Token` of this id got no final reply by its deadline plus grace: its id is

@@ -7,7 +7,7 @@ KIND = "10 (the quiet phase serves every kind of call"
 
 plant(
     "src/wsg/client/task.rs",
-    """            Event::Resolved(token, reply) => {""",
-    """            Event::Resolved(..) if id == 0x63 || id == 0x73 => {}
-            Event::Resolved(token, reply) => {""",
+    """                Output::Reply(token, reply) => {""",
+    """                Output::Reply(_, ref r) if r.id == 0x63 || r.id == 0x73 => {}
+                Output::Reply(token, reply) => {""",
 )
