@@ -416,24 +416,11 @@ impl Task {
     async fn on_frame(&mut self, frame: Frame) -> io::Result<()> {
         let id = frame.id;
         match Reply::from_frame(frame) {
-            Ok(reply) => self.pairing.receive(reply, Instant::now),
-            Err(reason) => {
-                tracing::warn!(id, %reason, "malformed WSG reply");
-                self.pairing.receive_malformed(id, &reason, Instant::now);
-            }
-        }
-        self.act().await
-    }
-
-    /// Does what the pairing says, in its order ([`Output`]).
-    async fn act(&mut self) -> io::Result<()> {
-        while let Some(output) = self.pairing.poll() {
-            match output {
-                Output::Reply(token, reply) => {
+            Ok(reply) => {
+                if let Some((token, reply)) = self.pairing.receive(reply, Instant::now) {
                     if reply.status == Status::Success {
-                        self.fan_out(reply.id, &reply.data).await?;
+                        self.fan_out(id, &reply.data).await?;
                     }
-                    let id = reply.id;
                     if let Some(tx) = self.callers.remove(&token) {
                         if tx.send(Ok(reply)).is_err() {
                             tracing::debug!(
@@ -442,7 +429,24 @@ impl Task {
                             );
                         }
                     }
+                    self.send_next(id);
                 }
+            }
+            Err(reason) => {
+                tracing::warn!(id, %reason, "malformed WSG reply");
+                self.pairing.receive_malformed(id, &reason, Instant::now);
+            }
+        }
+        if self.pairing.has_output() {
+            self.act().await?;
+        }
+        Ok(())
+    }
+
+    /// Does what the pairing says, in its order ([`Output`]).
+    async fn act(&mut self) -> io::Result<()> {
+        while let Some(output) = self.pairing.poll() {
+            match output {
                 Output::Complete(token, result) => {
                     if let Some(tx) = self.callers.remove(&token) {
                         let _ = tx.send(result);

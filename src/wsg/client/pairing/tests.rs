@@ -1152,7 +1152,6 @@ fn a_motion_waits_for_its_acknowledgement_only_the_reply_hold() {
 fn outputs(p: &mut Pairing) -> Vec<String> {
     std::iter::from_fn(|| p.poll())
         .map(|o| match o {
-            Output::Reply(t, r) => format!("reply {t} {:#x} {:?}", r.id, &r.data[..]),
             Output::Complete(t, Ok(r)) => format!("ok {t} {:#x} {:?}", r.id, &r.data[..]),
             Output::Complete(t, Err(e)) => match e {
                 Error::ReplyLost { command } => format!("lost {t} {command:#x}"),
@@ -1203,7 +1202,10 @@ fn the_pairing_interprets_its_own_probes() {
         p.submit(req(second, id::HOMING, t), now),
         Submit::Queued
     ));
-    p.receive(reply(id::HOMING, Status::CmdPending), || now);
+    assert_eq!(
+        p.receive(reply(id::HOMING, Status::CmdPending), || now),
+        None
+    );
     assert!(outputs(&mut p).is_empty());
     // A call waits behind the acknowledged move: the device is asked at once.
     p.expire(now);
@@ -1218,7 +1220,7 @@ fn the_pairing_interprets_its_own_probes() {
     assert_eq!((probe.token, probe.frame.id), (3, id::SYSTEM_STATE));
     assert_eq!(probe.deadline, now + Duration::from_secs(1));
     assert!(matches!(p.submit(probe, now), Submit::Send(_)));
-    p.receive(system_state(true), || now);
+    assert_eq!(p.receive(system_state(true), || now), None);
     assert_eq!(
         outputs(&mut p),
         [
@@ -1239,7 +1241,7 @@ fn the_pairing_interprets_its_own_probes() {
         t,
     );
     assert!(matches!(p.submit(probe, t), Submit::Send(_)));
-    p.receive(system_state(false), || t);
+    assert_eq!(p.receive(system_state(false), || t), None);
     assert_eq!(outputs(&mut p), ["value 0x40 [0, 0, 0, 0]", "next 0x40"]);
     // A malformed answer observes nothing: the first "not moving" no longer counts.
     p.expire(t + grace);
@@ -1266,7 +1268,7 @@ fn the_pairing_interprets_its_own_probes() {
             at,
         );
         assert!(matches!(p.submit(probe, at), Submit::Send(_)));
-        p.receive(system_state(false), || at);
+        assert_eq!(p.receive(system_state(false), || at), None);
         if at == t + grace * 2 {
             assert_eq!(outputs(&mut p), ["value 0x40 [0, 0, 0, 0]", "next 0x40"]);
         }
@@ -1322,7 +1324,10 @@ fn the_pairing_interprets_its_own_barriers() {
     assert!(matches!(p.submit(barrier, t + grace), Submit::Send(_)));
     assert!(p.prune(id::LOOP, |_| false, t + grace).is_empty());
     // Refused (a stale answer, say): another barrier.
-    p.receive(reply(id::LOOP, Status::AccessDenied), || t + grace);
+    assert_eq!(
+        p.receive(reply(id::LOOP, Status::AccessDenied), || t + grace),
+        None
+    );
     assert_eq!(
         outputs(&mut p),
         ["Barrier { id: 67, refused: 1 }", "next 0x6"]
@@ -1337,9 +1342,9 @@ fn the_pairing_interprets_its_own_barriers() {
     let echo = Reply::new(id::LOOP, Status::Success, barrier.frame.payload.clone());
     assert!(matches!(p.submit(barrier, t + grace), Submit::Send(_)));
     // The late reply of the released request answers nobody; the echo frees the id.
-    p.receive(reply(0x43, Status::Success), || t + grace);
+    assert_eq!(p.receive(reply(0x43, Status::Success), || t + grace), None);
     assert_eq!(outputs(&mut p), ["update 0x43 []"]);
-    p.receive(echo, || t + grace);
+    assert_eq!(p.receive(echo, || t + grace), None);
     assert_eq!(outputs(&mut p), ["next 0x43", "next 0x6"]);
     assert_eq!(
         p.next(0x43, |_| true, t + grace).0.map(|r| r.token),
@@ -1386,9 +1391,12 @@ fn the_pairing_settles_a_streamed_query_with_its_own_barrier() {
     let echo = Reply::new(id::LOOP, Status::Success, barrier.frame.payload.clone());
     assert!(matches!(p.submit(barrier, now), Submit::Send(_)));
     for v in [1u8, 2] {
-        p.receive(Reply::new(0x43, Status::Success, vec![v]), || now);
+        assert_eq!(
+            p.receive(Reply::new(0x43, Status::Success, vec![v]), || now),
+            None
+        );
     }
-    p.receive(echo, || now);
+    assert_eq!(p.receive(echo, || now), None);
     assert_eq!(
         outputs(&mut p),
         [
@@ -1399,11 +1407,12 @@ fn the_pairing_settles_a_streamed_query_with_its_own_barrier() {
             "next 0x6"
         ]
     );
-    // A caller's reply: to the subscribers, then the caller, then the id's next request.
+    // A call's reply is handed back directly (the hot path), with no output.
     let call = p.token();
     assert!(matches!(p.submit(req(call, 0x50, t), now), Submit::Send(_)));
-    p.receive(Reply::new(0x50, Status::Success, vec![7]), || now);
-    assert_eq!(outputs(&mut p), ["reply 3 0x50 [7]", "next 0x50"]);
+    let answer = Reply::new(0x50, Status::Success, vec![7]);
+    assert_eq!(p.receive(answer.clone(), || now), Some((call, answer)));
+    assert!(outputs(&mut p).is_empty());
     let call = p.token();
     assert!(matches!(p.submit(req(call, 0x50, t), now), Submit::Send(_)));
     p.receive_malformed(0x50, "too short", || now);
