@@ -13,7 +13,8 @@ use tokio::sync::mpsc;
 use tokio::time::{timeout_at, Instant};
 
 use super::connector::{self, Connector, ConnectorKind, Reconnect};
-use super::task::{Task, BARRIER_ECHO_LEN};
+use super::pairing::BARRIER_ECHO_LEN;
+use super::task::Task;
 use super::{
     Client, Shared, DEFAULT_CONNECT_TIMEOUT, DEFAULT_LATE_REPLY_GRACE, DEFAULT_MOTION_TIMEOUT,
     DEFAULT_PARTIAL_FRAME_TIMEOUT, DEFAULT_QUERY_TIMEOUT, DEFAULT_SUBSCRIPTION_BUFFER,

@@ -1,4 +1,6 @@
 //! Pairing replies with requests: a pure state machine, no I/O (the model of rumqttc's state).
+//! It interprets the answers of its own requests (probes, barriers) too and tells the task
+//! what to do in plain [`Output`]s ([`internal`]).
 //!
 //! The protocol has no sequence numbers: a reply carries only its command id. So:
 //! - at most one request per command id is on the wire; later calls with the same id queue
@@ -47,7 +49,7 @@
 //! On UDP the residual risk is a reply arriving later than that grace (or hold): it would be
 //! taken as the reply to the next request of the same id.
 //! On an ordered transport (TCP, serial: [`Pairing::set_ordered`]) a request released with no
-//! reply at all *fences* its id instead ([`Due::Fenced`]): the task sends a loop-back with a
+//! reply at all *fences* its id instead ([`Due::Fenced`]): the pairing sends a loop-back with a
 //! payload of its own, and the next request of the id waits until its echo comes back
 //! ([`Pairing::unfence`]). The device answers a connection's commands one after the other
 //! (1.2.2: each reply acknowledges "the received command"), and the stream keeps that order,
@@ -70,7 +72,7 @@
 //!
 //! An acknowledged motion command is not released that way: it may still be moving (a move
 //! can outlast its caller's timeout), and its final reply, E_CMD_ABORTED after a stop included,
-//! always comes (1.3). From its caller's deadline on it is under *recovery*: the task asks the
+//! always comes (1.3). From its caller's deadline on it is under *recovery*: the pairing asks the
 //! device's system state ([`Due::Probe`]), and the request is abandoned only on evidence that
 //! its final reply is lost: two "not moving" observations, each from a probe sent after the
 //! deadline, the second probe sent a full grace period after the first answer arrived, with no
@@ -90,11 +92,13 @@
 //! never happens; on UDP the residual risk is a duplicated request refused while its original
 //! runs, in that same situation.
 
+use std::collections::VecDeque;
 use std::time::Duration;
 
 use tokio::time::Instant;
 
 use self::in_flight::{IdState, InFlight, Settle};
+pub(crate) use self::internal::{Internal, Output, BARRIER_ECHO_LEN};
 use super::stops::{StopDue, Stops};
 use crate::deadline::{after, is_unbounded};
 use crate::int_map::IntMap;
@@ -149,7 +153,8 @@ pub(crate) enum Submit {
     Queued,
 }
 
-/// What the task has to do for a request whose time has come ([`Pairing::due`]).
+/// What a request whose time has come needs ([`Pairing::due`]; what the pairing makes of it:
+/// [`Pairing::expire`]).
 #[derive(Debug, PartialEq)]
 pub(crate) enum Due {
     /// The request `Token` of this id got no final reply by its deadline plus grace: its id is
@@ -212,6 +217,16 @@ pub(crate) struct Pairing {
     /// On an ordered transport, how much longer than other requests an unanswered loop-back
     /// keeps its id: see [`Pairing::set_resync`].
     resync: Duration,
+    /// The requests of the pairing's own on the wire or queued, and what they are for
+    /// ([`internal`]); every other token is a caller's.
+    internal: IntMap<Token, Internal>,
+    /// What the task has to do next ([`Pairing::poll`]).
+    out: VecDeque<Output>,
+    /// The last token handed out ([`Pairing::token`]).
+    next_token: Token,
+    /// The deadline of a recovery probe from when it is made: the connection's query timeout
+    /// as configured ([`Pairing::set_holds`]).
+    probe_timeout: Duration,
 }
 
 impl Pairing {
@@ -225,6 +240,10 @@ impl Pairing {
             holds: (Duration::MAX, Duration::MAX),
             ordered: false,
             resync: Duration::ZERO,
+            internal: IntMap::default(),
+            out: VecDeque::new(),
+            next_token: 0,
+            probe_timeout: super::DEFAULT_QUERY_TIMEOUT,
         }
     }
 
@@ -286,6 +305,7 @@ impl Pairing {
     /// was never sent again with an unbounded reply hold, and its id stayed fenced for good
     /// (`tests/wsg_barrier_pace.rs`).
     pub(crate) fn set_holds(&mut self, reply: Duration, motion: Duration) {
+        self.probe_timeout = reply;
         let reply = if is_unbounded(reply) {
             super::DEFAULT_QUERY_TIMEOUT
         } else {
@@ -318,7 +338,7 @@ impl Pairing {
     /// the next request of the id (the explorer's `wsg-tcp:0xbd5fd685504fe279`). For stop or
     /// FAST STOP: the unanswered stops sent before the barrier are lost; returns whether the
     /// stop is to be sent again now (recorded as sent).
-    pub(crate) fn unfence(&mut self, id: u8, now: Instant) -> bool {
+    fn unfence(&mut self, id: u8, now: Instant) -> bool {
         if let Some(stops) = self.stops.get_mut(&id) {
             let again = stops.unfence(now, self.grace);
             if stops.is_idle() {
@@ -396,8 +416,11 @@ impl Pairing {
         now: Instant,
     ) -> Vec<Token> {
         let mut gone = Vec::new();
+        // The pairing's own requests wait for no caller: always alive.
+        let internal = &self.internal;
+        let alive = |t| alive(t) || internal.contains_key(&t);
         if let Some(stops) = self.stops.get_mut(&id) {
-            gone.extend(stops.prune(&alive));
+            gone.extend(stops.prune(alive));
         }
         // One lookup (the hot path: a call of an id nobody else uses finds no state at all).
         let Some(st) = self.ids.get_mut(&id) else {
@@ -438,14 +461,14 @@ impl Pairing {
 
     /// Asks for a probe at `now` if calls of motion command `id` wait behind its acknowledged
     /// request (called when it is acknowledged).
-    pub(crate) fn verify_queued(&mut self, id: u8, now: Instant) {
+    fn verify_queued(&mut self, id: u8, now: Instant) {
         if let Some(st) = self.ids.get_mut(&id) {
             st.verify_soon(id, now, self.grace);
         }
     }
 
     /// Pairs a received reply.
-    pub(crate) fn on_reply(&mut self, reply: Reply) -> Event {
+    fn on_reply(&mut self, reply: Reply) -> Event {
         if is_stop(reply.id) {
             let done = self.stop_replied(reply.id);
             return if done.is_empty() {
@@ -523,7 +546,7 @@ impl Pairing {
     /// carry the reply's id and form, so the next frame of `id` may be an update sent before
     /// the device received the request. Sound on ordered transports only (the device answers
     /// in order, and the stream keeps it).
-    pub(crate) fn settle_by_barrier(&mut self, id: u8, token: Token) {
+    fn settle_by_barrier(&mut self, id: u8, token: Token) {
         if let Some(f) = self.in_flight_mut(id, token) {
             f.settle = Settle::Barrier(None);
         }
@@ -535,7 +558,7 @@ impl Pairing {
     /// the device received the request). Returns that frame, and the id is free; `None` when
     /// the request is no longer on the wire, or got no frame at all (then it is lost: it waits
     /// for its release, and no later frame answers it).
-    pub(crate) fn settle(&mut self, id: u8, token: Token) -> Option<Reply> {
+    fn settle(&mut self, id: u8, token: Token) -> Option<Reply> {
         let f = self.in_flight_mut(id, token)?;
         if !matches!(f.settle, Settle::Barrier(_)) {
             return None;
@@ -552,7 +575,7 @@ impl Pairing {
 
     /// The barrier sent after request `token` of `id` got no echo: the frames of `id` cannot
     /// be told apart, so none answers it (it waits for its release).
-    pub(crate) fn settle_failed(&mut self, id: u8, token: Token) {
+    fn settle_failed(&mut self, id: u8, token: Token) {
         if let Some(f) = self.in_flight_mut(id, token) {
             f.settle = Settle::Lost;
         }
@@ -580,7 +603,7 @@ impl Pairing {
 
     /// A reply of `id` too short to carry a status code: it still ends the request(s) on the
     /// wire (it is their answer, just unusable). Returns their tokens.
-    pub(crate) fn on_malformed(&mut self, id: u8) -> Vec<Token> {
+    fn on_malformed(&mut self, id: u8) -> Vec<Token> {
         if is_stop(id) {
             return self.stop_replied(id);
         }
@@ -603,6 +626,8 @@ impl Pairing {
     ) -> (Option<Request>, Vec<Token>) {
         let mut skipped = Vec::new();
         let holds = self.holds_of(id);
+        let internal = &self.internal;
+        let alive = |t| alive(t) || internal.contains_key(&t);
         let Some(st) = self.ids.get_mut(&id) else {
             return (None, skipped);
         };
@@ -632,7 +657,7 @@ impl Pairing {
     /// that long to arrive (Anhang B: the flags are not synchronised with the end of a move).
     /// "Moving" refuses the calls made before the probe went out: what they are refused on was
     /// true after they were made.
-    pub(crate) fn on_probe(
+    fn on_probe(
         &mut self,
         id: u8,
         token: Token,
@@ -707,7 +732,7 @@ impl Pairing {
 
     /// The requests whose time has come by `now`: released ids (call [`Pairing::next`] for each
     /// afterwards) and recovery probes to send.
-    pub(crate) fn due(&mut self, now: Instant) -> Vec<Due> {
+    fn due(&mut self, now: Instant) -> Vec<Due> {
         let mut out = Vec::new();
         let grace = self.grace;
         for (id, stops) in &mut self.stops {
@@ -745,8 +770,11 @@ impl Pairing {
         out
     }
 
-    /// Forgets everything; returns every token still waiting or on the wire.
+    /// Forgets everything (the pairing's own requests and the outputs not taken yet
+    /// included); returns every token still waiting or on the wire.
     pub(crate) fn drain(&mut self) -> Vec<Token> {
+        self.internal.clear();
+        self.out.clear();
         let mut out = Vec::new();
         for (_, st) in self.ids.drain() {
             out.extend(st.in_flight.map(|f| f.token));
@@ -760,5 +788,6 @@ impl Pairing {
 }
 
 mod in_flight;
+mod internal;
 #[cfg(test)]
 mod tests;

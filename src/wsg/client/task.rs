@@ -11,9 +11,7 @@ use bytes::Bytes;
 use tokio::sync::{mpsc, oneshot};
 use tokio::time::{sleep_until, timeout, Instant};
 
-mod recovery;
-
-use super::pairing::{Event, Observation, Pairing, Request, Submit, Token};
+use super::pairing::{Output, Pairing, Request, Submit, Token};
 use super::Reconnect;
 use crate::deadline::{after, move_timer};
 use crate::int_map::IntMap;
@@ -22,7 +20,7 @@ use crate::supervisor::{supervise, CloseRequest, Restore, Served, Session};
 use crate::wsg::command::{id, Command, UpdateMode};
 use crate::wsg::subscription::{Subscriber, UpdateOptions};
 use crate::wsg::transport::Link;
-use crate::wsg::{Error, Frame, Reply, Result, Status, SystemState};
+use crate::wsg::{Error, Frame, Reply, Result, Status};
 
 /// A request from a handle to the task.
 pub(crate) enum Msg {
@@ -46,31 +44,6 @@ pub(crate) enum Msg {
 
 /// Who asked to close (nobody when the last handle went away), and how closing went.
 type Closing = Option<(oneshot::Sender<Result<()>>, Result<()>)>;
-
-enum Waiter {
-    Caller(oneshot::Sender<Result<Reply>>),
-    /// A request the task made itself (turning updates off): its reply is discarded.
-    Internal,
-    /// A system-state query asking whether the acknowledged motion `token` of command `id`,
-    /// past its caller's deadline, is still running (see [`Task::send_probe`]).
-    Probe {
-        id: u8,
-        token: Token,
-    },
-    /// A loop-back whose echo proves that every reply sent before it has been read, so the
-    /// fenced command id `id` can send its next request (see [`Task::send_barrier`]);
-    /// `refused`: how many barriers of this fence got an answer other than their echo.
-    Barrier {
-        id: u8,
-        refused: u8,
-    },
-    /// A loop-back sent after request `query` of command `id`, whose updates the device may be
-    /// streaming: its echo says which frame answers the query (see [`Task::transmit`]).
-    Settle {
-        id: u8,
-        query: Token,
-    },
-}
 
 struct StreamState {
     mode: UpdateMode,
@@ -106,9 +79,10 @@ pub(crate) struct Task {
     pub(crate) close: CloseRequest,
     /// The transport is TCP: a loss puts the gripper into FAST STOP.
     pub(crate) tcp: bool,
-    waiters: IntMap<Token, Waiter>,
+    /// The callers waiting for a request's final reply, by token (the pairing keeps its own
+    /// requests, [`super::pairing::Internal`]).
+    callers: IntMap<Token, oneshot::Sender<Result<Reply>>>,
     streams: IntMap<u8, StreamState>,
-    next_token: Token,
     /// Ids whose id is free and whose next queued request waits until every frame already
     /// received has been paired (see [`Task::send_next`]): a frame received before a request
     /// went out cannot answer it, but would be taken for its answer (a duplicated UDP reply).
@@ -124,18 +98,6 @@ pub(crate) struct Task {
     /// auto-update streams again.
     restore: Vec<Frame>,
 }
-
-/// Barriers of one fence answered with something other than their echo before the fenced id is
-/// released anyway (see [`Task::barrier_refused`]).
-const BARRIER_REFUSALS: u8 = 3;
-
-/// What the payload of the client's own loop-back barriers begins with; a token follows.
-pub(super) const BARRIER_PREFIX: &[u8] = b"gripper barrier ";
-
-/// The payload length of a barrier's echo: status (2 bytes, manual 1.2.2) + the loop-back's
-/// payload (3.1.1). A client must accept replies this long, or every barrier goes unanswered
-/// ([`super::ClientBuilder::max_payload_len`]).
-pub(super) const BARRIER_ECHO_LEN: usize = 2 + BARRIER_PREFIX.len() + std::mem::size_of::<Token>();
 
 /// Where the connection's timers wait while nothing is due (they are not polled then).
 const IDLE_TIMER: Duration = Duration::from_secs(3600);
@@ -183,9 +145,8 @@ impl Task {
             query_timeout,
             write_timeout: query_timeout.saturating_add(grace),
             announce_on_close,
-            waiters: IntMap::default(),
+            callers: IntMap::default(),
             streams: IntMap::default(),
-            next_token: 0,
             ready: Vec::new(),
             ordered,
             device_streams: Vec::new(),
@@ -201,14 +162,12 @@ impl Task {
 
     /// Fails every call in flight or queued behind one (internal requests are forgotten).
     fn fail_waiters(&mut self, e: &Error) {
-        for (_, w) in self.waiters.drain() {
-            if let Waiter::Caller(tx) = w {
-                let again = match e {
-                    Error::ConnectionLost { .. } => e.clone(),
-                    _ => Error::Closed,
-                };
-                let _ = tx.send(Err(again));
-            }
+        for (_, tx) in self.callers.drain() {
+            let again = match e {
+                Error::ConnectionLost { .. } => e.clone(),
+                _ => Error::Closed,
+            };
+            let _ = tx.send(Err(again));
         }
         self.pairing.drain();
         self.ready.clear();
@@ -293,7 +252,7 @@ impl Task {
                     // A caller that gave up while its request waited in the channel: never sent.
                     Some(Msg::Call { reply, .. }) if reply.is_closed() => {}
                     Some(Msg::Call { frame, deadline, reply }) => {
-                        let token = self.waiter(Waiter::Caller(reply));
+                        let token = self.caller(reply);
                         self.submit(Request { token, frame, deadline }).await.map_err(io_reason)?;
                     }
                     Some(Msg::Subscribe { id, mode, subscriber, deadline, reply }) => {
@@ -312,7 +271,7 @@ impl Task {
                         }
                         st.mode = mode;
                         st.subscribers.push(subscriber);
-                        let token = self.waiter(Waiter::Caller(reply));
+                        let token = self.caller(reply);
                         let frame = stream_command(id, mode);
                         self.submit(Request { token, frame, deadline }).await.map_err(io_reason)?;
                     }
@@ -334,9 +293,8 @@ impl Task {
                     // that frame ends (the timer is then set to `stale`).
                     let now = Instant::now();
                     if stale.is_none_or(|s| s <= now) {
-                        for due in self.pairing.due(now) {
-                            self.on_due(due).await.map_err(io_reason)?;
-                        }
+                        self.pairing.expire(now);
+                        self.act().await.map_err(io_reason)?;
                     }
                 }
             }
@@ -354,36 +312,34 @@ impl Task {
         Some(after(since, self.partial_frame_timeout))
     }
 
-    fn waiter(&mut self, w: Waiter) -> Token {
-        self.next_token += 1;
-        self.waiters.insert(self.next_token, w);
-        self.next_token
+    /// Sends stop or FAST STOP `id` again, at once (the pairing recorded it as sent).
+    async fn send_stop(&mut self, id: u8) -> io::Result<()> {
+        send_within(
+            &mut self.link,
+            &Frame::new(id, Bytes::new()),
+            self.write_timeout,
+        )
+        .await
+    }
+
+    /// Registers a caller waiting for a request's final reply: the request's token.
+    fn caller(&mut self, tx: oneshot::Sender<Result<Reply>>) -> Token {
+        let token = self.pairing.token();
+        self.callers.insert(token, tx);
+        token
     }
 
     async fn submit(&mut self, req: Request) -> io::Result<()> {
         let id = req.frame.id;
-        let waiters = &self.waiters;
+        let callers = &self.callers;
         // One clock read for both (issue 14: the clock is a measurable part of a round trip).
         let now = Instant::now();
-        for gone in self.pairing.prune(id, |t| alive(waiters, t), now) {
-            self.waiters.remove(&gone);
+        for gone in self.pairing.prune(id, |t| alive(callers, t), now) {
+            self.callers.remove(&gone);
         }
         match self.pairing.submit(req, now) {
             Submit::Send(req) => self.transmit(req).await,
             Submit::Queued => Ok(()),
-        }
-    }
-
-    /// Fails call `token` of motion command `id` with E_ALREADY_RUNNING without sending it: a
-    /// motion command of that id is on the wire, and a system-state query sent after the call
-    /// found the fingers moving, so the device would refuse it the same way (3.2.2).
-    fn refuse(&mut self, id: u8, token: Token) {
-        tracing::debug!(id, "motion command refused: the device moves (SF_MOVING)");
-        if let Some(Waiter::Caller(tx)) = self.waiters.remove(&token) {
-            let _ = tx.send(Err(Error::Device {
-                command: id,
-                status: Status::AlreadyRunning,
-            }));
         }
     }
 
@@ -415,42 +371,15 @@ impl Task {
         if !settle {
             return Ok(());
         }
-        self.pairing.settle_by_barrier(frame.id, req.token);
-        let barrier = self.barrier(Waiter::Settle {
-            id: frame.id,
-            query: req.token,
-        });
+        let now = Instant::now();
+        let barrier = self.pairing.settle_barrier(frame.id, req.token, now);
         // Queued behind another loop-back, it goes out later: still after the request.
-        match self.pairing.submit(barrier, Instant::now()) {
+        match self.pairing.submit(barrier, now) {
             Submit::Send(barrier) => {
                 send_within(&mut self.link, &barrier.frame, self.write_timeout).await
             }
             Submit::Queued => Ok(()),
         }
-    }
-
-    /// The echo of the barrier sent after query `query` of streamed command `id` came: the
-    /// query is answered by the last frame of `id` before it, if there was one.
-    async fn settled(&mut self, id: u8, query: Token) -> io::Result<()> {
-        let Some(reply) = self.pairing.settle(id, query) else {
-            return Ok(());
-        };
-        self.send_next(id);
-        // An E_SUCCESS frame: it went to the subscribers when it came.
-        match self.waiters.remove(&query) {
-            Some(Waiter::Caller(tx)) => {
-                let _ = tx.send(Ok(reply));
-            }
-            // A recovery probe of a motion while system state (0x40) is streamed: what it saw
-            // goes to the pairing as from any probe. Dropped, it left the motion with a probe
-            // out for ever, its id held (wsg-serial:0x81263a75df4c46d4).
-            Some(Waiter::Probe { id: motion, token }) => {
-                self.on_probe(motion, token, observation(&reply), query)
-                    .await?;
-            }
-            _ => {}
-        }
-        Ok(())
     }
 
     /// The request on the wire of `id` is done: its next queued request (if any) goes out once
@@ -473,10 +402,10 @@ impl Task {
 
     /// Sends the next queued request of `id`, if its id is free.
     async fn send_now(&mut self, id: u8) -> io::Result<()> {
-        let waiters = &self.waiters;
-        let (next, skipped) = self.pairing.next(id, |t| alive(waiters, t), Instant::now());
+        let callers = &self.callers;
+        let (next, skipped) = self.pairing.next(id, |t| alive(callers, t), Instant::now());
         for t in skipped {
-            self.waiters.remove(&t);
+            self.callers.remove(&t);
         }
         match next {
             Some(req) => self.transmit(req).await,
@@ -486,63 +415,13 @@ impl Task {
 
     async fn on_frame(&mut self, frame: Frame) -> io::Result<()> {
         let id = frame.id;
-        let reply = match Reply::from_frame(frame) {
-            Ok(r) => r,
-            Err(reason) => {
-                tracing::warn!(id, %reason, "malformed WSG reply");
-                let tokens = self.pairing.on_malformed(id);
-                for token in &tokens {
-                    match self.waiters.remove(token) {
-                        Some(Waiter::Caller(tx)) => {
-                            let _ = tx.send(Err(Error::MalformedReply {
-                                command: id,
-                                reason: reason.clone(),
-                            }));
-                        }
-                        Some(Waiter::Probe {
-                            id: motion,
-                            token: t,
-                        }) => {
-                            self.on_probe(motion, t, Observation::Unknown, *token)
-                                .await?;
-                        }
-                        Some(Waiter::Barrier {
-                            id: fenced,
-                            refused,
-                        }) => {
-                            self.barrier_refused(fenced, refused).await?;
-                        }
-                        Some(Waiter::Settle { id, query }) => {
-                            self.pairing.settle_failed(id, query);
-                        }
-                        Some(Waiter::Internal) | None => {}
+        match Reply::from_frame(frame) {
+            Ok(reply) => {
+                if let Some((token, reply)) = self.pairing.receive(reply, Instant::now) {
+                    if reply.status == Status::Success {
+                        self.fan_out(id, &reply.data).await?;
                     }
-                }
-                if !tokens.is_empty() {
-                    self.send_next(id);
-                }
-                return Ok(());
-            }
-        };
-        match self.pairing.on_reply(reply) {
-            Event::Accepted(_) => {
-                tracing::debug!(id, "WSG command accepted (E_CMD_PENDING)");
-                // Motion calls of the id queued behind it: ask the device whether it moves.
-                self.pairing.verify_queued(id, Instant::now());
-            }
-            Event::Stopped(tokens, reply) => {
-                for token in tokens {
-                    if let Some(Waiter::Caller(tx)) = self.waiters.remove(&token) {
-                        let _ = tx.send(Ok(reply.clone()));
-                    }
-                }
-            }
-            Event::Resolved(token, reply) => {
-                if reply.status == Status::Success {
-                    self.fan_out(id, &reply.data).await?;
-                }
-                match self.waiters.remove(&token) {
-                    Some(Waiter::Caller(tx)) => {
+                    if let Some(tx) = self.callers.remove(&token) {
                         if tx.send(Ok(reply)).is_err() {
                             tracing::debug!(
                                 id,
@@ -550,43 +429,44 @@ impl Task {
                             );
                         }
                     }
-                    Some(Waiter::Probe {
-                        id: motion,
-                        token: t,
-                    }) => {
-                        self.on_probe(motion, t, observation(&reply), token).await?;
-                    }
-                    // The echo is the barrier's own (a loop reply must echo the payload on
-                    // the wire): every reply sent before it has been read.
-                    Some(Waiter::Barrier { id: fenced, .. }) if reply.status == Status::Success => {
-                        self.unfence(fenced).await?;
-                    }
-                    Some(Waiter::Barrier {
-                        id: fenced,
-                        refused,
-                    }) => {
-                        self.barrier_refused(fenced, refused).await?;
-                    }
-                    Some(Waiter::Settle {
-                        id: streamed,
-                        query,
-                    }) if reply.status == Status::Success => {
-                        self.settled(streamed, query).await?;
-                    }
-                    Some(Waiter::Settle {
-                        id: streamed,
-                        query,
-                    }) => self.pairing.settle_failed(streamed, query),
-                    Some(Waiter::Internal) | None => {}
+                    self.send_next(id);
                 }
-                self.send_next(id);
             }
-            Event::Unsolicited(reply) => {
-                if reply.status == Status::Success && self.streams.contains_key(&id) {
-                    self.fan_out(id, &reply.data).await?;
-                } else {
-                    tracing::debug!(id, status = %reply.status, "WSG reply nobody waits for: dropped");
+            Err(reason) => {
+                tracing::warn!(id, %reason, "malformed WSG reply");
+                self.pairing.receive_malformed(id, &reason, Instant::now);
+            }
+        }
+        if self.pairing.has_output() {
+            self.act().await?;
+        }
+        Ok(())
+    }
+
+    /// Does what the pairing says, in its order ([`Output`]).
+    async fn act(&mut self) -> io::Result<()> {
+        while let Some(output) = self.pairing.poll() {
+            match output {
+                Output::Complete(token, result) => {
+                    if let Some(tx) = self.callers.remove(&token) {
+                        let _ = tx.send(result);
+                    }
                 }
+                Output::Update(reply) => {
+                    if reply.status == Status::Success && self.streams.contains_key(&reply.id) {
+                        self.fan_out(reply.id, &reply.data).await?;
+                    } else {
+                        tracing::debug!(id = reply.id, status = %reply.status,
+                            "WSG reply nobody waits for: dropped");
+                    }
+                }
+                Output::Value(reply) => self.fan_out(reply.id, &reply.data).await?,
+                Output::Request(kind) => {
+                    let req = self.pairing.request(kind, Instant::now());
+                    self.submit(req).await?;
+                }
+                Output::SendStop(id) => self.send_stop(id).await?,
+                Output::Next(id) => self.send_next(id),
             }
         }
         Ok(())
@@ -619,7 +499,7 @@ impl Task {
     async fn stop_stream(&mut self, id: u8) -> io::Result<()> {
         self.streams.remove(&id);
         tracing::debug!(id, "last subscriber gone: turning auto-updates off");
-        let token = self.waiter(Waiter::Internal);
+        let token = self.pairing.discard_token();
         let deadline = after(Instant::now(), self.query_timeout);
         self.submit(Request {
             token,
@@ -635,7 +515,7 @@ impl Task {
         let mut result = Ok(());
         if self.announce_on_close {
             let (tx, mut rx) = oneshot::channel();
-            let token = self.waiter(Waiter::Caller(tx));
+            let token = self.caller(tx);
             let deadline = after(Instant::now(), self.query_timeout);
             let frame = Command::AnnounceDisconnect.to_frame();
             if let Err(e) = self
@@ -807,7 +687,7 @@ impl Session for Task {
         // Their replies (the current values) go to the subscribers like any update.
         let deadline = after(Instant::now(), self.query_timeout);
         for frame in std::mem::take(&mut self.restore) {
-            let token = self.waiter(Waiter::Internal);
+            let token = self.pairing.discard_token();
             // The ids are all free on a fresh connection: this only records what was sent.
             let _ = self.pairing.submit(
                 Request {
@@ -859,32 +739,10 @@ async fn send_within(link: &mut Link, frame: &Frame, limit: Duration) -> io::Res
     })
 }
 
-/// Whether anyone still waits for request `token`.
-fn alive(waiters: &IntMap<Token, Waiter>, token: Token) -> bool {
-    match waiters.get(&token) {
-        Some(Waiter::Caller(tx)) => !tx.is_closed(),
-        Some(
-            Waiter::Internal
-            | Waiter::Probe { .. }
-            | Waiter::Barrier { .. }
-            | Waiter::Settle { .. },
-        ) => true,
-        None => false,
-    }
-}
-
-/// What a recovery probe's answer (a system state reply, manual 3.4.1) says about the fingers.
-fn observation(reply: &Reply) -> Observation {
-    match SystemState::decode(&reply.data) {
-        Ok(s) if reply.status == Status::Success => {
-            if s.contains(SystemState::MOVING) {
-                Observation::Moving
-            } else {
-                Observation::Idle
-            }
-        }
-        _ => Observation::Unknown,
-    }
+/// Whether the caller of request `token` still waits (the pairing's own requests are alive
+/// whatever this says).
+fn alive(callers: &IntMap<Token, oneshot::Sender<Result<Reply>>>, token: Token) -> bool {
+    callers.get(&token).is_some_and(|tx| !tx.is_closed())
 }
 
 /// Whether the device can stream updates of command `id` (auto-update flags, manual 3.4.1,

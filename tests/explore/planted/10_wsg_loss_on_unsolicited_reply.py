@@ -7,6 +7,7 @@ KIND = "6 (a connection is lost only for cause"
 
 plant(
     "src/wsg/client/task.rs",
-    """tracing::debug!(id, status = %reply.status, "WSG reply nobody waits for: dropped");""",
+    """tracing::debug!(id = reply.id, status = %reply.status,
+                            "WSG reply nobody waits for: dropped");""",
     """return Err(io::Error::other("a reply nobody waits for"));""",
 )

@@ -7,7 +7,9 @@ KIND = "10 (the quiet phase serves every kind of call"
 
 plant(
     "src/wsg/client/task.rs",
-    """            Event::Resolved(token, reply) => {""",
-    """            Event::Resolved(..) if id == 0x63 || id == 0x73 => {}
-            Event::Resolved(token, reply) => {""",
+    """                    if let Some(tx) = self.callers.remove(&token) {
+                        if tx.send(Ok(reply)).is_err() {""",
+    """                    if id == 0x63 || id == 0x73 {
+                    } else if let Some(tx) = self.callers.remove(&token) {
+                        if tx.send(Ok(reply)).is_err() {""",
 )

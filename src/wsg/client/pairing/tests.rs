@@ -5,6 +5,7 @@ use bytes::Bytes;
 
 use super::*;
 use crate::wsg::client::FINGER_POWER_ON_DURATION;
+use crate::wsg::Error;
 
 fn req(token: Token, id: u8, deadline: Instant) -> Request {
     Request {
@@ -1145,4 +1146,276 @@ fn a_motion_waits_for_its_acknowledgement_only_the_reply_hold() {
         assert!(p.due(now + query + grace).is_empty());
         assert_eq!(p.next_due(), Some(now + motion));
     }
+}
+
+/// The outputs waiting, in a form a test can compare.
+fn outputs(p: &mut Pairing) -> Vec<String> {
+    std::iter::from_fn(|| p.poll())
+        .map(|o| match o {
+            Output::Complete(t, Ok(r)) => format!("ok {t} {:#x} {:?}", r.id, &r.data[..]),
+            Output::Complete(t, Err(e)) => match e {
+                Error::ReplyLost { command } => format!("lost {t} {command:#x}"),
+                Error::Device { command, status } => format!("{status:?} {t} {command:#x}"),
+                Error::Timeout { command, timeout } => {
+                    format!("timeout {t} {command:#x} {timeout:?}")
+                }
+                Error::MalformedReply { command, .. } => format!("malformed {t} {command:#x}"),
+                e => format!("error {t} {e}"),
+            },
+            Output::Update(r) => format!("update {:#x} {:?}", r.id, &r.data[..]),
+            Output::Value(r) => format!("value {:#x} {:?}", r.id, &r.data[..]),
+            Output::Request(kind) => format!("{kind:?}"),
+            Output::SendStop(id) => format!("stop {id:#x}"),
+            Output::Next(id) => format!("next {id:#x}"),
+        })
+        .collect()
+}
+
+/// A system state reply (manual 3.4.1): SF_MOVING (bit 1) set or not.
+fn system_state(moving: bool) -> Reply {
+    let flags: u32 = if moving { 1 << 1 } else { 0 };
+    Reply::new(
+        id::SYSTEM_STATE,
+        Status::Success,
+        Bytes::copy_from_slice(&flags.to_le_bytes()),
+    )
+}
+
+/// Issue 30: the pairing makes its recovery probes itself, decodes their system state and
+/// says which calls complete with what: "moving" refuses the calls queued before the probe,
+/// two "not moving" a grace apart end the motion with `ReplyLost`; a probe's E_SUCCESS
+/// answer is a value for the subscribers of 0x40 too.
+#[test]
+fn the_pairing_interprets_its_own_probes() {
+    let now = Instant::now();
+    let grace = Duration::from_secs(1);
+    let t = now + Duration::from_secs(10);
+    let mut p = Pairing::new(grace);
+    p.set_holds(Duration::from_secs(1), Duration::from_secs(30));
+    let home = p.token();
+    assert!(matches!(
+        p.submit(req(home, id::HOMING, t), now),
+        Submit::Send(_)
+    ));
+    let second = p.token();
+    assert!(matches!(
+        p.submit(req(second, id::HOMING, t), now),
+        Submit::Queued
+    ));
+    assert_eq!(
+        p.receive(reply(id::HOMING, Status::CmdPending), || now),
+        None
+    );
+    assert!(outputs(&mut p).is_empty());
+    // A call waits behind the acknowledged move: the device is asked at once.
+    p.expire(now);
+    assert_eq!(outputs(&mut p), ["Probe { id: 32, token: 1 }"]);
+    let probe = p.request(
+        Internal::Probe {
+            id: id::HOMING,
+            token: home,
+        },
+        now,
+    );
+    assert_eq!((probe.token, probe.frame.id), (3, id::SYSTEM_STATE));
+    assert_eq!(probe.deadline, now + Duration::from_secs(1));
+    assert!(matches!(p.submit(probe, now), Submit::Send(_)));
+    assert_eq!(p.receive(system_state(true), || now), None);
+    assert_eq!(
+        outputs(&mut p),
+        [
+            "value 0x40 [2, 0, 0, 0]",
+            "AlreadyRunning 2 0x20",
+            "next 0x40"
+        ]
+    );
+    // Nobody waits any more: the next probe at the caller's deadline.
+    assert_eq!(p.next_due(), Some(t));
+    p.expire(t);
+    assert_eq!(outputs(&mut p), ["Probe { id: 32, token: 1 }"]);
+    let probe = p.request(
+        Internal::Probe {
+            id: id::HOMING,
+            token: home,
+        },
+        t,
+    );
+    assert!(matches!(p.submit(probe, t), Submit::Send(_)));
+    assert_eq!(p.receive(system_state(false), || t), None);
+    assert_eq!(outputs(&mut p), ["value 0x40 [0, 0, 0, 0]", "next 0x40"]);
+    // A malformed answer observes nothing: the first "not moving" no longer counts.
+    p.expire(t + grace);
+    assert_eq!(outputs(&mut p), ["Probe { id: 32, token: 1 }"]);
+    let probe = p.request(
+        Internal::Probe {
+            id: id::HOMING,
+            token: home,
+        },
+        t + grace,
+    );
+    assert!(matches!(p.submit(probe, t + grace), Submit::Send(_)));
+    p.receive_malformed(id::SYSTEM_STATE, "too short", || t + grace);
+    assert_eq!(outputs(&mut p), ["next 0x40"]);
+    // Two "not moving" a grace apart: the final reply is lost.
+    for at in [t + grace * 2, t + grace * 3] {
+        p.expire(at);
+        assert_eq!(outputs(&mut p), ["Probe { id: 32, token: 1 }"]);
+        let probe = p.request(
+            Internal::Probe {
+                id: id::HOMING,
+                token: home,
+            },
+            at,
+        );
+        assert!(matches!(p.submit(probe, at), Submit::Send(_)));
+        assert_eq!(p.receive(system_state(false), || at), None);
+        if at == t + grace * 2 {
+            assert_eq!(outputs(&mut p), ["value 0x40 [0, 0, 0, 0]", "next 0x40"]);
+        }
+    }
+    assert_eq!(
+        outputs(&mut p),
+        [
+            "value 0x40 [0, 0, 0, 0]",
+            "lost 1 0x20",
+            "next 0x20",
+            "next 0x40"
+        ]
+    );
+    assert!(p.internal.is_empty());
+}
+
+/// Issue 30: on an ordered transport the pairing fences a released id with a barrier of its
+/// own, sends another when one is refused, and frees the id when its echo comes; the caller
+/// still waiting gets its timeout. A barrier is never pruned (no caller waits for it).
+#[test]
+fn the_pairing_interprets_its_own_barriers() {
+    let now = Instant::now();
+    let grace = Duration::from_millis(50);
+    let t = now + Duration::from_millis(100);
+    let mut p = Pairing::new(grace);
+    p.set_ordered(true);
+    p.set_holds(Duration::from_millis(100), Duration::from_secs(1));
+    let first = p.token();
+    assert!(matches!(
+        p.submit(req(first, 0x43, t), now),
+        Submit::Send(_)
+    ));
+    let second = p.token();
+    let later = t + Duration::from_secs(10);
+    assert!(matches!(
+        p.submit(req(second, 0x43, later), now),
+        Submit::Queued
+    ));
+    p.expire(t + grace);
+    assert_eq!(
+        outputs(&mut p),
+        ["timeout 1 0x43 100ms", "Barrier { id: 67, refused: 0 }"]
+    );
+    let barrier = p.request(
+        Internal::Barrier {
+            id: 0x43,
+            refused: 0,
+        },
+        t + grace,
+    );
+    assert_eq!(barrier.frame.id, id::LOOP);
+    assert_eq!(barrier.frame.payload.len() + 2, BARRIER_ECHO_LEN);
+    assert!(matches!(p.submit(barrier, t + grace), Submit::Send(_)));
+    assert!(p.prune(id::LOOP, |_| false, t + grace).is_empty());
+    // Refused (a stale answer, say): another barrier.
+    assert_eq!(
+        p.receive(reply(id::LOOP, Status::AccessDenied), || t + grace),
+        None
+    );
+    assert_eq!(
+        outputs(&mut p),
+        ["Barrier { id: 67, refused: 1 }", "next 0x6"]
+    );
+    let barrier = p.request(
+        Internal::Barrier {
+            id: 0x43,
+            refused: 1,
+        },
+        t + grace,
+    );
+    let echo = Reply::new(id::LOOP, Status::Success, barrier.frame.payload.clone());
+    assert!(matches!(p.submit(barrier, t + grace), Submit::Send(_)));
+    // The late reply of the released request answers nobody; the echo frees the id.
+    assert_eq!(p.receive(reply(0x43, Status::Success), || t + grace), None);
+    assert_eq!(outputs(&mut p), ["update 0x43 []"]);
+    assert_eq!(p.receive(echo, || t + grace), None);
+    assert_eq!(outputs(&mut p), ["next 0x43", "next 0x6"]);
+    assert_eq!(
+        p.next(0x43, |_| true, t + grace).0.map(|r| r.token),
+        Some(second)
+    );
+    // A fence whose barriers are refused again and again is given up after three.
+    let lone = p.token();
+    assert!(matches!(p.submit(req(lone, 0x50, t), now), Submit::Send(_)));
+    p.expire(t + grace);
+    assert_eq!(
+        outputs(&mut p),
+        ["timeout 5 0x50 100ms", "Barrier { id: 80, refused: 0 }"]
+    );
+    for refused in 0..3 {
+        let barrier = p.request(Internal::Barrier { id: 0x50, refused }, t + grace);
+        assert!(matches!(p.submit(barrier, t + grace), Submit::Send(_)));
+        p.receive_malformed(id::LOOP, "too short", || t + grace);
+        let again = format!("Barrier {{ id: 80, refused: {} }}", refused + 1);
+        let expected: Vec<&str> = if refused < 2 {
+            vec![&again, "next 0x6"]
+        } else {
+            vec!["next 0x50", "next 0x6"]
+        };
+        assert_eq!(outputs(&mut p), expected);
+    }
+    assert!(p.internal.is_empty());
+}
+
+/// Issue 30: a query of a streamed id is settled by the pairing's own barrier: the last
+/// E_SUCCESS frame of the id before the echo completes it (each frame went to the
+/// subscribers as it came).
+#[test]
+fn the_pairing_settles_a_streamed_query_with_its_own_barrier() {
+    let now = Instant::now();
+    let t = now + Duration::from_secs(1);
+    let mut p = Pairing::new(Duration::from_secs(1));
+    p.set_ordered(true);
+    let query = p.token();
+    assert!(matches!(
+        p.submit(req(query, 0x43, t), now),
+        Submit::Send(_)
+    ));
+    let barrier = p.settle_barrier(0x43, query, now);
+    let echo = Reply::new(id::LOOP, Status::Success, barrier.frame.payload.clone());
+    assert!(matches!(p.submit(barrier, now), Submit::Send(_)));
+    for v in [1u8, 2] {
+        assert_eq!(
+            p.receive(Reply::new(0x43, Status::Success, vec![v]), || now),
+            None
+        );
+    }
+    assert_eq!(p.receive(echo, || now), None);
+    assert_eq!(
+        outputs(&mut p),
+        [
+            "update 0x43 [1]",
+            "update 0x43 [2]",
+            "next 0x43",
+            "ok 1 0x43 [2]",
+            "next 0x6"
+        ]
+    );
+    // A call's reply is handed back directly (the hot path), with no output.
+    let call = p.token();
+    assert!(matches!(p.submit(req(call, 0x50, t), now), Submit::Send(_)));
+    let answer = Reply::new(0x50, Status::Success, vec![7]);
+    assert_eq!(p.receive(answer.clone(), || now), Some((call, answer)));
+    assert!(outputs(&mut p).is_empty());
+    let call = p.token();
+    assert!(matches!(p.submit(req(call, 0x50, t), now), Submit::Send(_)));
+    p.receive_malformed(0x50, "too short", || now);
+    assert_eq!(outputs(&mut p), ["malformed 4 0x50", "next 0x50"]);
+    assert!(p.internal.is_empty());
 }
