@@ -603,13 +603,22 @@ impl DocumentedErrors for Error {
 /// (a call made while a reconnecting client was between connections waits and goes out on the
 /// next one), else the one of the moment when it began (`CallRec::conn`). The same for each
 /// `close()` of the fault phase and its `BYE()`.
+///
+/// Of the connections with a write of its line during the call, the last: a call written on
+/// one connection ends when that connection is lost, before the next one is opened, so a call
+/// with writes of its line on two connections was written on the later one, and the earlier
+/// write was another call's. The first was taken before: a `TEMP?` without timeout, held in the
+/// client's channel across a reconnect, was kept on the old connection by another call's
+/// `TEMP?` written there; its own write on the new one was then paired with a later `TEMP?`,
+/// held behind a full queue and never written, whose `Timeout` rule 7 took for a reply read in
+/// time (`wsg-text:0xa5b2e65cdc30e782`).
 fn resolve_conns(calls: &mut [CallRec], after_close: &mut [AfterClose], conns: &[Vec<Conn>]) {
     let written_on = |client: usize, from: usize, line: &str, start: Instant, end: Instant| {
         conns[client]
             .iter()
             .enumerate()
             .skip(from)
-            .find_map(|(k, c)| {
+            .filter_map(|(k, c)| {
                 let tap = c.tap.lock().unwrap();
                 let written = tap
                     .written
@@ -618,6 +627,7 @@ fn resolve_conns(calls: &mut [CallRec], after_close: &mut [AfterClose], conns: &
                     .any(|l| l.at >= start && l.at <= end && l.text == line);
                 written.then_some(k)
             })
+            .next_back()
     };
     for c in calls.iter_mut() {
         if let Some(k) = written_on(c.client, c.conn, &c.line, c.start, c.end) {
