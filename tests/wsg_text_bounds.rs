@@ -633,6 +633,28 @@ async fn a_value_that_is_no_number_counts_as_a_damaged_line() {
     overdue_motion_ends_and_the_connection_stays(&client, &mut gripper).await;
 }
 
+/// The same with a push: `@POS=12.5JERR MOVE 19` (the push's LF read as 0x4A) is a push whose
+/// value `12.5JERR MOVE 19` is no number, and `ERR MOVE 19` was swallowed in it
+/// (`wsg-text:0xaead2f1fc4928e38`, `@POS=104.7JERR HOME 19`). It was dropped as a push not
+/// understood, not counted as damaged: the acknowledged motion, reported over when checked,
+/// waited for a `FIN` that never came and the connection was given up. Every pushed value is a
+/// number (shared note §3.10), so one that is none counts as a damaged line: the motion ends
+/// when reported over and the connection stays.
+#[tokio::test]
+async fn a_push_whose_value_is_no_number_counts_as_a_damaged_line() {
+    let (client, mut gripper) = overdue_move(&["@POS=12.5JERR MOVE 19"]).await;
+    gripper.reply("GRIPSTATE=0").await;
+    let again = tokio::spawn({
+        let client = client.clone();
+        async move { client.move_to(20.0, None).await }
+    });
+    let line = line_within(&mut gripper, Duration::from_secs(5), "MOVE(20)").await;
+    assert!(line.starts_with("MOVE(20"), "{line}");
+    gripper.reply("ACK MOVE").await;
+    gripper.reply("FIN MOVE").await;
+    again.await.unwrap().unwrap();
+}
+
 /// Issue 29 L with M: a motion whose first reply (`ACK` or `ERR`) arrived damaged, shown lost
 /// by a later reply (the probe's), is taken as acknowledged: once overdue it is checked with
 /// `GRIPSTATE?` and ends when the gripper reports no motion. Before, it stayed unacknowledged

@@ -595,7 +595,23 @@ impl<C: Caller> Book<C> {
             ReplyLine::Push { name, value } => {
                 return match (Quantity::from_name(name), parse_number(value)) {
                     (Some(quantity), Some(value)) => Handled::Push(Push { quantity, value }),
-                    _ => {
+                    // Every pushed value is a number (shared note §3.10): one that is none was
+                    // damaged on the way, maybe by an LF read as another character that ran
+                    // the push and the next reply together (`@POS=104.7JERR HOME 19`: HOME's
+                    // ERR swallowed in the push's value, wsg-text:0xaead2f1fc4928e38). It
+                    // counts as a line that could not be read, as a reply's value that is no
+                    // number does, so that a motion whose reply it may have held ends when
+                    // the gripper reports it over (issue 29 L) and a query whose reply it may
+                    // have held is settled (issue 29 M).
+                    (_, None) => {
+                        tracing::warn!(
+                            line = text,
+                            "wsg text: push whose value is no number, dropped"
+                        );
+                        self.damage(text);
+                        Handled::Nothing
+                    }
+                    (None, Some(_)) => {
                         tracing::debug!(line = text, "wsg text: push not understood, dropped");
                         Handled::Nothing
                     }
