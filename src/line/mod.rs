@@ -5,13 +5,10 @@
 //! - `client`: a line client's connection: opening it, sending a line within a time limit,
 //!   reading lines, and the mapping of transport errors to the protocol's own error.
 //! - `session`: a line task as the connection supervisor runs it.
-//! - `caller`: a caller as the protocols' state machines without I/O hold it (a token).
 
-mod caller;
 mod client;
 pub mod codec;
 mod session;
 
-pub(crate) use caller::Caller;
 pub(crate) use client::{io_error, peer_closed, Failure, LineConn, LineError, Opener};
 pub(crate) use session::{run, LineLink, LineTask};

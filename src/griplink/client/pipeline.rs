@@ -25,12 +25,12 @@ use std::time::Duration;
 
 use tokio::time::Instant;
 
+use crate::caller::Caller;
 use crate::give_up::GiveUp;
 use crate::griplink::command::Expect;
 use crate::griplink::error::{Error, Result};
 use crate::griplink::reply::{interpret_datum, Checked};
 use crate::line::codec::Discarded;
-use crate::line::Caller;
 
 /// A command on the wire whose reply has not come yet.
 #[derive(Debug)]
@@ -254,19 +254,7 @@ mod tests {
     use std::rc::Rc;
 
     use super::*;
-
-    /// A caller: its number, and whether it gave up (shared with the test).
-    #[derive(Debug)]
-    struct Call {
-        id: u8,
-        gone: Rc<Cell<bool>>,
-    }
-
-    impl Caller for Call {
-        fn gave_up(&self) -> bool {
-            self.gone.get()
-        }
-    }
+    use crate::caller::test::Call;
 
     const GIVE_UP_AFTER: Duration = Duration::from_secs(30);
 

@@ -20,6 +20,7 @@ use std::time::Duration;
 use tokio::time::Instant;
 
 use super::pairing::{ambiguous, check_response, Counted, Pairing};
+use crate::caller::Caller;
 use crate::give_up::GiveUp;
 use crate::smartgrasp::error::{Error, Malformed, Result};
 use crate::smartgrasp::frame::{
@@ -32,13 +33,6 @@ use crate::smartgrasp::types::MessageType;
 /// [`InFlight::marker_before`]). Bounds the waiting queue when a server stops answering; further
 /// calls wait in the channel and run into their timeouts.
 pub(crate) const MAX_IN_FLIGHT: usize = 16;
-
-/// A caller waiting for the response to its request, as the queue sees it: a token it hands
-/// back to the link to complete (the link's is the call's reply channel).
-pub(crate) trait Caller {
-    /// Whether the caller stopped waiting (timed out or went away): nobody is owed its response.
-    fn gave_up(&self) -> bool;
-}
 
 /// A request on the wire, waiting for its response.
 struct Waiting<C> {
@@ -395,25 +389,13 @@ mod tests {
     use std::rc::Rc;
 
     use super::*;
+    use crate::caller::test::Call;
     use crate::deadline::after;
     use crate::smartgrasp::frame::ResponseFrame as V3Response;
     use crate::smartgrasp::types::ResponseCode;
 
     const S: Duration = Duration::from_secs(1);
     const GIVE_UP_AFTER: Duration = Duration::from_secs(30);
-
-    /// A caller: its number, and whether it gave up (shared with the test).
-    #[derive(Debug)]
-    struct Call {
-        id: u8,
-        gone: Rc<Cell<bool>>,
-    }
-
-    impl Caller for Call {
-        fn gave_up(&self) -> bool {
-            self.gone.get()
-        }
-    }
 
     /// What the queue asked of the link, by caller number.
     #[derive(Debug)]

@@ -18,7 +18,7 @@ use tokio::time::Instant;
 use tokio_util::codec::FramedRead;
 use tokio_util::sync::CancellationToken;
 
-use super::in_flight::{Caller, Event, InFlight};
+use super::in_flight::{Event, InFlight};
 use super::shutdown::Shutdown;
 use super::{ClientConfig, Shared, Timeouts};
 use crate::client_stream::ClientStream;
@@ -53,12 +53,6 @@ pub(crate) struct Call {
 /// The caller of a call in flight: its reply channel, closed when the caller timed out or went
 /// away.
 type Reply = oneshot::Sender<Result<ResponseFrame>>;
-
-impl Caller for Reply {
-    fn gave_up(&self) -> bool {
-        self.is_closed()
-    }
-}
 
 /// What [`Link::serve`] tells its owner about each response it pairs: the request, its
 /// response and its call's timeout (the session records the set-up requests the server accepted,

@@ -26,8 +26,8 @@ use tokio::time::Instant;
 use super::error::Error;
 use super::line::{parse_number, parse_reply, ReplyLine};
 use super::push::{Push, Quantity};
+use crate::caller::Caller;
 use crate::deadline::after;
-use crate::line::Caller;
 use crate::wsg::{GripState, Status};
 
 /// What a command's call waits for.
@@ -761,22 +761,10 @@ mod tests {
     use std::rc::Rc;
 
     use super::*;
+    use crate::caller::test::Call;
 
     const S: Duration = Duration::from_secs(1);
     const GIVE_UP_AFTER: Duration = Duration::from_secs(5);
-
-    /// A caller: its number, and whether it gave up (shared with the test).
-    #[derive(Debug)]
-    struct Call {
-        id: u8,
-        gone: Rc<Cell<bool>>,
-    }
-
-    impl Caller for Call {
-        fn gave_up(&self) -> bool {
-            self.gone.get()
-        }
-    }
 
     /// Call `id`'s request `line` (replies name it `name`), made at `now`, its caller waiting
     /// a second; and the handle that makes its caller give up.

@@ -683,7 +683,7 @@ fn resolve_conns(
                     })
                     .map(|l| (k, l.seq))
             })
-            .last();
+            .next_back();
         if let Some((k, seq)) = found {
             taken.insert((c.client, k, seq), c.start);
             c.conn = k;
