@@ -45,9 +45,25 @@ pub(crate) struct Call {
     ///
     /// [`Client::with_timeout`]: super::Client::with_timeout
     pub deadline: Instant,
-    /// The caller's timeout that `deadline` was counted with: a set-up request answered within
-    /// it is restored after a reconnect with (at least) this timeout (`Session::record`).
-    pub timeout: Duration,
+    /// The caller's timeout that `deadline` was counted with, in nanoseconds, saturated at
+    /// `u64::MAX` (584 years: no timeout): a set-up request answered within it is restored after
+    /// a reconnect with (at least) this timeout (`Session::record`). Eight bytes, not a
+    /// `Duration`'s sixteen, so that a `Call` stays within the 128 bytes x86-64 moves inline: at
+    /// 136 bytes every move through the task's channel became a `memcpy` call, +385 instructions
+    /// per query (BENCHMARKS.md, issue 30 as a whole; `a_call_is_moved_inline`).
+    pub timeout_ns: u64,
+}
+
+impl Call {
+    /// `timeout` as [`Call::timeout_ns`] keeps it.
+    pub(crate) fn timeout_ns(timeout: Duration) -> u64 {
+        u64::try_from(timeout.as_nanos()).unwrap_or(u64::MAX)
+    }
+
+    /// The caller's timeout (see [`Call::timeout_ns`]).
+    fn timeout(&self) -> Duration {
+        Duration::from_nanos(self.timeout_ns)
+    }
 }
 
 /// The caller of a call in flight: its reply channel, closed when the caller timed out or went
@@ -232,7 +248,8 @@ impl Link {
                                 break e;
                             }
                         }
-                        let sent = self.send(call.frame, call.reply, call.deadline, call.timeout);
+                        let timeout = call.timeout();
+                        let sent = self.send(call.frame, call.reply, call.deadline, timeout);
                         if let Err(e) = sent.await {
                             break e;
                         }
@@ -385,6 +402,25 @@ mod tests {
     use super::*;
     use crate::client_stream::tests::tcp_pair as pair;
     use tokio::io::AsyncReadExt;
+
+    /// A call is moved several times on its way to the wire (the handle's `try_send`, the
+    /// channel's `pop` and `recv`, the task): within 128 bytes x86-64 moves it inline, above it
+    /// each move is a `memcpy` call (+385 instructions per query at 136 bytes, BENCHMARKS.md).
+    #[test]
+    fn a_call_is_moved_inline() {
+        assert!(
+            std::mem::size_of::<Call>() <= 128,
+            "{}",
+            std::mem::size_of::<Call>()
+        );
+    }
+
+    #[test]
+    fn a_call_keeps_its_timeout_and_no_timeout_saturates() {
+        let ms = Duration::from_millis(1500);
+        assert_eq!(Duration::from_nanos(Call::timeout_ns(ms)), ms);
+        assert_eq!(Call::timeout_ns(Duration::MAX), u64::MAX);
+    }
 
     #[tokio::test]
     async fn a_write_that_fits_goes_out_whole() {

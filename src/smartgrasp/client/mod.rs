@@ -671,7 +671,7 @@ impl Client {
                 frame,
                 reply,
                 deadline,
-                timeout,
+                timeout_ns: Call::timeout_ns(timeout),
             };
             // The queue nearly always has room: `try_send` skips building and polling a permit
             // future (issue 14). Fair all the same: a released permit goes to a waiting sender
