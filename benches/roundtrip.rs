@@ -32,10 +32,13 @@
 //!   `tokio::net::TcpStream` awaited in `block_on` on each runtime — what any tokio client pays
 //!   before it adds a channel, a task or pairing, so the client's own cost is the difference.
 //!
-//! `--only wsg|griplink|smartgrasp [--raw] [--mt] [--calls N]` runs one protocol's client (or,
+//! `--only wsg|griplink|smartgrasp [--raw] [--mt] [--calls N] [--tasks T]` runs one protocol's client (or,
 //! with `--raw`, the bare tokio stream) alone from the main thread, N queries (default 10,000), on
 //! a `current_thread` runtime (or, with `--mt`, from `block_on` on a `multi_thread(2)` one), and
-//! prints the wall time and the main thread's CPU time per query.
+//! prints the wall time and the main thread's CPU time per query. With `--tasks T` the client is
+//! called by T callers at once (joined on the same thread), so requests queue and pipeline in
+//! the client as they do under a busy program: GRIPLINK and SmartGrasp keep several on the wire,
+//! the WSG client one per command id (its pipelined figure is `wsg_throughput`'s, over 14 ids).
 //! It is the program to count a round trip's instructions with, a figure that does not move with
 //! the machine's load (the simulators run on other threads, so the main thread's count is the
 //! client's):
@@ -377,6 +380,32 @@ impl Subject {
         }
     }
 
+    /// `blocks` blocks of queries from `tasks` callers at once (the client's callers share it;
+    /// the bare stream has one caller, so it runs them one after the other).
+    async fn blocks(&mut self, blocks: usize, tasks: usize, out: &mut Vec<Duration>) {
+        match self {
+            Subject::Client(c) if tasks > 1 => {
+                let c = &*c;
+                let callers = (0..tasks).map(|i| async move {
+                    let mut times = Vec::new();
+                    // Caller i runs blocks i, i + tasks, ...: `blocks` in all.
+                    for _ in (i..blocks).step_by(tasks) {
+                        client_block(c, &mut times).await;
+                    }
+                    times
+                });
+                for times in futures_util::future::join_all(callers).await {
+                    out.extend(times);
+                }
+            }
+            _ => {
+                for _ in 0..blocks {
+                    self.block(out).await;
+                }
+            }
+        }
+    }
+
     async fn close(self) {
         match self {
             Subject::Client(c) => c.close().await,
@@ -388,7 +417,14 @@ impl Subject {
 /// `--only`: `calls` queries of one protocol from this thread, on a `current_thread` runtime (or
 /// `mt`, a `multi_thread(2)` one), through the client or (`raw`) the bare tokio stream; prints
 /// wall and CPU time per query.
-fn cost(targets: &[(Proto, SocketAddr)], only: &str, calls: usize, raw: bool, mt: bool) {
+fn cost(
+    targets: &[(Proto, SocketAddr)],
+    only: &str,
+    calls: usize,
+    tasks: usize,
+    raw: bool,
+    mt: bool,
+) {
     let Some(&(proto, addr)) = targets
         .iter()
         .find(|(p, _)| format!("{p:?}").eq_ignore_ascii_case(only))
@@ -414,16 +450,14 @@ fn cost(targets: &[(Proto, SocketAddr)], only: &str, calls: usize, raw: bool, mt
         };
         subject.block(&mut Vec::new()).await;
         let (t, cpu) = (Instant::now(), common::this_thread_cpu_ns());
-        for _ in 0..blocks {
-            subject.block(&mut times).await;
-        }
+        subject.blocks(blocks, tasks.max(1), &mut times).await;
         let measured = (t.elapsed(), common::this_thread_cpu_ns() - cpu);
         subject.close().await;
         measured
     });
     let n = (blocks * BLOCK) as f64;
     println!(
-        "{} through {} on {}: {} queries, {:.2} µs wall and {:.2} µs CPU on this thread per query",
+        "{} through {} on {}, {} caller(s): {} queries, {:.2} µs wall and {:.2} µs CPU on this thread per query ({:.0} queries/s)",
         proto.query(),
         if raw {
             "a bare tokio stream"
@@ -435,9 +469,11 @@ fn cost(targets: &[(Proto, SocketAddr)], only: &str, calls: usize, raw: bool, mt
         } else {
             "current_thread"
         },
+        if raw { 1 } else { tasks.max(1) },
         blocks * BLOCK,
         wall.as_secs_f64() * 1e6 / n,
         cpu_ns as f64 / 1e3 / n,
+        n / wall.as_secs_f64(),
     );
 }
 
@@ -521,7 +557,15 @@ fn main() {
 
     if let Some(only) = flag_value::<String>("--only") {
         let calls = flag_value("--calls").unwrap_or(10_000);
-        cost(&targets, &only, calls, has_flag("--raw"), has_flag("--mt"));
+        let tasks = flag_value("--tasks").unwrap_or(1);
+        cost(
+            &targets,
+            &only,
+            calls,
+            tasks,
+            has_flag("--raw"),
+            has_flag("--mt"),
+        );
         return;
     }
 

@@ -34,6 +34,28 @@ use crate::smartgrasp::types::MessageType;
 /// calls wait in the channel and run into their timeouts.
 pub(crate) const MAX_IN_FLIGHT: usize = 16;
 
+/// A call's timeout as the queue keeps it: nanoseconds, saturated at `u64::MAX` (584 years: no
+/// timeout). Eight bytes, not a `Duration`'s sixteen, and converted back only where it is used
+/// (restoring a set-up request, `Session::record`): a [`Call`](super::link::Call) then stays
+/// within the 128 bytes x86-64 moves inline (at 136 bytes every move through the task's channel
+/// became a `memcpy` call, +385 instructions per query), and a round trip spends no division on
+/// it (BENCHMARKS.md, "Issue 30: the last of SmartGrasp's cost").
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct CallTimeout(u64);
+
+impl CallTimeout {
+    /// `timeout`, saturated.
+    #[inline]
+    pub(crate) fn new(timeout: Duration) -> Self {
+        CallTimeout(u64::try_from(timeout.as_nanos()).unwrap_or(u64::MAX))
+    }
+
+    /// The timeout (to the nanosecond; `Duration::MAX` comes back as 584 years).
+    pub(crate) fn duration(self) -> Duration {
+        Duration::from_nanos(self.0)
+    }
+}
+
 /// A request on the wire, waiting for its response.
 struct Waiting<C> {
     request: RequestFrame,
@@ -43,7 +65,7 @@ struct Waiting<C> {
     /// connection is given up.
     give_up: GiveUp,
     /// Its call's timeout, handed back with its response ([`Event::Paired`]).
-    timeout: Duration,
+    timeout: CallTimeout,
 }
 
 /// What pairing a response asks of the link, handed over one at a time, in order.
@@ -71,7 +93,7 @@ pub(crate) enum Event<'a, C> {
         /// reply).
         response: &'a ResponseFrame,
         /// The call's timeout.
-        timeout: Duration,
+        timeout: CallTimeout,
     },
     /// Complete `caller`'s call with `error`.
     Failed {
@@ -148,7 +170,7 @@ impl<C: Caller> InFlight<C> {
         request: RequestFrame,
         caller: C,
         give_up: GiveUp,
-        timeout: Duration,
+        timeout: CallTimeout,
     ) {
         self.waiting.push_back(Waiting {
             request,
@@ -425,7 +447,12 @@ mod tests {
             id,
             gone: Rc::clone(&gone),
         };
-        q.push(request.to_any_frame(3).unwrap(), call, give_up, timeout);
+        q.push(
+            request.to_any_frame(3).unwrap(),
+            call,
+            give_up,
+            CallTimeout::new(timeout),
+        );
         gone
     }
 
@@ -445,7 +472,7 @@ mod tests {
                 response,
                 timeout,
                 ..
-            } => Done::Paired(caller.id, *response, timeout),
+            } => Done::Paired(caller.id, *response, timeout.duration()),
             Event::Failed { caller, error } => Done::Failed(caller.id, error),
         }
     }
@@ -715,7 +742,7 @@ mod tests {
                 gone: Rc::default(),
             },
             give_up,
-            2 * S,
+            CallTimeout::new(2 * S),
         );
         assert_eq!(
             q.give_up_at(|| unreachable!("at the front from the start")),

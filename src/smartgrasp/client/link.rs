@@ -18,7 +18,7 @@ use tokio::time::Instant;
 use tokio_util::codec::FramedRead;
 use tokio_util::sync::CancellationToken;
 
-use super::in_flight::{Event, InFlight};
+use super::in_flight::{CallTimeout, Event, InFlight};
 use super::shutdown::Shutdown;
 use super::{ClientConfig, Shared, Timeouts};
 use crate::client_stream::ClientStream;
@@ -45,25 +45,10 @@ pub(crate) struct Call {
     ///
     /// [`Client::with_timeout`]: super::Client::with_timeout
     pub deadline: Instant,
-    /// The caller's timeout that `deadline` was counted with, in nanoseconds, saturated at
-    /// `u64::MAX` (584 years: no timeout): a set-up request answered within it is restored after
-    /// a reconnect with (at least) this timeout (`Session::record`). Eight bytes, not a
-    /// `Duration`'s sixteen, so that a `Call` stays within the 128 bytes x86-64 moves inline: at
-    /// 136 bytes every move through the task's channel became a `memcpy` call, +385 instructions
-    /// per query (BENCHMARKS.md, issue 30 as a whole; `a_call_is_moved_inline`).
-    pub timeout_ns: u64,
-}
-
-impl Call {
-    /// `timeout` as [`Call::timeout_ns`] keeps it.
-    pub(crate) fn timeout_ns(timeout: Duration) -> u64 {
-        u64::try_from(timeout.as_nanos()).unwrap_or(u64::MAX)
-    }
-
-    /// The caller's timeout (see [`Call::timeout_ns`]).
-    fn timeout(&self) -> Duration {
-        Duration::from_nanos(self.timeout_ns)
-    }
+    /// The caller's timeout that `deadline` was counted with: a set-up request answered within
+    /// it is restored after a reconnect with (at least) this timeout (`Session::record`). Kept
+    /// in eight bytes (`a_call_is_moved_inline`).
+    pub timeout: CallTimeout,
 }
 
 /// The caller of a call in flight: its reply channel, closed when the caller timed out or went
@@ -74,7 +59,7 @@ type Reply = oneshot::Sender<Result<ResponseFrame>>;
 /// response and its call's timeout (the session records the set-up requests the server accepted,
 /// with the timeout they were answered within). A callback rather
 /// than the session itself, so that the link does not depend on the session that drives it.
-pub(crate) type OnPaired<'a> = dyn FnMut(&RequestFrame, &ResponseFrame, Duration) + Send + 'a;
+pub(crate) type OnPaired<'a> = dyn FnMut(&RequestFrame, &ResponseFrame, CallTimeout) + Send + 'a;
 
 /// A connection and its pairing state.
 pub(crate) struct Link {
@@ -199,6 +184,8 @@ impl Link {
         // waiting request).
         let mut shutdown = Shutdown::new(shutdown);
         let mut give_up = pin!(tokio::time::sleep_until(Instant::now()));
+        // Where the next call lands (see `recv_into`).
+        let mut next_call = None;
         let reason = loop {
             let give_up_at = self.in_flight.give_up_at(Instant::now);
             if let Some(at) = give_up_at {
@@ -223,7 +210,7 @@ impl Link {
                         break overdue;
                     }
                 },
-                call = calls.recv(), if self.in_flight.has_room() => match call {
+                () = recv_into(calls, &mut next_call), if self.in_flight.has_room() => match next_call.take() {
                     // Every handle is gone, so no call can be waiting: nothing left to do.
                     None => return None,
                     Some(mut call) => {
@@ -243,13 +230,12 @@ impl Link {
                             let (reply, _) = oneshot::channel();
                             let limit = self.timeouts.for_type(marker.header().message_type);
                             let deadline = after(Instant::now(), limit);
-                            if let Err(e) = self.send(marker, reply, deadline, limit).await {
+                            if let Err(e) = self.send(marker, reply, deadline, CallTimeout::new(limit)).await {
                                 let _ = call.reply.send(Err(e.clone()));
                                 break e;
                             }
                         }
-                        let timeout = call.timeout();
-                        let sent = self.send(call.frame, call.reply, call.deadline, timeout);
+                        let sent = self.send(call.frame, call.reply, call.deadline, call.timeout);
                         if let Err(e) = sent.await {
                             break e;
                         }
@@ -274,7 +260,7 @@ impl Link {
         request: RequestFrame,
         reply: Reply,
         deadline: Instant,
-        timeout: Duration,
+        timeout: CallTimeout,
     ) -> Result<()> {
         let give_up = self.in_flight.give_up_for(deadline, Instant::now);
         if let Err(error) =
@@ -314,6 +300,18 @@ impl Link {
             on_event(shared, Some(&mut *on_paired), event)
         })
     }
+}
+
+/// Receives the next call into `slot` (`None`: every handle is gone). Not `calls.recv()` as a
+/// `select!` branch: `select!` keeps every branch's output in one enum, and a [`Call`] of 128
+/// bytes made it larger than the 128 bytes x86-64 moves inline, so each round trip moved it twice
+/// by `memcpy` (+58 instructions per query, BENCHMARKS.md, "Issue 30: the last of SmartGrasp's
+/// cost").
+fn recv_into<'a>(
+    calls: &'a mut mpsc::Receiver<Call>,
+    slot: &'a mut Option<Call>,
+) -> impl std::future::Future<Output = ()> + 'a {
+    poll_fn(move |cx| calls.poll_recv(cx).map(|call| *slot = call))
 }
 
 /// Does what the queue in flight asks of the link: records a counter gap, answers a call (a
@@ -365,13 +363,21 @@ async fn write_within(
     limit: Instant,
     bytes: &[u8],
 ) -> Result<()> {
-    let started = Instant::now();
-    match write_all_by(write, bytes, || limit).await {
+    // When the write began to wait, read only if it had to: a write the socket takes at once
+    // (every round trip) reads no clock (an `Instant::now()` is about 45 instructions per query,
+    // BENCHMARKS.md, "Issue 30: the last of SmartGrasp's cost").
+    let mut waited_from = None;
+    let wait_limit = || {
+        waited_from = Some(Instant::now());
+        limit
+    };
+    let written = write_all_by(write, bytes, wait_limit).await;
+    match written {
         Ok(written) => Ok(written?),
         Err(_) => Err(Error::ConnectionLost {
             reason: format!(
-                "the server stopped reading requests (a write took over {:?})",
-                limit.saturating_duration_since(started)
+                "the server stopped reading requests (a write waited over {:?})",
+                waited_from.map_or(Duration::ZERO, |from| limit.saturating_duration_since(from))
             )
             .into(),
         }),
@@ -418,8 +424,11 @@ mod tests {
     #[test]
     fn a_call_keeps_its_timeout_and_no_timeout_saturates() {
         let ms = Duration::from_millis(1500);
-        assert_eq!(Duration::from_nanos(Call::timeout_ns(ms)), ms);
-        assert_eq!(Call::timeout_ns(Duration::MAX), u64::MAX);
+        assert_eq!(CallTimeout::new(ms).duration(), ms);
+        assert_eq!(
+            CallTimeout::new(Duration::MAX).duration(),
+            Duration::from_nanos(u64::MAX)
+        );
     }
 
     #[tokio::test]

@@ -30,6 +30,7 @@ use crate::client_stream::ClientStream;
 use crate::connection::Connection;
 use crate::reconnect::{ConnectionEvents, EventSender, EventSubscriber, ReconnectPolicy};
 use crate::supervisor::CloseRequest;
+use in_flight::CallTimeout;
 use link::{Call, Link, Opener};
 use session::{success, unexpected_body, Opened, Session};
 
@@ -671,7 +672,7 @@ impl Client {
                 frame,
                 reply,
                 deadline,
-                timeout_ns: Call::timeout_ns(timeout),
+                timeout: CallTimeout::new(timeout),
             };
             // The queue nearly always has room: `try_send` skips building and polling a permit
             // future (issue 14). Fair all the same: a released permit goes to a waiting sender
@@ -686,11 +687,14 @@ impl Client {
             answer.await.map_err(|_| self.closed())?
         };
         // Bounded here rather than through `Timeouts::run`: that `async fn` around the timeout
-        // is one more layer of future moved and polled on every call (issue 14).
-        let answered = self
-            .connection
-            .call(self.timeouts.bound(message_type, exchange))
-            .await;
+        // is one more layer of future moved and polled on every call (issue 14). Pinned in
+        // place, as GRIPLINK's is: handed on by value, the future (a `Call`, a timer) was copied
+        // twice more, by `memcpy`, into the connection's call (about 200 instructions per query,
+        // BENCHMARKS.md, "Issue 30: the last of SmartGrasp's cost").
+        // Bounded by the call's own deadline, read from the clock once (a second read cost about
+        // 45 instructions per query).
+        let exchange = std::pin::pin!(tokio::time::timeout_at(deadline, exchange));
+        let answered = self.connection.call(exchange).await;
         let frame = answered.map_err(|_| self.timeouts.expired(message_type))??;
         Ok(Response::from_any_frame(&frame)?)
     }

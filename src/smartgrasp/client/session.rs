@@ -3,6 +3,7 @@
 
 use std::time::Duration;
 
+use super::in_flight::CallTimeout;
 use super::link::Link;
 use super::ClientConfig;
 use crate::smartgrasp::error::{Error, Malformed, Result};
@@ -70,7 +71,7 @@ impl Session {
         &mut self,
         request: &AnyRequestFrame,
         response: &AnyResponseFrame,
-        timeout: Duration,
+        timeout: CallTimeout,
     ) {
         if response.header().response_code != ResponseCode::Success {
             return;
@@ -87,7 +88,7 @@ impl Session {
         };
         *slot = Some(SetUp {
             request,
-            answered_within: Some(timeout),
+            answered_within: Some(timeout.duration()),
         });
     }
 

@@ -358,9 +358,13 @@ impl Client {
             }
             rx.await.map_err(|_| self.shared.gone())?
         };
+        // Pinned in place, as GRIPLINK's is: handed on by value, the future (the request, a
+        // timer) was copied twice more, by `memcpy`, into the connection's call (BENCHMARKS.md,
+        // "Issue 30: the last of SmartGrasp's cost").
+        let work = std::pin::pin!(timeout_at(deadline, work));
         self.shared
             .connection
-            .call(timeout_at(deadline, work))
+            .call(work)
             .await
             .map_err(|_| Error::Timeout { command, timeout })?
     }
