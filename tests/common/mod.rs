@@ -151,3 +151,25 @@ pub async fn events_until(
     }
     panic!("the event stream ended after {got:?}");
 }
+
+/// Pulls the cable (`proxy.cut_connections()`) and reads `events` until the client has restored
+/// the connection, holding it to the reconnect contract's first promise on the way: `Lost`
+/// first, then a `Connected`, and `Restored { attempts: 1 }` last. The contract suite and each
+/// protocol's own reconnect suite start from this same checked reconnect before looking at what
+/// their protocol restores.
+#[cfg(feature = "sim")]
+#[allow(dead_code)] // only the reconnect tests use it
+pub async fn cut_and_restored(
+    proxy: &gripper::fault::FaultProxy,
+    events: &mut gripper::reconnect::ConnectionEvents,
+) {
+    use gripper::reconnect::ConnectionEvent;
+    proxy.cut_connections();
+    let got = events_until(events, |e| matches!(e, ConnectionEvent::Restored { .. })).await;
+    assert!(
+        matches!(got.first(), Some(ConnectionEvent::Lost { .. })),
+        "{got:?}"
+    );
+    assert!(got.contains(&ConnectionEvent::Connected), "{got:?}");
+    assert_eq!(got.last(), Some(&ConnectionEvent::Restored { attempts: 1 }));
+}
