@@ -173,3 +173,33 @@ pub async fn cut_and_restored(
     assert!(got.contains(&ConnectionEvent::Connected), "{got:?}");
     assert_eq!(got.last(), Some(&ConnectionEvent::Restored { attempts: 1 }));
 }
+
+/// A raw WSG "gripper" on loopback TCP serving one connection: it reads the client's request
+/// frames and answers them one after the other, in order, as the device's command interpreter
+/// does. `answer(request)` gives what to write for a request; the next request is read only
+/// once that is written, so an answer that takes its time stalls the ones behind it, as a slow
+/// device does. Ends when the client closes the connection or a write fails.
+#[allow(dead_code)] // only the raw-socket WSG tests use it
+pub async fn wsg_tcp_device<F>(
+    mut answer: impl FnMut(gripper::wsg::frame::Frame) -> F + Send + 'static,
+) -> std::net::SocketAddr
+where
+    F: std::future::Future<Output = Vec<u8>> + Send + 'static,
+{
+    use futures_util::StreamExt;
+    use tokio::io::AsyncWriteExt;
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let addr = listener.local_addr().unwrap();
+    tokio::spawn(async move {
+        let (socket, _) = listener.accept().await.unwrap();
+        let (read, mut write) = socket.into_split();
+        let mut requests = tokio_util::codec::FramedRead::new(read, gripper::wsg::WsgCodec::new());
+        while let Some(Ok(request)) = requests.next().await {
+            let bytes = answer(request).await;
+            if write.write_all(&bytes).await.is_err() {
+                return;
+            }
+        }
+    });
+    addr
+}
