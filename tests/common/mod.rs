@@ -203,3 +203,33 @@ where
     });
     addr
 }
+
+/// The WSG simulator with `config` and a client of it subscribed to the width every 10 ms, with
+/// a subscription buffer of 4 updates: small, so a test soon sees what a full buffer does to
+/// updates not read (missed and counted) and, reading more items than it holds, that new
+/// updates arrive.
+#[cfg(feature = "sim")]
+#[allow(dead_code)] // only the WSG subscription tests use it
+pub async fn wsg_width_subscription(
+    config: gripper::wsg::sim::SimConfig,
+) -> (
+    gripper::wsg::sim::SimServer,
+    gripper::wsg::Client,
+    gripper::wsg::Subscription<f32>,
+) {
+    let sim = gripper::wsg::sim::SimServer::bind("127.0.0.1:0", config)
+        .await
+        .unwrap();
+    let client = gripper::wsg::Client::builder()
+        .subscription_buffer(4)
+        .connect_tcp(sim.local_addr().unwrap())
+        .await
+        .unwrap();
+    let widths = client
+        .subscribe_width_mm(gripper::wsg::UpdateOptions::periodic(
+            std::time::Duration::from_millis(10),
+        ))
+        .await
+        .unwrap();
+    (sim, client, widths)
+}
