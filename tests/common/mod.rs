@@ -233,3 +233,24 @@ pub async fn wsg_width_subscription(
         .unwrap();
     (sim, client, widths)
 }
+
+/// The WSG simulator with `config` and a fault proxy before it that cuts the byte stream into
+/// WSG frames (`wsg::frame::frame_len`), so that a fault can target one frame; the client under
+/// test connects to the proxy.
+#[cfg(feature = "sim")]
+#[allow(dead_code)] // only the WSG tests through the fault proxy use it
+pub async fn wsg_sim_behind_proxy(
+    config: gripper::wsg::sim::SimConfig,
+) -> (gripper::wsg::sim::SimServer, gripper::fault::FaultProxy) {
+    use gripper::fault::{FaultProxy, Framing, ProxyConfig};
+    let sim = gripper::wsg::sim::SimServer::bind("127.0.0.1:0", config)
+        .await
+        .unwrap();
+    let proxy = FaultProxy::start_with(
+        sim.local_addr().unwrap(),
+        ProxyConfig::new().framing(Framing::Custom(gripper::wsg::frame::frame_len)),
+    )
+    .await
+    .unwrap();
+    (sim, proxy)
+}
