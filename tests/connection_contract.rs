@@ -33,7 +33,7 @@ use std::net::SocketAddr;
 use std::task::Poll;
 use std::time::Duration;
 
-use common::{events_until, policy, within};
+use common::{cut_and_restored, events_until, policy, within};
 use futures_util::StreamExt as _;
 use gripper::fault::{FaultProxy, Framing, ProxyConfig};
 use gripper::reconnect::{ConnectionEvent, ConnectionEvents, ReconnectPolicy};
@@ -87,17 +87,7 @@ async fn proxied<C: Contracted>(
 async fn a_cut_is_reported_reconnected_and_restored<C: Contracted>() {
     let (_sim, proxy, client, mut events) = proxied::<C>(Some(policy(None))).await;
     assert_eq!(within("query", client.query()).await, Outcome::Ok);
-    proxy.cut_connections();
-    let got = events_until(&mut events, |e| {
-        matches!(e, ConnectionEvent::Restored { .. })
-    })
-    .await;
-    assert!(
-        matches!(got.first(), Some(ConnectionEvent::Lost { .. })),
-        "{got:?}"
-    );
-    assert!(got.contains(&ConnectionEvent::Connected), "{got:?}");
-    assert_eq!(got.last(), Some(&ConnectionEvent::Restored { attempts: 1 }));
+    cut_and_restored(&proxy, &mut events).await;
     assert_eq!(within("query", client.query()).await, Outcome::Ok);
     assert_eq!(proxy.stats().connections_accepted, 2);
 }

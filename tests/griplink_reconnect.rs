@@ -7,7 +7,7 @@ mod common;
 
 use std::time::Duration;
 
-use common::{events_until, policy, within};
+use common::{cut_and_restored, events_until, policy, within};
 use futures_util::StreamExt as _;
 use gripper::fault::{FaultProxy, Framing, ProxyConfig};
 use gripper::griplink::sim::{SimConfig, SimDevice, SimServer};
@@ -48,17 +48,7 @@ async fn reconnects_after_a_cut_restores_verbose_and_reports_each_step() {
     let mut events = client.connection_events();
     let commands = proxy.client_to_server().stats().frames;
 
-    proxy.cut_connections();
-    let got = events_until(&mut events, |e| {
-        matches!(e, ConnectionEvent::Restored { .. })
-    })
-    .await;
-    assert!(
-        matches!(got.first(), Some(ConnectionEvent::Lost { .. })),
-        "{got:?}"
-    );
-    assert!(got.contains(&ConnectionEvent::Connected), "{got:?}");
-    assert_eq!(got.last(), Some(&ConnectionEvent::Restored { attempts: 1 }));
+    cut_and_restored(&proxy, &mut events).await;
     // Restoring sent exactly one line: VERBOSE=1.
     assert_eq!(proxy.client_to_server().stats().frames, commands + 1);
     assert_eq!(proxy.stats().connections_accepted, 2);

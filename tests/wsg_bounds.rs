@@ -3,13 +3,13 @@
 //! misses updates (counted) instead of buffering them.
 #![cfg(feature = "sim")]
 
-use std::time::Duration;
+mod common;
 
 use bytes::BytesMut;
 use futures_util::{FutureExt, StreamExt};
 use gripper::wsg::frame::{self, Frame, CHECKSUM_LEN, DEFAULT_MAX_PAYLOAD_LEN, HEADER_LEN};
-use gripper::wsg::sim::{Model, SimConfig, SimServer};
-use gripper::wsg::{Client, UpdateOptions, WsgCodec};
+use gripper::wsg::sim::{Model, SimConfig};
+use gripper::wsg::WsgCodec;
 use proptest::prelude::*;
 use tokio::io::AsyncWriteExt;
 use tokio_util::codec::FramedRead;
@@ -129,18 +129,8 @@ proptest! {
 
 #[tokio::test]
 async fn a_slow_subscriber_misses_the_newest_updates_and_counts_them() {
-    let sim = SimServer::bind("127.0.0.1:0", SimConfig::new(Model::Wsg50))
-        .await
-        .unwrap();
-    let client = Client::builder()
-        .subscription_buffer(4)
-        .connect_tcp(sim.local_addr().unwrap())
-        .await
-        .unwrap();
-    let mut widths = client
-        .subscribe_width_mm(UpdateOptions::periodic(Duration::from_millis(10)))
-        .await
-        .unwrap();
+    let (_sim, client, mut widths) =
+        common::wsg_width_subscription(SimConfig::new(Model::Wsg50)).await;
     // Do not read the stream; let round trips pass the time until updates have been missed.
     for _ in 0..100_000 {
         if widths.missed() >= 3 {

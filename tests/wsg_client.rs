@@ -410,17 +410,8 @@ async fn connection_loss_fails_calls_and_later_calls() {
 
 #[tokio::test]
 async fn auto_update_stream_one_off_query_and_unsubscribe() {
-    let sim = SimServer::bind("127.0.0.1:0", with_part()).await.unwrap();
-    // A small buffer, so that reading more items than it holds proves new updates arrived.
-    let client = Client::builder()
-        .subscription_buffer(4)
-        .connect_tcp(sim.local_addr().unwrap())
-        .await
-        .unwrap();
-    let mut widths = client
-        .subscribe_width_mm(UpdateOptions::periodic(Duration::from_millis(10)))
-        .await
-        .unwrap();
+    // A small buffer (4), so that reading more items than it holds proves new updates arrived.
+    let (sim, client, mut widths) = common::wsg_width_subscription(with_part()).await;
     assert_eq!(
         widths.next().await,
         Some(0.0),

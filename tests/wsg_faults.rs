@@ -9,16 +9,17 @@
 //! tests wait for the proxy's counters or for the simulator's log of received ids.
 #![cfg(feature = "sim")]
 
+mod common;
+
 use std::future::Future;
 use std::net::SocketAddr;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
-use gripper::fault::{At, Fault, FaultProxy, ProxyConfig};
+use gripper::fault::{At, Fault, FaultProxy};
 use gripper::wsg::client::DEFAULT_PARTIAL_FRAME_TIMEOUT;
 use gripper::wsg::command::id;
-use gripper::wsg::frame::frame_len;
 use gripper::wsg::sim::{Model, SimConfig, SimServer};
 use gripper::wsg::{Client, Error, HomingDirection, Status, SystemState};
 use tokio::net::UdpSocket;
@@ -55,13 +56,7 @@ impl Rig {
     /// 20.2 #2): a test that has the proxy deliver a frame byte by byte, with a pause after
     /// each, gives it a timeout above that frame's delivery time on a loaded machine.
     async fn with_partial_frame_timeout(config: SimConfig, partial: Duration) -> Rig {
-        let sim = SimServer::bind("127.0.0.1:0", config).await.unwrap();
-        let proxy = FaultProxy::start_with(
-            sim.local_addr().unwrap(),
-            ProxyConfig::new().framing(gripper::fault::Framing::Custom(frame_len)),
-        )
-        .await
-        .unwrap();
+        let (sim, proxy) = common::wsg_sim_behind_proxy(config).await;
         let client = client_with(proxy.local_addr(), partial).await;
         Rig { sim, proxy, client }
     }

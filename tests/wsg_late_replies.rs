@@ -90,36 +90,53 @@ async fn slow_first_tcp_device(
     loop_answer: fn(&Frame) -> Vec<u8>,
     loops: Arc<AtomicUsize>,
 ) -> SocketAddr {
-    use futures_util::StreamExt;
-    use tokio::io::AsyncWriteExt;
-    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
-    let addr = listener.local_addr().unwrap();
-    tokio::spawn(async move {
-        let (socket, _) = listener.accept().await.unwrap();
-        let (read, mut write) = socket.into_split();
-        let mut requests = tokio_util::codec::FramedRead::new(read, gripper::wsg::WsgCodec::new());
-        let mut widths = 0;
-        while let Some(Ok(request)) = requests.next().await {
-            let answer = match request.id {
-                id::WIDTH => {
-                    if widths == 0 {
-                        tokio::time::sleep(slow).await;
-                    }
-                    widths += 1;
-                    width_reply(widths - 1)
-                }
-                id::LOOP => {
-                    loops.fetch_add(1, Ordering::SeqCst);
-                    loop_answer(&request)
-                }
-                other => reply(other, &[]),
-            };
-            if write.write_all(&answer).await.is_err() {
-                return;
+    let mut widths = 0;
+    common::wsg_tcp_device(move |request| {
+        // Counted as read; only the first width request's answer is stalled.
+        let (stall, answer) = match request.id {
+            id::WIDTH => {
+                widths += 1;
+                ((widths == 1).then_some(slow), width_reply(widths - 1))
             }
+            id::LOOP => {
+                loops.fetch_add(1, Ordering::SeqCst);
+                (None, loop_answer(&request))
+            }
+            other => (None, reply(other, &[])),
+        };
+        async move {
+            if let Some(stall) = stall {
+                tokio::time::sleep(stall).await;
+            }
+            answer
         }
-    });
-    addr
+    })
+    .await
+}
+
+/// A client of the TCP "gripper" at `addr` with a 50 ms late-reply grace, whose first call
+/// (`call` on a handle with a 100 ms timeout) timed out: where the TCP tests below start, the
+/// device's answer to that call is still to come (stalled past the timeout plus the grace).
+async fn first_call_timed_out<T: std::fmt::Debug, F>(
+    addr: SocketAddr,
+    what: &str,
+    call: impl FnOnce(Client) -> F,
+) -> Client
+where
+    F: std::future::Future<Output = gripper::wsg::Result<T>>,
+{
+    let client = Client::builder()
+        .late_reply_grace(Duration::from_millis(50))
+        .connect_tcp(addr)
+        .await
+        .unwrap();
+    let impatient = client.with_timeouts(Duration::from_millis(100), Duration::from_secs(1));
+    let first = within(what, call(impatient)).await;
+    assert!(
+        matches!(first, Err(gripper::wsg::Error::Timeout { .. })),
+        "{first:?}"
+    );
+    client
 }
 
 /// (b) TCP: a reply stalled past its request's timeout plus the grace answered the next request
@@ -130,17 +147,8 @@ async fn slow_first_tcp_device(
 async fn a_reply_stalled_past_the_grace_never_answers_the_next_request_on_tcp() {
     let loops = Arc::new(AtomicUsize::new(0));
     let addr = slow_first_tcp_device(Duration::from_millis(600), echo, loops.clone()).await;
-    let client = Client::builder()
-        .late_reply_grace(Duration::from_millis(50))
-        .connect_tcp(addr)
-        .await
-        .unwrap();
-    let impatient = client.with_timeouts(Duration::from_millis(100), Duration::from_secs(1));
-    let first = within("first width", impatient.width_mm()).await;
-    assert!(
-        matches!(first, Err(gripper::wsg::Error::Timeout { .. })),
-        "{first:?}"
-    );
+    let client =
+        first_call_timed_out(addr, "first width", |c| async move { c.width_mm().await }).await;
     // Queued behind the first request, the second goes out once its id is released (the
     // first's deadline plus the grace), while the first's reply is still on its way.
     let patient = client.with_timeouts(Duration::from_secs(5), Duration::from_secs(5));
@@ -170,17 +178,8 @@ async fn a_device_that_refuses_every_barrier_gets_three_and_the_id_goes_on() {
         b.to_vec()
     };
     let addr = slow_first_tcp_device(Duration::from_millis(300), refuse, loops.clone()).await;
-    let client = Client::builder()
-        .late_reply_grace(Duration::from_millis(50))
-        .connect_tcp(addr)
-        .await
-        .unwrap();
-    let impatient = client.with_timeouts(Duration::from_millis(100), Duration::from_secs(1));
-    let first = within("first width", impatient.width_mm()).await;
-    assert!(
-        matches!(first, Err(gripper::wsg::Error::Timeout { .. })),
-        "{first:?}"
-    );
+    let client =
+        first_call_timed_out(addr, "first width", |c| async move { c.width_mm().await }).await;
     let patient = client.with_timeouts(Duration::from_secs(5), Duration::from_secs(5));
     // The stalled reply came before the refusals: still not taken for this call.
     assert_eq!(
@@ -208,37 +207,26 @@ const CMD_FAILED: u16 = 18;
 /// later finger power on is acknowledged and then fails (E_CMD_FAILED), so its answer tells it
 /// apart from the first one's.
 async fn stalled_finger_power_device() -> SocketAddr {
-    use futures_util::StreamExt;
-    use tokio::io::AsyncWriteExt;
-    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
-    let addr = listener.local_addr().unwrap();
-    tokio::spawn(async move {
-        let (socket, _) = listener.accept().await.unwrap();
-        let (read, mut write) = socket.into_split();
-        let mut requests = tokio_util::codec::FramedRead::new(read, gripper::wsg::WsgCodec::new());
-        let mut stalled: Vec<u8> = Vec::new();
-        let mut powers = 0;
-        while let Some(Ok(request)) = requests.next().await {
-            let mut answer = std::mem::take(&mut stalled);
-            match request.id {
-                id::FINGER1_POWER if powers == 0 => {
-                    powers += 1;
-                    answer.extend(status_reply(id::FINGER1_POWER, CMD_PENDING));
-                    stalled = status_reply(id::FINGER1_POWER, 0);
-                }
-                id::FINGER1_POWER => {
-                    answer.extend(status_reply(id::FINGER1_POWER, CMD_PENDING));
-                    answer.extend(status_reply(id::FINGER1_POWER, CMD_FAILED));
-                }
-                id::LOOP => answer.extend(echo(&request)),
-                other => answer.extend(reply(other, &[])),
+    let mut stalled: Vec<u8> = Vec::new();
+    let mut powers = 0;
+    common::wsg_tcp_device(move |request| {
+        let mut answer = std::mem::take(&mut stalled);
+        match request.id {
+            id::FINGER1_POWER if powers == 0 => {
+                powers += 1;
+                answer.extend(status_reply(id::FINGER1_POWER, CMD_PENDING));
+                stalled = status_reply(id::FINGER1_POWER, 0);
             }
-            if write.write_all(&answer).await.is_err() {
-                return;
+            id::FINGER1_POWER => {
+                answer.extend(status_reply(id::FINGER1_POWER, CMD_PENDING));
+                answer.extend(status_reply(id::FINGER1_POWER, CMD_FAILED));
             }
+            id::LOOP => answer.extend(echo(&request)),
+            other => answer.extend(reply(other, &[])),
         }
-    });
-    addr
+        std::future::ready(answer)
+    })
+    .await
 }
 
 /// (c) TCP: finger power on, acknowledged, its caller timed out; its final reply, stalled on
@@ -248,21 +236,11 @@ async fn stalled_finger_power_device() -> SocketAddr {
 /// call is answered by its own replies.
 #[tokio::test]
 async fn a_finger_power_final_reply_stalled_past_the_grace_never_answers_the_next_call() {
-    let client = Client::builder()
-        .late_reply_grace(Duration::from_millis(50))
-        .connect_tcp(stalled_finger_power_device().await)
-        .await
-        .unwrap();
-    let impatient = client.with_timeouts(Duration::from_millis(100), Duration::from_secs(1));
-    let first = within(
-        "first finger power on",
-        impatient.set_finger_power(gripper::wsg::Finger::One, true),
-    )
+    let addr = stalled_finger_power_device().await;
+    let client = first_call_timed_out(addr, "first finger power on", |c| async move {
+        c.set_finger_power(gripper::wsg::Finger::One, true).await
+    })
     .await;
-    assert!(
-        matches!(first, Err(gripper::wsg::Error::Timeout { .. })),
-        "{first:?}"
-    );
     let patient = client.with_timeouts(Duration::from_secs(5), Duration::from_secs(5));
     let second = within(
         "second finger power on",

@@ -16,10 +16,9 @@ use common::within;
 
 use std::time::Duration;
 
-use gripper::fault::{At, Fault, FaultProxy, Framing, ProxyConfig};
+use gripper::fault::{At, Fault, FaultProxy};
 use gripper::wsg::client::RESEND_STOP_AFTER;
 use gripper::wsg::command::id;
-use gripper::wsg::frame::frame_len;
 use gripper::wsg::sim::{Model, SimConfig, SimServer};
 use gripper::wsg::{Client, Error, HomingDirection, Status, SystemState};
 
@@ -29,15 +28,7 @@ const SHORT: Duration = Duration::from_millis(30);
 const SURE: Duration = Duration::from_secs(60);
 /// The simulator, the proxy before it, and a client through the proxy.
 async fn rig() -> (SimServer, FaultProxy, Client) {
-    let sim = SimServer::bind("127.0.0.1:0", SimConfig::new(Model::Wsg50))
-        .await
-        .unwrap();
-    let proxy = FaultProxy::start_with(
-        sim.local_addr().unwrap(),
-        ProxyConfig::new().framing(Framing::Custom(frame_len)),
-    )
-    .await
-    .unwrap();
+    let (sim, proxy) = common::wsg_sim_behind_proxy(SimConfig::new(Model::Wsg50)).await;
     let client = Client::builder()
         .query_timeout(SURE)
         .motion_timeout(SURE)

@@ -5,6 +5,9 @@
 //! grace, and the call failed with an error naming the connection's timeout. Raw "grippers"
 //! on loopback sockets, on tokio's paused clock (the device's delay costs no wall time).
 
+mod common;
+
+use std::future::Future;
 use std::net::SocketAddr;
 use std::time::Duration;
 
@@ -31,41 +34,31 @@ fn reply(command: u8, data: &[u8]) -> Vec<u8> {
     b.to_vec()
 }
 
-/// The answer to a request: a width of `n + 1` mm for the `n`th width request (from 0), after
-/// its delay, so each answer names its request; an echo for a loop-back; an empty E_SUCCESS
-/// otherwise.
-async fn answer(request: &Frame, widths: &mut usize) -> Vec<u8> {
-    match request.id {
-        id::WIDTH => {
-            let n = *widths;
-            *widths += 1;
-            tokio::time::sleep(DELAYS.get(n).copied().unwrap_or_default()).await;
-            reply(id::WIDTH, &(n as f32 + 1.0).to_le_bytes())
+/// The answer to a request: a width of `n + 1` mm for the `n`th width request (from 0, counted
+/// in `widths` as the request is read), after its delay, so each answer names its request; an
+/// echo for a loop-back; an empty E_SUCCESS otherwise. The count moves on before the answer is
+/// awaited, so the answer owns all it needs (a device's task holds it across its delay).
+fn answer(request: Frame, widths: &mut usize) -> impl Future<Output = Vec<u8>> + Send + 'static {
+    let n = *widths;
+    if request.id == id::WIDTH {
+        *widths += 1;
+    }
+    async move {
+        match request.id {
+            id::WIDTH => {
+                tokio::time::sleep(DELAYS.get(n).copied().unwrap_or_default()).await;
+                reply(id::WIDTH, &(n as f32 + 1.0).to_le_bytes())
+            }
+            id::LOOP => reply(id::LOOP, &request.payload),
+            other => reply(other, &[]),
         }
-        id::LOOP => reply(id::LOOP, &request.payload),
-        other => reply(other, &[]),
     }
 }
 
 /// A TCP "gripper" that answers its requests one after the other, in order.
 async fn slow_tcp_device() -> SocketAddr {
-    use futures_util::StreamExt;
-    use tokio::io::AsyncWriteExt;
-    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
-    let addr = listener.local_addr().unwrap();
-    tokio::spawn(async move {
-        let (socket, _) = listener.accept().await.unwrap();
-        let (read, mut write) = socket.into_split();
-        let mut requests = tokio_util::codec::FramedRead::new(read, gripper::wsg::WsgCodec::new());
-        let mut widths = 0;
-        while let Some(Ok(request)) = requests.next().await {
-            let bytes = answer(&request, &mut widths).await;
-            if write.write_all(&bytes).await.is_err() {
-                return;
-            }
-        }
-    });
-    addr
+    let mut widths = 0;
+    common::wsg_tcp_device(move |request| answer(request, &mut widths)).await
 }
 
 /// A UDP "gripper" that answers its requests one after the other.
@@ -82,7 +75,7 @@ async fn slow_udp_device() -> SocketAddr {
             else {
                 continue;
             };
-            let bytes = answer(&request, &mut widths).await;
+            let bytes = answer(request, &mut widths).await;
             let _ = socket.send_to(&bytes, from).await;
         }
     });

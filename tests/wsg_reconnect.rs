@@ -10,10 +10,8 @@ use std::time::Duration;
 
 use common::{next_event, policy, LIMIT};
 use futures_util::StreamExt;
-use gripper::fault::{FaultProxy, Framing, ProxyConfig};
 use gripper::reconnect::{ConnectionEvent, ReconnectPolicy};
 use gripper::wsg::command::id;
-use gripper::wsg::frame::frame_len;
 use gripper::wsg::sim::{Model, SimConfig, SimServer};
 use gripper::wsg::{Client, Error, HomingDirection, Status, SystemState, UpdateOptions};
 
@@ -23,18 +21,8 @@ fn count(sim: &SimServer, command: u8) -> usize {
 
 #[tokio::test]
 async fn a_cut_connection_is_restored_with_its_streams_and_the_move_is_not_resent() {
-    let sim = SimServer::bind(
-        "127.0.0.1:0",
-        SimConfig::new(Model::Wsg50).with_part(40.0, 2.0),
-    )
-    .await
-    .unwrap();
-    let proxy = FaultProxy::start_with(
-        sim.local_addr().unwrap(),
-        ProxyConfig::new().framing(Framing::Custom(frame_len)),
-    )
-    .await
-    .unwrap();
+    let (sim, proxy) =
+        common::wsg_sim_behind_proxy(SimConfig::new(Model::Wsg50).with_part(40.0, 2.0)).await;
     let client = Client::builder()
         .reconnect(policy(None))
         .connect_tcp(proxy.local_addr())

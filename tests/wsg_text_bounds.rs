@@ -96,12 +96,20 @@ async fn full_queue(client: &Client, gripper: &mut Gripper) -> [tokio::task::Joi
     [first]
 }
 
-/// Issue 29 K: `STOP()` is written at once while the queue is full of calls waiting for a busy
-/// name (and the channel holds a call behind them): a stop never waits behind the queue.
-#[tokio::test]
-async fn stop_is_written_at_once_behind_a_full_queue() {
+/// A client with `queue_len` whose `MOVE(10)` runs (see [`full_queue`]), a `MOVE(20)` made
+/// behind it that waits for the name, and a `POS?` made after that: the calls queued behind a
+/// busy name, for the tests below to end in their own ways (a stop, a `BYE()`).
+async fn calls_behind_a_busy_move(
+    queue_len: usize,
+) -> (
+    Client,
+    Gripper,
+    tokio::task::JoinHandle<()>,
+    tokio::task::JoinHandle<gripper::wsg::text::Result<()>>,
+    tokio::task::JoinHandle<gripper::wsg::text::Result<f64>>,
+) {
     let config = ClientConfig {
-        queue_len: 1,
+        queue_len,
         ..ClientConfig::default()
     };
     let (client, mut gripper) = pair(config).await;
@@ -114,6 +122,14 @@ async fn stop_is_written_at_once_behind_a_full_queue() {
         let client = client.clone();
         async move { client.position_mm().await }
     });
+    (client, gripper, first, second, query)
+}
+
+/// Issue 29 K: `STOP()` is written at once while the queue is full of calls waiting for a busy
+/// name (and the channel holds a call behind them): a stop never waits behind the queue.
+#[tokio::test]
+async fn stop_is_written_at_once_behind_a_full_queue() {
+    let (client, mut gripper, first, second, query) = calls_behind_a_busy_move(1).await;
     let stop = tokio::spawn({
         let client = client.clone();
         async move { client.stop().await }
@@ -173,25 +189,23 @@ async fn lines_until_closed(gripper: &mut Gripper) -> Vec<String> {
     lines
 }
 
+/// The end of the tests below whose `close()` ends the session: the client writes nothing more
+/// before it closes the connection, and a later call fails `Closed` (within [`LIMIT`]).
+async fn closed_with_nothing_more_written(client: &Client, gripper: &mut Gripper) {
+    assert_eq!(lines_until_closed(gripper).await, Vec::<String>::new());
+    let after = tokio::time::timeout(LIMIT, client.position_mm()).await;
+    assert!(
+        matches!(after, Ok(Err(gripper::wsg::text::Error::Closed))),
+        "{after:?}"
+    );
+}
+
 /// Issue 29 N: a call waiting for a busy name when `BYE()` goes out is never written, even
 /// when a reply frees its name before `ACK BYE`; it fails `Closed`.
 #[tokio::test]
 async fn nothing_is_written_after_bye() {
-    let config = ClientConfig {
-        queue_len: 4,
-        ..ClientConfig::default()
-    };
-    let (client, mut gripper) = pair(config).await;
-    let [first] = full_queue(&client, &mut gripper).await;
-    let second = tokio::spawn({
-        let client = client.clone();
-        async move { client.move_to(20.0, None).await }
-    });
-    // Written once MOVE(20) waits in the task (the channel is read in order).
-    let query = tokio::spawn({
-        let client = client.clone();
-        async move { client.position_mm().await }
-    });
+    let (client, mut gripper, first, second, query) = calls_behind_a_busy_move(4).await;
+    // The query is written once MOVE(20) waits in the task (the channel is read in order).
     assert_eq!(gripper.line().await.as_deref(), Some("POS?"));
     gripper.reply("POS=10").await;
     query.await.unwrap().unwrap();
@@ -228,12 +242,7 @@ async fn bye_refused_still_closes() {
         matches!(refused, Err(gripper::wsg::text::Error::Device { .. })),
         "{refused:?}"
     );
-    assert_eq!(lines_until_closed(&mut gripper).await, Vec::<String>::new());
-    let after = tokio::time::timeout(LIMIT, client.position_mm()).await;
-    assert!(
-        matches!(after, Ok(Err(gripper::wsg::text::Error::Closed))),
-        "{after:?}"
-    );
+    closed_with_nothing_more_written(&client, &mut gripper).await;
 }
 
 /// Issue 29 N: `BYE()` unanswered: `close()` times out, and the connection is closed then: a
@@ -256,6 +265,24 @@ async fn bye_unanswered_closes_when_close_times_out() {
     assert_eq!(lines_until_closed(&mut gripper).await, Vec::<String>::new());
 }
 
+/// A call without timeout whose reply arrived damaged still ends (within [`LIMIT`]: a hang
+/// fails the test, naming `what`), and it fails `MalformedReply`.
+async fn ends_malformed<T: std::fmt::Debug>(
+    what: &str,
+    call: tokio::task::JoinHandle<gripper::wsg::text::Result<T>>,
+) {
+    let ended = tokio::time::timeout(LIMIT, call)
+        .await
+        .unwrap_or_else(|_| panic!("{what} never ended"));
+    assert!(
+        matches!(
+            ended,
+            Ok(Err(gripper::wsg::text::Error::MalformedReply { .. }))
+        ),
+        "{ended:?}"
+    );
+}
+
 /// Issue 29 M: a call without timeout whose reply arrives damaged (here `damaged`) ends: the
 /// client probes with a query, and once a reply written after the damaged line arrives, the
 /// call fails `MalformedReply` and its name is free for the next call.
@@ -270,16 +297,7 @@ async fn damaged_reply_of_a_call_without_timeout(damaged: &str) {
     gripper.reply(damaged).await;
     assert_eq!(gripper.line().await.as_deref(), Some("GRIPSTATE?"));
     gripper.reply("GRIPSTATE=0").await;
-    let failed = tokio::time::timeout(LIMIT, call)
-        .await
-        .expect("the call never ended");
-    assert!(
-        matches!(
-            failed,
-            Ok(Err(gripper::wsg::text::Error::MalformedReply { .. }))
-        ),
-        "{failed:?}"
-    );
+    ends_malformed("the call", call).await;
     // VERBOSE is free again.
     let again = tokio::spawn(async move { forever.set_verbose(true).await });
     assert_eq!(gripper.line().await.as_deref(), Some("VERBOSE=1"));
@@ -330,6 +348,27 @@ async fn overdue_move(after_ack: &[&str]) -> (Client, Gripper) {
     (client, gripper)
 }
 
+/// The connection is up and `MOVE` free after an overdue `MOVE` ended: a `MOVE(20)` is written
+/// within `within` and served.
+async fn move_is_free_again(client: &Client, gripper: &mut Gripper, within: Duration) {
+    let again = tokio::spawn({
+        let client = client.clone();
+        async move { client.move_to(20.0, None).await }
+    });
+    let line = line_within(gripper, within, "MOVE(20)").await;
+    assert!(line.starts_with("MOVE(20"), "{line}");
+    gripper.reply("ACK MOVE").await;
+    gripper.reply("FIN MOVE").await;
+    again.await.unwrap().unwrap();
+}
+
+/// The gripper answers the client's `GRIPSTATE?` check of an overdue `MOVE`: no motion
+/// (`GRIPSTATE=0`). The `MOVE` ends and the connection stays: `MOVE` is free again.
+async fn reported_over_the_motion_ends(client: &Client, gripper: &mut Gripper) {
+    gripper.reply("GRIPSTATE=0").await;
+    move_is_free_again(client, gripper, Duration::from_secs(5)).await;
+}
+
 /// Issue 29 L: an acknowledged motion whose `FIN` comes later than its timeout +
 /// `give_up_after` is checked with `GRIPSTATE?`, not given up on time alone: while the gripper
 /// reports it running, the connection stays, and its late `FIN` is consumed when it comes.
@@ -343,16 +382,8 @@ async fn a_slow_acknowledged_motion_is_checked_not_given_up() {
     assert_eq!(line, "GRIPSTATE?");
     gripper.reply("GRIPSTATE=6").await;
     gripper.reply("FIN MOVE").await;
-    // The connection is up and MOVE is free.
-    let again = tokio::spawn({
-        let client = client.clone();
-        async move { client.move_to(20.0, None).await }
-    });
-    let line = gripper.line().await.unwrap();
-    assert!(line.starts_with("MOVE(20"), "{line}");
-    gripper.reply("ACK MOVE").await;
-    gripper.reply("FIN MOVE").await;
-    again.await.unwrap().unwrap();
+    // The connection is up and MOVE is free (the line within `Gripper::line`'s bound).
+    move_is_free_again(&client, &mut gripper, LIMIT).await;
 }
 
 /// Issue 29 L: a motion the gripper reports over whose `FIN` still does not come gets the
@@ -374,16 +405,7 @@ async fn a_motion_reported_over_without_its_fin_gives_the_connection_up() {
 #[tokio::test]
 async fn a_motion_whose_fin_was_damaged_ends_when_reported_over() {
     let (client, mut gripper) = overdue_move(&["FIN MOVX"]).await;
-    gripper.reply("GRIPSTATE=0").await;
-    let again = tokio::spawn({
-        let client = client.clone();
-        async move { client.move_to(20.0, None).await }
-    });
-    let line = line_within(&mut gripper, Duration::from_secs(5), "MOVE(20)").await;
-    assert!(line.starts_with("MOVE(20"), "{line}");
-    gripper.reply("ACK MOVE").await;
-    gripper.reply("FIN MOVE").await;
-    again.await.unwrap().unwrap();
+    reported_over_the_motion_ends(&client, &mut gripper).await;
 }
 
 /// The hang of issue 29 M's residual (`wsg-text:0x3bac8274f6da31e9`): `close()` without
@@ -397,22 +419,8 @@ async fn close_without_timeout_ends_when_ack_bye_is_damaged() {
     let close = tokio::spawn(async move { forever.close().await });
     assert_eq!(gripper.line().await.as_deref(), Some("BYE()"));
     gripper.reply("@CK BYE").await;
-    let closed = tokio::time::timeout(LIMIT, close)
-        .await
-        .expect("close() never ended");
-    assert!(
-        matches!(
-            closed,
-            Ok(Err(gripper::wsg::text::Error::MalformedReply { .. }))
-        ),
-        "{closed:?}"
-    );
-    assert_eq!(lines_until_closed(&mut gripper).await, Vec::<String>::new());
-    let after = tokio::time::timeout(LIMIT, client.position_mm()).await;
-    assert!(
-        matches!(after, Ok(Err(gripper::wsg::text::Error::Closed))),
-        "{after:?}"
-    );
+    ends_malformed("close()", close).await;
+    closed_with_nothing_more_written(&client, &mut gripper).await;
 }
 
 /// The bound above is not eager: with a query written before `BYE()` still unanswered, its
@@ -454,12 +462,7 @@ async fn close_without_timeout_given_up_closes_the_connection() {
     assert_eq!(gripper.line().await.as_deref(), Some("BYE()"));
     close.abort();
     let _ = close.await;
-    assert_eq!(lines_until_closed(&mut gripper).await, Vec::<String>::new());
-    let after = tokio::time::timeout(LIMIT, client.position_mm()).await;
-    assert!(
-        matches!(after, Ok(Err(gripper::wsg::text::Error::Closed))),
-        "{after:?}"
-    );
+    closed_with_nothing_more_written(&client, &mut gripper).await;
 }
 
 /// Polls `future` once (it must not be ready yet): a call made then is in the client's channel.
@@ -565,21 +568,43 @@ async fn move_and_query() -> (
     (client, gripper, motion, temp)
 }
 
-/// The rest of both tests below: the overdue `MOVE` is checked with `GRIPSTATE?`, ends once
+/// The rest of the tests below: the overdue `MOVE` is checked with `GRIPSTATE?`, ends once
 /// the gripper reports no motion, and the connection stays: `MOVE` is free again.
 async fn overdue_motion_ends_and_the_connection_stays(client: &Client, gripper: &mut Gripper) {
     let line = line_within(gripper, Duration::from_secs(5), "GRIPSTATE?").await;
     assert_eq!(line, "GRIPSTATE?");
-    gripper.reply("GRIPSTATE=0").await;
-    let again = tokio::spawn({
-        let client = client.clone();
-        async move { client.move_to(20.0, None).await }
-    });
-    let line = line_within(gripper, Duration::from_secs(5), "MOVE(20)").await;
-    assert!(line.starts_with("MOVE(20"), "{line}");
-    gripper.reply("ACK MOVE").await;
-    gripper.reply("FIN MOVE").await;
-    again.await.unwrap().unwrap();
+    reported_over_the_motion_ends(client, gripper).await;
+}
+
+/// The rest of the tests below whose `MOVE(10)` timed out: its call fails `Timeout`, and then
+/// the motion ends as [`overdue_motion_ends_and_the_connection_stays`] checks.
+async fn the_move_timed_out_and_ends(
+    client: &Client,
+    gripper: &mut Gripper,
+    motion: tokio::task::JoinHandle<gripper::wsg::text::Result<()>>,
+) {
+    let moved = motion.await.unwrap();
+    assert!(
+        matches!(moved, Err(gripper::wsg::text::Error::Timeout { .. })),
+        "{moved:?}"
+    );
+    overdue_motion_ends_and_the_connection_stays(client, gripper).await;
+}
+
+/// The rest of the tests below where one damaged line held `TEMP?`'s reply and the `MOVE`'s
+/// `FIN`: `TEMP?` fails `MalformedReply`, and the `MOVE` times out and then ends (above).
+async fn the_query_fails_malformed_and_the_move_ends(
+    client: &Client,
+    gripper: &mut Gripper,
+    motion: tokio::task::JoinHandle<gripper::wsg::text::Result<()>>,
+    temp: tokio::task::JoinHandle<gripper::wsg::text::Result<f64>>,
+) {
+    let temp = temp.await.unwrap();
+    assert!(
+        matches!(temp, Err(gripper::wsg::text::Error::MalformedReply { .. })),
+        "{temp:?}"
+    );
+    the_move_timed_out_and_ends(client, gripper, motion).await;
 }
 
 /// Issue 29 L (`wsg-text:0xaa891d063fc824a5` and its two siblings): two replies run together by
@@ -596,17 +621,7 @@ async fn two_replies_run_together_by_a_damaged_lf_count_as_damaged() {
     // Issue 29 M's probe, written after the damaged line.
     assert_eq!(gripper.line().await.as_deref(), Some("GRIPSTATE?"));
     gripper.reply("GRIPSTATE=6").await;
-    let temp = temp.await.unwrap();
-    assert!(
-        matches!(temp, Err(gripper::wsg::text::Error::MalformedReply { .. })),
-        "{temp:?}"
-    );
-    let moved = motion.await.unwrap();
-    assert!(
-        matches!(moved, Err(gripper::wsg::text::Error::Timeout { .. })),
-        "{moved:?}"
-    );
-    overdue_motion_ends_and_the_connection_stays(&client, &mut gripper).await;
+    the_query_fails_malformed_and_the_move_ends(&client, &mut gripper, motion, temp).await;
 }
 
 /// The same, when the character the LF became leaves a line that still parses as the query's
@@ -620,17 +635,7 @@ async fn a_value_that_is_no_number_counts_as_a_damaged_line() {
     let (client, mut gripper, motion, temp) = move_and_query().await;
     gripper.reply("ACK MOVE").await;
     gripper.reply("TEMP=20JFIN MOVE").await;
-    let temp = temp.await.unwrap();
-    assert!(
-        matches!(temp, Err(gripper::wsg::text::Error::MalformedReply { .. })),
-        "{temp:?}"
-    );
-    let moved = motion.await.unwrap();
-    assert!(
-        matches!(moved, Err(gripper::wsg::text::Error::Timeout { .. })),
-        "{moved:?}"
-    );
-    overdue_motion_ends_and_the_connection_stays(&client, &mut gripper).await;
+    the_query_fails_malformed_and_the_move_ends(&client, &mut gripper, motion, temp).await;
 }
 
 /// The same with a push: `@POS=12.5JERR MOVE 19` (the push's LF read as 0x4A) is a push whose
@@ -643,16 +648,7 @@ async fn a_value_that_is_no_number_counts_as_a_damaged_line() {
 #[tokio::test]
 async fn a_push_whose_value_is_no_number_counts_as_a_damaged_line() {
     let (client, mut gripper) = overdue_move(&["@POS=12.5JERR MOVE 19"]).await;
-    gripper.reply("GRIPSTATE=0").await;
-    let again = tokio::spawn({
-        let client = client.clone();
-        async move { client.move_to(20.0, None).await }
-    });
-    let line = line_within(&mut gripper, Duration::from_secs(5), "MOVE(20)").await;
-    assert!(line.starts_with("MOVE(20"), "{line}");
-    gripper.reply("ACK MOVE").await;
-    gripper.reply("FIN MOVE").await;
-    again.await.unwrap().unwrap();
+    reported_over_the_motion_ends(&client, &mut gripper).await;
 }
 
 /// Issue 29 L with M: a motion whose first reply (`ACK` or `ERR`) arrived damaged, shown lost
@@ -667,12 +663,7 @@ async fn a_motion_whose_first_reply_was_damaged_is_checked_not_given_up() {
     assert_eq!(temp.await.unwrap().unwrap(), 20.0);
     assert_eq!(gripper.line().await.as_deref(), Some("GRIPSTATE?"));
     gripper.reply("GRIPSTATE=0").await;
-    let moved = motion.await.unwrap();
-    assert!(
-        matches!(moved, Err(gripper::wsg::text::Error::Timeout { .. })),
-        "{moved:?}"
-    );
-    overdue_motion_ends_and_the_connection_stays(&client, &mut gripper).await;
+    the_move_timed_out_and_ends(&client, &mut gripper, motion).await;
 }
 
 /// An overdue acknowledged motion on a client whose `query_timeout` is `Duration::MAX`: its

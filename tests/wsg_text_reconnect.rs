@@ -8,7 +8,7 @@ mod common;
 
 use std::time::Duration;
 
-use common::{events_until, policy, within};
+use common::{cut_and_restored, events_until, policy, within};
 use futures_util::StreamExt as _;
 use gripper::fault::{FaultProxy, Framing, ProxyConfig};
 use gripper::reconnect::ConnectionEvent;
@@ -52,17 +52,7 @@ async fn reconnects_after_a_cut_and_restores_the_connections_settings_and_pushes
     let mut events = client.connection_events();
     let sent = proxy.client_to_server().stats().frames;
 
-    proxy.cut_connections();
-    let got = events_until(&mut events, |e| {
-        matches!(e, ConnectionEvent::Restored { .. })
-    })
-    .await;
-    assert!(
-        matches!(got.first(), Some(ConnectionEvent::Lost { .. })),
-        "{got:?}"
-    );
-    assert!(got.contains(&ConnectionEvent::Connected), "{got:?}");
-    assert_eq!(got.last(), Some(&ConnectionEvent::Restored { attempts: 1 }));
+    cut_and_restored(&proxy, &mut events).await;
     // Restoring sent exactly the four settings, once each.
     assert_eq!(proxy.client_to_server().stats().frames, sent + 4);
     assert_eq!(proxy.stats().connections_accepted, 2);

@@ -151,3 +151,106 @@ pub async fn events_until(
     }
     panic!("the event stream ended after {got:?}");
 }
+
+/// Pulls the cable (`proxy.cut_connections()`) and reads `events` until the client has restored
+/// the connection, holding it to the reconnect contract's first promise on the way: `Lost`
+/// first, then a `Connected`, and `Restored { attempts: 1 }` last. The contract suite and each
+/// protocol's own reconnect suite start from this same checked reconnect before looking at what
+/// their protocol restores.
+#[cfg(feature = "sim")]
+#[allow(dead_code)] // only the reconnect tests use it
+pub async fn cut_and_restored(
+    proxy: &gripper::fault::FaultProxy,
+    events: &mut gripper::reconnect::ConnectionEvents,
+) {
+    use gripper::reconnect::ConnectionEvent;
+    proxy.cut_connections();
+    let got = events_until(events, |e| matches!(e, ConnectionEvent::Restored { .. })).await;
+    assert!(
+        matches!(got.first(), Some(ConnectionEvent::Lost { .. })),
+        "{got:?}"
+    );
+    assert!(got.contains(&ConnectionEvent::Connected), "{got:?}");
+    assert_eq!(got.last(), Some(&ConnectionEvent::Restored { attempts: 1 }));
+}
+
+/// A raw WSG "gripper" on loopback TCP serving one connection: it reads the client's request
+/// frames and answers them one after the other, in order, as the device's command interpreter
+/// does. `answer(request)` gives what to write for a request; the next request is read only
+/// once that is written, so an answer that takes its time stalls the ones behind it, as a slow
+/// device does. Ends when the client closes the connection or a write fails.
+#[allow(dead_code)] // only the raw-socket WSG tests use it
+pub async fn wsg_tcp_device<F>(
+    mut answer: impl FnMut(gripper::wsg::frame::Frame) -> F + Send + 'static,
+) -> std::net::SocketAddr
+where
+    F: std::future::Future<Output = Vec<u8>> + Send + 'static,
+{
+    use futures_util::StreamExt;
+    use tokio::io::AsyncWriteExt;
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let addr = listener.local_addr().unwrap();
+    tokio::spawn(async move {
+        let (socket, _) = listener.accept().await.unwrap();
+        let (read, mut write) = socket.into_split();
+        let mut requests = tokio_util::codec::FramedRead::new(read, gripper::wsg::WsgCodec::new());
+        while let Some(Ok(request)) = requests.next().await {
+            let bytes = answer(request).await;
+            if write.write_all(&bytes).await.is_err() {
+                return;
+            }
+        }
+    });
+    addr
+}
+
+/// The WSG simulator with `config` and a client of it subscribed to the width every 10 ms, with
+/// a subscription buffer of 4 updates: small, so a test soon sees what a full buffer does to
+/// updates not read (missed and counted) and, reading more items than it holds, that new
+/// updates arrive.
+#[cfg(feature = "sim")]
+#[allow(dead_code)] // only the WSG subscription tests use it
+pub async fn wsg_width_subscription(
+    config: gripper::wsg::sim::SimConfig,
+) -> (
+    gripper::wsg::sim::SimServer,
+    gripper::wsg::Client,
+    gripper::wsg::Subscription<f32>,
+) {
+    let sim = gripper::wsg::sim::SimServer::bind("127.0.0.1:0", config)
+        .await
+        .unwrap();
+    let client = gripper::wsg::Client::builder()
+        .subscription_buffer(4)
+        .connect_tcp(sim.local_addr().unwrap())
+        .await
+        .unwrap();
+    let widths = client
+        .subscribe_width_mm(gripper::wsg::UpdateOptions::periodic(
+            std::time::Duration::from_millis(10),
+        ))
+        .await
+        .unwrap();
+    (sim, client, widths)
+}
+
+/// The WSG simulator with `config` and a fault proxy before it that cuts the byte stream into
+/// WSG frames (`wsg::frame::frame_len`), so that a fault can target one frame; the client under
+/// test connects to the proxy.
+#[cfg(feature = "sim")]
+#[allow(dead_code)] // only the WSG tests through the fault proxy use it
+pub async fn wsg_sim_behind_proxy(
+    config: gripper::wsg::sim::SimConfig,
+) -> (gripper::wsg::sim::SimServer, gripper::fault::FaultProxy) {
+    use gripper::fault::{FaultProxy, Framing, ProxyConfig};
+    let sim = gripper::wsg::sim::SimServer::bind("127.0.0.1:0", config)
+        .await
+        .unwrap();
+    let proxy = FaultProxy::start_with(
+        sim.local_addr().unwrap(),
+        ProxyConfig::new().framing(Framing::Custom(gripper::wsg::frame::frame_len)),
+    )
+    .await
+    .unwrap();
+    (sim, proxy)
+}
