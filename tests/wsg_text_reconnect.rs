@@ -145,3 +145,62 @@ async fn open_with_reconnects_through_the_programs_opener() {
     assert_eq!(client.part_width_tolerance_mm().await.unwrap(), 6.0);
     client.close().await.unwrap();
 }
+
+/// A restored setting is the client's own query: bounded as a probe is, even when the program's
+/// calls have no timeout (`query_timeout(Duration::MAX)`). The reply to the restored `VERBOSE=1`
+/// arrives damaged on the second connection (`VERBOSE}1`: a flipped bit, as the explorer's seed
+/// `wsg-text:0xa9a8dc2d69601835` had it); the restore gives that connection up and the next
+/// attempt restores the session. Before the fix it waited for ever, and every call behind it.
+/// In-memory pipes, so the paused clock runs the bound's seconds at once.
+#[tokio::test(start_paused = true)]
+async fn a_restored_setting_whose_reply_is_damaged_is_bounded_without_a_query_timeout() {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    use std::sync::Arc;
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+
+    let sim = Arc::new(SimServer::in_memory(SimConfig::new(Model::Wsg50).text()));
+    let opened = Arc::new(AtomicUsize::new(0));
+    let open = {
+        let (sim, opened) = (sim.clone(), opened.clone());
+        move || {
+            let (sim, opened) = (sim.clone(), opened.clone());
+            async move {
+                let (near, mut far) = tokio::io::duplex(4096);
+                if opened.fetch_add(1, Ordering::SeqCst) == 1 {
+                    // The second connection: the restored line's reply, damaged; then silence.
+                    tokio::spawn(async move {
+                        let mut line = [0u8; 64];
+                        let _ = far.read(&mut line).await;
+                        let _ = far.write_all(b"VERBOSE}1\n").await;
+                        while far.read(&mut line).await.is_ok_and(|n| n > 0) {}
+                    });
+                } else {
+                    sim.serve_stream(far, gripper::wsg::sim::SessionKind::Tcp);
+                }
+                Ok::<_, std::io::Error>(near)
+            }
+        }
+    };
+    let config = ClientConfig {
+        query_timeout: Duration::MAX,
+        ..reconnecting(None)
+    };
+    let client = Client::open_with(open, config).await.unwrap();
+    assert!(client.set_verbose(true).await.unwrap());
+    let mut events = client.connection_events();
+
+    sim.restart();
+    let got = tokio::time::timeout(
+        Duration::from_secs(600),
+        events_until(&mut events, |e| {
+            matches!(e, ConnectionEvent::Restored { .. })
+        }),
+    )
+    .await
+    .expect("the restore on the damaged connection was never given up");
+    assert_eq!(got.last(), Some(&ConnectionEvent::Restored { attempts: 2 }));
+    assert_eq!(opened.load(Ordering::SeqCst), 3);
+    // The session works again, VERBOSE restored on the third connection.
+    assert!(client.set_verbose(true).await.unwrap());
+    client.close().await.unwrap();
+}

@@ -11,8 +11,8 @@ use std::time::Duration;
 use tokio::sync::{mpsc, oneshot};
 use tokio::time::Instant;
 
+use super::book::{probe_timeout, Book, Handled, WaitingCallers};
 pub(crate) use super::book::{Answer, Expect};
-use super::book::{Book, Handled, WaitingCallers};
 use super::error::Error;
 use super::push::{Push, PushSubscriber};
 use crate::deadline::move_timer;
@@ -213,8 +213,14 @@ impl LineTask for Task {
     }
 
     async fn restore(&self, conn: &mut LineConn) -> Result<(), Error> {
+        // The client's own queries, bounded as a probe is: with a `query_timeout` of
+        // `Duration::MAX` (no timeout for the program's calls), a restored setting whose reply
+        // arrived damaged held the new connection unrestored for good, and every call behind it
+        // (`wsg-text:0xa9a8dc2d69601835`). Unanswered within the bound, the restore fails and
+        // the next attempt connects again.
+        let timeout = probe_timeout(self.config.query_timeout);
         for setting in self.shared.settings() {
-            exchange(conn, setting, self.config.query_timeout, &self.shared).await?;
+            exchange(conn, setting, timeout, &self.shared).await?;
         }
         Ok(())
     }
