@@ -143,6 +143,12 @@ impl SimServer {
         self.with_state(|s| s.inject(fault));
     }
 
+    /// Drops the faults [`inject`](Self::inject) queued that no response has taken yet (a test
+    /// ending its faulty part); returns how many.
+    pub fn clear_faults(&self) -> usize {
+        self.with_state(|s| s.clear_faults())
+    }
+
     /// The robot systems REGISTER_CLIENT reported so far.
     pub fn registered_clients(&self) -> Vec<RobotSystem> {
         self.with_state(|s| s.registered_clients().to_vec())

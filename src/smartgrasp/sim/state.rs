@@ -301,6 +301,13 @@ impl SimState {
         self.faults.push_back(fault);
     }
 
+    /// Drops the faults no response has taken yet; returns how many.
+    pub fn clear_faults(&mut self) -> usize {
+        let queued = self.faults.len();
+        self.faults.clear();
+        queued
+    }
+
     /// The robot systems REGISTER_CLIENT reported, oldest first (at most the last
     /// [`RECORD_LIMIT`]).
     pub fn registered_clients(&self) -> &[RobotSystem] {
@@ -647,6 +654,21 @@ mod tests {
             selection_criterion: SelectionCriterion::default(),
             pose_format: PoseFormat::Abc,
         })
+    }
+
+    /// A fault a test queued and no response took is gone once cleared: the next response is
+    /// plain (a test that ends its faulty part must not have a queued delay land in what
+    /// follows; the explorer's quiet phase, smartgrasp-v4:0xc668e9dd97aab966).
+    #[test]
+    fn cleared_faults_touch_no_later_response() {
+        let mut s = SimState::new(SimConfig::default());
+        let mut c = s.connect();
+        s.inject(Fault::DelayReply(Duration::from_secs(3)));
+        s.inject(Fault::DropReply);
+        assert_eq!(s.clear_faults(), 2);
+        assert_eq!(s.clear_faults(), 0);
+        let frame = Request::GetState.to_any_frame(PROTOCOL_VERSION).unwrap();
+        assert!(matches!(s.handle(&mut c, &frame), Action::Respond(_)));
     }
 
     #[test]
