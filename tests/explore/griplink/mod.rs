@@ -556,7 +556,13 @@ async fn one_call(ctx: Arc<Ctx>, k: usize, op: Op, mut rng: Prng, run_wide: Arc<
     let start = Instant::now();
     // Now and then the caller gives up on the call (its future dropped); a call without
     // timeout is given up on only by the guard of rule 8.
-    let result = if timeout == Duration::MAX {
+    let result = if timeout == Duration::MAX && matches!(op, Op::Wait { .. }) {
+        // A wait helper without timeout waits as long as the device gives it no sign (rule 8
+        // exempts it, `oracle.rs`), and its own WSTRs keep the controller holding a reply: the
+        // guard must not wait on those, or it waits past the run's limit
+        // (griplink-tcp:0x89cd105f4b8ce78c: a transition wait on a port that never changes).
+        unless_given_up(Some(FOREVER_GUARD), perform(&client, &op, &mut rng)).await
+    } else if timeout == Duration::MAX {
         unless_hung(perform(&client, &op, &mut rng), &run_wide.sims).await
     } else {
         let cancel = rng.one_in(8).then(|| rng.millis(1, 500));
