@@ -1050,3 +1050,28 @@ async fn queue_len_usize_max_serves_calls() {
         .unwrap();
     client.protocol().await.unwrap();
 }
+
+/// A VALUEF reply lost, a VALUE query behind it: the VALUE reply (`VALUE[0][0]=…`, an integer in
+/// µm) is next in line for VALUEF. The manual's errata lets the `VALUE` key answer VALUEF, but
+/// only with a fraction: an integer is refused, never read as millimetres a thousand times too
+/// large (griplink-tcp:0x4aa17c929219b038, found by the explorer's long run).
+#[tokio::test]
+async fn an_integer_value_reply_never_answers_valuef_behind_a_lost_reply() {
+    let server = sim().await;
+    let config = ClientConfig {
+        pipeline_depth: 2,
+        ..ClientConfig::default()
+    };
+    let client = Client::connect_with(server.local_addr(), config)
+        .await
+        .unwrap();
+    let port = client.port(0);
+    let integer = port.value(0).await.unwrap();
+    // The next reply the controller sends (VALUEF's) is lost; VALUE's follows it.
+    server.inject(Fault::DropReply);
+    let (float, _) = tokio::join!(port.value_f(0), port.value(0));
+    assert!(
+        matches!(float, Err(Error::UnexpectedReply { .. })),
+        "VALUEF answered by VALUE's reply ({integer} µm): {float:?}"
+    );
+}

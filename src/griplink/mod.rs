@@ -42,6 +42,15 @@
 //! - **Simulator** ([`sim`]): per connection, one command line of at most 1024 bytes (longer:
 //!   `ERR 01`) and one reply; the fault queue holds what the test injected.
 //!
+//! # Where the manual and the field may differ
+//!
+//! The manual's `VALUEF` example answers with the `VALUE` key (`VALUE[0][0]=42.456`; PROTOCOLS.md,
+//! GRIPLINK errata). The client accepts that key for `VALUEF` only with a fraction (or `±INF`):
+//! an integer `VALUE` line is the reply of a `VALUE` query (µm), and taken for a `VALUEF` reply
+//! (mm) behind a lost reply it was a reading a thousand times too large. A firmware that prints
+//! a whole `VALUEF` reading without a fraction *and* under the `VALUE` key gets
+//! [`Error::UnexpectedReply`] for it rather than a value that may be wrong.
+//!
 //! # Example
 //! ```
 //! # #[cfg(feature = "sim")]

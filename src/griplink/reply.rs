@@ -236,11 +236,19 @@ fn parse_err<'a>(c: &mut Cursor<'_>) -> std::result::Result<ReplyRef<'a>, Syntax
     })
 }
 
-/// Whether a reply key answers the expected one. Errata (seed 004): the manual's VALUEF example
-/// answers `VALUE[0][0]=42.456`, so `VALUE` is accepted for `VALUEF`.
-fn key_matches(expected: &str, got: &str) -> bool {
+/// Whether a reply key (and its value) answers the expected one. Errata (seed 004): the
+/// manual's VALUEF example answers `VALUE[0][0]=42.456`, so `VALUE` is accepted for `VALUEF` --
+/// but only with a fraction (or `±INF`, VALUEF's out-of-range value): `VALUE`'s own replies are
+/// integers (µm for a finger position), so an integer `VALUE` line where a VALUEF reply is due
+/// is the reply of a `VALUE` query, the pairing out of step behind a lost reply. Taken as
+/// VALUEF's, it was a reading a thousand times too large (`VALUE[0][0]=20000` µm read as mm:
+/// griplink-tcp:0x4aa17c929219b038). Where a firmware prints a whole VALUEF without a fraction
+/// under the `VALUE` key, the read fails `UnexpectedReply` instead (module docs of `griplink`).
+fn key_matches(expected: &str, got: &str, value: &Value) -> bool {
     got.eq_ignore_ascii_case(expected)
-        || (expected == "VALUEF" && got.eq_ignore_ascii_case("VALUE"))
+        || (expected == "VALUEF"
+            && got.eq_ignore_ascii_case("VALUE")
+            && matches!(value, Value::Float(_)))
 }
 
 fn describe(expect: Expect) -> String {
@@ -309,7 +317,7 @@ pub(crate) fn interpret_datum(command: &str, expect: Expect, line: &str) -> Resu
         ) => {
             // Compared in place: collecting the expected indices would allocate on every reply.
             let want = port.map(i64::from).into_iter().chain(index.map(i64::from));
-            if !key_matches(key, got) || !indices.as_slice().iter().copied().eq(want) {
+            if !key_matches(key, got, &value) || !indices.as_slice().iter().copied().eq(want) {
                 return Err(unexpected());
             }
             let key = if got == key {
@@ -435,6 +443,13 @@ mod tests {
         assert!(interpret("VALUEF[0][0]?", exp, "VALUEF[0][0]=1.5").is_ok());
         // Errata: the manual's example answers VALUE for VALUEF.
         assert!(interpret("VALUEF[0][0]?", exp, "VALUE[0][0]=42.456").is_ok());
+        assert!(interpret("VALUEF[0][0]?", exp, "VALUE[0][0]=+INF").is_ok());
+        // But an integer VALUE line is a VALUE query's reply (µm), never VALUEF's (mm): the
+        // pairing out of step behind a lost reply (griplink-tcp:0x4aa17c929219b038).
+        assert!(matches!(
+            interpret("VALUEF[0][0]?", exp, "VALUE[0][0]=20000"),
+            Err(Error::UnexpectedReply { .. })
+        ));
         assert!(matches!(
             interpret("VALUEF[0][0]?", exp, "VALUEF[1][0]=1.5"),
             Err(Error::UnexpectedReply { .. })
