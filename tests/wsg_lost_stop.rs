@@ -124,3 +124,44 @@ async fn a_motion_the_device_refused_after_a_lost_stop_does_not_drop_it() {
         "the move ended with {moved:?}, not aborted"
     );
 }
+
+/// As above, but the refusal comes late: after the grasp's caller gave up and the client
+/// released the request (fenced: the next frame of its id waits for a barrier's echo), and
+/// before that echo. It is the released request's own answer (one request of an id is on the
+/// wire at a time, and motions are not streamed), so the grasp ran nothing and the lost stop
+/// is still owed. Before the fix the refusal was dropped as a reply of a fenced id, the stop's
+/// decision waited for an answer that had already come, and the stop went out only when a
+/// later motion was refused (27 s later in the explorer's `wsg-tcp:0x701cd76bbfcd92f7`, found
+/// by the long run).
+#[tokio::test]
+async fn a_refusal_that_comes_after_its_motion_was_released_does_not_drop_a_lost_stop() {
+    let (sim, proxy, client) = rig().await;
+    let mover = common::wsg_start_moving(&sim, &client).await;
+    lost_stop(&proxy, &client).await;
+    // The grasp's refusal (the next frame the device sends) is held well past the grasp's
+    // deadline and grace (`rig`: 100 ms), so the client releases the request first.
+    let held = proxy
+        .server_to_client()
+        .add(Fault::Delay(Duration::from_millis(500)).once());
+    let grasp = within(
+        "the grasp's timeout",
+        client.with_timeouts(SHORT, SHORT).grasp(40.0, 50.0),
+    )
+    .await;
+    assert!(
+        matches!(grasp, Err(Error::Timeout { command, .. }) if command == id::GRASP),
+        "{grasp:?}"
+    );
+    let moved = within("the device stops the move", mover).await.unwrap();
+    assert!(
+        matches!(
+            moved,
+            Err(Error::Device {
+                status: Status::CmdAborted,
+                ..
+            })
+        ),
+        "the move ended with {moved:?}, not aborted"
+    );
+    assert_eq!(held.fired(), 1, "the refusal was held");
+}
