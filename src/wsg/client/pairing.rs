@@ -100,6 +100,7 @@ use tokio::time::Instant;
 use self::in_flight::{IdState, InFlight, Settle};
 pub(crate) use self::internal::{Internal, Output, BARRIER_ECHO_LEN};
 use super::stops::{StopDue, Stops};
+use super::FINGER_POWER_ON_DURATION;
 use crate::deadline::{after, is_unbounded};
 use crate::int_map::IntMap;
 use crate::wsg::command::id;
@@ -113,6 +114,12 @@ pub(crate) use super::stops::Token;
 /// by the device with E_ALREADY_RUNNING while another motion runs.
 pub(crate) fn is_motion(id: u8) -> bool {
     matches!(id, id::HOMING | id::PRE_POSITION | id::GRASP | id::RELEASE)
+}
+
+/// Whether a request of `id` may be acknowledged (E_CMD_PENDING, 1.3) and finish later: a
+/// motion, or finger power (on, 3.6.3: "nach etwa 500 ms").
+fn may_be_acknowledged(id: u8) -> bool {
+    is_motion(id) || matches!(id, id::FINGER1_POWER | id::FINGER2_POWER)
 }
 
 /// Whether `id` is stop or FAST STOP (manual 3.2.3, 3.2.4): never queued.
@@ -348,7 +355,10 @@ impl Pairing {
         }
         if let Some(st) = self.ids.get_mut(&id) {
             st.fenced = false;
-            if let Some(mut f) = st.released.take() {
+            // A released motion goes back under recovery (it may run, its acknowledgement
+            // lost); a released finger power request never acknowledged before the echo got
+            // no reply at all: it runs nothing, and nothing of it is owed.
+            if let Some(mut f) = st.released.take().filter(|_| is_motion(id)) {
                 f.acknowledged = true;
                 f.probe_at = Some(now);
                 st.in_flight = Some(f);
@@ -468,7 +478,7 @@ impl Pairing {
     }
 
     /// Pairs a received reply.
-    fn on_reply(&mut self, reply: Reply) -> Event {
+    fn on_reply(&mut self, reply: Reply, now: impl Fn() -> Instant) -> Event {
         if is_stop(reply.id) {
             let done = self.stop_replied(reply.id);
             return if done.is_empty() {
@@ -481,6 +491,20 @@ impl Pairing {
             return Event::Unsolicited(reply);
         };
         if st.in_flight.is_none() && reply.status == Status::CmdPending {
+            if let Some(mut f) = st.released.take_if(|_| !is_motion(reply.id)) {
+                // Finger power on, released unacknowledged (its request reached the device
+                // late), accepted now: it ends FINGER_POWER_ON_DURATION from now, its final
+                // reply then, likely after the barrier's echo would free the id. Back on the
+                // wire, acknowledged, kept until it has ended, so that final reply cannot
+                // answer the next request of the id (the explorer's wsg-tcp:0xe47e133ec0985c92:
+                // the next finger power on returned the old one's E_SUCCESS at once).
+                f.acknowledged = true;
+                f.held = false;
+                f.ended_release_at = after(after(now(), FINGER_POWER_ON_DURATION), self.grace);
+                let token = f.token;
+                st.in_flight = Some(f);
+                return Event::Accepted(token);
+            }
             if let Some(mut f) = st.released.take() {
                 // The released motion was received after all and runs: its final reply will
                 // come at any time, before or after the barrier. Back on the wire, acknowledged,
@@ -774,7 +798,7 @@ impl Pairing {
                 // (module docs; wsg-serial:0xfdb842249ad7b4b3).
                 st.fenced = true;
                 out.push(Due::Fenced(*id, f.token));
-                st.released = st.in_flight.take().filter(|_| is_motion(*id));
+                st.released = st.in_flight.take().filter(|_| may_be_acknowledged(*id));
             } else {
                 out.push(Due::Released(*id, f.token));
                 st.in_flight = None;

@@ -174,7 +174,7 @@ impl Pairing {
         now: impl Fn() -> Instant,
     ) -> Option<(Token, Reply)> {
         let id = reply.id;
-        match self.on_reply(reply) {
+        match self.on_reply(reply, &now) {
             Event::Accepted(_) => {
                 tracing::debug!(id, "WSG command accepted (E_CMD_PENDING)");
                 // Motion calls of the id queued behind it: ask the device whether it moves.

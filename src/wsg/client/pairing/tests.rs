@@ -35,22 +35,22 @@ fn same_id_queues_different_ids_run() {
     assert!(matches!(p.submit(req(2, 0x43, t), now), Submit::Queued));
     assert_eq!(sent(p.submit(req(3, 0x40, t), now)), Some(3));
     assert_eq!(
-        p.on_reply(reply(0x40, Status::Success)),
+        p.on_reply(reply(0x40, Status::Success), Instant::now),
         Event::Resolved(3, reply(0x40, Status::Success))
     );
     assert_eq!(
-        p.on_reply(reply(0x43, Status::Success)),
+        p.on_reply(reply(0x43, Status::Success), Instant::now),
         Event::Resolved(1, reply(0x43, Status::Success))
     );
     let (next, skipped) = p.next(0x43, |_| true, Instant::now());
     assert_eq!(next.map(|r| r.token), Some(2));
     assert!(skipped.is_empty());
     assert!(matches!(
-        p.on_reply(reply(0x43, Status::Success)),
+        p.on_reply(reply(0x43, Status::Success), Instant::now),
         Event::Resolved(2, _)
     ));
     assert!(matches!(
-        p.on_reply(reply(0x43, Status::Success)),
+        p.on_reply(reply(0x43, Status::Success), Instant::now),
         Event::Unsolicited(_)
     ));
 }
@@ -67,21 +67,33 @@ fn a_streamed_query_is_answered_by_the_last_frame_before_its_barrier() {
     let width = |mm: u8| Reply::new(0x43, Status::Success, Bytes::from(vec![mm]));
     assert_eq!(sent(p.submit(req(1, 0x43, t), now)), Some(1));
     p.settle_by_barrier(0x43, 1);
-    assert_eq!(p.on_reply(width(1)), Event::Unsolicited(width(1)));
-    assert_eq!(p.on_reply(width(2)), Event::Unsolicited(width(2)));
+    assert_eq!(
+        p.on_reply(width(1), Instant::now),
+        Event::Unsolicited(width(1))
+    );
+    assert_eq!(
+        p.on_reply(width(2), Instant::now),
+        Event::Unsolicited(width(2))
+    );
     assert_eq!(p.settle(0x43, 1), Some(width(2)));
     assert!(!p.done(0x43));
     // No frame before the echo: lost, and a later frame does not answer it.
     assert_eq!(sent(p.submit(req(2, 0x43, t), now)), Some(2));
     p.settle_by_barrier(0x43, 2);
     assert_eq!(p.settle(0x43, 2), None);
-    assert_eq!(p.on_reply(width(3)), Event::Unsolicited(width(3)));
+    assert_eq!(
+        p.on_reply(width(3), Instant::now),
+        Event::Unsolicited(width(3))
+    );
     // A refusal is no update: it answers at once.
     let mut q = Pairing::new(Duration::from_secs(1));
     assert_eq!(sent(q.submit(req(3, 0x43, t), now)), Some(3));
     q.settle_by_barrier(0x43, 3);
     let refused = reply(0x43, Status::CmdFormatError);
-    assert_eq!(q.on_reply(refused.clone()), Event::Resolved(3, refused));
+    assert_eq!(
+        q.on_reply(refused.clone(), Instant::now),
+        Event::Resolved(3, refused)
+    );
     assert_eq!(q.settle(0x43, 3), None);
 }
 
@@ -92,7 +104,7 @@ fn pending_then_final_and_stop_is_not_blocked() {
     let mut p = Pairing::new(Duration::from_secs(1));
     assert_eq!(sent(p.submit(req(1, 0x21, t), now)), Some(1));
     assert_eq!(
-        p.on_reply(reply(0x21, Status::CmdPending)),
+        p.on_reply(reply(0x21, Status::CmdPending), Instant::now),
         Event::Accepted(1)
     );
     assert_eq!(
@@ -101,11 +113,11 @@ fn pending_then_final_and_stop_is_not_blocked() {
         "stop must not wait for the move"
     );
     assert!(matches!(
-        p.on_reply(reply(0x22, Status::Success)),
+        p.on_reply(reply(0x22, Status::Success), Instant::now),
         Event::Stopped(ref t, _) if t == &[2]
     ));
     assert!(
-        matches!(p.on_reply(reply(0x21, Status::CmdAborted)), Event::Resolved(1, r) if r.status == Status::CmdAborted)
+        matches!(p.on_reply(reply(0x21, Status::CmdAborted), Instant::now), Event::Resolved(1, r) if r.status == Status::CmdAborted)
     );
 }
 
@@ -123,18 +135,18 @@ fn stops_are_never_queued_and_a_reply_completes_only_the_calls_it_can_answer() {
         // The first reply may answer the first stop, sent before the second call: it
         // completes the first call only (issue 20.2 #3).
         assert_eq!(
-            p.on_reply(reply(id, Status::Success)),
+            p.on_reply(reply(id, Status::Success), Instant::now),
             Event::Stopped(vec![1], reply(id, Status::Success))
         );
         assert_eq!(
-            p.on_reply(reply(id, Status::Success)),
+            p.on_reply(reply(id, Status::Success), Instant::now),
             Event::Stopped(vec![2], reply(id, Status::Success))
         );
         // A caller that went away is forgotten before the next stop goes out.
         assert_eq!(sent(p.submit(req(3, id, t), now)), Some(3));
         assert_eq!(p.prune(id, |t| t != 3, now), vec![3]);
         assert!(matches!(
-            p.on_reply(reply(id, Status::Success)),
+            p.on_reply(reply(id, Status::Success), Instant::now),
             Event::Unsolicited(_)
         ));
     }
@@ -185,7 +197,7 @@ fn a_request_without_deadline_keeps_its_id_only_for_the_holds() {
     // The next one is bounded from when it was sent.
     assert_eq!(p.next_due(), Some(later + query + grace));
     assert!(matches!(
-        p.on_reply(reply(0x50, Status::Success)),
+        p.on_reply(reply(0x50, Status::Success), Instant::now),
         Event::Resolved(2, _)
     ));
 
@@ -194,7 +206,7 @@ fn a_request_without_deadline_keeps_its_id_only_for_the_holds() {
         Submit::Send(_)
     ));
     assert_eq!(
-        p.on_reply(reply(0x21, Status::CmdPending)),
+        p.on_reply(reply(0x21, Status::CmdPending), Instant::now),
         Event::Accepted(3)
     );
     assert_eq!(p.due(now + motion), vec![Due::Probe(0x21, 3)]);
@@ -216,7 +228,7 @@ fn a_connection_without_motion_timeout_still_recovers_a_motion_without_deadline(
     p.set_holds(query, Duration::MAX);
     assert_eq!(sent(p.submit(req(1, 0x20, never), now)), Some(1));
     assert_eq!(
-        p.on_reply(reply(0x20, Status::CmdPending)),
+        p.on_reply(reply(0x20, Status::CmdPending), Instant::now),
         Event::Accepted(1)
     );
     // Its final reply is lost: the first probe is due the reply hold after the send.
@@ -275,7 +287,7 @@ fn a_connection_without_any_timeout_still_bounds_its_holds() {
     // An acknowledged motion without timeout: probed from the hold on.
     assert_eq!(sent(p.submit(req(3, 0x20, never), now)), Some(3));
     assert_eq!(
-        p.on_reply(reply(0x20, Status::CmdPending)),
+        p.on_reply(reply(0x20, Status::CmdPending), Instant::now),
         Event::Accepted(3)
     );
     assert_eq!(p.due(now + hold), vec![Due::Probe(0x20, 3)]);
@@ -294,7 +306,7 @@ fn an_acknowledged_non_motion_request_is_released_after_its_deadline_and_grace()
     let mut p = Pairing::new(grace);
     assert!(matches!(p.submit(req(1, 0x62, now), now), Submit::Send(_)));
     assert_eq!(
-        p.on_reply(reply(0x62, Status::CmdPending)),
+        p.on_reply(reply(0x62, Status::CmdPending), Instant::now),
         Event::Accepted(1)
     );
     assert!(matches!(p.submit(req(2, 0x62, now), now), Submit::Queued));
@@ -318,7 +330,7 @@ fn a_second_motion_call_is_refused_only_when_a_probe_after_it_sees_the_device_mo
         assert!(matches!(p.submit(req(2, id, t), now), Submit::Queued));
         assert_eq!(p.next_due(), Some(t + Duration::from_secs(1)));
         assert_eq!(
-            p.on_reply(reply(id, Status::CmdPending)),
+            p.on_reply(reply(id, Status::CmdPending), Instant::now),
             Event::Accepted(1)
         );
         // ... and once it does, the device is asked at once (no refusal on a belief).
@@ -340,7 +352,7 @@ fn a_second_motion_call_is_refused_only_when_a_probe_after_it_sees_the_device_mo
         // Nobody waits: no probe before the first call's deadline.
         assert_eq!(p.next_due(), Some(t));
         assert!(matches!(
-            p.on_reply(reply(id, Status::Success)),
+            p.on_reply(reply(id, Status::Success), Instant::now),
             Event::Resolved(1, _)
         ));
         assert_eq!(p.next(id, |_| true, now).0.map(|r| r.token), None);
@@ -349,7 +361,7 @@ fn a_second_motion_call_is_refused_only_when_a_probe_after_it_sees_the_device_mo
     assert!(matches!(p.submit(req(4, 0x21, t), now), Submit::Send(_)));
     assert!(matches!(p.submit(req(5, 0x21, t), now), Submit::Queued));
     assert!(matches!(
-        p.on_reply(reply(0x21, Status::AccessDenied)),
+        p.on_reply(reply(0x21, Status::AccessDenied), Instant::now),
         Event::Resolved(4, _)
     ));
     assert_eq!(
@@ -369,7 +381,7 @@ fn a_lost_final_reply_frees_the_id_for_a_waiting_call_before_the_deadline() {
     let mut p = Pairing::new(grace);
     assert!(matches!(p.submit(req(1, 0x21, t), now), Submit::Send(_)));
     assert_eq!(
-        p.on_reply(reply(0x21, Status::CmdPending)),
+        p.on_reply(reply(0x21, Status::CmdPending), Instant::now),
         Event::Accepted(1)
     );
     assert!(matches!(p.submit(req(2, 0x21, t), now), Submit::Queued));
@@ -401,7 +413,7 @@ fn recovery_needs_two_idle_observations_a_grace_apart() {
         Submit::Send(_)
     ));
     assert_eq!(
-        p.on_reply(reply(0x25, Status::CmdPending)),
+        p.on_reply(reply(0x25, Status::CmdPending), Instant::now),
         Event::Accepted(1)
     );
     // Nothing is due before the caller's deadline, and then a probe, never a release.
@@ -446,7 +458,7 @@ fn recovery_needs_two_idle_observations_a_grace_apart() {
         Submit::Queued
     ));
     assert!(matches!(
-        p.on_reply(reply(0x25, Status::AxisBlocked)),
+        p.on_reply(reply(0x25, Status::AxisBlocked), Instant::now),
         Event::Resolved(1, r) if r.status == Status::AxisBlocked
     ));
     assert_eq!(
@@ -458,7 +470,7 @@ fn recovery_needs_two_idle_observations_a_grace_apart() {
     assert_eq!(next.token, 3);
     // Two idle observations in a row with no final reply: abandoned, the id is free.
     assert_eq!(
-        p.on_reply(reply(0x25, Status::CmdPending)),
+        p.on_reply(reply(0x25, Status::CmdPending), Instant::now),
         Event::Accepted(3)
     );
     let d = next.deadline;
@@ -473,7 +485,7 @@ fn recovery_needs_two_idle_observations_a_grace_apart() {
         Verdict::Abandoned
     );
     assert!(matches!(
-        p.on_reply(reply(0x25, Status::Success)),
+        p.on_reply(reply(0x25, Status::Success), Instant::now),
         Event::Unsolicited(_)
     ));
 }
@@ -497,7 +509,7 @@ fn a_queued_call_pulls_only_the_first_recovery_probe_forward() {
             Submit::Send(_)
         ));
         assert_eq!(
-            p.on_reply(reply(id::HOMING, Status::CmdPending)),
+            p.on_reply(reply(id::HOMING, Status::CmdPending), Instant::now),
             Event::Accepted(1)
         );
         assert_eq!(p.due(now + ms(100)), vec![Due::Probe(id::HOMING, 1)]);
@@ -522,7 +534,7 @@ fn a_queued_call_pulls_only_the_first_recovery_probe_forward() {
         );
         // The home's final reply, 300 ms after the first "not moving", is its own.
         assert_eq!(
-            p.on_reply(reply(id::HOMING, Status::Success)),
+            p.on_reply(reply(id::HOMING, Status::Success), Instant::now),
             Event::Resolved(1, reply(id::HOMING, Status::Success))
         );
         assert_eq!(
@@ -545,31 +557,31 @@ fn replies_that_cannot_answer_the_request_on_the_wire_are_unsolicited() {
     assert!(matches!(p.submit(echo, now), Submit::Send(_)));
     // A copy of an earlier loop reply: another payload.
     assert_eq!(
-        p.on_reply(looped(b"old")),
+        p.on_reply(looped(b"old"), Instant::now),
         Event::Unsolicited(looped(b"old"))
     );
     assert_eq!(
-        p.on_reply(looped(b"mine")),
+        p.on_reply(looped(b"mine"), Instant::now),
         Event::Resolved(1, looped(b"mine"))
     );
     // An acknowledged move refuses a duplicate of itself; its final reply still ends it.
     assert!(matches!(p.submit(req(2, 0x21, t), now), Submit::Send(_)));
     assert_eq!(
-        p.on_reply(reply(0x21, Status::CmdPending)),
+        p.on_reply(reply(0x21, Status::CmdPending), Instant::now),
         Event::Accepted(2)
     );
     assert!(matches!(
-        p.on_reply(reply(0x21, Status::AlreadyRunning)),
+        p.on_reply(reply(0x21, Status::AlreadyRunning), Instant::now),
         Event::Unsolicited(_)
     ));
     assert_eq!(
-        p.on_reply(reply(0x21, Status::Success)),
+        p.on_reply(reply(0x21, Status::Success), Instant::now),
         Event::Resolved(2, reply(0x21, Status::Success))
     );
     // Not acknowledged: E_ALREADY_RUNNING is this request's own refusal.
     assert!(matches!(p.submit(req(3, 0x21, t), now), Submit::Send(_)));
     assert!(matches!(
-        p.on_reply(reply(0x21, Status::AlreadyRunning)),
+        p.on_reply(reply(0x21, Status::AlreadyRunning), Instant::now),
         Event::Resolved(3, _)
     ));
 }
@@ -584,7 +596,7 @@ fn a_pending_reordered_after_its_final_reply_does_not_swallow_the_next_refusal()
     let mut p = Pairing::new(Duration::from_secs(1));
     assert!(matches!(p.submit(req(1, 0x21, t), now), Submit::Send(_)));
     assert_eq!(
-        p.on_reply(reply(0x21, Status::Success)),
+        p.on_reply(reply(0x21, Status::Success), Instant::now),
         Event::Resolved(1, reply(0x21, Status::Success))
     );
     assert_eq!(
@@ -595,22 +607,22 @@ fn a_pending_reordered_after_its_final_reply_does_not_swallow_the_next_refusal()
     // The first request's late E_CMD_PENDING (or the second's own: they cannot be told
     // apart) ...
     assert_eq!(
-        p.on_reply(reply(0x21, Status::CmdPending)),
+        p.on_reply(reply(0x21, Status::CmdPending), Instant::now),
         Event::Accepted(2)
     );
     // ... so the device's refusal of the second still ends it.
     assert_eq!(
-        p.on_reply(reply(0x21, Status::AlreadyRunning)),
+        p.on_reply(reply(0x21, Status::AlreadyRunning), Instant::now),
         Event::Resolved(2, reply(0x21, Status::AlreadyRunning))
     );
     // A request acknowledged with nothing owed still drops a duplicate's refusal.
     assert!(matches!(p.submit(req(3, 0x21, t), now), Submit::Send(_)));
     assert_eq!(
-        p.on_reply(reply(0x21, Status::CmdPending)),
+        p.on_reply(reply(0x21, Status::CmdPending), Instant::now),
         Event::Accepted(3)
     );
     assert!(matches!(
-        p.on_reply(reply(0x21, Status::AlreadyRunning)),
+        p.on_reply(reply(0x21, Status::AlreadyRunning), Instant::now),
         Event::Unsolicited(_)
     ));
 }
@@ -636,7 +648,7 @@ fn an_id_released_without_a_reply_waits_for_its_barrier_on_an_ordered_transport(
     assert!(matches!(p.submit(req(3, 0x43, t), now), Submit::Queued));
     // The late reply answers nobody.
     assert!(matches!(
-        p.on_reply(reply(0x43, Status::Success)),
+        p.on_reply(reply(0x43, Status::Success), Instant::now),
         Event::Unsolicited(_)
     ));
     p.unfence(0x43, now);
@@ -646,7 +658,7 @@ fn an_id_released_without_a_reply_waits_for_its_barrier_on_an_ordered_transport(
             Some(token)
         );
         assert!(matches!(
-            p.on_reply(reply(0x43, Status::Success)),
+            p.on_reply(reply(0x43, Status::Success), Instant::now),
             Event::Resolved(t, _) if t == token
         ));
     }
@@ -670,14 +682,14 @@ fn an_id_released_without_a_reply_waits_for_its_barrier_on_an_ordered_transport(
     ));
     assert_eq!(p.due(t + grace), vec![Due::Fenced(id::GRASP, 6)]);
     assert_eq!(
-        p.on_reply(reply(id::GRASP, Status::CmdPending)),
+        p.on_reply(reply(id::GRASP, Status::CmdPending), Instant::now),
         Event::Accepted(6)
     );
     p.unfence(id::GRASP, now);
     assert_eq!(p.next(id::GRASP, |_| true, now).0.map(|r| r.token), None);
     assert_eq!(p.due(t + grace), vec![Due::Probe(id::GRASP, 6)]);
     assert!(matches!(
-        p.on_reply(reply(id::GRASP, Status::Success)),
+        p.on_reply(reply(id::GRASP, Status::Success), Instant::now),
         Event::Resolved(6, _)
     ));
     // Unordered (UDP): released as before.
@@ -703,7 +715,7 @@ fn an_acknowledged_finger_power_on_is_fenced_on_an_ordered_transport() {
         p.set_ordered(ordered);
         assert_eq!(sent(p.submit(req(1, id::FINGER1_POWER, t), now)), Some(1));
         assert_eq!(
-            p.on_reply(reply(id::FINGER1_POWER, Status::CmdPending)),
+            p.on_reply(reply(id::FINGER1_POWER, Status::CmdPending), Instant::now),
             Event::Accepted(1)
         );
         assert!(matches!(
@@ -725,7 +737,7 @@ fn an_acknowledged_finger_power_on_is_fenced_on_an_ordered_transport() {
         );
         // The stalled final reply, before the echo: it answers nobody.
         assert!(matches!(
-            p.on_reply(reply(id::FINGER1_POWER, Status::Success)),
+            p.on_reply(reply(id::FINGER1_POWER, Status::Success), Instant::now),
             Event::Unsolicited(_)
         ));
         p.unfence(id::FINGER1_POWER, ended);
@@ -737,14 +749,65 @@ fn an_acknowledged_finger_power_on_is_fenced_on_an_ordered_transport() {
         );
         // The next call is answered by its own replies only.
         assert_eq!(
-            p.on_reply(reply(id::FINGER1_POWER, Status::CmdPending)),
+            p.on_reply(reply(id::FINGER1_POWER, Status::CmdPending), Instant::now),
             Event::Accepted(2)
         );
         assert!(matches!(
-            p.on_reply(reply(id::FINGER1_POWER, Status::CmdFailed)),
+            p.on_reply(reply(id::FINGER1_POWER, Status::CmdFailed), Instant::now),
             Event::Resolved(2, _)
         ));
     }
+}
+
+/// The explorer's `wsg-tcp:0xe47e133ec0985c92`, distilled: finger power on's request is held on
+/// the way past its caller's deadline, so the request is released unanswered and fenced; the
+/// device receives it just before the barrier and acknowledges it before the echo. Its final
+/// reply comes about FINGER_POWER_ON_DURATION later, after the echo: the id stays taken until
+/// then, so that final reply does not complete the next finger power call. (Before the fix the
+/// echo freed the id, and the next power-on returned the old one's E_SUCCESS at once.)
+#[test]
+fn a_finger_power_on_acknowledged_after_its_release_keeps_its_id_until_it_has_ended() {
+    let now = Instant::now();
+    let t = now + Duration::from_millis(100);
+    let grace = Duration::from_millis(50);
+    let mut p = Pairing::new(grace);
+    p.set_ordered(true);
+    assert_eq!(sent(p.submit(req(1, id::FINGER1_POWER, t), now)), Some(1));
+    assert_eq!(p.due(t + grace), vec![Due::Fenced(id::FINGER1_POWER, 1)]);
+    assert!(matches!(
+        p.submit(req(2, id::FINGER1_POWER, t + grace), t + grace),
+        Submit::Queued
+    ));
+    // The late request reaches the device: its acknowledgement comes before the echo.
+    let acked = t + Duration::from_secs(2);
+    assert_eq!(
+        p.on_reply(reply(id::FINGER1_POWER, Status::CmdPending), || acked),
+        Event::Accepted(1)
+    );
+    p.unfence(id::FINGER1_POWER, acked);
+    // The id is still taken: the command runs until about FINGER_POWER_ON_DURATION from now.
+    assert_eq!(
+        p.next(id::FINGER1_POWER, |_| true, acked)
+            .0
+            .map(|r| r.token),
+        None
+    );
+    assert!(p.due(acked + FINGER_POWER_ON_DURATION).is_empty());
+    // Its final reply answers it (its caller is gone), not the next call.
+    assert!(matches!(
+        p.on_reply(reply(id::FINGER1_POWER, Status::Success), || acked),
+        Event::Resolved(1, _)
+    ));
+    assert_eq!(
+        p.next(id::FINGER1_POWER, |_| true, acked)
+            .0
+            .map(|r| r.token),
+        Some(2)
+    );
+    assert_eq!(
+        p.on_reply(reply(id::FINGER1_POWER, Status::CmdPending), || acked),
+        Event::Accepted(2)
+    );
 }
 
 /// The explorer's `wsg-tcp:0xbd5fd685504fe279`, distilled: a home's E_CMD_PENDING is
@@ -774,7 +837,7 @@ fn a_released_motion_without_any_reply_stays_under_recovery_after_its_barrier() 
     assert_eq!(p.due(echo), vec![Due::Probe(id::HOMING, 1)]);
     // The first home's final reply ends the first home (its caller is gone), not the next.
     assert_eq!(
-        p.on_reply(reply(id::HOMING, Status::Success)),
+        p.on_reply(reply(id::HOMING, Status::Success), Instant::now),
         Event::Resolved(1, reply(id::HOMING, Status::Success))
     );
     assert_eq!(
@@ -782,7 +845,7 @@ fn a_released_motion_without_any_reply_stays_under_recovery_after_its_barrier() 
         Some(2)
     );
     assert_eq!(
-        p.on_reply(reply(id::HOMING, Status::CmdPending)),
+        p.on_reply(reply(id::HOMING, Status::CmdPending), Instant::now),
         Event::Accepted(2)
     );
 }
@@ -804,7 +867,7 @@ fn a_released_motion_accepted_before_its_barrier_is_probed_within_the_motion_hol
     ));
     assert_eq!(p.due(now + ms(100)), vec![Due::Fenced(id::HOMING, 1)]);
     assert_eq!(
-        p.on_reply(reply(id::HOMING, Status::CmdPending)),
+        p.on_reply(reply(id::HOMING, Status::CmdPending), Instant::now),
         Event::Accepted(1)
     );
     assert_eq!(p.next_due(), Some(now + ms(300)));
@@ -858,7 +921,7 @@ fn a_waiting_stop_call_gets_a_barrier_on_an_ordered_transport() {
     // The echo: the stop sent before it, unanswered, is lost; it is sent again.
     assert!(p.unfence(id::STOP, at));
     assert_eq!(
-        p.on_reply(reply(id::STOP, Status::Success)),
+        p.on_reply(reply(id::STOP, Status::Success), Instant::now),
         Event::Stopped(vec![1], reply(id::STOP, Status::Success))
     );
     assert!(p.drain().is_empty());
@@ -889,7 +952,7 @@ fn a_lost_stop_is_owed_to_the_device_until_a_motion_is_sent_after_it() {
         Some(3)
     );
     assert!(matches!(
-        p.on_reply(reply(id::GRASP, Status::AlreadyRunning)),
+        p.on_reply(reply(id::GRASP, Status::AlreadyRunning), Instant::now),
         Event::Resolved(3, _)
     ));
     let at = now + resend;
@@ -903,7 +966,7 @@ fn a_lost_stop_is_owed_to_the_device_until_a_motion_is_sent_after_it() {
         Some(4)
     );
     assert_eq!(
-        p.on_reply(reply(id::GRASP, Status::CmdPending)),
+        p.on_reply(reply(id::GRASP, Status::CmdPending), Instant::now),
         Event::Accepted(4)
     );
     let at = at + resend;
@@ -921,7 +984,7 @@ fn a_lost_stop_is_owed_to_the_device_until_a_motion_is_sent_after_it() {
         Submit::Queued
     ));
     assert!(matches!(
-        p.on_reply(reply(id::RELEASE, Status::NotInitialized)),
+        p.on_reply(reply(id::RELEASE, Status::NotInitialized), Instant::now),
         Event::Resolved(5, _)
     ));
     assert_eq!(
@@ -937,7 +1000,7 @@ fn a_lost_stop_is_owed_to_the_device_until_a_motion_is_sent_after_it() {
     assert!(p.due(at).is_empty(), "waits for the release's answer");
     // Refused: it ran nothing, and the stop goes out again.
     assert!(matches!(
-        p.on_reply(reply(id::RELEASE, Status::AlreadyRunning)),
+        p.on_reply(reply(id::RELEASE, Status::AlreadyRunning), Instant::now),
         Event::Resolved(7, _)
     ));
     assert!(p.next_due().is_some_and(|due| due <= at));
@@ -945,7 +1008,7 @@ fn a_lost_stop_is_owed_to_the_device_until_a_motion_is_sent_after_it() {
     // Its reply: the timed-out calls (never pruned: no stop call since) are answered, and
     // the task finds their waiters gone.
     assert_eq!(
-        p.on_reply(reply(id::STOP, Status::Success)),
+        p.on_reply(reply(id::STOP, Status::Success), Instant::now),
         Event::Stopped(vec![1, 6], reply(id::STOP, Status::Success))
     );
 }
@@ -961,7 +1024,7 @@ fn prune_drops_only_queued_dead_callers() {
     }
     assert_eq!(p.prune(0x50, |t| t == 1 || t == 4, now), vec![2, 3, 5]);
     assert!(matches!(
-        p.on_reply(reply(0x50, Status::Success)),
+        p.on_reply(reply(0x50, Status::Success), Instant::now),
         Event::Resolved(1, _)
     ));
     let (next, skipped) = p.next(0x50, |_| true, Instant::now());
@@ -1000,13 +1063,13 @@ proptest::proptest! {
                 let (token, asynchronous, acked) = *front;
                 if asynchronous && !acked {
                     front.2 = true;
-                    proptest::prop_assert_eq!(p.on_reply(reply(id, Status::CmdPending)), Event::Accepted(token));
+                    proptest::prop_assert_eq!(p.on_reply(reply(id, Status::CmdPending), Instant::now), Event::Accepted(token));
                     continue;
                 }
                 wire.get_mut(&id).map(VecDeque::pop_front);
                 // The reply carries the token it answers, so a mix-up shows.
                 let r = Reply::new(id, Status::Success, Bytes::copy_from_slice(&token.to_le_bytes()));
-                match p.on_reply(r) {
+                match p.on_reply(r, Instant::now) {
                     Event::Resolved(t, r) => {
                         proptest::prop_assert_eq!(&t.to_le_bytes()[..], &r.data[..]);
                         resolved += 1;
@@ -1052,7 +1115,7 @@ fn a_per_call_timeout_longer_than_the_holds_keeps_its_id_until_its_own_deadline(
         assert!(p.due(now + query + grace).is_empty());
         assert!(p.due(now + ms(5000)).is_empty());
         assert_eq!(
-            p.on_reply(reply(0x43, Status::Success)),
+            p.on_reply(reply(0x43, Status::Success), Instant::now),
             Event::Resolved(1, reply(0x43, Status::Success))
         );
 
@@ -1093,7 +1156,7 @@ fn a_per_call_timeout_longer_than_the_holds_keeps_its_id_until_its_own_deadline(
             Some(5)
         );
         assert_eq!(
-            p.on_reply(reply(id::GRASP, Status::CmdPending)),
+            p.on_reply(reply(id::GRASP, Status::CmdPending), Instant::now),
             Event::Accepted(5)
         );
         assert_eq!(p.next_due(), Some(now + ms(10_000)));
@@ -1140,7 +1203,7 @@ fn a_motion_waits_for_its_acknowledgement_only_the_reply_hold() {
             Some(2)
         );
         assert_eq!(
-            p.on_reply(reply(id::HOMING, Status::CmdPending)),
+            p.on_reply(reply(id::HOMING, Status::CmdPending), Instant::now),
             Event::Accepted(2)
         );
         assert!(p.due(now + query + grace).is_empty());
