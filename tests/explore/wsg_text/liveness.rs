@@ -486,6 +486,17 @@ fn stop(
     let down = downs.iter().rev().find(|(lost, restored)| {
         *lost <= c.start + AT_ONCE && restored.is_none_or(|r| r >= c.start)
     });
+    // A session restored while a new loss began (a device restarting at that very instant)
+    // gave the stop no connection either: the next restore counts (wsg-text:0x23c8c375f62cd632:
+    // a FASTSTOP() made during a backoff, the first restore lost at once, written 64 ms later
+    // at the second).
+    let mut down = down;
+    while let Some((_, Some(r))) = down {
+        match downs.iter().find(|(lost, _)| *lost >= *r && *lost <= *r + AT_ONCE) {
+            Some(next) if !std::ptr::eq(next, down.unwrap()) => down = Some(next),
+            _ => break,
+        }
+    }
     let from = match down {
         None => c.start,
         Some((_, Some(r))) if *r < c.end => *r,
