@@ -74,9 +74,10 @@ fn remembered(index: usize, calls: &[CallRec]) -> BTreeMap<String, Want> {
             }
             (Res::Done, true) => Want::Line(c.line.clone(), None),
             (Res::Done, false) => Want::Off,
-            // The workload's `AUTOSEND` call goes on reading pushes after its `ACK`: dropped,
-            // it may have been remembered.
-            (Res::Cancelled, true) if c.name == "AUTOSEND" => Want::Unknown,
+            // The workload's `AUTOSEND` call goes on reading pushes after its `ACK`: dropped
+            // (by the workload, or by rule 8's guard when it has no timeout and no push comes:
+            // wsg-text:0xf3a9834df9c7ac21), it may have been remembered.
+            (Res::Cancelled | Res::Hung, true) if c.name == "AUTOSEND" => Want::Unknown,
             _ => continue,
         };
         let new = match want.get(&key) {
