@@ -492,7 +492,10 @@ fn stop(
     // at the second).
     let mut down = down;
     while let Some((_, Some(r))) = down {
-        match downs.iter().find(|(lost, _)| *lost >= *r && *lost <= *r + AT_ONCE) {
+        match downs
+            .iter()
+            .find(|(lost, _)| *lost >= *r && *lost <= *r + AT_ONCE)
+        {
             Some(next) if !std::ptr::eq(next, down.unwrap()) => down = Some(next),
             _ => break,
         }

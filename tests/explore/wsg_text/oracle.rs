@@ -170,8 +170,13 @@ pub fn check(
                 _ => "2 (the device's answer to that request)",
             };
             let seen: Vec<&str> = edges[i].iter().map(|e| e.reply.as_str()).collect();
+            let tag = if !exact && answers_a_damaged_request(c, &sessions[c.client], &by_session) {
+                DAMAGED_INTO_ITS_NAME
+            } else {
+                ""
+            };
             out.push(format!(
-                "{promise}: {who} returned {:?}, which is not the device's reply to a request of that call, or that reply answered another call (the device's fitting replies during the call: {seen:?})",
+                "{promise}: {who} returned {:?}, which is not the device's reply to a request of that call, or that reply answered another call (the device's fitting replies during the call: {seen:?}){tag}",
                 c.res
             ));
             continue;
@@ -221,6 +226,48 @@ struct Cand {
 /// The requests of a call's client that could be its own: received during the call, with its
 /// very line (in a corrupting run: its name), whose reply (the first final reply of the
 /// call's name after it) the device sent before the call ended and equals the call's result.
+/// The tag of a call answered by the device's reply to a request damaged on the way: a flipped
+/// bit that turns one command line into another name (`GRIPSTATE?` read as `GRIP\x13TATE?`,
+/// answered `ERR GRIP 15` while the program's own `GRIP(…)` waited: wsg-text:0xba0682223c8b01a8).
+/// GCL replies carry a command's name and nothing else; the client cannot tell that `ERR` from
+/// its own command's (a residual risk of the text interface, docs/EXPLORER.md).
+const DAMAGED_INTO_ITS_NAME: &str =
+    " [the device's answer to a request damaged on the way into this call's name]";
+
+/// How long before a call the damaged request may have been read (its reply then held on the
+/// way until the call's own request was on the wire).
+const DAMAGE_REACH: Duration = Duration::from_secs(5);
+
+/// Whether call `c` (an `ERR` of its name) got a line the device sent, during the call, in answer
+/// to a request line the client never wrote that way (one with a control character: damaged on
+/// the way, as the device read it up to that character).
+fn answers_a_damaged_request(
+    c: &CallRec,
+    sessions: &[SessionId],
+    by_session: &BTreeMap<SessionId, Vec<Ev>>,
+) -> bool {
+    let Res::Device(line) = &c.res else {
+        return false;
+    };
+    sessions.iter().any(|s| {
+        let evs = by_session.get(s).map_or(&[][..], Vec::as_slice);
+        evs.iter().enumerate().any(|(j, e)| {
+            let damaged = e
+                .request
+                .is_some_and(|r| r.chars().any(|ch| ch.is_control()));
+            // Read by the device before the call's own request may have been written (the
+            // reply then waits on the way, as it did): within a few seconds before the call.
+            damaged
+                && e.at + DAMAGE_REACH >= c.start
+                && e.at <= c.end
+                && evs[j + 1..]
+                    .iter()
+                    .take_while(|r| r.request.is_none())
+                    .any(|r| r.reply.is_some_and(|(l, _)| l == line))
+        })
+    })
+}
+
 fn candidates(
     c: &CallRec,
     sessions: &[SessionId],
