@@ -196,7 +196,9 @@ pub fn check(
                 // answered (its reply was damaged): the name was still busy when it was dropped.
                 // A call left waiting after its name freed up is another bug: untagged.
                 // K with M: never written, behind a queue full of such calls.
-                let full = own[i].is_none()
+                // (Not written while its caller waited: a line of its text written after the
+                // drop is not the call's, wsg-text:0x3f4ccb36950e9049.)
+                let full = own[i].is_none_or(|(w, _)| w >= c.end)
                     && queued_before(i, calls, &own) >= configs[c.client].queue_len.max(1);
                 // (Strictly before the drop: the caller's next line may draw a reply at once.)
                 let dropped = c.end - Duration::from_nanos(1);
