@@ -57,6 +57,22 @@ async fn lost_stop(proxy: &FaultProxy, client: &Client) {
     assert_eq!(damaged.fired(), 1, "the stop's request was damaged");
 }
 
+/// Waits for the move's call and checks the device stopped it: E_CMD_ABORTED (3.2.3), which only
+/// a stop that reached the device gives.
+async fn aborted(mover: tokio::task::JoinHandle<gripper::wsg::Result<()>>) {
+    let moved = within("the device stops the move", mover).await.unwrap();
+    assert!(
+        matches!(
+            moved,
+            Err(Error::Device {
+                status: Status::CmdAborted,
+                ..
+            })
+        ),
+        "the move ended with {moved:?}, not aborted"
+    );
+}
+
 #[tokio::test]
 async fn a_lost_stop_reaches_the_device_after_its_caller_timed_out() {
     assert!(SHORT < RESEND_STOP_AFTER);
@@ -112,17 +128,7 @@ async fn a_motion_the_device_refused_after_a_lost_stop_does_not_drop_it() {
         matches!(grasp, Err(Error::Device { command, status: Status::AlreadyRunning }) if command == id::GRASP),
         "{grasp:?}"
     );
-    let moved = within("the device stops the move", mover).await.unwrap();
-    assert!(
-        matches!(
-            moved,
-            Err(Error::Device {
-                status: Status::CmdAborted,
-                ..
-            })
-        ),
-        "the move ended with {moved:?}, not aborted"
-    );
+    aborted(mover).await;
 }
 
 /// As above, but the refusal comes late: after the grasp's caller gave up and the client
@@ -152,16 +158,6 @@ async fn a_refusal_that_comes_after_its_motion_was_released_does_not_drop_a_lost
         matches!(grasp, Err(Error::Timeout { command, .. }) if command == id::GRASP),
         "{grasp:?}"
     );
-    let moved = within("the device stops the move", mover).await.unwrap();
-    assert!(
-        matches!(
-            moved,
-            Err(Error::Device {
-                status: Status::CmdAborted,
-                ..
-            })
-        ),
-        "the move ended with {moved:?}, not aborted"
-    );
+    aborted(mover).await;
     assert_eq!(held.fired(), 1, "the refusal was held");
 }
