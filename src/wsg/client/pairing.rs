@@ -712,6 +712,12 @@ impl Pairing {
         match (seen, f.idle_seen) {
             (Observation::Idle, Some(first)) if now >= after(first, grace) => {
                 st.in_flight = None;
+                // The device's word for a motion whose answer never came: it does not run. A
+                // lost stop that waited for that answer is owed again ([`super::stops`]): it
+                // stayed unsent until a later motion was refused (the explorer's
+                // `wsg-serial:0x69627d80b4046207`: a pre-position sent after a lost FAST STOP,
+                // its request damaged, never answered).
+                self.motion_answered(id, false);
                 return Verdict::Abandoned;
             }
             // A second "not moving" less than a grace after the first proves nothing yet (the

@@ -36,8 +36,10 @@
 //!   newer motion (3.2.3: it stops "jede laufende Fingerbewegung"). Only a motion the device
 //!   may run counts: one it acknowledged (E_CMD_PENDING, 1.3). When a motion sent after the
 //!   stop is still unanswered at the echo (sent after the barrier), the decision waits for its
-//!   answer ([`Stops::motion_answered`]; a motion whose answer never comes keeps the stop
-//!   dropped, the cautious side for the motion). A motion the device refused at once
+//!   answer ([`Stops::motion_answered`]): a refusal that came after its caller gave up counts,
+//!   and so does the device's word for one that never got an answer, two "not moving" a grace
+//!   apart under recovery (it does not run: the stop is owed again). Until then the stop is
+//!   held, the cautious side for the motion. A motion the device refused at once
 //!   (E_ALREADY_RUNNING while the move the stop was for still runs, 3.2.2; E_NOT_INITIALIZED;
 //!   E_ACCESS_DENIED after FAST STOP) starts nothing a stop could abort, and the stop is still
 //!   owed (the explorer's `wsg-serial:0xd61c40d7cc3acb90`, `wsg-serial:0x06c24b314c9fa72f`).

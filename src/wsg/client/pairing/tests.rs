@@ -1013,6 +1013,46 @@ fn a_lost_stop_is_owed_to_the_device_until_a_motion_is_sent_after_it() {
     );
 }
 
+/// The explorer's `wsg-serial:0x69627d80b4046207`, distilled: a stop lost, then a motion sent
+/// after it whose request was lost too (no answer at all). At the stop's echo the motion's
+/// answer decides; none comes, and the released motion goes under recovery. Two "not moving" a
+/// grace apart say it does not run: the stop is owed again, at once (before: it waited until a
+/// later motion was refused, 28 s into the run).
+#[test]
+fn a_lost_stop_is_owed_again_once_the_motion_sent_after_it_is_found_idle() {
+    let now = Instant::now();
+    let ms = Duration::from_millis;
+    let grace = ms(100);
+    let resend = super::super::stops::RESEND_AFTER;
+    let mut p = Pairing::new(grace);
+    p.set_ordered(true);
+    assert_eq!(sent(p.submit(req(1, id::STOP, now + ms(50)), now)), Some(1));
+    let deadline = now + ms(60);
+    assert_eq!(
+        sent(p.submit(req(2, id::PRE_POSITION, deadline), now)),
+        Some(2)
+    );
+    let at = now + resend;
+    assert_eq!(p.due(at), vec![Due::StopBarrier(id::STOP)]);
+    assert!(!p.unfence(id::STOP, at), "the motion's answer decides");
+    // The motion got no answer: released at its deadline + grace, fenced, under recovery
+    // after its own barrier.
+    let released = deadline + grace;
+    assert!(p.due(released).contains(&Due::Fenced(id::PRE_POSITION, 2)));
+    assert!(!p.unfence(id::PRE_POSITION, released));
+    assert_eq!(p.due(released), vec![Due::Probe(id::PRE_POSITION, 2)]);
+    assert_eq!(
+        p.on_probe(id::PRE_POSITION, 2, Observation::Idle, released, 10),
+        Verdict::Undecided
+    );
+    let second = released + grace;
+    assert_eq!(
+        p.on_probe(id::PRE_POSITION, 2, Observation::Idle, second, 11),
+        Verdict::Abandoned
+    );
+    assert_eq!(p.due(second), vec![Due::ResendStop(id::STOP)]);
+}
+
 #[test]
 fn prune_drops_only_queued_dead_callers() {
     let now = Instant::now();
