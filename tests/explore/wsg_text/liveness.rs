@@ -434,7 +434,7 @@ pub fn losses(
 }
 
 /// The names of GCL's replies (chapter 2 and 3; the client's commands).
-const NAMES: [&str; 17] = [
+pub(super) const NAMES: [&str; 17] = [
     "HOME",
     "MOVE",
     "GRIP",

@@ -230,7 +230,10 @@ struct Cand {
 /// bit that turns one command line into another name (`GRIPSTATE?` read as `GRIP\x13TATE?`,
 /// answered `ERR GRIP 15` while the program's own `GRIP(…)` waited: wsg-text:0xba0682223c8b01a8).
 /// GCL replies carry a command's name and nothing else; the client cannot tell that `ERR` from
-/// its own command's (a residual risk of the text interface, docs/EXPLORER.md).
+/// its own command's (a residual risk of the text interface, docs/EXPLORER.md). Also tagged: a
+/// call's own request damaged out of its name and the `ERR` damaged back into it
+/// (wsg-text:0x8ddb4ae5bbe5540e: `RELEACE()` answered `ERR RELEACE 14`, read as
+/// `ERR RELEASE 14`: the call's own answer after all, which the pairing of lines cannot see).
 const DAMAGED_INTO_ITS_NAME: &str =
     " [the device's answer to a request damaged on the way into this call's name]";
 
@@ -252,9 +255,13 @@ fn answers_a_damaged_request(
     sessions.iter().any(|s| {
         let evs = by_session.get(s).map_or(&[][..], Vec::as_slice);
         evs.iter().enumerate().any(|(j, e)| {
-            let damaged = e
-                .request
-                .is_some_and(|r| r.chars().any(|ch| ch.is_control()));
+            // Damaged: a control character, or a name that is no GCL command (`RELEACE()`).
+            let damaged = e.request.is_some_and(|r| {
+                r.chars().any(|ch| ch.is_control())
+                    || !super::liveness::NAMES
+                        .iter()
+                        .any(|n| n.eq_ignore_ascii_case(&request_name(r)))
+            });
             // Read by the device before the call's own request may have been written (the
             // reply then waits on the way, as it did): within a few seconds before the call.
             damaged
@@ -263,9 +270,20 @@ fn answers_a_damaged_request(
                 && evs[j + 1..]
                     .iter()
                     .take_while(|r| r.request.is_none())
-                    .any(|r| r.reply.is_some_and(|(l, _)| l == line))
+                    .any(|r| r.reply.is_some_and(|(l, _)| same_err(l, line)))
         })
     })
+}
+
+/// Two `ERR` lines with the same code, their names aside: a reply damaged on its way back may
+/// read as another name again (`ERR RELEACE 14` read as `ERR RELEASE 14`,
+/// wsg-text:0x8ddb4ae5bbe5540e).
+fn same_err(a: &str, b: &str) -> bool {
+    let code = |l: &str| {
+        let mut w = l.split(' ');
+        (w.next() == Some("ERR")).then(|| w.nth(1).map(str::to_owned))?
+    };
+    a == b || code(a).is_some_and(|c| Some(c) == code(b))
 }
 
 fn candidates(
