@@ -686,13 +686,12 @@ impl Client {
             }
             answer.await.map_err(|_| self.closed())?
         };
-        // Bounded here rather than through `Timeouts::run`: that `async fn` around the timeout
-        // is one more layer of future moved and polled on every call (issue 14). Pinned in
-        // place, as GRIPLINK's is: handed on by value, the future (a `Call`, a timer) was copied
-        // twice more, by `memcpy`, into the connection's call (about 200 instructions per query,
-        // BENCHMARKS.md, "Issue 30: the last of SmartGrasp's cost").
-        // Bounded by the call's own deadline, read from the clock once (a second read cost about
-        // 45 instructions per query).
+        // Bounded here rather than through `Timeouts::run` (one more `async fn` layer moved and
+        // polled on every call, issue 14), by the call's own deadline (the clock read once, not
+        // again for a `timeout`), and pinned in place as GRIPLINK's is: handed on by value, the
+        // future (a `Call`, a timer) was copied twice more into the connection's call, about
+        // 250 instructions per query together (BENCHMARKS.md, "Issue 30: the last of
+        // SmartGrasp's cost").
         let exchange = std::pin::pin!(tokio::time::timeout_at(deadline, exchange));
         let answered = self.connection.call(exchange).await;
         let frame = answered.map_err(|_| self.timeouts.expired(message_type))??;

@@ -526,17 +526,18 @@ impl Pairing {
         }
         let Some(f) = st.in_flight.as_mut() else {
             if st.fenced && st.released.is_some() {
-                // A released motion's own first answer, final, before its barrier's echo: on
-                // an ordered stream nothing else of its id can come now (one request of an id
-                // is on the wire at a time; motions are not streamed). Without E_CMD_PENDING
-                // before it the motion ran nothing, or its acknowledgement was damaged and it
-                // has ended: either way nothing a stop could abort, and nothing to put back on
-                // the wire at the echo. A lost stop waiting for this answer is owed again
-                // ([`super::stops`]; dropped here, the stop went out only when a later motion
-                // was refused: the explorer's `wsg-tcp:0x701cd76bbfcd92f7`).
+                // A released request's own final answer, before its barrier's echo: on an
+                // ordered stream nothing else of its id can come now (one request of an id is
+                // on the wire at a time; motions and finger power are not streamed). For a
+                // motion without E_CMD_PENDING before it: it ran nothing, or its
+                // acknowledgement was damaged and it has ended; either way nothing a stop could
+                // abort, and nothing to put back on the wire at the echo. A lost stop waiting
+                // for this answer is owed again ([`super::stops`]; dropped here, the stop went
+                // out only when a later motion was refused: the explorer's
+                // `wsg-tcp:0x701cd76bbfcd92f7`).
                 st.released = None;
                 tracing::debug!(id = reply.id, status = %reply.status,
-                    "WSG released motion answered before its barrier's echo: it runs nothing");
+                    "WSG released request answered before its barrier's echo: nothing of it runs");
                 self.motion_answered(reply.id, false);
             } else if st.fenced {
                 // The released request's late reply (or an auto-update of the id): no request

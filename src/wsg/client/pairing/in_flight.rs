@@ -179,9 +179,11 @@ pub(super) struct IdState {
     /// ([`super::Due::Fenced`]) proves that every reply sent before it has been read
     /// ([`super::Pairing::unfence`]).
     pub(super) fenced: bool,
-    /// The motion request released with no reply that fenced the id: if its E_CMD_PENDING
-    /// still comes (before the barrier), the move runs and its final reply will follow, so it
-    /// is taken back on the wire, under recovery ([`super::Due::Probe`]).
+    /// The request that fenced the id, if it may be acknowledged (a motion, finger power):
+    /// if its E_CMD_PENDING still comes (before the barrier), the command runs and its final
+    /// reply will follow, so it is taken back on the wire (a motion under recovery,
+    /// [`super::Due::Probe`]; finger power until it has ended); if its final answer comes
+    /// first, that is its answer (`Pairing::on_reply`).
     pub(super) released: Option<InFlight>,
 }
 
