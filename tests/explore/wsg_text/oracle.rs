@@ -242,8 +242,8 @@ const DAMAGED_INTO_ITS_NAME: &str =
 const DAMAGE_REACH: Duration = Duration::from_secs(5);
 
 /// Whether call `c` (an `ERR` of its name) got a line the device sent, during the call, in answer
-/// to a request line the client never wrote that way (one with a control character: damaged on
-/// the way, as the device read it up to that character).
+/// to a request line the client never wrote that way: damaged on the way, so that it holds a
+/// control character (the device reads the name up to it) or names no GCL command.
 fn answers_a_damaged_request(
     c: &CallRec,
     sessions: &[SessionId],
@@ -275,15 +275,22 @@ fn answers_a_damaged_request(
     })
 }
 
-/// Two `ERR` lines with the same code, their names aside: a reply damaged on its way back may
-/// read as another name again (`ERR RELEACE 14` read as `ERR RELEASE 14`,
-/// wsg-text:0x8ddb4ae5bbe5540e).
+/// The same `ERR` line, or one whose name a single damaged byte changed on its way back
+/// (`ERR RELEACE 14` read as `ERR RELEASE 14`, wsg-text:0x8ddb4ae5bbe5540e): same code, names
+/// of one length differing in one byte.
 fn same_err(a: &str, b: &str) -> bool {
-    let code = |l: &str| {
+    fn parts(l: &str) -> Option<(Option<&str>, Option<&str>)> {
         let mut w = l.split(' ');
-        (w.next() == Some("ERR")).then(|| w.nth(1).map(str::to_owned))?
+        (w.next() == Some("ERR")).then(|| (w.next(), w.next()))
+    }
+    let near = |x: &str, y: &str| {
+        x.len() == y.len() && x.bytes().zip(y.bytes()).filter(|(p, q)| p != q).count() <= 1
     };
-    a == b || code(a).is_some_and(|c| Some(c) == code(b))
+    match (parts(a), parts(b)) {
+        _ if a == b => true,
+        (Some((Some(na), ca)), Some((Some(nb), cb))) => ca.is_some() && ca == cb && near(na, nb),
+        _ => false,
+    }
 }
 
 fn candidates(
