@@ -6,6 +6,8 @@
 
 mod common;
 
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Arc;
 use std::time::Duration;
 
 use common::{cut_and_restored, events_until, policy, within};
@@ -15,6 +17,7 @@ use gripper::reconnect::ConnectionEvent;
 use gripper::wsg::sim::{Model, SimConfig, SimServer};
 use gripper::wsg::text::{Client, ClientConfig, Error, Quantity};
 use gripper::wsg::HomingDirection;
+use tokio::io::DuplexStream;
 
 fn reconnecting(max_attempts: Option<u32>) -> ClientConfig {
     ClientConfig {
@@ -100,27 +103,31 @@ async fn a_call_in_flight_when_the_link_drops_fails_and_is_never_sent_again() {
     assert_eq!(proxy.client_to_server().stats().frames, homes_sent + 1);
 }
 
+/// A program's opener of in-memory pipes (as the explorer opens them): counts the streams it
+/// opened in `opened`, and hands the far end of each to `serve(n, far)`, `n` the count before.
+fn pipes(
+    opened: Arc<AtomicUsize>,
+    serve: impl Fn(usize, DuplexStream) + Send + Sync + 'static,
+) -> impl Fn() -> std::future::Ready<std::io::Result<DuplexStream>> + Send + Sync + 'static {
+    move || {
+        let (near, far) = tokio::io::duplex(4096);
+        serve(opened.fetch_add(1, Ordering::SeqCst), far);
+        std::future::ready(Ok(near))
+    }
+}
+
 /// `open_with`: the client runs over the streams the program opens (here in-memory pipes to a
 /// simulator served without sockets, as the explorer serves it), and a reconnect opens the next
 /// one through the same opener. The gripper's restart drops the first pipe.
 #[tokio::test]
 async fn open_with_reconnects_through_the_programs_opener() {
-    use std::sync::atomic::{AtomicUsize, Ordering};
-    use std::sync::Arc;
-
     let sim = Arc::new(SimServer::in_memory(SimConfig::new(Model::Wsg50).text()));
     let opened = Arc::new(AtomicUsize::new(0));
     let open = {
-        let (sim, opened) = (sim.clone(), opened.clone());
-        move || {
-            let (sim, opened) = (sim.clone(), opened.clone());
-            async move {
-                let (near, far) = tokio::io::duplex(4096);
-                sim.serve_stream(far, gripper::wsg::sim::SessionKind::Tcp);
-                opened.fetch_add(1, Ordering::SeqCst);
-                Ok::<_, std::io::Error>(near)
-            }
-        }
+        let sim = sim.clone();
+        pipes(opened.clone(), move |_, far| {
+            sim.serve_stream(far, gripper::wsg::sim::SessionKind::Tcp);
+        })
     };
     let client = Client::open_with(open, reconnecting(None)).await.unwrap();
     assert_eq!(opened.load(Ordering::SeqCst), 1);
@@ -154,32 +161,25 @@ async fn open_with_reconnects_through_the_programs_opener() {
 /// In-memory pipes, so the paused clock runs the bound's seconds at once.
 #[tokio::test(start_paused = true)]
 async fn a_restored_setting_whose_reply_is_damaged_is_bounded_without_a_query_timeout() {
-    use std::sync::atomic::{AtomicUsize, Ordering};
-    use std::sync::Arc;
     use tokio::io::{AsyncReadExt, AsyncWriteExt};
 
     let sim = Arc::new(SimServer::in_memory(SimConfig::new(Model::Wsg50).text()));
     let opened = Arc::new(AtomicUsize::new(0));
     let open = {
-        let (sim, opened) = (sim.clone(), opened.clone());
-        move || {
-            let (sim, opened) = (sim.clone(), opened.clone());
-            async move {
-                let (near, mut far) = tokio::io::duplex(4096);
-                if opened.fetch_add(1, Ordering::SeqCst) == 1 {
-                    // The second connection: the restored line's reply, damaged; then silence.
-                    tokio::spawn(async move {
-                        let mut line = [0u8; 64];
-                        let _ = far.read(&mut line).await;
-                        let _ = far.write_all(b"VERBOSE}1\n").await;
-                        while far.read(&mut line).await.is_ok_and(|n| n > 0) {}
-                    });
-                } else {
-                    sim.serve_stream(far, gripper::wsg::sim::SessionKind::Tcp);
-                }
-                Ok::<_, std::io::Error>(near)
+        let sim = sim.clone();
+        pipes(opened.clone(), move |n, mut far| {
+            if n == 1 {
+                // The second connection: the restored line's reply, damaged; then silence.
+                tokio::spawn(async move {
+                    let mut line = [0u8; 64];
+                    let _ = far.read(&mut line).await;
+                    let _ = far.write_all(b"VERBOSE}1\n").await;
+                    while far.read(&mut line).await.is_ok_and(|n| n > 0) {}
+                });
+            } else {
+                sim.serve_stream(far, gripper::wsg::sim::SessionKind::Tcp);
             }
-        }
+        })
     };
     let config = ClientConfig {
         query_timeout: Duration::MAX,
