@@ -142,3 +142,64 @@ async fn a_watch_goes_on_across_a_reconnect() {
     }
     assert!(!client.is_closed());
 }
+
+/// The restored `VERBOSE` is the client's own command, bounded (`give_up_after` past the query
+/// timeout, at most 10 s) even when the program's calls have no timeout
+/// (`query_timeout(Duration::MAX)`): a new connection whose controller never answers it is
+/// given up, and the next attempt restores the session. Before the fix the restore waited for
+/// ever on it, and every call behind it. In-memory pipes, so the paused clock runs the bound's
+/// seconds at once.
+#[tokio::test(start_paused = true)]
+async fn a_restored_verbose_left_unanswered_is_bounded_without_a_query_timeout() {
+    use gripper::griplink::sim::Fault;
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    use std::sync::Arc;
+
+    let sim = Arc::new(SimServer::in_memory(
+        SimConfig::et4()
+            .device(0, Some(SimDevice::ieg_55_020()))
+            .time_scale(0.0),
+    ));
+    let opened = Arc::new(AtomicUsize::new(0));
+    let open = {
+        let (sim, opened) = (sim.clone(), opened.clone());
+        move || {
+            let (near, far) = tokio::io::duplex(4096);
+            opened.fetch_add(1, Ordering::SeqCst);
+            sim.serve_stream(far);
+            std::future::ready(Ok(near))
+        }
+    };
+    let config = ClientConfig {
+        query_timeout: Duration::MAX,
+        ..reconnecting(None)
+    };
+    let client = Client::open_with(open, config).await.unwrap();
+    assert!(client.set_verbose(true).await.unwrap());
+    let mut events = client.connection_events();
+
+    // The next line closes the connection; the restored VERBOSE on the next one goes unanswered.
+    sim.inject(Fault::Close);
+    sim.inject(Fault::DropReply);
+    let lost = client.port(0).state().await;
+    assert!(
+        matches!(lost, Err(Error::ConnectionLost { .. })),
+        "{lost:?}"
+    );
+    let got = tokio::time::timeout(
+        Duration::from_secs(600),
+        events_until(&mut events, |e| {
+            matches!(e, ConnectionEvent::Restored { .. })
+        }),
+    )
+    .await
+    .expect("the restore on the silent connection was never given up");
+    assert_eq!(got.last(), Some(&ConnectionEvent::Restored { attempts: 2 }));
+    assert_eq!(opened.load(Ordering::SeqCst), 3);
+    // The session works again.
+    assert_eq!(
+        client.port(0).state().await.unwrap(),
+        DeviceState::NotInitialized
+    );
+    client.close().await.unwrap();
+}

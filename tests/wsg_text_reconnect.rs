@@ -204,3 +204,57 @@ async fn a_restored_setting_whose_reply_is_damaged_is_bounded_without_a_query_ti
     assert!(client.set_verbose(true).await.unwrap());
     client.close().await.unwrap();
 }
+
+/// A reply a little later than the program's query timeout is still a healthy connection's, and
+/// a restore waits for it as the served connection would (`give_up_after` past the timeout). The
+/// simulator writes nothing for `text_ack_gap` after an `ACK` (as public GCL clients need, shared
+/// note §6.2); with a 50 ms gap and a 50 ms query timeout, the restored `VERBOSE=1` sent right
+/// after `ACK AUTOSEND` was answered at the instant its timeout expired. Before the fix every
+/// attempt gave up there and the client reconnected for ever, every call timing out behind it
+/// (`wsg-text:0x527e90827099e930`, found by CI's fresh seeds).
+#[tokio::test(start_paused = true)]
+async fn a_restored_setting_answered_after_the_query_timeout_but_within_give_up_is_taken() {
+    let mut sim = SimConfig::new(Model::Wsg50).text();
+    sim.text_ack_gap = Duration::from_millis(50);
+    let sim = Arc::new(SimServer::in_memory(sim));
+    let opened = Arc::new(AtomicUsize::new(0));
+    let open = {
+        let sim = sim.clone();
+        pipes(opened.clone(), move |_, far| {
+            sim.serve_stream(far, gripper::wsg::sim::SessionKind::Tcp);
+        })
+    };
+    let config = ClientConfig {
+        query_timeout: Duration::from_millis(50),
+        give_up_after: Duration::from_millis(112),
+        ..reconnecting(None)
+    };
+    let client = Client::open_with(open, config).await.unwrap();
+    // The order the restore follows: AUTOSEND (answered `ACK`), then VERBOSE behind the gap.
+    let mut positions = client
+        .autosend(Quantity::Position, 434, false)
+        .await
+        .unwrap();
+    let patient = client.with_timeout(Duration::from_secs(1));
+    assert!(patient.set_verbose(true).await.unwrap());
+    let mut events = client.connection_events();
+
+    sim.restart();
+    let got = tokio::time::timeout(
+        Duration::from_secs(60),
+        events_until(&mut events, |e| {
+            matches!(e, ConnectionEvent::Restored { .. })
+        }),
+    )
+    .await
+    .expect("the session was never restored");
+    assert_eq!(got.last(), Some(&ConnectionEvent::Restored { attempts: 1 }));
+    assert_eq!(opened.load(Ordering::SeqCst), 2);
+    // Both settings hold on the new connection: its pushes come, and VERBOSE is on.
+    positions
+        .next()
+        .await
+        .expect("a push on the new connection");
+    assert!(patient.set_verbose(true).await.unwrap());
+    client.close().await.unwrap();
+}

@@ -11,4 +11,4 @@ pub mod codec;
 mod session;
 
 pub(crate) use client::{io_error, peer_closed, Failure, LineConn, LineError, Opener};
-pub(crate) use session::{run, LineLink, LineTask};
+pub(crate) use session::{restore_wait, run, LineLink, LineTask};

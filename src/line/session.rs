@@ -42,6 +42,25 @@ pub(crate) trait LineTask: Send + Sync + Sized + 'static {
     fn refuse(request: Self::Request, reason: &Self::Error);
 }
 
+/// The longest a line client waits for the reply to a line it restores after a reconnect.
+const RESTORE_WAIT_MAX: Duration = Duration::from_secs(10);
+
+/// How long a line client waits for the reply to a line it restores on a new connection (its
+/// own call, with no caller to answer): as long as a reply of the program's calls may stay away
+/// before the connection is given up, the query's timeout plus `give_up_after`, and at most
+/// [`RESTORE_WAIT_MAX`]. Not the query's timeout alone: a reply a little later than that is
+/// still a healthy connection's (the program's call times out, the connection is kept), while
+/// an attempt given up at that timeout gave up every next attempt the same way. The WSG
+/// simulator, like a gripper that writes nothing for a while after an `ACK`, held the restored
+/// `VERBOSE=1` behind `ACK AUTOSEND` for exactly the 50 ms query timeout, and the client
+/// reconnected for ever (`wsg-text:0x527e90827099e930`). Bounded, so that a program's
+/// `Duration::MAX` (no timeout for its calls) never holds a new connection unrestored for good.
+pub(crate) fn restore_wait(query_timeout: Duration, give_up_after: Duration) -> Duration {
+    query_timeout
+        .saturating_add(give_up_after)
+        .min(RESTORE_WAIT_MAX)
+}
+
 /// How a line client's connection is reported, opened again and closed: the same for both
 /// protocols, so the session holds it, not the protocol's task.
 pub(crate) struct LineLink {

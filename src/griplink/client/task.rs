@@ -20,7 +20,7 @@ use crate::deadline::move_timer;
 use crate::griplink::command::{Command, Expect};
 use crate::griplink::error::{Error, Result};
 use crate::griplink::reply::{interpret, Checked};
-use crate::line::{io_error, peer_closed, Failure, LineConn, LineError, LineTask};
+use crate::line::{io_error, peer_closed, restore_wait, Failure, LineConn, LineError, LineTask};
 use crate::supervisor::CloseRequest;
 
 /// Where a caller waits for its result (the pipeline's token for it: closed when the caller
@@ -86,7 +86,8 @@ pub(crate) struct TaskConfig {
     pub give_up_after: Duration,
     /// How long a resynchronisation probe may take before the connection is given up.
     pub probe_timeout: Duration,
-    /// Timeout of the commands that restore the session after a reconnect.
+    /// The program's query timeout: with `give_up_after`, how long a command that restores the
+    /// session after a reconnect waits for its reply (`restore_wait`).
     pub query_timeout: Duration,
 }
 
@@ -171,7 +172,10 @@ impl LineTask for Task {
 
     async fn restore(&self, conn: &mut LineConn) -> Result<()> {
         if let Some(on) = self.shared.verbose() {
-            exchange(conn, Command::SetVerbose(on), self.config.query_timeout).await?;
+            // Bounded (`restore_wait`): a program's `query_timeout` of `Duration::MAX` must not
+            // hold a new connection whose reply never comes unrestored for good.
+            let wait = restore_wait(self.config.query_timeout, self.config.give_up_after);
+            exchange(conn, Command::SetVerbose(on), wait).await?;
         }
         Ok(())
     }

@@ -125,8 +125,8 @@ const RECHECK_FLOOR: Duration = Duration::from_millis(100);
 /// the connection up, as any unanswered query does.
 const PROBE_TIMEOUT_MAX: Duration = Duration::from_secs(10);
 
-/// The timeout of a query the client makes on its own (a probe; a setting restored after a
-/// reconnect, `task.rs`): the program's query timeout, at most [`PROBE_TIMEOUT_MAX`].
+/// The timeout of a probe (a query the client makes on its own while it serves): the program's
+/// query timeout, at most [`PROBE_TIMEOUT_MAX`].
 pub(crate) fn probe_timeout(query_timeout: Duration) -> Duration {
     query_timeout.min(PROBE_TIMEOUT_MAX)
 }

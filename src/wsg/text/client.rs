@@ -63,7 +63,9 @@ pub struct ClientConfig {
     ///   the program set up on the connection, in the order first set: the last
     ///   [`Client::set_verbose`], [`Client::set_part_width_tolerance_mm`] and
     ///   [`Client::set_clamping_travel_mm`] the gripper accepted, and each [`Client::autosend`]
-    ///   still on (its [`Pushes`] streams go on);
+    ///   still on (its [`Pushes`] streams go on). Each restored line's reply is awaited
+    ///   `query_timeout` plus `give_up_after`, at most 10 s, as long as a reply may stay away
+    ///   on a served connection; unanswered, the attempt fails and the next one connects again;
     /// - calls still queued and calls made meanwhile **wait** in the queue within their own
     ///   timeouts and go out once the session is restored; a call that times out while
     ///   waiting was never sent;

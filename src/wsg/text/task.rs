@@ -11,12 +11,12 @@ use std::time::Duration;
 use tokio::sync::{mpsc, oneshot};
 use tokio::time::Instant;
 
-use super::book::{probe_timeout, Book, Handled, WaitingCallers};
 pub(crate) use super::book::{Answer, Expect};
+use super::book::{Book, Handled, WaitingCallers};
 use super::error::Error;
 use super::push::{Push, PushSubscriber};
 use crate::deadline::move_timer;
-use crate::line::{io_error, peer_closed, Failure, LineConn, LineError, LineTask};
+use crate::line::{io_error, peer_closed, restore_wait, Failure, LineConn, LineError, LineTask};
 use crate::supervisor::CloseRequest;
 
 /// Where a caller waits for its answer (the book's token for it: closed when the caller timed
@@ -123,7 +123,8 @@ pub(crate) struct TaskConfig {
     pub give_up_after: Duration,
     /// Requests held while a command of their name is on the wire, at most.
     pub waiting_len: usize,
-    /// Timeout of each command that restores the session after a reconnect.
+    /// The program's query timeout: with `give_up_after`, how long a command that restores the
+    /// session after a reconnect waits for its reply (`restore_wait`).
     pub query_timeout: Duration,
 }
 
@@ -213,12 +214,12 @@ impl LineTask for Task {
     }
 
     async fn restore(&self, conn: &mut LineConn) -> Result<(), Error> {
-        // The client's own queries, bounded as a probe is: with a `query_timeout` of
+        // The client's own queries, bounded (`restore_wait`): with a `query_timeout` of
         // `Duration::MAX` (no timeout for the program's calls), a restored setting whose reply
         // arrived damaged held the new connection unrestored for good, and every call behind it
         // (`wsg-text:0xa9a8dc2d69601835`). Unanswered within the bound, the restore fails and
         // the next attempt connects again.
-        let timeout = probe_timeout(self.config.query_timeout);
+        let timeout = restore_wait(self.config.query_timeout, self.config.give_up_after);
         for setting in self.shared.settings() {
             exchange(conn, setting, timeout, &self.shared).await?;
         }
