@@ -42,23 +42,26 @@ pub(crate) trait LineTask: Send + Sync + Sized + 'static {
     fn refuse(request: Self::Request, reason: &Self::Error);
 }
 
-/// The longest a line client waits for the reply to a line it restores after a reconnect.
-const RESTORE_WAIT_MAX: Duration = Duration::from_secs(10);
+/// The least and the most a line client waits for the reply to a line it restores.
+const RESTORE_WAIT: (Duration, Duration) = (Duration::from_secs(1), Duration::from_secs(10));
 
 /// How long a line client waits for the reply to a line it restores on a new connection (its
 /// own call, with no caller to answer): as long as a reply of the program's calls may stay away
-/// before the connection is given up, the query's timeout plus `give_up_after`, and at most
-/// [`RESTORE_WAIT_MAX`]. Not the query's timeout alone: a reply a little later than that is
-/// still a healthy connection's (the program's call times out, the connection is kept), while
-/// an attempt given up at that timeout gave up every next attempt the same way. The WSG
-/// simulator, like a gripper that writes nothing for a while after an `ACK`, held the restored
-/// `VERBOSE=1` behind `ACK AUTOSEND` for exactly the 50 ms query timeout, and the client
-/// reconnected for ever (`wsg-text:0x527e90827099e930`). Bounded, so that a program's
-/// `Duration::MAX` (no timeout for its calls) never holds a new connection unrestored for good.
+/// before the connection is given up, the query's timeout plus `give_up_after`, and within
+/// [`RESTORE_WAIT`]. Not the query's timeout alone: the WSG simulator, like a gripper that
+/// writes nothing for a while after an `ACK`, held the restored `VERBOSE=1` behind
+/// `ACK AUTOSEND` to the very instant a 50 ms query timeout expired, and the client, which gave
+/// every attempt up there, reconnected for ever (`wsg-text:0x527e90827099e930`). At least a
+/// second, whatever the program's timeouts: with a `give_up_after` of zero the same gap failed
+/// every attempt again (`wsg-text:0x6fb78146710d7e6a`), while a reply that comes is a healthy
+/// device's, and waiting longer costs only an attempt that fails anyway. At most ten seconds, so
+/// that a program's `Duration::MAX` (no timeout for its calls) never holds a new connection
+/// unrestored for good.
 pub(crate) fn restore_wait(query_timeout: Duration, give_up_after: Duration) -> Duration {
+    let (least, most) = RESTORE_WAIT;
     query_timeout
         .saturating_add(give_up_after)
-        .min(RESTORE_WAIT_MAX)
+        .clamp(least, most)
 }
 
 /// How a line client's connection is reported, opened again and closed: the same for both

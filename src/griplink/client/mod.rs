@@ -180,8 +180,8 @@ pub struct ClientConfig {
     /// - the client reconnects to the same address with the policy's backoff and restores what
     ///   the program set up: the last [`Client::set_verbose`] the controller accepted (a
     ///   `VERBOSE=` sent with [`Client::command`] is not tracked). Its reply is awaited
-    ///   `query_timeout` plus `give_up_after`, at most 10 s, as long as a reply may stay away on
-    ///   a served connection; unanswered, the attempt fails and the next one connects again;
+    ///   `query_timeout` plus `give_up_after` (as long as a reply may stay away on a served
+    ///   connection), at least 1 s and at most 10 s; unanswered, the attempt fails and the next one connects again;
     /// - calls still queued (not yet sent) and calls made meanwhile **wait** in the queue within
     ///   their own timeouts and go out once the session is restored; a call that times out
     ///   while waiting was never sent;

@@ -64,8 +64,8 @@ pub struct ClientConfig {
     ///   [`Client::set_verbose`], [`Client::set_part_width_tolerance_mm`] and
     ///   [`Client::set_clamping_travel_mm`] the gripper accepted, and each [`Client::autosend`]
     ///   still on (its [`Pushes`] streams go on). Each restored line's reply is awaited
-    ///   `query_timeout` plus `give_up_after`, at most 10 s, as long as a reply may stay away
-    ///   on a served connection; unanswered, the attempt fails and the next one connects again;
+    ///   `query_timeout` plus `give_up_after` (as long as a reply may stay away on a served
+    ///   connection), at least 1 s and at most 10 s; unanswered, the attempt fails and the next one connects again;
     /// - calls still queued and calls made meanwhile **wait** in the queue within their own
     ///   timeouts and go out once the session is restored; a call that times out while
     ///   waiting was never sent;
