@@ -285,7 +285,11 @@ const PROBES: [&str; 3] = ["GRIPSTATE?", "POS?", "SPEED?"];
 /// not written when the answer was read) may never leave it in time, and its text written by
 /// then is then the probe's, not its own: the wire cannot tell which
 /// (`wsg-text:0x3b91b8f4d71e229e`: `GRIPSTATE?` in the channel behind `GRIP(32,40,21.5)`,
-/// which waited for the running grip).
+/// which waited for the running grip). "Ahead" counts the calls begun by the time the answer
+/// was read, not only those begun before the call: while the channel is full, a freed slot goes
+/// to the first sender polled, so a call begun later may enter it first. A caller woken for a
+/// slot 16 ms after it asked was overtaken by `GRIP(…)` and `MOVE(…)` begun in the very step
+/// that freed the slots, and the two filled the queue (`wsg-text:0x14b97cbc075d3039`).
 fn probe_tag(
     i: usize,
     calls: &[CallRec],
@@ -301,7 +305,7 @@ fn probe_tag(
             j != i
                 && o.client == c.client
                 && o.conn == c.conn
-                && o.start <= c.start
+                && o.start <= read
                 && own[j].is_none_or(|(w, _)| w > read)
                 && (o.end > read
                     || matches!(o.res, Res::Timeout | Res::Cancelled | Res::Hung)
