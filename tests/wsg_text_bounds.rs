@@ -320,6 +320,38 @@ async fn call_without_timeout_ends_when_its_reply_names_another_command() {
     damaged_reply_of_a_call_without_timeout("VERBOSF=0").await;
 }
 
+/// Issue 29 M: a call without timeout whose request the gripper never answered (its LF
+/// damaged on the way, the gripper holds a fragment and writes nothing:
+/// `wsg-text:0xfa9c7f60b0e57de1`) waited for ever and held its name. A reply due at once that
+/// stays away 10 s is doubted: the client probes, and the probe's answer, which comes after
+/// any reply due before it (replies come in order), ends the call `MalformedReply` and frees
+/// the name.
+#[tokio::test(start_paused = true)]
+async fn call_without_timeout_ends_when_its_request_was_never_answered() {
+    let (client, mut gripper) = pair(ClientConfig::default()).await;
+    let forever = client.with_timeout(Duration::MAX);
+    let call = tokio::spawn({
+        let forever = forever.clone();
+        async move { forever.set_verbose(false).await }
+    });
+    assert_eq!(gripper.line().await.as_deref(), Some("VERBOSE=0"));
+    // Nothing answers it; the client asks after 10 s.
+    let asked = tokio::time::Instant::now();
+    assert_eq!(gripper.line().await.as_deref(), Some("GRIPSTATE?"));
+    assert!(
+        asked.elapsed() >= Duration::from_secs(10),
+        "{:?}",
+        asked.elapsed()
+    );
+    gripper.reply("GRIPSTATE=0").await;
+    ends_malformed("the call", call).await;
+    // VERBOSE is free again.
+    let again = tokio::spawn(async move { forever.set_verbose(true).await });
+    assert_eq!(gripper.line().await.as_deref(), Some("VERBOSE=1"));
+    gripper.reply("VERBOSE=1").await;
+    assert!(again.await.unwrap().unwrap());
+}
+
 /// A client (`give_up_after` 200 ms) whose `MOVE(10)` with a 100 ms timeout was acknowledged
 /// (then answered `after_ack`) and timed out; returned once, past its timeout +
 /// `give_up_after`, the client asked `GRIPSTATE?` (issue 29 L).

@@ -110,7 +110,16 @@ struct Slot<C> {
     damages_at_write: u64,
     /// When it was written, if it is a probe (`Request::probe`).
     probe_at: Option<Instant>,
+    /// A command answered at once whose reply is not due before this (a call without timeout,
+    /// or with a long one): its reply not read by then, a probe asks (`Book::doubt`).
+    doubt_at: Option<Instant>,
 }
+
+/// How long a reply the gripper sends at once (shared note §3.7) may stay away before the
+/// client asks with a probe whether it was lost, when its call's deadline is later (issue 29 M:
+/// a call without timeout whose request was damaged on the way, so that the gripper answered
+/// nothing, or a line without a name, waited for ever and held its name).
+const DOUBT_AFTER: Duration = Duration::from_secs(10);
 
 /// The least time between two checks of an overdue motion (issue 29 L): `give_up_after` may be
 /// zero, and a check every instant would spin.
@@ -202,8 +211,9 @@ impl<C: Caller> Book<C> {
         }
     }
 
-    /// Puts a command written to the wire in the book: its caller (`None`: the client's own
-    /// probe), when it is given up, and for a probe when it was written.
+    /// Puts a command written to the wire at `now` in the book: its caller (`None`: the
+    /// client's own probe), when it is given up, and whether it is a probe.
+    #[allow(clippy::too_many_arguments)] // a request's parts, as the task holds them
     pub(crate) fn on_wire(
         &mut self,
         name: &'static str,
@@ -211,9 +221,15 @@ impl<C: Caller> Book<C> {
         expect: Expect,
         caller: Option<C>,
         give_up_at: Instant,
-        probe_at: Option<Instant>,
+        now: Instant,
+        probe: bool,
     ) {
         self.sent += 1;
+        // `BYE()` is left out: nothing is written after it (issue 29 N), so no probe could.
+        let doubt_at = after(now, DOUBT_AFTER);
+        let doubt_at =
+            (expect != Expect::Fin && name != "BYE" && doubt_at < give_up_at).then_some(doubt_at);
+        let probe_at = probe.then_some(now);
         let slot = Slot {
             line,
             expect,
@@ -226,6 +242,7 @@ impl<C: Caller> Book<C> {
             damages_at_ack: 0,
             damages_at_write: self.damages,
             probe_at,
+            doubt_at,
         };
         self.on_wire.insert(name, slot);
     }
@@ -272,11 +289,16 @@ impl<C: Caller> Book<C> {
         for name in lost {
             if let Some(slot) = self.on_wire.remove(name) {
                 tracing::warn!(command = %slot.line, %line, "wsg text: reply damaged, call failed");
+                // No line read (`Book::doubt`): its reply never came, or came unreadable.
+                let reason = if line.is_empty() {
+                    "no reply to it came (a later command was answered first)"
+                } else {
+                    "its reply could not be read (a later command was answered first)"
+                };
                 let error = Error::MalformedReply {
                     command: slot.line,
                     line: line.clone(),
-                    reason: "its reply could not be read (a later command was answered first)"
-                        .into(),
+                    reason: reason.into(),
                 };
                 self.complete(slot.caller, Err(error));
                 self.freed.push(name);
@@ -333,6 +355,10 @@ impl<C: Caller> Book<C> {
         now: Instant,
     ) -> Result<Option<Request<Option<C>>>, String> {
         let query_timeout = probe_timeout(query_timeout);
+        if self.doubt(now) {
+            // The task writes the probe (`Book::probe`) once this step is done.
+            return Ok(None);
+        }
         let probe_free = !self.on_wire.contains_key("GRIPSTATE");
         let Some(slot) = self.on_wire.values_mut().min_by_key(|s| s.give_up_at) else {
             return Ok(None);
@@ -470,9 +496,33 @@ impl<C: Caller> Book<C> {
         (bye, WaitingCallers(&mut self.waiting))
     }
 
-    /// The earliest give-up time of the commands on the wire.
+    /// The earliest give-up time of the commands on the wire, or time to doubt a reply
+    /// (`Book::doubt`), whichever comes first: the task's timer.
     pub(crate) fn give_up_at(&self) -> Option<Instant> {
-        self.on_wire.values().map(|s| s.give_up_at).min()
+        self.on_wire
+            .values()
+            .map(|s| s.doubt_at.map_or(s.give_up_at, |d| d.min(s.give_up_at)))
+            .min()
+    }
+
+    /// The replies due at once that stayed away [`DOUBT_AFTER`] (`now`): every command written
+    /// so far is in doubt, as after a line that could not be read, so that the next reply to a
+    /// line written later settles them (the gripper answers in order, shared note §3.7: a reply
+    /// due before it that did not come is lost) and a probe is written to draw one
+    /// ([`Book::probe`]). Whether any was doubted.
+    fn doubt(&mut self, now: Instant) -> bool {
+        let mut doubted = false;
+        for slot in self.on_wire.values_mut() {
+            if slot.doubt_at.is_some_and(|at| at <= now) {
+                slot.doubt_at = None;
+                doubted = true;
+                tracing::debug!(command = %slot.line, "wsg text: no reply long after it was written, asking");
+            }
+        }
+        if doubted {
+            self.damaged = Some((self.sent, String::new()));
+        }
+        doubted
     }
 
     fn finish(&mut self, name: &str, result: Result<Answer, Error>) {
@@ -796,15 +846,15 @@ mod tests {
     /// Writes `request` (as the task does once the book let it go out) at `now`.
     fn write(book: &mut Book<Call>, request: Request<Option<Call>>, now: Instant) {
         let give_up_at = after(request.deadline, GIVE_UP_AFTER);
-        let probe_at = request.probe.then_some(now);
         let Request {
             name,
             line,
             expect,
             waiter,
+            probe,
             ..
         } = request;
-        book.on_wire(name, line, expect, waiter, give_up_at, probe_at);
+        book.on_wire(name, line, expect, waiter, give_up_at, now, probe);
     }
 
     /// Admits call `id` at `now` and writes it if its name is free; whether it was written.
@@ -959,6 +1009,79 @@ mod tests {
             book.overdue(S, GIVE_UP_AFTER, at).unwrap_err(),
             "POS?".to_owned()
         );
+    }
+
+    /// Call `id`'s request `line` without timeout (`Duration::MAX`), written at `t0`.
+    fn write_without_timeout(
+        book: &mut Book<Call>,
+        id: u8,
+        name: &'static str,
+        line: &str,
+        t0: Instant,
+    ) {
+        let (mut r, _) = request(id, name, line, Expect::Value, t0);
+        r.timeout = Duration::MAX;
+        r.deadline = after(t0, Duration::MAX);
+        let r = book.admit(r, t0).expect("its name is free");
+        write(book, r.outgoing(), t0);
+    }
+
+    /// Issue 29 M: a query without timeout whose request the gripper never read (its LF
+    /// damaged on the way, wsg-text:0xfa9c7f60b0e57de1) held its call and its name for ever.
+    /// Its reply staying away [`DOUBT_AFTER`], a probe asks; the probe's answer, sent after
+    /// any reply to the query would have been (replies come in order), ends the call.
+    #[test]
+    fn a_reply_due_at_once_that_stays_away_is_doubted_and_a_probe_settles_it() {
+        let t0 = Instant::now();
+        let mut book = Book::new(GIVE_UP_AFTER);
+        write_without_timeout(&mut book, 1, "POS", "POS?", t0);
+        assert_eq!(book.give_up_at(), Some(t0 + DOUBT_AFTER));
+        assert!(book.probe(S, t0).is_none(), "no doubt yet");
+        assert!(matches!(
+            book.overdue(S, GIVE_UP_AFTER, t0 + DOUBT_AFTER),
+            Ok(None)
+        ));
+        let probe = book.probe(S, t0 + DOUBT_AFTER).expect("a probe asks");
+        assert_eq!(probe.line, "GRIPSTATE?");
+        write(&mut book, probe, t0 + DOUBT_AFTER);
+        assert!(matches!(
+            book.on_line("GRIPSTATE=0", t0 + DOUBT_AFTER),
+            Handled::Freed("GRIPSTATE")
+        ));
+        let done = done(&mut book);
+        assert!(
+            matches!(&done[..], [(1, Err(Error::MalformedReply { reason, .. }))] if reason.starts_with("no reply to it came")),
+            "{done:?}"
+        );
+        assert_eq!(book.take_freed(), ["POS"]);
+        assert_eq!(book.give_up_at(), None, "nothing left on the wire");
+    }
+
+    /// The doubt is only a question: a slow reply that comes before the probe's answer (in
+    /// order) is the call's, and the probe's answer then settles nothing.
+    #[test]
+    fn a_doubted_reply_that_comes_after_all_is_the_calls() {
+        let t0 = Instant::now();
+        let mut book = Book::new(GIVE_UP_AFTER);
+        write_without_timeout(&mut book, 1, "POS", "POS?", t0);
+        let at = t0 + DOUBT_AFTER;
+        assert!(matches!(book.overdue(S, GIVE_UP_AFTER, at), Ok(None)));
+        let probe = book.probe(S, at).expect("a probe asks");
+        write(&mut book, probe, at);
+        assert!(matches!(
+            book.on_line("POS=12.5", at),
+            Handled::Freed("POS")
+        ));
+        assert!(matches!(
+            book.on_line("GRIPSTATE=0", at),
+            Handled::Freed("GRIPSTATE")
+        ));
+        let done = done(&mut book);
+        assert!(matches!(&done[..], [(1, Ok(v))] if v == "12.5"), "{done:?}");
+        assert!(book.take_freed().is_empty());
+        // A call whose reply is due sooner than the doubt is never doubted.
+        assert!(call(&mut book, 2, "POS", "POS?", Expect::Value, at));
+        assert_eq!(book.give_up_at(), Some(at + S + GIVE_UP_AFTER));
     }
 
     #[test]

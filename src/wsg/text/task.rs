@@ -263,7 +263,8 @@ async fn exchange(
         setting.expect,
         Some(waiter),
         deadline,
-        None,
+        Instant::now(),
+        false,
     );
     loop {
         let line = match tokio::time::timeout_at(deadline, conn.reader.next_line()).await {
@@ -445,14 +446,14 @@ async fn serve(
                 }
                 probed = true;
             }
-            let probe_at = request.probe.then(Instant::now);
             book.on_wire(
                 request.name,
                 request.line,
                 request.expect,
                 request.waiter,
                 give_up_at,
-                probe_at,
+                Instant::now(),
+                request.probe,
             );
         }
     };
