@@ -352,6 +352,39 @@ async fn call_without_timeout_ends_when_its_request_was_never_answered() {
     assert!(again.await.unwrap().unwrap());
 }
 
+/// Issue 29 M for motions: a motion without timeout whose `FIN` arrived damaged (here
+/// `FIN HOMX`) held its call and its name for ever: it had no give-up time, so it was never
+/// checked (`wsg-text:0x6616913488a6a29b`, its `ERR` lost). 10 s after its `ACK` the client
+/// asks `GRIPSTATE?`; the gripper reports no motion, so the unreadable line was its end: the
+/// call fails `MalformedReply` and `HOME` is free again.
+#[tokio::test(start_paused = true)]
+async fn motion_without_timeout_ends_when_its_fin_was_damaged() {
+    let (client, mut gripper) = pair(ClientConfig::default()).await;
+    let forever = client.with_timeout(Duration::MAX);
+    let call = tokio::spawn({
+        let forever = forever.clone();
+        async move { forever.home(gripper::wsg::HomingDirection::Default).await }
+    });
+    assert_eq!(gripper.line().await.as_deref(), Some("HOME()"));
+    gripper.reply("ACK HOME").await;
+    gripper.reply("FIN HOMX").await;
+    let asked = tokio::time::Instant::now();
+    assert_eq!(gripper.line().await.as_deref(), Some("GRIPSTATE?"));
+    assert!(
+        asked.elapsed() >= Duration::from_secs(9),
+        "{:?}",
+        asked.elapsed()
+    );
+    gripper.reply("GRIPSTATE=0").await;
+    ends_malformed("the HOME", call).await;
+    let again =
+        tokio::spawn(async move { forever.home(gripper::wsg::HomingDirection::Default).await });
+    assert_eq!(gripper.line().await.as_deref(), Some("HOME()"));
+    gripper.reply("ACK HOME").await;
+    gripper.reply("FIN HOME").await;
+    again.await.unwrap().unwrap();
+}
+
 /// A client (`give_up_after` 200 ms) whose `MOVE(10)` with a 100 ms timeout was acknowledged
 /// (then answered `after_ack`) and timed out; returned once, past its timeout +
 /// `give_up_after`, the client asked `GRIPSTATE?` (issue 29 L).

@@ -27,7 +27,7 @@ use super::error::Error;
 use super::line::{parse_number, parse_reply, ReplyLine};
 use super::push::{Push, Quantity};
 use crate::caller::Caller;
-use crate::deadline::after;
+use crate::deadline::{after, is_never};
 use crate::wsg::{GripState, Status};
 
 /// What a command's call waits for.
@@ -110,16 +110,25 @@ struct Slot<C> {
     damages_at_write: u64,
     /// When it was written, if it is a probe (`Request::probe`).
     probe_at: Option<Instant>,
-    /// A command answered at once whose reply is not due before this (a call without timeout,
-    /// or with a long one): its reply not read by then, a probe asks (`Book::doubt`).
+    /// A command whose reply is not due before this (a call without timeout, or with a long
+    /// one): not answered by then, the client asks (`Book::doubt`).
     doubt_at: Option<Instant>,
 }
 
-/// How long a reply the gripper sends at once (shared note §3.7) may stay away before the
-/// client asks with a probe whether it was lost, when its call's deadline is later (issue 29 M:
-/// a call without timeout whose request was damaged on the way, so that the gripper answered
-/// nothing, or a line without a name, waited for ever and held its name).
+/// How long a command may stay unanswered before the client asks, when its call's deadline is
+/// later (issue 29 M): whether the reply the gripper sends at once (shared note §3.7) was lost
+/// (a call without timeout whose request was damaged on the way, so that the gripper answered
+/// nothing, waited for ever and held its name), or whether an acknowledged motion still runs
+/// (a motion without timeout whose `FIN` or `ERR` could not be read waited for ever).
 const DOUBT_AFTER: Duration = Duration::from_secs(10);
+
+/// When to ask whether an acknowledged motion still runs, `DOUBT_AFTER` past `from`, if its
+/// give-up time is never: one with a give-up time is checked then (issue 29 L),
+/// while one without timeout (or with `give_up_after` `Duration::MAX`) was never checked, and
+/// a `FIN` or `ERR` that could not be read held its call and name for ever.
+fn motion_doubt(give_up_at: Instant, from: Instant) -> Option<Instant> {
+    is_never(give_up_at, from).then(|| after(from, DOUBT_AFTER))
+}
 
 /// The least time between two checks of an overdue motion (issue 29 L): `give_up_after` may be
 /// zero, and a check every instant would spin.
@@ -227,8 +236,7 @@ impl<C: Caller> Book<C> {
         self.sent += 1;
         // `BYE()` is left out: nothing is written after it (issue 29 N), so no probe could.
         let doubt_at = after(now, DOUBT_AFTER);
-        let doubt_at =
-            (expect != Expect::Fin && name != "BYE" && doubt_at < give_up_at).then_some(doubt_at);
+        let doubt_at = (name != "BYE" && doubt_at < give_up_at).then_some(doubt_at);
         let probe_at = probe.then_some(now);
         let slot = Slot {
             line,
@@ -261,7 +269,7 @@ impl<C: Caller> Book<C> {
         }
     }
 
-    /// A reply to the command written as `seq` arrived: the commands answered at once written
+    /// A reply to the command written as `seq` arrived at `now`: the commands answered at once written
     /// before the damaged line and still unanswered lost their reply to it. They fail, and
     /// their names are free (no reply of theirs can come any more). A motion not yet
     /// acknowledged lost its first reply too, an `ACK` (its `FIN` may still come) or an `ERR`
@@ -269,7 +277,7 @@ impl<C: Caller> Book<C> {
     /// that once overdue it is checked with `GRIPSTATE?` and ends when the gripper reports no
     /// motion (issue 29 L; before, it was given up as unanswered: wsg-text:0xaa891d063fc824a5,
     /// `ERR HOME 4` lost in a line run together with `ERR MOVE 19`).
-    fn settle(&mut self, seq: u64) {
+    fn settle(&mut self, seq: u64, now: Instant) {
         let Some((upto, line)) = self.damaged.take_if(|(upto, _)| seq > *upto) else {
             return;
         };
@@ -278,6 +286,10 @@ impl<C: Caller> Book<C> {
                 tracing::debug!(command = %slot.line, %line, "wsg text: a motion's first reply damaged, taken as acknowledged");
                 slot.acked = true;
                 slot.damages_at_ack = slot.damages_at_write;
+                // Without a give-up time (no timeout) it is asked whether it runs a while
+                // after this (not at once: a motion just accepted might not show yet), else it
+                // waited for ever for a `FIN` that an `ERR` lost in the damage never sends.
+                slot.doubt_at = motion_doubt(slot.give_up_at, now);
             }
         }
         let lost: Vec<&'static str> = self
@@ -355,9 +367,10 @@ impl<C: Caller> Book<C> {
         now: Instant,
     ) -> Result<Option<Request<Option<C>>>, String> {
         let query_timeout = probe_timeout(query_timeout);
-        if self.doubt(now) {
-            // The task writes the probe (`Book::probe`) once this step is done.
-            return Ok(None);
+        if let Some(check) = self.doubt(query_timeout, now) {
+            // A probe for the replies due at once is written once this step is done
+            // (`Book::probe`).
+            return Ok(check);
         }
         let probe_free = !self.on_wire.contains_key("GRIPSTATE");
         let Some(slot) = self.on_wire.values_mut().min_by_key(|s| s.give_up_at) else {
@@ -414,6 +427,8 @@ impl<C: Caller> Book<C> {
             slot.checking = false;
             slot.over = over;
             slot.give_up_at = after(now, give_up_after.max(RECHECK_FLOOR));
+            // Asked again later even when `give_up_after` is `Duration::MAX`.
+            slot.doubt_at = motion_doubt(slot.give_up_at, now);
             tracing::debug!(command = %slot.line, value, over, "wsg text: overdue motion checked");
             // Over, and a line that could not be read came after its `ACK`: that was its `FIN`
             // or `ERR` (the gripper answers in order: it came before this state). The call
@@ -505,24 +520,51 @@ impl<C: Caller> Book<C> {
             .min()
     }
 
-    /// The replies due at once that stayed away [`DOUBT_AFTER`] (`now`): every command written
-    /// so far is in doubt, as after a line that could not be read, so that the next reply to a
-    /// line written later settles them (the gripper answers in order, shared note §3.7: a reply
-    /// due before it that did not come is lost) and a probe is written to draw one
-    /// ([`Book::probe`]). Whether any was doubted.
-    fn doubt(&mut self, now: Instant) -> bool {
-        let mut doubted = false;
+    /// The commands unanswered [`DOUBT_AFTER`] after they were written (`now`; `None` if
+    /// none). A reply due at once that stayed away puts every command written so far in doubt,
+    /// as a line that could not be read does, so that the next reply to a line written later
+    /// settles them (the gripper answers in order, shared note §3.7: a reply due before it that
+    /// did not come is lost) and a probe is written to draw one ([`Book::probe`]). An
+    /// acknowledged motion is checked as an overdue one is (issue 29 L): `GRIPSTATE?`, returned
+    /// to be written unless one is on the wire already.
+    fn doubt(
+        &mut self,
+        query_timeout: Duration,
+        now: Instant,
+    ) -> Option<Option<Request<Option<C>>>> {
+        let (mut at_once, mut motions) = (false, false);
         for slot in self.on_wire.values_mut() {
-            if slot.doubt_at.is_some_and(|at| at <= now) {
-                slot.doubt_at = None;
-                doubted = true;
-                tracing::debug!(command = %slot.line, "wsg text: no reply long after it was written, asking");
+            if slot.doubt_at.is_none_or(|at| at > now) {
+                continue;
+            }
+            slot.doubt_at = None;
+            tracing::debug!(command = %slot.line, "wsg text: no reply long after it was written, asking");
+            if Book::answered_at_once(slot) {
+                at_once = true;
+            } else {
+                slot.checking = true;
+                motions = true;
+                // Asked again later if this check's answer is lost too (its own reply run
+                // into a damaged `FIN` before it: `wsg-text:0x3ad6c8b5ae93909a`).
+                slot.doubt_at = Some(after(now, DOUBT_AFTER));
             }
         }
-        if doubted {
+        if at_once {
             self.damaged = Some((self.sent, String::new()));
         }
-        doubted
+        if !motions || self.on_wire.contains_key("GRIPSTATE") {
+            return (at_once || motions).then_some(None);
+        }
+        Some(Some(Request {
+            name: "GRIPSTATE",
+            line: "GRIPSTATE?".to_owned(),
+            expect: Expect::Value,
+            deadline: after(now, query_timeout),
+            timeout: query_timeout,
+            waiter: None,
+            start: now,
+            probe: true,
+        }))
     }
 
     fn finish(&mut self, name: &str, result: Result<Answer, Error>) {
@@ -700,8 +742,9 @@ impl<C: Caller> Book<C> {
             if matches!(reply, ReplyLine::Ack(_)) && slot.expect == Expect::Fin {
                 slot.acked = true;
                 slot.damages_at_ack = self.damages;
+                slot.doubt_at = motion_doubt(slot.give_up_at, now);
             }
-            self.settle(seq);
+            self.settle(seq, now);
         }
         if let (ReplyLine::Value { value, .. }, "GRIPSTATE") = (reply, key) {
             self.motion_state(value, self.give_up_after, now);
@@ -1082,6 +1125,140 @@ mod tests {
         // A call whose reply is due sooner than the doubt is never doubted.
         assert!(call(&mut book, 2, "POS", "POS?", Expect::Value, at));
         assert_eq!(book.give_up_at(), Some(at + S + GIVE_UP_AFTER));
+    }
+
+    /// Issue 29 M for motions: an acknowledged motion without timeout has no give-up time, so
+    /// it was never checked, and a `FIN` that could not be read held its call and name for
+    /// ever (`wsg-text:0x6616913488a6a29b`). [`DOUBT_AFTER`] after its `ACK` the client asks
+    /// `GRIPSTATE?`; reported over with an unreadable line after its `ACK`, it ends.
+    #[test]
+    fn an_acknowledged_motion_without_timeout_is_checked_and_ends_when_over() {
+        let t0 = Instant::now();
+        let mut book = Book::new(GIVE_UP_AFTER);
+        let (mut r, _) = request(1, "HOME", "HOME()", Expect::Fin, t0);
+        r.timeout = Duration::MAX;
+        r.deadline = after(t0, Duration::MAX);
+        let r = book.admit(r, t0).expect("its name is free");
+        write(&mut book, r.outgoing(), t0);
+        assert!(matches!(book.on_line("ACK HOME", t0), Handled::Nothing));
+        assert!(matches!(book.on_line("FIN HOMX", t0 + S), Handled::Nothing));
+        assert_eq!(book.give_up_at(), Some(t0 + DOUBT_AFTER));
+        let check = book
+            .overdue(S, GIVE_UP_AFTER, t0 + DOUBT_AFTER)
+            .unwrap()
+            .expect("GRIPSTATE? asks");
+        assert_eq!(check.line, "GRIPSTATE?");
+        write(&mut book, check, t0 + DOUBT_AFTER);
+        book.on_line("GRIPSTATE=0", t0 + DOUBT_AFTER);
+        let done = done(&mut book);
+        assert!(
+            matches!(&done[..], [(1, Err(Error::MalformedReply { .. }))]),
+            "{done:?}"
+        );
+        assert_eq!(book.take_freed(), ["HOME"]);
+    }
+
+    /// A motion without timeout whose first reply (its `ERR`, the seed's `ERR GRIP 15`) could
+    /// not be read, taken as acknowledged once a probe's answer settled it, is asked
+    /// [`DOUBT_AFTER`] later whether it runs, and ends when the gripper reports no motion.
+    #[test]
+    fn a_motion_without_timeout_whose_first_reply_was_damaged_ends_when_over() {
+        let t0 = Instant::now();
+        let mut book = Book::new(GIVE_UP_AFTER);
+        let (mut r, _) = request(1, "GRIP", "GRIP(13.5,71)", Expect::Fin, t0);
+        r.timeout = Duration::MAX;
+        r.deadline = after(t0, Duration::MAX);
+        let r = book.admit(r, t0).expect("its name is free");
+        write(&mut book, r.outgoing(), t0);
+        book.damage("MRR GRIP 15");
+        let probe = book.probe(S, t0).expect("a probe");
+        write(&mut book, probe, t0);
+        book.on_line("GRIPSTATE=0", t0);
+        assert!(
+            done(&mut book).is_empty(),
+            "not at once: a motion just accepted may not show"
+        );
+        assert_eq!(book.give_up_at(), Some(t0 + DOUBT_AFTER));
+        let at = t0 + DOUBT_AFTER;
+        let check = book.overdue(S, GIVE_UP_AFTER, at).unwrap().expect("asks");
+        write(&mut book, check, at);
+        book.on_line("GRIPSTATE=0", at);
+        let done = done(&mut book);
+        assert!(
+            matches!(&done[..], [(1, Err(Error::MalformedReply { .. }))]),
+            "{done:?}"
+        );
+        assert_eq!(book.take_freed(), ["GRIP"]);
+    }
+
+    /// The check's own answer lost (run into the motion's damaged `FIN` before it, as in
+    /// `wsg-text:0x3ad6c8b5ae93909a`): the motion is asked again [`DOUBT_AFTER`] later, and
+    /// ends then.
+    #[test]
+    fn a_motion_whose_check_went_unanswered_is_asked_again() {
+        let t0 = Instant::now();
+        let mut book = Book::new(GIVE_UP_AFTER);
+        let (mut r, _) = request(1, "MOVE", "MOVE(33)", Expect::Fin, t0);
+        r.timeout = Duration::MAX;
+        r.deadline = after(t0, Duration::MAX);
+        let r = book.admit(r, t0).expect("its name is free");
+        write(&mut book, r.outgoing(), t0);
+        book.on_line("ACK MOVE", t0);
+        let at = t0 + DOUBT_AFTER;
+        let check = book.overdue(S, GIVE_UP_AFTER, at).unwrap().expect("asks");
+        write(&mut book, check, at);
+        book.on_line("FIN MOVE\u{b}GRIPSTATE=0", at);
+        let probe = book.probe(S, at).expect("a probe");
+        write(&mut book, probe, at);
+        book.on_line("POS=33.0", at);
+        assert!(
+            done(&mut book).is_empty(),
+            "the check failed, the MOVE goes on"
+        );
+        assert_eq!(
+            book.give_up_at(),
+            Some(at + DOUBT_AFTER),
+            "asked again later"
+        );
+        let again = book
+            .overdue(S, GIVE_UP_AFTER, at + DOUBT_AFTER)
+            .unwrap()
+            .expect("asks again");
+        write(&mut book, again, at + DOUBT_AFTER);
+        book.on_line("GRIPSTATE=0", at + DOUBT_AFTER);
+        assert!(matches!(
+            &done(&mut book)[..],
+            [(1, Err(Error::MalformedReply { .. }))]
+        ));
+    }
+
+    /// Still running when asked: asked again [`DOUBT_AFTER`] later, its call goes on, and its
+    /// `FIN` ends it.
+    #[test]
+    fn a_running_motion_without_timeout_is_asked_again_and_its_fin_ends_it() {
+        let t0 = Instant::now();
+        let mut book = Book::new(Duration::MAX);
+        let (mut r, _) = request(1, "HOME", "HOME()", Expect::Fin, t0);
+        r.timeout = Duration::MAX;
+        r.deadline = after(t0, Duration::MAX);
+        let r = book.admit(r, t0).expect("its name is free");
+        write(&mut book, r.outgoing(), t0);
+        book.on_line("ACK HOME", t0);
+        let at = t0 + DOUBT_AFTER;
+        let check = book.overdue(S, Duration::MAX, at).unwrap().expect("asks");
+        write(&mut book, check, at);
+        book.on_line("GRIPSTATE=6", at);
+        assert!(done(&mut book).is_empty());
+        assert_eq!(
+            book.give_up_at(),
+            Some(at + DOUBT_AFTER),
+            "asked again later"
+        );
+        assert!(matches!(
+            book.on_line("FIN HOME", at + S),
+            Handled::Freed("HOME")
+        ));
+        assert!(matches!(&done(&mut book)[..], [(1, Ok(_))]));
     }
 
     #[test]
