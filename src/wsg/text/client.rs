@@ -231,6 +231,14 @@ impl Client {
     }
 
     /// A handle whose calls all use `timeout` instead of the defaults. Shares the connection.
+    ///
+    /// `Duration::MAX` means no timeout: such a call still ends on the gripper's evidence. A
+    /// reply due at once (a query, a setter, an `ACK`) that stays away 10 s makes the client
+    /// write a probe; the gripper answers in order, so once the probe is answered the call's
+    /// reply is lost and it fails [`Error::MalformedReply`] (its request may have been damaged
+    /// on the way). An acknowledged motion is asked `GRIPSTATE?` 10 s after its `ACK` and every
+    /// 10 s after; reported over with a line that could not be read since its `ACK`, it fails
+    /// [`Error::MalformedReply`] too.
     pub fn with_timeout(&self, timeout: Duration) -> Client {
         Client {
             timeout: Some(timeout),
