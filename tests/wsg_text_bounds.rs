@@ -283,10 +283,13 @@ async fn ends_malformed<T: std::fmt::Debug>(
     );
 }
 
-/// Issue 29 M: a call without timeout whose reply arrives damaged (here `damaged`) ends: the
-/// client probes with a query, and once a reply written after the damaged line arrives, the
-/// call fails `MalformedReply` and its name is free for the next call.
-async fn damaged_reply_of_a_call_without_timeout(damaged: &str) {
+/// A client's `VERBOSE=0` without timeout, written to a scripted gripper (not answered yet):
+/// the handle without timeout, the gripper, the call.
+async fn verbose_without_timeout() -> (
+    Client,
+    Gripper,
+    tokio::task::JoinHandle<gripper::wsg::text::Result<bool>>,
+) {
     let (client, mut gripper) = pair(ClientConfig::default()).await;
     let forever = client.with_timeout(Duration::MAX);
     let call = tokio::spawn({
@@ -294,15 +297,36 @@ async fn damaged_reply_of_a_call_without_timeout(damaged: &str) {
         async move { forever.set_verbose(false).await }
     });
     assert_eq!(gripper.line().await.as_deref(), Some("VERBOSE=0"));
-    gripper.reply(damaged).await;
-    assert_eq!(gripper.line().await.as_deref(), Some("GRIPSTATE?"));
-    gripper.reply("GRIPSTATE=0").await;
-    ends_malformed("the call", call).await;
-    // VERBOSE is free again.
+    (forever, gripper, call)
+}
+
+/// `VERBOSE` is free again after its call ended: the next one is written and answered.
+async fn verbose_is_free_again(forever: Client, gripper: &mut Gripper) {
     let again = tokio::spawn(async move { forever.set_verbose(true).await });
     assert_eq!(gripper.line().await.as_deref(), Some("VERBOSE=1"));
     gripper.reply("VERBOSE=1").await;
     assert!(again.await.unwrap().unwrap());
+}
+
+/// The client's own `GRIPSTATE?`, written no sooner than `after` from now (the 10 s doubt of a
+/// call without timeout, issue 29 M), answered: no motion.
+async fn asked_after(gripper: &mut Gripper, after: Duration) {
+    let asked = tokio::time::Instant::now();
+    assert_eq!(gripper.line().await.as_deref(), Some("GRIPSTATE?"));
+    assert!(asked.elapsed() >= after, "{:?}", asked.elapsed());
+    gripper.reply("GRIPSTATE=0").await;
+}
+
+/// Issue 29 M: a call without timeout whose reply arrives damaged (here `damaged`) ends: the
+/// client probes with a query, and once a reply written after the damaged line arrives, the
+/// call fails `MalformedReply` and its name is free for the next call.
+async fn damaged_reply_of_a_call_without_timeout(damaged: &str) {
+    let (forever, mut gripper, call) = verbose_without_timeout().await;
+    gripper.reply(damaged).await;
+    assert_eq!(gripper.line().await.as_deref(), Some("GRIPSTATE?"));
+    gripper.reply("GRIPSTATE=0").await;
+    ends_malformed("the call", call).await;
+    verbose_is_free_again(forever, &mut gripper).await;
 }
 
 #[tokio::test]
@@ -328,28 +352,11 @@ async fn call_without_timeout_ends_when_its_reply_names_another_command() {
 /// the name.
 #[tokio::test(start_paused = true)]
 async fn call_without_timeout_ends_when_its_request_was_never_answered() {
-    let (client, mut gripper) = pair(ClientConfig::default()).await;
-    let forever = client.with_timeout(Duration::MAX);
-    let call = tokio::spawn({
-        let forever = forever.clone();
-        async move { forever.set_verbose(false).await }
-    });
-    assert_eq!(gripper.line().await.as_deref(), Some("VERBOSE=0"));
+    let (forever, mut gripper, call) = verbose_without_timeout().await;
     // Nothing answers it; the client asks after 10 s.
-    let asked = tokio::time::Instant::now();
-    assert_eq!(gripper.line().await.as_deref(), Some("GRIPSTATE?"));
-    assert!(
-        asked.elapsed() >= Duration::from_secs(10),
-        "{:?}",
-        asked.elapsed()
-    );
-    gripper.reply("GRIPSTATE=0").await;
+    asked_after(&mut gripper, Duration::from_secs(10)).await;
     ends_malformed("the call", call).await;
-    // VERBOSE is free again.
-    let again = tokio::spawn(async move { forever.set_verbose(true).await });
-    assert_eq!(gripper.line().await.as_deref(), Some("VERBOSE=1"));
-    gripper.reply("VERBOSE=1").await;
-    assert!(again.await.unwrap().unwrap());
+    verbose_is_free_again(forever, &mut gripper).await;
 }
 
 /// Issue 29 M for motions: a motion without timeout whose `FIN` arrived damaged (here
@@ -368,14 +375,7 @@ async fn motion_without_timeout_ends_when_its_fin_was_damaged() {
     assert_eq!(gripper.line().await.as_deref(), Some("HOME()"));
     gripper.reply("ACK HOME").await;
     gripper.reply("FIN HOMX").await;
-    let asked = tokio::time::Instant::now();
-    assert_eq!(gripper.line().await.as_deref(), Some("GRIPSTATE?"));
-    assert!(
-        asked.elapsed() >= Duration::from_secs(9),
-        "{:?}",
-        asked.elapsed()
-    );
-    gripper.reply("GRIPSTATE=0").await;
+    asked_after(&mut gripper, Duration::from_secs(9)).await;
     ends_malformed("the HOME", call).await;
     let again =
         tokio::spawn(async move { forever.home(gripper::wsg::HomingDirection::Default).await });

@@ -134,6 +134,18 @@ pub async fn next_event(
     within("the next connection event", events.next()).await
 }
 
+/// The connection events up to the first `Restored`, each within [`LIMIT`] (a restore that
+/// hangs fails the test); how many attempts it took.
+#[allow(dead_code)] // only the reconnect tests use it
+pub async fn restored_after(events: &mut gripper::reconnect::ConnectionEvents) -> u32 {
+    use gripper::reconnect::ConnectionEvent;
+    let got = events_until(events, |e| matches!(e, ConnectionEvent::Restored { .. })).await;
+    match got.last() {
+        Some(ConnectionEvent::Restored { attempts }) => *attempts,
+        other => panic!("not restored: {other:?}"),
+    }
+}
+
 /// The next connection events, up to and including the first that `last` accepts; panics if
 /// the stream ends first.
 #[allow(dead_code)] // only the reconnect tests use it

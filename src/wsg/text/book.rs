@@ -1058,11 +1058,10 @@ mod tests {
     fn write_without_timeout(
         book: &mut Book<Call>,
         id: u8,
-        name: &'static str,
-        line: &str,
+        (name, line, expect): (&'static str, &str, Expect),
         t0: Instant,
     ) {
-        let (mut r, _) = request(id, name, line, Expect::Value, t0);
+        let (mut r, _) = request(id, name, line, expect, t0);
         r.timeout = Duration::MAX;
         r.deadline = after(t0, Duration::MAX);
         let r = book.admit(r, t0).expect("its name is free");
@@ -1077,7 +1076,7 @@ mod tests {
     fn a_reply_due_at_once_that_stays_away_is_doubted_and_a_probe_settles_it() {
         let t0 = Instant::now();
         let mut book = Book::new(GIVE_UP_AFTER);
-        write_without_timeout(&mut book, 1, "POS", "POS?", t0);
+        write_without_timeout(&mut book, 1, ("POS", "POS?", Expect::Value), t0);
         assert_eq!(book.give_up_at(), Some(t0 + DOUBT_AFTER));
         assert!(book.probe(S, t0).is_none(), "no doubt yet");
         assert!(matches!(
@@ -1106,7 +1105,7 @@ mod tests {
     fn a_doubted_reply_that_comes_after_all_is_the_calls() {
         let t0 = Instant::now();
         let mut book = Book::new(GIVE_UP_AFTER);
-        write_without_timeout(&mut book, 1, "POS", "POS?", t0);
+        write_without_timeout(&mut book, 1, ("POS", "POS?", Expect::Value), t0);
         let at = t0 + DOUBT_AFTER;
         assert!(matches!(book.overdue(S, GIVE_UP_AFTER, at), Ok(None)));
         let probe = book.probe(S, at).expect("a probe asks");
@@ -1127,6 +1126,22 @@ mod tests {
         assert_eq!(book.give_up_at(), Some(at + S + GIVE_UP_AFTER));
     }
 
+    /// At `at` the motion `name` (call 1) is asked whether it runs; the gripper reports no
+    /// motion, and the call ends `MalformedReply` (a line that could not be read came after
+    /// its `ACK`), its name free.
+    fn asked_over_and_ended(book: &mut Book<Call>, at: Instant, name: &str) {
+        let check = book.overdue(S, GIVE_UP_AFTER, at).unwrap().expect("asks");
+        assert_eq!(check.line, "GRIPSTATE?");
+        write(book, check, at);
+        book.on_line("GRIPSTATE=0", at);
+        let done = done(book);
+        assert!(
+            matches!(&done[..], [(1, Err(Error::MalformedReply { .. }))]),
+            "{done:?}"
+        );
+        assert_eq!(book.take_freed(), [name]);
+    }
+
     /// Issue 29 M for motions: an acknowledged motion without timeout has no give-up time, so
     /// it was never checked, and a `FIN` that could not be read held its call and name for
     /// ever (`wsg-text:0x6616913488a6a29b`). [`DOUBT_AFTER`] after its `ACK` the client asks
@@ -1135,27 +1150,11 @@ mod tests {
     fn an_acknowledged_motion_without_timeout_is_checked_and_ends_when_over() {
         let t0 = Instant::now();
         let mut book = Book::new(GIVE_UP_AFTER);
-        let (mut r, _) = request(1, "HOME", "HOME()", Expect::Fin, t0);
-        r.timeout = Duration::MAX;
-        r.deadline = after(t0, Duration::MAX);
-        let r = book.admit(r, t0).expect("its name is free");
-        write(&mut book, r.outgoing(), t0);
+        write_without_timeout(&mut book, 1, ("HOME", "HOME()", Expect::Fin), t0);
         assert!(matches!(book.on_line("ACK HOME", t0), Handled::Nothing));
         assert!(matches!(book.on_line("FIN HOMX", t0 + S), Handled::Nothing));
         assert_eq!(book.give_up_at(), Some(t0 + DOUBT_AFTER));
-        let check = book
-            .overdue(S, GIVE_UP_AFTER, t0 + DOUBT_AFTER)
-            .unwrap()
-            .expect("GRIPSTATE? asks");
-        assert_eq!(check.line, "GRIPSTATE?");
-        write(&mut book, check, t0 + DOUBT_AFTER);
-        book.on_line("GRIPSTATE=0", t0 + DOUBT_AFTER);
-        let done = done(&mut book);
-        assert!(
-            matches!(&done[..], [(1, Err(Error::MalformedReply { .. }))]),
-            "{done:?}"
-        );
-        assert_eq!(book.take_freed(), ["HOME"]);
+        asked_over_and_ended(&mut book, t0 + DOUBT_AFTER, "HOME");
     }
 
     /// A motion without timeout whose first reply (its `ERR`, the seed's `ERR GRIP 15`) could
@@ -1165,11 +1164,7 @@ mod tests {
     fn a_motion_without_timeout_whose_first_reply_was_damaged_ends_when_over() {
         let t0 = Instant::now();
         let mut book = Book::new(GIVE_UP_AFTER);
-        let (mut r, _) = request(1, "GRIP", "GRIP(13.5,71)", Expect::Fin, t0);
-        r.timeout = Duration::MAX;
-        r.deadline = after(t0, Duration::MAX);
-        let r = book.admit(r, t0).expect("its name is free");
-        write(&mut book, r.outgoing(), t0);
+        write_without_timeout(&mut book, 1, ("GRIP", "GRIP(13.5,71)", Expect::Fin), t0);
         book.damage("MRR GRIP 15");
         let probe = book.probe(S, t0).expect("a probe");
         write(&mut book, probe, t0);
@@ -1179,16 +1174,7 @@ mod tests {
             "not at once: a motion just accepted may not show"
         );
         assert_eq!(book.give_up_at(), Some(t0 + DOUBT_AFTER));
-        let at = t0 + DOUBT_AFTER;
-        let check = book.overdue(S, GIVE_UP_AFTER, at).unwrap().expect("asks");
-        write(&mut book, check, at);
-        book.on_line("GRIPSTATE=0", at);
-        let done = done(&mut book);
-        assert!(
-            matches!(&done[..], [(1, Err(Error::MalformedReply { .. }))]),
-            "{done:?}"
-        );
-        assert_eq!(book.take_freed(), ["GRIP"]);
+        asked_over_and_ended(&mut book, t0 + DOUBT_AFTER, "GRIP");
     }
 
     /// The check's own answer lost (run into the motion's damaged `FIN` before it, as in
@@ -1198,11 +1184,7 @@ mod tests {
     fn a_motion_whose_check_went_unanswered_is_asked_again() {
         let t0 = Instant::now();
         let mut book = Book::new(GIVE_UP_AFTER);
-        let (mut r, _) = request(1, "MOVE", "MOVE(33)", Expect::Fin, t0);
-        r.timeout = Duration::MAX;
-        r.deadline = after(t0, Duration::MAX);
-        let r = book.admit(r, t0).expect("its name is free");
-        write(&mut book, r.outgoing(), t0);
+        write_without_timeout(&mut book, 1, ("MOVE", "MOVE(33)", Expect::Fin), t0);
         book.on_line("ACK MOVE", t0);
         let at = t0 + DOUBT_AFTER;
         let check = book.overdue(S, GIVE_UP_AFTER, at).unwrap().expect("asks");
@@ -1220,16 +1202,8 @@ mod tests {
             Some(at + DOUBT_AFTER),
             "asked again later"
         );
-        let again = book
-            .overdue(S, GIVE_UP_AFTER, at + DOUBT_AFTER)
-            .unwrap()
-            .expect("asks again");
-        write(&mut book, again, at + DOUBT_AFTER);
-        book.on_line("GRIPSTATE=0", at + DOUBT_AFTER);
-        assert!(matches!(
-            &done(&mut book)[..],
-            [(1, Err(Error::MalformedReply { .. }))]
-        ));
+        assert_eq!(book.take_freed(), ["GRIPSTATE"], "the lost check's name");
+        asked_over_and_ended(&mut book, at + DOUBT_AFTER, "MOVE");
     }
 
     /// Still running when asked: asked again [`DOUBT_AFTER`] later, its call goes on, and its
@@ -1238,11 +1212,7 @@ mod tests {
     fn a_running_motion_without_timeout_is_asked_again_and_its_fin_ends_it() {
         let t0 = Instant::now();
         let mut book = Book::new(Duration::MAX);
-        let (mut r, _) = request(1, "HOME", "HOME()", Expect::Fin, t0);
-        r.timeout = Duration::MAX;
-        r.deadline = after(t0, Duration::MAX);
-        let r = book.admit(r, t0).expect("its name is free");
-        write(&mut book, r.outgoing(), t0);
+        write_without_timeout(&mut book, 1, ("HOME", "HOME()", Expect::Fin), t0);
         book.on_line("ACK HOME", t0);
         let at = t0 + DOUBT_AFTER;
         let check = book.overdue(S, Duration::MAX, at).unwrap().expect("asks");
