@@ -385,6 +385,23 @@ async fn motion_without_timeout_ends_when_its_fin_was_damaged() {
     again.await.unwrap().unwrap();
 }
 
+/// Issue 29 M for motions: a motion without timeout that nothing answered (its request never
+/// read by the gripper, so no line came in its place) is doubted after 10 s; the probe's answer
+/// shows its first reply lost, and once the gripper reports no motion it ends, without any
+/// damaged line read (`wsg-text:0x66c3c8e7252d7f83`, where it was asked every 10 s for ever).
+#[tokio::test(start_paused = true)]
+async fn motion_without_timeout_that_nothing_answered_ends_when_reported_over() {
+    let (client, mut gripper) = pair(ClientConfig::default()).await;
+    let forever = client.with_timeout(Duration::MAX);
+    let call =
+        tokio::spawn(async move { forever.home(gripper::wsg::HomingDirection::Default).await });
+    assert_eq!(gripper.line().await.as_deref(), Some("HOME()"));
+    // The probe of its missing first reply, then the check of the motion.
+    asked_after(&mut gripper, Duration::from_secs(10)).await;
+    asked_after(&mut gripper, Duration::from_secs(10)).await;
+    ends_malformed("the HOME", call).await;
+}
+
 /// Replies carry only a name: a request damaged on the way is answered `ERR <name> 15` under
 /// whatever name the damage left. `GRIPSTATE?` damaged into `GRIP\x13TATE?` was answered
 /// `ERR GRIP 15`, and the program's `GRIP()`, written after it, took that line as its own and

@@ -106,6 +106,10 @@ struct Slot<C> {
     over: bool,
     /// `Book::damages` when its `ACK` was read.
     damages_at_ack: u64,
+    /// A motion whose first reply (`ACK` or `ERR`) never came or could not be read, shown lost
+    /// by a later reply ([`Book::settle`]): reported over, it ends, for its `FIN` or `ERR`
+    /// (which comes before that report, in order) will not come either.
+    first_reply_lost: bool,
     /// `Book::damages` when it was written.
     damages_at_write: u64,
     /// When it was written, if it is a probe (`Request::probe`).
@@ -248,6 +252,7 @@ impl<C: Caller> Book<C> {
             checking: false,
             over: false,
             damages_at_ack: 0,
+            first_reply_lost: false,
             damages_at_write: self.damages,
             probe_at,
             doubt_at,
@@ -286,6 +291,7 @@ impl<C: Caller> Book<C> {
                 tracing::debug!(command = %slot.line, %line, "wsg text: a motion's first reply damaged, taken as acknowledged");
                 slot.acked = true;
                 slot.damages_at_ack = slot.damages_at_write;
+                slot.first_reply_lost = true;
                 // Without a give-up time (no timeout) it is asked whether it runs a while
                 // after this (not at once: a motion just accepted might not show yet), else it
                 // waited for ever for a `FIN` that an `ERR` lost in the damage never sends.
@@ -432,8 +438,11 @@ impl<C: Caller> Book<C> {
             tracing::debug!(command = %slot.line, value, over, "wsg text: overdue motion checked");
             // Over, and a line that could not be read came after its `ACK`: that was its `FIN`
             // or `ERR` (the gripper answers in order: it came before this state). The call
-            // ends and the name is free (issue 29 M for motions).
-            if over && damages > slot.damages_at_ack {
+            // ends and the name is free (issue 29 M for motions). So too when its first reply
+            // was lost: with no line read in its place (a request the gripper never read,
+            // `Book::doubt`), none of its replies came, and none will
+            // (`wsg-text:0x66c3c8e7252d7f83`: `HOME()` held with `give_up_after` `Duration::MAX`).
+            if over && (damages > slot.damages_at_ack || slot.first_reply_lost) {
                 ended.push(name);
             }
         }
@@ -442,7 +451,9 @@ impl<C: Caller> Book<C> {
                 let error = Error::MalformedReply {
                     command: slot.line,
                     line: format!("GRIPSTATE={value}"),
-                    reason: "the motion is over and its FIN or ERR could not be read".into(),
+                    reason:
+                        "the motion is over and its FIN or ERR did not come or could not be read"
+                            .into(),
                 };
                 self.complete(slot.caller, Err(error));
                 self.freed.push(name);
@@ -1207,6 +1218,25 @@ mod tests {
         );
         assert_eq!(book.give_up_at(), Some(t0 + DOUBT_AFTER));
         asked_over_and_ended(&mut book, t0 + DOUBT_AFTER, "GRIP");
+    }
+
+    /// A motion without timeout that nothing answered (its request never read: no line came
+    /// in its place) is doubted, taken as acknowledged once the probe's answer shows its first
+    /// reply lost, and ends when the gripper then reports no motion, without any damaged line
+    /// (`wsg-text:0x66c3c8e7252d7f83`: with `give_up_after` `Duration::MAX` it was asked
+    /// every 10 s for ever).
+    #[test]
+    fn a_motion_that_nothing_answered_ends_when_reported_over() {
+        let t0 = Instant::now();
+        let mut book = Book::new(Duration::MAX);
+        write_without_timeout(&mut book, 1, ("HOME", "HOME()", Expect::Fin), t0);
+        let at = t0 + DOUBT_AFTER;
+        assert!(matches!(book.overdue(S, Duration::MAX, at), Ok(None)));
+        let probe = book.probe(S, at).expect("a probe");
+        write(&mut book, probe, at);
+        book.on_line("GRIPSTATE=0", at);
+        assert!(done(&mut book).is_empty());
+        asked_over_and_ended(&mut book, at + DOUBT_AFTER, "HOME");
     }
 
     /// The check's own answer lost (run into the motion's damaged `FIN` before it, as in
