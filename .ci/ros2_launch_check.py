@@ -194,7 +194,9 @@ def check_launch_file(prefix, device, own_args, scenarios):
         check(all(os.path.isfile(p) for p in files) and files,
               f"{label}: parameter file {files} installed")
         check(node.namespace == overrides.get("namespace", ""), f"{label}: namespace")
-        check(node.arguments == (["--sim", device] if overrides.get("sim") == "true" else []),
+        # A WSG is simulated as the model its description gives (the joint limits' stroke).
+        sim = f"wsg:{configs['model']}" if device == "wsg" else device
+        check(node.arguments == (["--sim", sim] if overrides.get("sim") == "true" else []),
               f"{label}: arguments {node.arguments}")
         given = {}
         for p in node.parameters:

@@ -3,7 +3,7 @@ its name is its own, since the launch files put this directory on sys.path).
 
 Each launch file declares the arguments below and starts, in the namespace `namespace`:
 - the node `gripper` (executable gripper-ros2 of package gripper_ros2), with `--sim DEVICE`
-  when `sim` is true, the parameter file `params_file` (default: config/DEVICE.yaml), and
+  when `sim` is true (`--sim wsg:MODEL` for a WSG, the description's model), the parameter file `params_file` (default: config/DEVICE.yaml), and
   `address` when given; for a gripper, `joint_names` are the description's joints with `prefix`,
   for the Grasping-Kit `frame_id` is `prefix` + grasping_kit;
 - for a gripper, robot_state_publisher with the description (urdf/DEVICE.urdf.xacro expanded
@@ -63,6 +63,12 @@ def expand_description(device, mappings):
     return xacro.process_file(path, mappings=mappings).toxml()
 
 
+def sim_device(device, arg):
+    """The node's `--sim` value: a WSG simulated as the model its description gives (its
+    stroke then is the description's joint limits), any other device as itself."""
+    return f"wsg:{arg('model')}" if device == "wsg" else device
+
+
 def nodes(context, device, description_args):
     """The nodes, once the arguments are known. `description_args`: the xacro arguments
     besides prefix (launch argument names), or None for a device without a description."""
@@ -79,7 +85,7 @@ def nodes(context, device, description_args):
     out = [
         Node(
             package=PACKAGE, executable=EXECUTABLE, name=NODE_NAME, namespace=namespace,
-            arguments=["--sim", device] if is_true(arg("sim")) else [],
+            arguments=["--sim", sim_device(device, arg)] if is_true(arg("sim")) else [],
             parameters=[arg("params_file"), params], output="screen"),
     ]
     if description_args is not None:

@@ -53,7 +53,7 @@ pub async fn run(cli: Cli, stop: impl Future<Output = ()>) -> Result<(), String>
     let (shutdown_tx, shutdown) = watch::channel(false);
     let mut params = cli.params;
     let _sim = match cli.sim {
-        Some(kind) => Some(sim::start(kind, &mut params, shutdown.clone()).await?),
+        Some(kind) => Some(sim::start(kind, cli.sim_model, &mut params, shutdown.clone()).await?),
         None => None,
     };
     let context = ros::context(&params)?;

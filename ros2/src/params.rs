@@ -239,6 +239,9 @@ pub struct Cli {
     pub params: Params,
     /// `--sim KIND`: start the crate's simulator of that device in process.
     pub sim: Option<DeviceKind>,
+    /// `--sim wsg:MODEL` (50, 32, 25 or 70): the simulated WSG's model, so that its stroke is
+    /// the one the description (`wsg.launch.py model:=…`) gives its joints; a WSG 50 without.
+    pub sim_model: Option<gripper::wsg::sim::Model>,
     /// `--log-level LEVEL` (or `--log-level NODE:=LEVEL` naming this node): the console's and
     /// `/rosout`'s level, as a `tracing` level (`fatal` is `error`).
     pub log_level: Option<tracing::Level>,
@@ -294,6 +297,7 @@ impl Cli {
         Cli {
             params,
             sim: None,
+            sim_model: None,
             log_level: None,
             rosout_logs: true,
             console_logs: true,
@@ -311,6 +315,7 @@ impl Cli {
         read: impl Fn(&str) -> Result<String, String>,
     ) -> Result<Cli, ParamError> {
         let mut sim = None;
+        let mut sim_model = None;
         let mut files = Vec::new();
         let mut overrides: Vec<(Option<String>, String, Value)> = Vec::new();
         let mut remaps: Vec<(Option<String>, String, String)> = Vec::new();
@@ -326,7 +331,28 @@ impl Cli {
             };
             match a.as_str() {
                 "--ros-args" | "--" => {}
-                "--sim" => sim = Some(DeviceKind::parse(&value("--sim")?).map_err(ParamError)?),
+                "--sim" => {
+                    let v = value("--sim")?;
+                    let (kind, model) = match v.split_once(':') {
+                        Some((kind, model)) => (kind, Some(model)),
+                        None => (v.as_str(), None),
+                    };
+                    let kind = DeviceKind::parse(kind).map_err(ParamError)?;
+                    sim_model = match (kind, model) {
+                        (_, None) => None,
+                        (DeviceKind::Wsg, Some(model)) => {
+                            Some(wsg_model(model).ok_or_else(|| {
+                                ParamError(format!("--sim {v}: the WSG model is 50, 32, 25 or 70"))
+                            })?)
+                        }
+                        (_, Some(_)) => {
+                            return Err(ParamError(format!(
+                                "--sim {v}: only the WSG simulator takes a model"
+                            )))
+                        }
+                    };
+                    sim = Some(kind);
+                }
                 "--params-file" => files.push(value("--params-file")?),
                 "-p" | "--param" => {
                     let v = value("-p")?;
@@ -410,11 +436,24 @@ impl Cli {
         Ok(Cli {
             params,
             sim,
+            sim_model,
             log_level,
             rosout_logs,
             console_logs,
             warnings,
         })
+    }
+}
+
+/// The WSG model of `--sim wsg:MODEL`.
+fn wsg_model(model: &str) -> Option<gripper::wsg::sim::Model> {
+    use gripper::wsg::sim::Model;
+    match model {
+        "50" => Some(Model::Wsg50),
+        "32" => Some(Model::Wsg32),
+        "25" => Some(Model::Wsg25),
+        "70" => Some(Model::Wsg70),
+        _ => None,
     }
 }
 
@@ -435,9 +474,11 @@ fn parse_log_level(
         "info" => tracing::Level::INFO,
         "warn" => tracing::Level::WARN,
         "error" | "fatal" => tracing::Level::ERROR,
+        // rcutils' RCUTILS_LOG_SEVERITY_UNSET: the logger keeps its default level.
+        "unset" => return Ok(None),
         other => {
             return Err(ParamError(format!(
-                "--log-level {other:?}: expected debug, info, warn, error or fatal"
+                "--log-level {other:?}: expected debug, info, warn, error, fatal or unset"
             )))
         }
     };
@@ -751,6 +792,13 @@ mod tests {
         assert_eq!(cli.params.device, DeviceKind::Griplink);
         assert_eq!(cli.params.fully_qualified_name(), "/gripper");
         assert_eq!(cli.params.service_mapping, None);
+        assert_eq!(cli.sim_model, None);
+        // The WSG simulator's model, as wsg.launch.py passes it with its description's.
+        let cli = parse("--sim wsg:32", "").unwrap();
+        assert_eq!(cli.sim, Some(DeviceKind::Wsg));
+        assert_eq!(cli.sim_model, Some(gripper::wsg::sim::Model::Wsg32));
+        assert!(parse("--sim wsg:99", "").is_err());
+        assert!(parse("--sim griplink:32", "").is_err());
     }
 
     #[test]
@@ -844,6 +892,9 @@ mod tests {
             level("--ros-args -r __ns:=/left --log-level left.gripper:=warn"),
             Some(tracing::Level::WARN)
         );
+        // rcutils accepts `unset` (the default level), so the node does too.
+        assert_eq!(level("--ros-args --log-level unset"), None);
+        assert_eq!(level("--ros-args --log-level gripper:=UNSET"), None);
         let cli = parse("--ros-args --log-level rcl:=debug", "").unwrap();
         assert_eq!(cli.log_level, None);
         assert!(cli.warnings.join("").contains("rcl"), "{:?}", cli.warnings);

@@ -5,7 +5,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use gripper::griplink::sim as gl;
-use gripper::wsg::sim::{SimConfig, SimServer, SimSnapshot};
+use gripper::wsg::sim::{Model, SimConfig, SimServer, SimSnapshot};
 use tokio::sync::watch;
 
 use crate::params::{DeviceKind, Params};
@@ -16,7 +16,7 @@ const LOG_PERIOD: Duration = Duration::from_millis(10);
 
 /// A running simulator; it stops when dropped.
 pub enum Sim {
-    /// A WSG 50.
+    /// A WSG (50 by default).
     Wsg(Arc<SimServer>),
     /// A GRIPLINK-ET4.
     Griplink(Arc<gl::SimServer>),
@@ -27,16 +27,22 @@ pub enum Sim {
 /// Starts the simulator of `kind` and points the parameters at it.
 pub async fn start(
     kind: DeviceKind,
+    wsg_model: Option<Model>,
     params: &mut Params,
     shutdown: watch::Receiver<bool>,
 ) -> Result<Sim, String> {
     match kind {
         DeviceKind::Wsg => {
-            // A WSG 50 with a 40 mm part (±2 mm) between its fingers, which stops a closing
-            // move (E_AXIS_BLOCKED), moving in real time; over its text interface (GCL) with
-            // `transport: text`, else over the binary protocol on TCP.
+            // A WSG (50 unless `--sim wsg:MODEL` says which, so that its stroke is its
+            // description's) with a 40 mm part (±2 mm) between its fingers, which stops a
+            // closing move (E_AXIS_BLOCKED), moving in real time; over its text interface (GCL)
+            // with `transport: text`, else over the binary protocol on TCP.
             let text = params.transport == "text";
-            let mut config = SimConfig::standalone().with_blocking_part();
+            let model = wsg_model.unwrap_or(Model::Wsg50);
+            let mut config = SimConfig::new(model)
+                .with_part(40.0, 2.0)
+                .with_time_scale(1.0)
+                .with_blocking_part();
             if text {
                 config = config.text();
             }
@@ -47,7 +53,7 @@ pub async fn start(
                 .local_addr()
                 .ok_or("the WSG simulator has no address")?;
             tracing::info!(
-                "WSG simulator (WSG 50, a 40 mm part between the fingers, real time) on {addr}"
+                "WSG simulator ({model:?}, a 40 mm part between the fingers, real time) on {addr}"
             );
             if !text {
                 params.transport = "tcp".into();
