@@ -37,7 +37,11 @@ class Stream(Generic[_T]):
     ``async for v in stream`` awaits each.
 
     A lost connection ends it with ``ConnectionLostError`` (raised once; the stream is then
-    exhausted). ``close()`` (or leaving ``with`` / ``async with``) ends it at once, from any
+    exhausted) when the connection is over for good: no ``reconnect`` policy, or the policy
+    gave up. A connection the policy restores does not end it: the client asks the device for
+    it again on the new connection (WSG auto-updates, GCL pushes; a GRIPLINK watch polls on),
+    and values come again once restored; those the device would have sent meanwhile are not
+    made up. ``close()`` (or leaving ``with`` / ``async with``) ends it at once, from any
     thread or task: readers waiting on it get ``StopIteration`` / ``StopAsyncIteration``.
     Closing the client ends it the same way. A reader that falls behind misses values
     (``missed``): see ``buffer_size`` and ``latest_only``.

@@ -5,6 +5,7 @@ from __future__ import annotations
 import asyncio
 
 import pytest
+from conftest import run_async
 
 import gripper_rs
 import gripper_rs.aio
@@ -28,7 +29,7 @@ def test_wsg_calls_and_context(wsg_sim: wsg.sim.SimServer) -> None:
                 await client.home(9)
         assert wsg_sim.received_ids()[-1] == 0x07  # the disconnect announcement
 
-    asyncio.run(main())
+    run_async(main)
 
 
 def test_wsg_cancelled_call_leaves_the_client_paired(wsg_sim: wsg.sim.SimServer) -> None:
@@ -49,7 +50,7 @@ def test_wsg_cancelled_call_leaves_the_client_paired(wsg_sim: wsg.sim.SimServer)
         assert await client.width_mm() == 70.0
         await client.close()
 
-    asyncio.run(main())
+    run_async(main)
 
 
 def test_wsg_async_stream(wsg_client: wsg.Client) -> None:
@@ -63,7 +64,7 @@ def test_wsg_async_stream(wsg_client: wsg.Client) -> None:
                 break
         return values
 
-    assert asyncio.run(main()) == [110.0, 110.0, 110.0]
+    assert run_async(main) == [110.0, 110.0, 110.0]
 
 
 def test_wsg_stream_ends_with_the_connection(wsg_sim: wsg.sim.SimServer) -> None:
@@ -77,7 +78,7 @@ def test_wsg_stream_ends_with_the_connection(wsg_sim: wsg.sim.SimServer) -> None
                 await client.close()
         return seen
 
-    assert asyncio.run(main()) >= 2
+    assert run_async(main) >= 2
 
 
 def test_griplink_aio(griplink_sim: griplink.sim.SimServer) -> None:
@@ -96,7 +97,7 @@ def test_griplink_aio(griplink_sim: griplink.sim.SimServer) -> None:
                 assert state is griplink.DeviceState.HOLDING
                 break
 
-    asyncio.run(main())
+    run_async(main)
 
 
 def test_smartgrasp_aio(kit_sim: smartgrasp.sim.SimServer) -> None:
@@ -118,4 +119,4 @@ def test_smartgrasp_aio(kit_sim: smartgrasp.sim.SimServer) -> None:
             assert result.outcome is smartgrasp.GetGraspOutcome.GRASP
             assert await kit.get_state() is smartgrasp.ServerState.OPERATIONAL
 
-    asyncio.run(main())
+    run_async(main)

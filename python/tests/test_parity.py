@@ -15,7 +15,7 @@ import pytest
 import gripper_rs
 import gripper_rs.aio
 from conftest import Relay, run_async, wait_until
-from gripper_rs import ConnectionEvent, ReconnectPolicy, griplink, wsg
+from gripper_rs import ConnectionEvent, ReconnectPolicy, griplink, smartgrasp, wsg
 from gripper_rs.reconnect import EventKind
 
 PRE_POSITION_ID = 0x21
@@ -133,6 +133,27 @@ def test_griplink_reconnect_events_async(griplink_relay: Relay) -> None:
 
     seen = run_async(main)
     assert seen[0] is EventKind.LOST and seen[-1] is EventKind.RESTORED
+
+
+def test_smartgrasp_reconnects_and_reports_its_events(kit_sim: smartgrasp.sim.SimServer) -> None:
+    relay = Relay(kit_sim.address)
+    try:
+        kit = smartgrasp.Client.connect(relay.address, reconnect=FAST)
+        events = kit.connection_events()
+        assert kit.get_protocol_version() == 4
+        relay.cut()
+        seen: list[ConnectionEvent] = []
+        for event in events:
+            seen.append(event)
+            if event.kind is EventKind.RESTORED:
+                break
+        assert kinds(seen)[0] is EventKind.LOST
+        assert not kit.is_closed
+        assert kit.get_protocol_version() == 4  # the new connection answers
+        kit.close()
+        assert kit.is_closed
+    finally:
+        relay.close()
 
 
 def test_invalid_policies_are_refused(wsg_sim: wsg.sim.SimServer) -> None:

@@ -24,6 +24,9 @@ def test_session(kit: smartgrasp.Client, kit_sim: SimServer) -> None:
         kit.set_project(99)
     assert caught.value.code == smartgrasp.ResponseCode.ERROR
     assert caught.value.command == "SET_PROJECT"
+    # As for every protocol: the status as the protocol's IntEnum, the manual's symbol as name.
+    assert caught.value.status is smartgrasp.ResponseCode.ERROR
+    assert caught.value.name == "ERROR"
 
 
 def test_grasp_loop(kit: smartgrasp.Client) -> None:

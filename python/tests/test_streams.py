@@ -122,6 +122,35 @@ def test_a_lost_connection_ends_an_async_stream_with_connection_lost(wsg_relay: 
     run_async(main)
 
 
+def test_a_stream_goes_on_across_a_reconnect(wsg_relay: Relay) -> None:
+    """With a reconnect policy, a restored connection does not end a stream: the client asks
+    the device for it again on the new connection, and values come again."""
+
+    async def main() -> None:
+        policy = gripper_rs.ReconnectPolicy(initial_delay_s=0.01, max_delay_s=0.01)
+        client = await gripper_rs.aio.wsg.Client.connect_tcp(wsg_relay.address, reconnect=policy)
+        events = client.connection_events()
+        stream = await client.subscribe_width_mm(0.01)
+        stream.latest_only = True
+        await stream.__anext__()
+        asked = wsg_relay.sent.count(b"\xaa\xaa\xaa\x43")
+        wsg_relay.cut()
+        async for event in events:
+            if event.kind is gripper_rs.reconnect.EventKind.RESTORED:
+                break
+        # The stream was asked for again on the new connection.
+        assert wsg_relay.sent.count(b"\xaa\xaa\xaa\x43") > asked
+        # At most one value from before the cut is held (latest_only); the next is the new
+        # connection's. Neither raises.
+        await asyncio.wait_for(stream.__anext__(), 5.0)
+        assert isinstance(await asyncio.wait_for(stream.__anext__(), 5.0), float)
+        assert not stream.is_closed
+        await stream.aclose()
+        await client.close()
+
+    run_async(main)
+
+
 def test_closing_the_client_ends_a_stream_without_error(wsg_client: wsg.Client) -> None:
     stream = wsg_client.subscribe_grip_state(STILL, on_change=True)
     next(stream)

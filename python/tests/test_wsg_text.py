@@ -6,6 +6,7 @@ import asyncio
 from collections.abc import Iterator
 
 import pytest
+from conftest import run_async
 
 import gripper_rs
 from gripper_rs import wsg
@@ -69,4 +70,4 @@ def test_asyncio_view(text_sim: SimServer) -> None:
             widths = await asyncio.gather(*(g.position_mm() for _ in range(5)))
             assert widths == [110.0] * 5
 
-    asyncio.run(main())
+    run_async(main)
