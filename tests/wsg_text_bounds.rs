@@ -402,40 +402,6 @@ async fn motion_without_timeout_that_nothing_answered_ends_when_reported_over() 
     ends_malformed("the HOME", call).await;
 }
 
-/// Replies carry only a name: a request damaged on the way is answered `ERR <name> 15` under
-/// whatever name the damage left. `GRIPSTATE?` damaged into `GRIP\x13TATE?` was answered
-/// `ERR GRIP 15`, and the program's `GRIP()`, written after it, took that line as its own and
-/// failed, while the gripper acknowledged and ran it (`wsg-text:0xba0682223c8b01a8`). Out of
-/// its command's place (a reply due at once to a line written before it still missing), such
-/// a line now counts as damaged: the probe's answer fails the query, and the grip takes its
-/// own `ACK` and `FIN`.
-#[tokio::test]
-async fn a_format_error_for_a_request_damaged_into_another_name_is_not_that_calls() {
-    let (client, mut gripper) = pair(ClientConfig::default()).await;
-    let state = tokio::spawn({
-        let client = client.clone();
-        async move { client.grip_state().await }
-    });
-    assert_eq!(gripper.line().await.as_deref(), Some("GRIPSTATE?"));
-    let grip = tokio::spawn({
-        let client = client.clone();
-        async move { client.grip(None).await }
-    });
-    assert_eq!(gripper.line().await.as_deref(), Some("GRIP()"));
-    gripper.reply("ERR GRIP 15").await;
-    gripper.reply("ACK GRIP").await;
-    assert_eq!(gripper.line().await.as_deref(), Some("POS?"));
-    gripper.reply("POS=3.0").await;
-    gripper.reply("FIN GRIP").await;
-    let state = tokio::time::timeout(LIMIT, state).await.unwrap().unwrap();
-    assert!(
-        matches!(state, Err(gripper::wsg::text::Error::MalformedReply { .. })),
-        "{state:?}"
-    );
-    let grip = tokio::time::timeout(LIMIT, grip).await.unwrap().unwrap();
-    assert!(grip.is_ok(), "{grip:?}");
-}
-
 /// A client (`give_up_after` 200 ms) whose `MOVE(10)` with a 100 ms timeout was acknowledged
 /// (then answered `after_ack`) and timed out; returned once, past its timeout +
 /// `give_up_after`, the client asked `GRIPSTATE?` (issue 29 L).

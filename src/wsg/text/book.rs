@@ -746,38 +746,6 @@ impl<C: Caller> Book<C> {
             self.damage(text);
             return Handled::Nothing;
         };
-        // A request damaged on the way is answered `ERR <name> 14` or `15` (unknown command,
-        // format error) under whatever name the damage left, maybe another command's: a
-        // flipped bit made `GRIPSTATE?` into `GRIP\x13TATE?`, answered `ERR GRIP 15`, which the
-        // program's `GRIP(…)` on the wire took while its own `ACK GRIP` followed
-        // (`wsg-text:0xba0682223c8b01a8`). Such a line is the named command's answer only in
-        // its place: that command waits for a reply due at once, and no command written
-        // before it still does (the gripper answers in order, shared note §3.7). Anywhere
-        // else it is the answer to another request, damaged, and counts as a line that could
-        // not be read (the probe then settles who lost a reply).
-        if let ReplyLine::Err {
-            code: Some(14 | 15),
-            ..
-        } = reply
-        {
-            let seq = slot.seq;
-            let in_place = Book::answered_at_once(slot)
-                && !self
-                    .on_wire
-                    .values()
-                    .any(|s| s.seq < seq && Book::answered_at_once(s));
-            if !in_place {
-                tracing::warn!(
-                    line = text,
-                    "wsg text: a format error out of its command's place, taken as damaged"
-                );
-                self.damage(text);
-                return Handled::Nothing;
-            }
-        }
-        let Some(slot) = self.on_wire.get_mut(key) else {
-            return Handled::Nothing;
-        };
         // A reply to a line written after a damaged one: the replies before it have come.
         // (A motion's `FIN` is no such sign: it comes when the motion ends.)
         if !matches!(reply, ReplyLine::Fin(_)) {
@@ -1291,65 +1259,6 @@ mod tests {
             Handled::Freed("HOME")
         ));
         assert!(matches!(&done(&mut book)[..], [(1, Ok(_))]));
-    }
-
-    /// A format error (`ERR GRIP 15`) out of its command's place: `GRIPSTATE?`, written
-    /// before `GRIP(…)`, still waits for its reply, so the line is the answer to a damaged
-    /// request (`GRIP\x13TATE?`), not GRIP's (`wsg-text:0xba0682223c8b01a8`): it counts as
-    /// damaged, GRIP takes its own `ACK` and `FIN`, and the probe's answer fails the query.
-    /// In its place, the same line is the command's answer.
-    #[test]
-    fn a_format_error_out_of_its_commands_place_is_a_damaged_line() {
-        let t0 = Instant::now();
-        let mut book = Book::new(GIVE_UP_AFTER);
-        assert!(call(
-            &mut book,
-            1,
-            "GRIPSTATE",
-            "GRIPSTATE?",
-            Expect::Value,
-            t0
-        ));
-        assert!(call(&mut book, 2, "GRIP", "GRIP(10)", Expect::Fin, t0));
-        assert!(matches!(book.on_line("ERR GRIP 15", t0), Handled::Nothing));
-        assert!(done(&mut book).is_empty(), "GRIP did not take it");
-        let probe = book.probe(S, t0).expect("a probe");
-        assert_eq!(probe.line, "POS?");
-        write(&mut book, probe, t0);
-        assert!(matches!(book.on_line("ACK GRIP", t0), Handled::Nothing));
-        assert!(matches!(book.on_line("POS=3", t0), Handled::Freed("POS")));
-        assert!(matches!(
-            book.on_line("FIN GRIP", t0),
-            Handled::Freed("GRIP")
-        ));
-        let first = done(&mut book);
-        assert!(
-            matches!(
-                &first[..],
-                [(1, Err(Error::MalformedReply { .. })), (2, Ok(_))]
-            ),
-            "{first:?}"
-        );
-        // In its place: the command's own answer.
-        assert!(call(&mut book, 3, "GRIP", "GRIP(10)", Expect::Fin, t0));
-        assert!(matches!(
-            book.on_line("ERR GRIP 15", t0),
-            Handled::Freed("GRIP")
-        ));
-        let done = done(&mut book);
-        assert!(
-            matches!(
-                &done[..],
-                [(
-                    3,
-                    Err(Error::Device {
-                        status: Some(Status::CmdFormatError),
-                        ..
-                    })
-                )]
-            ),
-            "{done:?}"
-        );
     }
 
     #[test]
