@@ -1024,3 +1024,6 @@ class smartgrasp:
             """The next response has `length` in its length field."""
         def close_next(self) -> None:
             """The connection is closed instead of the next response."""
+        def refuse_next(self, code: int) -> None:
+            """The next request is not carried out but answered with response code `code` (a
+            `ResponseCode`, or a number the manual does not define)."""

@@ -497,6 +497,13 @@ sim_pymethods! { SimServer, "gripper_rs.smartgrasp.sim.SimServer";
         self.inject(smartgrasp::sim::Fault::Close)
     }
 
+    /// The next request is not carried out but answered with response code `code` (a
+    /// `ResponseCode`, or a number the manual does not define).
+    fn refuse_next(&self, code: Checked<u8>) -> PyResult<()> {
+        let code = smartgrasp::ResponseCode::from(code.0);
+        self.inject(smartgrasp::sim::Fault::Refuse(code))
+    }
+
 }
 
 /// `gripper_rs._native.smartgrasp`.

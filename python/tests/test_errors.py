@@ -138,6 +138,25 @@ def test_griplink_device_error_status(
     assert unknown.value.status == 999
 
 
+def test_smartgrasp_device_error_status(kit_sim: smartgrasp.sim.SimServer) -> None:
+    with smartgrasp.Client.connect(kit_sim.address) as kit:
+        kit_sim.refuse_next(int(smartgrasp.ResponseCode.ERROR))
+        with pytest.raises(gripper_rs.DeviceError) as known:
+            kit.get_state()
+        assert known.value.status is smartgrasp.ResponseCode.ERROR
+        assert known.value.name == "ERROR"
+        # A code the manual does not define: no name, the status still the protocol's IntEnum.
+        kit_sim.refuse_next(200)
+        with pytest.raises(gripper_rs.DeviceError) as unknown:
+            kit.get_state()
+        assert unknown.value.code == 200
+        assert unknown.value.name is None
+        assert isinstance(unknown.value.status, smartgrasp.ResponseCode)
+        assert unknown.value.status == 200
+        roundtrips(unknown.value)
+        assert kit.get_protocol_version() == 4  # the client goes on
+
+
 def test_timeout_error_stays_out_of_star_imports() -> None:
     assert "TimeoutError" not in gripper_rs.__all__
     assert "TimeoutError" not in gripper_rs.errors.__all__

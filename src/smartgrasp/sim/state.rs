@@ -82,6 +82,10 @@ pub enum Fault {
     CorruptLength(u32),
     /// Close the connection instead of answering.
     Close,
+    /// Do not carry the request out; answer it with this response code and no payload (a
+    /// refusal the program must handle, e.g. a code newer than the manual's,
+    /// `ResponseCode::Unknown`).
+    Refuse(ResponseCode),
 }
 
 /// How the simulated server starts.
@@ -381,9 +385,18 @@ impl SimState {
         }
         let counter = conn.next_counter;
         conn.next_counter = counter.wrapping_add(1);
-        let (code, body) = match Request::from_any_frame(frame) {
-            Ok(request) => self.process(request, version),
-            Err(e) => {
+        // A refusal injected for this request replaces carrying it out.
+        let refusal = match self.faults.front() {
+            Some(&Fault::Refuse(code)) => {
+                self.faults.pop_front();
+                Some(code)
+            }
+            _ => None,
+        };
+        let (code, body) = match (refusal, Request::from_any_frame(frame)) {
+            (Some(code), _) => (code, ResponseBody::Empty),
+            (None, Ok(request)) => self.process(request, version),
+            (None, Err(e)) => {
                 tracing::debug!(error = %e, "simulator refused a request");
                 (ResponseCode::Error, ResponseBody::Empty)
             }
@@ -414,6 +427,8 @@ impl SimState {
                 Action::SendRaw(bytes)
             }
             Some(Fault::Close) => Action::Close,
+            // Taken before the request was carried out (above); not reached.
+            Some(Fault::Refuse(_)) => Action::Respond(response),
         }
     }
 
@@ -669,6 +684,22 @@ mod tests {
         assert_eq!(s.clear_faults(), 0);
         let frame = Request::GetState.to_any_frame(PROTOCOL_VERSION).unwrap();
         assert!(matches!(s.handle(&mut c, &frame), Action::Respond(_)));
+    }
+
+    /// An injected refusal answers the next request with its code and no payload, and the
+    /// request is not carried out (no client registered); the one after is served as ever.
+    #[test]
+    fn a_refusal_answers_the_next_request_with_its_code_and_does_nothing() {
+        let mut s = SimState::new(SimConfig::default());
+        let mut c = s.connect();
+        s.inject(Fault::Refuse(ResponseCode::Unknown(200)));
+        let refused = respond(&mut s, &mut c, Request::RegisterClient(RobotSystem::Kuka));
+        assert_eq!(refused.code, ResponseCode::Unknown(200));
+        assert_eq!(refused.body, ResponseBody::Empty);
+        assert!(s.registered_clients().is_empty(), "not carried out");
+        let served = respond(&mut s, &mut c, Request::RegisterClient(RobotSystem::Kuka));
+        assert_eq!(served.code, ResponseCode::Success);
+        assert_eq!(s.registered_clients(), [RobotSystem::Kuka]);
     }
 
     #[test]
