@@ -274,8 +274,8 @@ impl<C: Caller> Book<C> {
         }
     }
 
-    /// A reply to the command written as `seq` arrived at `now`: the commands answered at once written
-    /// before the damaged line and still unanswered lost their reply to it. They fail, and
+    /// A reply to the command written as `seq` arrived at `now`: the commands answered at once
+    /// written before the damaged line and still unanswered lost their reply to it. They fail, and
     /// their names are free (no reply of theirs can come any more). A motion not yet
     /// acknowledged lost its first reply too, an `ACK` (its `FIN` may still come) or an `ERR`
     /// (none will): it is taken as acknowledged, with that damaged line after its `ACK`, so
@@ -549,7 +549,10 @@ impl<C: Caller> Book<C> {
                 continue;
             }
             slot.doubt_at = None;
-            tracing::debug!(command = %slot.line, "wsg text: no reply long after it was written, asking");
+            tracing::debug!(
+                command = %slot.line,
+                "wsg text: no reply long after it was written, asking"
+            );
             if Book::answered_at_once(slot) {
                 at_once = true;
             } else {
