@@ -104,6 +104,33 @@ def test_every_error_pickles_and_copies(wsg_client: wsg.Client, wsg_sim: wsg.sim
     assert gripper_rs.ClosedError("x") == gripper_rs.ClosedError("x")
 
 
+def test_the_other_errors_pickle_and_copy(
+    griplink_client: griplink.Client,
+    griplink_sim: griplink.sim.SimServer,
+    wsg_sim: wsg.sim.SimServer,
+) -> None:
+    """The four error classes the test above does not meet, each raised for real."""
+    griplink_sim.raw_next_reply(b"\x01garbage\n")
+    with pytest.raises(gripper_rs.MalformedReplyError) as malformed:
+        griplink_client.version()
+    roundtrips(malformed.value)
+
+    with pytest.raises(gripper_rs.TransportError) as refused:
+        wsg.Client.connect_tcp(wsg_sim.address.replace(str(wsg_sim.port), "1"))
+    roundtrips(refused.value)
+    assert isinstance(pickle.loads(pickle.dumps(refused.value)), OSError)
+
+    with smartgrasp.sim.SimServer(server_state=smartgrasp.ServerState.STOPPED) as stopped:
+        with pytest.raises(gripper_rs.ProtocolError) as protocol:
+            smartgrasp.Client.connect(stopped.address)
+    roundtrips(protocol.value)
+
+    griplink_sim.close_next()
+    with pytest.raises(gripper_rs.ConnectionLostError) as connection:
+        griplink_client.id()
+    roundtrips(connection.value)
+
+
 def test_device_error_name_and_status(wsg_client: wsg.Client, wsg_sim: wsg.sim.SimServer) -> None:
     wsg_client.home()
     wsg_sim.force_status(GRASP_ID, int(wsg.Status.AXIS_BLOCKED))

@@ -125,6 +125,22 @@ def test_a_text_client_left_open_says_bye_at_exit() -> None:
         assert wsg.SystemState.FAST_STOP not in sim.snapshot().system_state
 
 
+def test_a_griplink_client_left_open_says_bye_at_exit(griplink_relay: Relay) -> None:
+    child = run_child(
+        f"""
+        from gripper_rs import griplink
+        import threading, time
+        client = griplink.Client.connect({griplink_relay.address!r})
+        client.id()
+        threading.Thread(target=lambda held=client: time.sleep(1000), daemon=True).start()
+        """
+    )
+    assert child.returncode == 0, child.stderr
+    # The controller's disconnect announcement (BYE), sent once before the socket closed.
+    wait_until(lambda: b"BYE()\n" in griplink_relay.sent)
+    assert griplink_relay.sent.count(b"BYE()\n") == 1
+
+
 @pytest.mark.skipif(not hasattr(os, "fork"), reason="no fork on this platform")
 def test_a_forked_child_gets_a_clear_error_not_a_hang(wsg_client: wsg.Client) -> None:
     wsg_client.width_mm()  # the runtime is running in this process
