@@ -8,6 +8,7 @@ import logging
 import struct
 import sys
 import threading
+from collections.abc import Iterable
 from pathlib import Path
 
 import pytest
@@ -70,6 +71,16 @@ def test_clamp_on_block(wsg_relay: Relay) -> None:
     assert pre_position_flags(bytes(wsg_relay.sent)) == [0b10, 0b00, 0b01, 0b11]
 
 
+def until_restored(events: Iterable[ConnectionEvent]) -> list[ConnectionEvent]:
+    """The connection events up to and including the first RESTORED."""
+    seen: list[ConnectionEvent] = []
+    for event in events:
+        seen.append(event)
+        if event.kind is EventKind.RESTORED:
+            break
+    return seen
+
+
 def kinds(events: list[ConnectionEvent]) -> list[EventKind]:
     return [e.kind for e in events]
 
@@ -79,11 +90,7 @@ def test_wsg_reconnects_and_reports_its_events(wsg_relay: Relay) -> None:
     events = client.connection_events()
     client.home()
     wsg_relay.cut()
-    seen: list[ConnectionEvent] = []
-    for event in events:
-        seen.append(event)
-        if event.kind is EventKind.RESTORED:
-            break
+    seen = until_restored(events)
     assert kinds(seen)[0] is EventKind.LOST
     assert seen[0].reason
     assert EventKind.RECONNECTING in kinds(seen) and EventKind.CONNECTED in kinds(seen)
@@ -142,11 +149,7 @@ def test_smartgrasp_reconnects_and_reports_its_events(kit_sim: smartgrasp.sim.Si
         events = kit.connection_events()
         assert kit.get_protocol_version() == 4
         relay.cut()
-        seen: list[ConnectionEvent] = []
-        for event in events:
-            seen.append(event)
-            if event.kind is EventKind.RESTORED:
-                break
+        seen = until_restored(events)
         assert kinds(seen)[0] is EventKind.LOST
         assert not kit.is_closed
         assert kit.get_protocol_version() == 4  # the new connection answers

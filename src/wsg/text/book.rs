@@ -1140,6 +1140,13 @@ mod tests {
         assert_eq!(book.give_up_at(), Some(at + S + GIVE_UP_AFTER));
     }
 
+    /// At `at` the client's probe is written and answered `answer`.
+    fn probe_answered(book: &mut Book<Call>, at: Instant, answer: &str) {
+        let probe = book.probe(S, at).expect("a probe");
+        write(book, probe, at);
+        book.on_line(answer, at);
+    }
+
     /// At `at` the motion `name` (call 1) is asked whether it runs; the gripper reports no
     /// motion, and the call ends `MalformedReply` (a line that could not be read came after
     /// its `ACK`), its name free.
@@ -1180,9 +1187,7 @@ mod tests {
         let mut book = Book::new(GIVE_UP_AFTER);
         write_without_timeout(&mut book, 1, ("GRIP", "GRIP(13.5,71)", Expect::Fin), t0);
         book.damage("MRR GRIP 15");
-        let probe = book.probe(S, t0).expect("a probe");
-        write(&mut book, probe, t0);
-        book.on_line("GRIPSTATE=0", t0);
+        probe_answered(&mut book, t0, "GRIPSTATE=0");
         assert!(
             done(&mut book).is_empty(),
             "not at once: a motion just accepted may not show"
@@ -1203,9 +1208,7 @@ mod tests {
         write_without_timeout(&mut book, 1, ("HOME", "HOME()", Expect::Fin), t0);
         let at = t0 + DOUBT_AFTER;
         assert!(matches!(book.overdue(S, Duration::MAX, at), Ok(None)));
-        let probe = book.probe(S, at).expect("a probe");
-        write(&mut book, probe, at);
-        book.on_line("GRIPSTATE=0", at);
+        probe_answered(&mut book, at, "GRIPSTATE=0");
         assert!(done(&mut book).is_empty());
         asked_over_and_ended(&mut book, at + DOUBT_AFTER, "HOME");
     }
@@ -1223,9 +1226,7 @@ mod tests {
         let check = book.overdue(S, GIVE_UP_AFTER, at).unwrap().expect("asks");
         write(&mut book, check, at);
         book.on_line("FIN MOVE\u{b}GRIPSTATE=0", at);
-        let probe = book.probe(S, at).expect("a probe");
-        write(&mut book, probe, at);
-        book.on_line("POS=33.0", at);
+        probe_answered(&mut book, at, "POS=33.0");
         assert!(
             done(&mut book).is_empty(),
             "the check failed, the MOVE goes on"
