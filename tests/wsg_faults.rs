@@ -689,3 +689,40 @@ async fn udp_dropped_and_duplicated_datagrams() {
         .unwrap();
     assert_eq!(client.width_mm().await.unwrap(), 30.0);
 }
+
+/// Issue 29 D (the explorer's `wsg-udp:0xaf073ffc53d9a31d`): on UDP a stop lost while its
+/// caller had no timeout counted as unanswered for ever. A reply is taken for the oldest stop
+/// unanswered (replies carry nothing else), so each such stop cost every later stop call one
+/// more re-send before a reply could be its own: after twenty, a `stop()` with a 1 s timeout
+/// timed out on a device that answered each of its stops at once. Such a stop now counts as
+/// lost the reply hold (the query timeout) + grace after it was sent, as any request without
+/// timeout.
+#[tokio::test]
+async fn on_udp_stops_lost_while_nobody_had_a_timeout_do_not_hold_up_a_later_stop() {
+    let sim = SimServer::bind_udp("127.0.0.1:0", config()).await.unwrap();
+    let client = Client::builder()
+        .query_timeout(Duration::from_millis(50))
+        .late_reply_grace(Duration::from_millis(50))
+        .connect_udp(sim.local_addr().unwrap())
+        .await
+        .unwrap();
+    // Twenty stop replies lost in a row: the call without timeout ends on the reply to its
+    // twenty-first stop, and twenty stops count as unanswered behind it.
+    const LOST: usize = 20;
+    for _ in 0..LOST {
+        sim.drop_next_reply(id::STOP);
+    }
+    let patient = client.with_timeouts(Duration::MAX, Duration::MAX);
+    bounded(SURE, patient.stop()).await.unwrap();
+    let stops = sim
+        .received_ids()
+        .iter()
+        .filter(|i| **i == id::STOP)
+        .count();
+    assert_eq!(stops, LOST + 1);
+    // The device answers every stop now: a stop with a timeout gets its own reply at once, or
+    // after a re-send or two, not after twenty.
+    let timely = client.with_timeouts(Duration::from_secs(1), MOTION);
+    bounded(SURE, timely.stop()).await.unwrap();
+    assert_healthy(&client, "after the stops").await;
+}

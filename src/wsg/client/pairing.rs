@@ -392,10 +392,10 @@ impl Pairing {
     pub(crate) fn submit(&mut self, req: Request, now: Instant) -> Submit {
         let id = req.frame.id;
         if is_stop(id) {
-            let (grace, ordered) = (self.grace, self.ordered);
+            let (grace, ordered, hold) = (self.grace, self.ordered, self.holds.0);
             self.stops
                 .entry(id)
-                .or_insert_with(|| Stops::new(ordered))
+                .or_insert_with(|| Stops::new(ordered).with_reply_hold(hold))
                 .submit(req.token, req.deadline, now, grace);
             return Submit::Send(req);
         }

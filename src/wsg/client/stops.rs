@@ -49,18 +49,26 @@
 //!   stops one too early, and a call whose own stop was lost, or whose reply was taken for an
 //!   earlier stop, would wait in vain. A call that waits [`RESEND_AFTER`] without its reply
 //!   gets the stop sent again (idempotent), until its reply comes or its deadline passes. A
-//!   stop unanswered for its caller's deadline plus the late-reply grace counts as lost (and
-//!   the oldest are given up beyond [`MAX_UNANSWERED`]). Residual risks: a stop reply later
-//!   than that grace, or a duplicated one, is taken for a later stop; and a stop sent again
-//!   may reach the device after `stop()` returned (UDP reorders), stopping a move started
-//!   right after (that move then ends with E_CMD_ABORTED, the device's own answer).
+//!   stop unanswered for its caller's deadline plus the late-reply grace counts as lost; one
+//!   whose callers have no timeout, the reply hold plus the grace after it was sent, as any
+//!   request without timeout ([`super::pairing`]): a lost stop of such a caller counted as
+//!   unanswered for ever, and every later stop call waited a resend per such stop before a
+//!   reply could be its own, past its timeout (issue 29 D, the explorer's
+//!   `wsg-udp:0xaf073ffc53d9a31d`: a quiet connection answering every stop at once). The
+//!   count is never cut short to bound it: beyond [`MAX_UNANSWERED`] runs, a new stop joins
+//!   the newest run, which then counts as lost when the last of its stops would. Evicting the
+//!   oldest instead made a timely reply to it complete a call whose stop came later (issue
+//!   29 D). Residual risks: a stop reply later than that grace, or a duplicated one, is taken
+//!   for a later stop; and a stop sent again may reach the device after `stop()` returned
+//!   (UDP reorders), stopping a move started right after (that move then ends with
+//!   E_CMD_ABORTED, the device's own answer).
 
 use std::collections::VecDeque;
 use std::time::Duration;
 
 use tokio::time::Instant;
 
-use crate::deadline::after;
+use crate::deadline::{after, is_never};
 
 /// Identifies one request for the task.
 pub(crate) type Token = u64;
@@ -70,7 +78,8 @@ pub(crate) type Token = u64;
 /// call's timeout.
 pub(crate) const RESEND_AFTER: Duration = Duration::from_millis(100);
 
-/// Stops of one id kept unanswered at most on UDP; beyond, the oldest counts as lost.
+/// Runs of unanswered stops of one id kept at most on UDP ([`Run`]); beyond, a new stop joins
+/// the newest run.
 pub(crate) const MAX_UNANSWERED: usize = 16;
 
 /// Ordered transport: how many times in a row a stop nobody waits for any more is sent again,
@@ -89,6 +98,17 @@ pub(crate) enum StopDue {
     /// Ordered transport: send a barrier (a loop-back with a payload of its own) and report its
     /// echo with [`Stops::unfence`].
     Barrier,
+}
+
+/// UDP: unanswered stops, `len` of them, the oldest numbered `first` and the rest later
+/// (consecutive unless a run between them was given up), all counting as lost at `lost_at`.
+/// A reply answers the oldest: numbering the next one `first + 1` is never later than the
+/// stop it stands for, so a call may complete a reply late, never early.
+#[derive(Debug)]
+struct Run {
+    first: u64,
+    len: u64,
+    lost_at: Instant,
 }
 
 /// A caller waiting for a stop reply.
@@ -137,9 +157,8 @@ struct Ordered {
 /// The stops of one command id (0x22 or 0x23).
 #[derive(Debug, Default)]
 pub(crate) struct Stops {
-    /// UDP: stops sent and not answered yet, oldest first: sequence number, and when it counts
-    /// as lost.
-    unanswered: VecDeque<(u64, Instant)>,
+    /// UDP: stops sent and not answered yet, oldest first.
+    unanswered: VecDeque<Run>,
     waiting: Vec<Waiting>,
     next_seq: u64,
     /// When the stop is sent again, or (ordered) a barrier goes out, if no reply has come (only
@@ -147,6 +166,9 @@ pub(crate) struct Stops {
     resend_at: Option<Instant>,
     /// `Some` on an ordered transport: the count of [`Ordered`] instead of `unanswered`.
     ordered: Option<Ordered>,
+    /// UDP: how long after it was sent a stop whose callers have no timeout counts as lost,
+    /// before the grace ([`Stops::with_reply_hold`]).
+    reply_hold: Duration,
 }
 
 impl Stops {
@@ -159,6 +181,24 @@ impl Stops {
         }
     }
 
+    /// On UDP, a stop sent for callers without timeout ([`is_never`]) counts as lost `hold` +
+    /// the grace after it was sent: the reply hold of [`super::pairing::Pairing::set_holds`],
+    /// the bound of any request without timeout.
+    pub(crate) fn with_reply_hold(mut self, hold: Duration) -> Self {
+        self.reply_hold = hold;
+        self
+    }
+
+    /// When a stop sent at `now` for callers waiting until `deadline` counts as lost on UDP.
+    fn lost_at(&self, deadline: Instant, now: Instant, grace: Duration) -> Instant {
+        let until = if is_never(deadline, now) {
+            after(now, self.reply_hold)
+        } else {
+            deadline
+        };
+        after(until, grace)
+    }
+
     /// Records a stop sent at `now`, counting as lost from `lost_at` on UDP (ordered: checked
     /// by a barrier [`RESEND_AFTER`] after `now`, if still unanswered).
     fn sent(&mut self, now: Instant, lost_at: Instant) -> u64 {
@@ -169,10 +209,19 @@ impl Stops {
             let check = after(now, RESEND_AFTER);
             o.check_at = Some(o.check_at.map_or(check, |at| at.min(check)));
         } else {
-            if self.unanswered.len() >= MAX_UNANSWERED {
-                self.unanswered.pop_front();
+            let full = self.unanswered.len() >= MAX_UNANSWERED;
+            match self.unanswered.back_mut() {
+                // Bounded without counting a stop lost before its time (module docs).
+                Some(run) if full => {
+                    run.len += 1;
+                    run.lost_at = run.lost_at.max(lost_at);
+                }
+                _ => self.unanswered.push_back(Run {
+                    first: seq,
+                    len: 1,
+                    lost_at,
+                }),
             }
-            self.unanswered.push_back((seq, lost_at));
         }
         self.resend_at = Some(after(now, RESEND_AFTER));
         seq
@@ -203,7 +252,7 @@ impl Stops {
         now: Instant,
         grace: Duration,
     ) {
-        let first = self.sent(now, after(deadline, grace));
+        let first = self.sent(now, self.lost_at(deadline, now, grace));
         if let Some(o) = &mut self.ordered {
             o.owed_resends = 0;
         }
@@ -228,10 +277,18 @@ impl Stops {
                 o.oldest - 1
             }
             Some(_) => return Vec::new(),
-            None => match self.unanswered.pop_front() {
-                Some((seq, _)) => seq,
-                None => return Vec::new(),
-            },
+            None => {
+                let Some(run) = self.unanswered.front_mut() else {
+                    return Vec::new();
+                };
+                let seq = run.first;
+                run.first += 1;
+                run.len -= 1;
+                if run.len == 0 {
+                    self.unanswered.pop_front();
+                }
+                seq
+            }
         };
         let mut done = Vec::new();
         self.waiting.retain(|w| {
@@ -311,7 +368,7 @@ impl Stops {
             Some(o) if o.fence.is_some() => return None,
             Some(o) if o.resend_owed.is_some() => return o.resend_owed,
             Some(o) => o.check_at.filter(|_| self.has_unanswered()),
-            None => self.unanswered.iter().map(|(_, at)| *at).min(),
+            None => self.unanswered.iter().map(|run| run.lost_at).min(),
         };
         match (self.resend_at, lost) {
             (Some(a), Some(b)) => Some(a.min(b)),
@@ -326,7 +383,7 @@ impl Stops {
     /// stop is sent again only once the barrier proved it lost ([`Stops::unfence`]).
     pub(crate) fn due(&mut self, now: Instant, grace: Duration) -> Option<StopDue> {
         if self.ordered.is_none() {
-            self.unanswered.retain(|(_, lost_at)| *lost_at > now);
+            self.unanswered.retain(|run| run.lost_at > now);
         } else if self.ordered.as_ref().is_some_and(|o| o.fence.is_some()) {
             return None;
         }
@@ -363,7 +420,7 @@ impl Stops {
             }
         }
         let latest = latest.filter(|_| resend)?;
-        self.sent(now, after(latest, grace));
+        self.sent(now, self.lost_at(latest, now, grace));
         Some(StopDue::Resend)
     }
 
@@ -395,7 +452,7 @@ impl Stops {
             self.resend_at = Some(after(now, RESEND_AFTER));
             return false;
         }
-        self.sent(now, after(latest, grace));
+        self.sent(now, self.lost_at(latest, now, grace));
         true
     }
 
@@ -508,18 +565,70 @@ mod tests {
         assert_eq!(s.prune(|_| false), vec![3]);
     }
 
+    /// Issue 29 D: more stops unanswered than the bound must not make a reply to the oldest
+    /// complete a call whose stop came later. Beyond the bound a new stop joins the newest run,
+    /// and the run counts as lost when its last stop would.
     #[test]
-    fn unanswered_stops_are_bounded() {
+    fn unanswered_stops_are_bounded_without_giving_one_up_before_its_time() {
         let now = Instant::now();
-        let far = now + Duration::from_secs(3600);
         let mut s = Stops::default();
-        for token in 0..(MAX_UNANSWERED as u64 * 4) {
-            s.submit(token, far, now, GRACE);
+        let calls = MAX_UNANSWERED as u64 * 4;
+        for token in 0..calls {
+            let deadline = now + Duration::from_secs(token + 1);
+            s.submit(token, deadline, now, GRACE);
         }
         assert_eq!(s.unanswered.len(), MAX_UNANSWERED);
-        // The oldest kept is taken as answered: every call up to it completes.
-        let done = s.on_reply();
-        assert_eq!(done.len(), MAX_UNANSWERED * 3 + 1);
+        // The first reply may be the oldest stop's own: it completes call 0 alone (evicting
+        // the oldest completed 49 calls on it, 48 of them on a stop sent before them).
+        assert_eq!(s.on_reply(), vec![0]);
+        assert_eq!(s.on_reply(), vec![1]);
+        // The runs before the merged one are given up at their own time (the stop is sent
+        // again for the callers still within their deadline); the merged one only when its
+        // last stop is, so the next reply answers its first stop, call 15's.
+        let merged = MAX_UNANSWERED as u64 - 1;
+        let last_single = now + Duration::from_secs(merged) + GRACE;
+        assert_eq!(s.due(last_single, GRACE), Some(StopDue::Resend));
+        assert_eq!(
+            s.unanswered.len(),
+            2,
+            "the merged run, and the stop sent again"
+        );
+        assert_eq!(s.on_reply(), (2..=merged).collect::<Vec<_>>());
+        let merged_lost = now + Duration::from_secs(calls) + GRACE;
+        assert_eq!(s.due(merged_lost, GRACE), None);
+        assert!(!s.has_unanswered());
+        assert_eq!(s.on_reply(), Vec::<Token>::new(), "nothing left to answer");
+    }
+
+    /// Issue 29 D (the explorer's `wsg-udp:0xaf073ffc53d9a31d`): on UDP a stop lost while its
+    /// caller had no timeout counted as unanswered for ever, and each such stop cost every
+    /// later stop call a resend before a reply could be its own. It counts as lost the reply
+    /// hold + grace after it was sent, as any request without timeout.
+    #[test]
+    fn on_udp_a_stop_of_a_caller_without_timeout_counts_as_lost_after_the_reply_hold() {
+        let hold = Duration::from_millis(300);
+        let now = Instant::now();
+        let never = after(now, Duration::MAX);
+        let mut s = Stops::default().with_reply_hold(hold);
+        s.submit(1, never, now, GRACE);
+        // Its reply is lost; the stop goes out again, and that reply answers the first stop.
+        let again = now + RESEND_AFTER;
+        assert_eq!(s.due(again, GRACE), Some(StopDue::Resend));
+        assert_eq!(s.on_reply(), vec![1]);
+        // The re-sent stop counts as unanswered, and is given up hold + grace after it went.
+        let lost = again + hold + GRACE;
+        assert_eq!(s.next_due(), Some(lost));
+        assert_eq!(s.due(lost, GRACE), None);
+        assert!(s.is_idle());
+        // A later call's reply is its own at once.
+        s.submit(2, lost + Duration::from_millis(200), lost, GRACE);
+        assert_eq!(s.on_reply(), vec![2]);
+        // A caller with a timeout of its own keeps its stops until its deadline + grace.
+        let deadline = lost + Duration::from_secs(10);
+        s.submit(3, deadline, lost, GRACE);
+        assert_eq!(s.next_due(), Some(lost + RESEND_AFTER));
+        assert_eq!(s.prune(|_| false), vec![3]);
+        assert_eq!(s.next_due(), Some(deadline + GRACE));
     }
 
     /// The explorer's `wsg-tcp:0x2082b0e305e913c4`, distilled: stop replies stalled on the
