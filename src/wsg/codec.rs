@@ -18,6 +18,9 @@ pub struct WsgCodec {
     /// ([`max_reply_payload_len`]).
     replies: bool,
     corrupt_frames: u64,
+    /// Frames dropped and runs of bytes skipped as noise: whatever may have been a frame the
+    /// peer sent ([`WsgCodec::damage`]).
+    damage: u64,
 }
 
 impl Default for WsgCodec {
@@ -38,6 +41,7 @@ impl WsgCodec {
             max_payload_len,
             replies: false,
             corrupt_frames: 0,
+            damage: 0,
         }
     }
 
@@ -57,7 +61,24 @@ impl WsgCodec {
         self.corrupt_frames
     }
 
+    /// How many times the decoder dropped something the peer may have sent as a frame: a frame
+    /// with a bad checksum, or bytes skipped to the next preamble. A client that cannot tell a
+    /// reply from an update by its bytes asks again after one (issue 29 A).
+    pub(crate) fn damage(&self) -> u64 {
+        self.damage
+    }
+
     fn next(&mut self, src: &mut BytesMut, eof: bool) -> Option<Frame> {
+        let before = src.len();
+        let frame = self.next_frame(src, eof);
+        let consumed = before - src.len();
+        if consumed > frame.as_ref().map_or(0, Frame::encoded_len) {
+            self.damage += 1;
+        }
+        frame
+    }
+
+    fn next_frame(&mut self, src: &mut BytesMut, eof: bool) -> Option<Frame> {
         let (max, replies) = (self.max_payload_len, self.replies);
         let limit = |id: u8| match REPLY_LIMITS[usize::from(id)] {
             0 => max,

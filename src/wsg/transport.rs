@@ -181,6 +181,15 @@ impl Link {
         }
     }
 
+    /// How many times the decoder dropped something that may have been a frame
+    /// ([`WsgCodec::damage`]); always 0 on UDP, where a damaged datagram is lost as a whole.
+    pub(crate) fn damage(&self) -> u64 {
+        match self {
+            Link::Stream(framed) => framed.codec().damage(),
+            _ => 0,
+        }
+    }
+
     /// Bytes received but not decoded yet: the start of a frame still arriving (or a corrupted
     /// header waiting for bytes that will never come). Always 0 on UDP.
     pub(crate) fn partial_len(&self) -> usize {

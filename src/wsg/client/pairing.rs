@@ -136,6 +136,19 @@ pub(crate) struct Request {
     pub(crate) deadline: Instant,
 }
 
+/// What the echo of a barrier settling a request of a streamed id decides ([`Pairing::settle`]).
+#[derive(Debug)]
+enum Settled {
+    /// The request's answer (the id is free).
+    Answer(Reply),
+    /// Send the request again (a damaged frame may have been its reply); it is still the
+    /// request on the wire of its id.
+    Again(Request),
+    /// No answer: the request is no longer on the wire, or got no frame (it waits for its
+    /// release).
+    Nothing,
+}
+
 /// What a received reply means.
 #[derive(Debug, PartialEq)]
 pub(crate) enum Event {
@@ -552,7 +565,7 @@ impl Pairing {
                 "WSG reply that cannot answer the request on the wire: dropped");
             return Event::Unsolicited(reply);
         }
-        if let (Settle::Barrier(last), Status::Success) = (&mut f.settle, reply.status) {
+        if let (Settle::Barrier { last, .. }, Status::Success) = (&mut f.settle, reply.status) {
             // An update or the reply: the loop-back's echo decides (`Pairing::settle`).
             *last = Some(reply.clone());
             return Event::Unsolicited(reply);
@@ -586,29 +599,64 @@ impl Pairing {
     /// in order, and the stream keeps it).
     fn settle_by_barrier(&mut self, id: u8, token: Token) {
         if let Some(f) = self.in_flight_mut(id, token) {
-            f.settle = Settle::Barrier(None);
+            f.settle = Settle::Barrier {
+                last: None,
+                damaged: false,
+            };
         }
     }
 
-    /// The echo of the barrier sent after request `token` of `id` came: every frame the device
-    /// sent before it has been read, the reply to the request among them, so the last
-    /// E_SUCCESS frame of `id` is the reply or an update sent after it (a value measured after
-    /// the device received the request). Returns that frame, and the id is free; `None` when
-    /// the request is no longer on the wire, or got no frame at all (then it is lost: it waits
-    /// for its release, and no later frame answers it).
-    fn settle(&mut self, id: u8, token: Token) -> Option<Reply> {
-        let f = self.in_flight_mut(id, token)?;
-        if !matches!(f.settle, Settle::Barrier(_)) {
-            return None;
+    /// The decoder dropped a damaged frame (a bad checksum, or bytes skipped as noise): it may
+    /// have been the reply of a request settled by a barrier, and the last frame of its id an
+    /// update the device sent before it read the request (issue 29 A). Each such request is
+    /// asked again at its echo ([`Pairing::settle`]). Rare, so a walk over the ids.
+    pub(crate) fn on_damage(&mut self) {
+        for st in self.ids.values_mut() {
+            if let Some(InFlight {
+                settle: Settle::Barrier { damaged, .. },
+                ..
+            }) = st.in_flight.as_mut()
+            {
+                *damaged = true;
+            }
         }
-        let Settle::Barrier(last) = std::mem::replace(&mut f.settle, Settle::Lost) else {
-            return None;
+    }
+
+    /// The echo of the barrier sent after request `token` of `id` came at `now`: every frame
+    /// the device sent before it has been read, the reply to the request among them, so the
+    /// last E_SUCCESS frame of `id` is the reply or an update sent after it (a value measured
+    /// after the device received the request): it answers, and the id is free. Unless a
+    /// damaged frame came in between, which may have been the reply: the request is to be sent
+    /// again (a query or a stream's switch, both idempotent), with a barrier of its own
+    /// ([`Settled::Again`]). Nothing when the request is no longer on the wire, or got no frame
+    /// at all (then it is lost: it waits for its release, and no later frame answers it).
+    fn settle(&mut self, id: u8, token: Token, now: Instant) -> Settled {
+        let (reply_hold, _) = self.holds_of(id);
+        let grace = self.grace;
+        let Some(f) = self.in_flight_mut(id, token) else {
+            return Settled::Nothing;
         };
-        let reply = last?;
-        let st = self.ids.get_mut(&id)?;
-        st.in_flight = None;
-        st.pending_owed = false;
-        Some(reply)
+        let Settle::Barrier { last, damaged } = std::mem::replace(&mut f.settle, Settle::Lost)
+        else {
+            return Settled::Nothing;
+        };
+        if damaged {
+            // Sent again now: a caller without timeout waits the reply hold from this send.
+            f.unacked_release_at = after(after(now, reply_hold), grace);
+            return Settled::Again(Request {
+                token,
+                frame: Frame::new(id, f.payload.clone()),
+                deadline: f.deadline,
+            });
+        }
+        let Some(reply) = last else {
+            return Settled::Nothing;
+        };
+        if let Some(st) = self.ids.get_mut(&id) {
+            st.in_flight = None;
+            st.pending_owed = false;
+        }
+        Settled::Answer(reply)
     }
 
     /// The barrier sent after request `token` of `id` got no echo: the frames of `id` cannot

@@ -68,6 +68,8 @@ pub(crate) struct Task {
     /// behind a corrupted length field) must not keep a bogus frame, and every reply behind
     /// it, waiting (issue 20.2 #2).
     partial_since: Option<Instant>,
+    /// The decoder's damage count when last looked at ([`Task::note_damage`]).
+    damage_seen: u64,
     /// Set to the reason when the connection breaks for good, so later calls can say why.
     lost: Arc<OnceLock<String>>,
     /// Where connection losses (and reconnects) are reported.
@@ -133,6 +135,7 @@ impl Task {
         Self {
             partial_frame_timeout: super::DEFAULT_PARTIAL_FRAME_TIMEOUT,
             partial_since: None,
+            damage_seen: 0,
             events: EventSender::new("wsg", super::EVENT_BUFFER),
             reconnect: None,
             close: CloseRequest::default(),
@@ -226,6 +229,7 @@ impl Task {
                     Some(Some(Ok(frame))) => {
                         // Whatever the decoder holds now is the start of the next frame.
                         self.partial_since = None;
+                        self.note_damage();
                         self.on_frame(frame).await.map_err(io_reason)?;
                     }
                     Some(Some(Err(e))) => return Err(e.to_string()),
@@ -233,6 +237,8 @@ impl Task {
                 },
                 () = &mut stale_timer, if stale.is_some() => {
                     self.partial_since = None;
+                    // The partial frame dropped as noise may have been a reply.
+                    self.pairing.on_damage();
                     for frame in self.link.resync() {
                         self.on_frame(frame).await.map_err(io_reason)?;
                     }
@@ -298,6 +304,17 @@ impl Task {
                     }
                 }
             }
+        }
+    }
+
+    /// Tells the pairing when the decoder dropped something since the last frame: before the
+    /// frame read after it is paired, so that the echo of a barrier settling a streamed query
+    /// knows the query's reply may have been lost (issue 29 A, [`Pairing::on_damage`]).
+    fn note_damage(&mut self) {
+        let damage = self.link.damage();
+        if damage != self.damage_seen {
+            self.damage_seen = damage;
+            self.pairing.on_damage();
         }
     }
 
@@ -466,6 +483,7 @@ impl Task {
                     self.submit(req).await?;
                 }
                 Output::SendStop(id) => self.send_stop(id).await?,
+                Output::Resend(req) => self.transmit(req).await?,
                 Output::Next(id) => self.send_next(id),
             }
         }
@@ -682,6 +700,7 @@ impl Session for Task {
     fn restored(&mut self, link: Link) {
         self.link = link;
         self.partial_since = None;
+        self.damage_seen = 0;
         // A new connection streams only what was asked again on it.
         self.device_streams = self.streams.keys().copied().collect();
         // Their replies (the current values) go to the subscribers like any update.

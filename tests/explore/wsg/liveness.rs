@@ -343,15 +343,28 @@ fn stops_reach_the_device(
         // request was lost on the way too is decided only at its caller's deadline and the
         // recovery probes, and two such in a row outlast the window (the open design question
         // of wsg-serial:0xde1245ed22975681, wsg-serial:0x05084d134e5f8e7a).
-        // Lost: fewer motion requests reached the device intact than the client wrote.
-        let motions_written = written_frames(tap)
-            .iter()
-            .filter(|(at, f)| is_motion(f.id) && *at >= c.start && *at <= until)
-            .count();
-        let motions_received = requests()
-            .filter(|(at, id)| is_motion(*id) && *at >= c.start && *at <= until)
-            .count();
-        let motion_lost = motions_received < motions_written;
+        // Lost: a motion request the client wrote after the call (within the window) never
+        // reached the device intact (no intact request of its id and payload after the
+        // write). Counting the motion requests received in the window instead took one
+        // written before the call, held on the way, for one written after it
+        // (wsg-serial:0x6295f3317fb5766c).
+        let intact = || {
+            record.records.iter().filter_map(|r| match &r.event {
+                SimEvent::Request {
+                    id,
+                    payload,
+                    corrupt: false,
+                } if r.session == *session => Some((t0 + r.at, *id, payload)),
+                _ => None,
+            })
+        };
+        let motion_lost = written_frames(tap).iter().any(|(at, f)| {
+            is_motion(f.id)
+                && *at >= c.start
+                && *at <= until
+                && !intact()
+                    .any(|(got, id, payload)| got >= *at && id == f.id && *payload == f.payload)
+        });
         if !reached && link_works && !moved_on {
             let tag = if motion_lost {
                 HELD_FOR_A_LOST_MOTION

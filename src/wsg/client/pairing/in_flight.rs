@@ -64,7 +64,14 @@ pub(super) enum Settle {
     /// The device may stream updates of this id, which share the reply's id and form (manual
     /// 1.4, 3.4.1–3.4.6): by the last E_SUCCESS frame of the id received before the echo of a
     /// loop-back sent after the request. A frame that is not E_SUCCESS is no update: the reply.
-    Barrier(Option<Reply>),
+    Barrier {
+        /// The last E_SUCCESS frame of the id received so far.
+        last: Option<Reply>,
+        /// A damaged frame came since the request went out ([`super::Pairing::on_damage`]):
+        /// it may have been the reply, and `last` an update sent before the device read the
+        /// request (issue 29 A). The request is asked again at the echo.
+        damaged: bool,
+    },
     /// The loop-back's echo came with no frame of the id before it (the request got no reply:
     /// the device answers in order), or the loop-back got none: no later frame of the id is
     /// taken for its reply; the request waits for its release.

@@ -16,7 +16,7 @@ use std::time::Duration;
 
 use tokio::time::Instant;
 
-use super::{Due, Event, Observation, Pairing, Request, Token, Verdict};
+use super::{Due, Event, Observation, Pairing, Request, Settled, Token, Verdict};
 use crate::deadline::after;
 use crate::wsg::command::{id, Command, UpdateMode};
 use crate::wsg::{Error, Frame, Reply, Result, Status, SystemState};
@@ -69,6 +69,9 @@ pub(crate) enum Output {
     Request(Internal),
     /// Send stop or FAST STOP `id` again, at once (recorded as sent).
     SendStop(u8),
+    /// Write this request again, at once: it is still the request on the wire of its id, and
+    /// its earlier answer may have been damaged ([`Pairing::on_damage`]).
+    Resend(Request),
     /// The request on the wire of `id` is done: its next request goes out once every frame
     /// already received is paired ([`Pairing::done`], [`Pairing::next`]).
     Next(u8),
@@ -373,8 +376,17 @@ impl Pairing {
     /// The echo of the barrier sent after query `query` of streamed command `id` came: the
     /// query is answered by the last frame of `id` before it, if there was one.
     fn settled(&mut self, id: u8, query: Token, now: &impl Fn() -> Instant) {
-        let Some(reply) = self.settle(id, query) else {
-            return;
+        let reply = match self.settle(id, query, now()) {
+            Settled::Answer(reply) => reply,
+            Settled::Again(request) => {
+                tracing::debug!(
+                    id,
+                    "WSG frame damaged before a streamed query's echo: asked again"
+                );
+                self.out.push_back(Output::Resend(request));
+                return;
+            }
+            Settled::Nothing => return,
         };
         self.out.push_back(Output::Next(id));
         // An E_SUCCESS frame: it went to the subscribers when it came.
