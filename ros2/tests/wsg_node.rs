@@ -109,9 +109,9 @@ async fn a_new_goal_preempts_the_running_one_and_a_cancel_stops_the_fingers() {
     let mut p = params(DeviceKind::Wsg, addr, domain(), Mapping::Cyclone);
     p.speed_m_per_s = 0.05;
     let (node, _me, gripper) = homed_gripper(p).await;
-    // Real time from here: 110 -> 60 mm at 50 mm/s takes 1 s, so the second goal finds the
-    // first one running.
-    sim.set_time_scale(1.0);
+    // Five times slower than real time from here: 110 -> 60 mm at 50 mm/s takes 5 s, so the
+    // second goal finds the first one running even on a loaded machine (at real time, 1 s).
+    sim.set_time_scale(5.0);
     let (first, accepted) = bounded("send_goal", gripper.async_send_goal(goal(0.06, 0.0)))
         .await
         .unwrap();
@@ -143,7 +143,10 @@ async fn a_new_goal_preempts_the_running_one_and_a_cancel_stops_the_fingers() {
     let stop = ids.iter().position(|&i| i == 0x22).expect("a stop");
     assert!(ids[stop..].contains(&0x21), "{ids:02x?}");
 
-    // A cancel: the fingers stop where they are (90 -> 20 mm takes 1.4 s).
+    // A cancel: the fingers stop where they are. 90 -> 100 mm takes 0.2 s of motion, 4 s here:
+    // at real time a loaded machine let the move end before the cancel came (the result was
+    // CANCELED at 100 mm, reached).
+    sim.set_time_scale(20.0);
     let (id, accepted) = bounded("send_goal", gripper.async_send_goal(goal(0.1, 0.0)))
         .await
         .unwrap();
