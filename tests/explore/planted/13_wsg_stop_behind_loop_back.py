@@ -7,7 +7,7 @@ KIND = "9 (a stop is sent at once"
 plant(
     "src/wsg/client/pairing.rs",
     """        if is_stop(id) {
-            let (grace, ordered) = (self.grace, self.ordered);""",
+            let (grace, ordered, hold) = (self.grace, self.ordered, self.holds.0);""",
     """        let loop_busy = self
             .ids
             .get(&crate::wsg::command::id::LOOP)
@@ -18,5 +18,5 @@ plant(
             return Submit::Queued;
         }
         if is_stop(id) {
-            let (grace, ordered) = (self.grace, self.ordered);""",
+            let (grace, ordered, hold) = (self.grace, self.ordered, self.holds.0);""",
 )

@@ -7,7 +7,7 @@ KIND = "3 (a stop goes out at once)"
 plant(
     "src/wsg/client/pairing.rs",
     """        if is_stop(id) {
-            let (grace, ordered) = (self.grace, self.ordered);""",
+            let (grace, ordered, hold) = (self.grace, self.ordered, self.holds.0);""",
     """        let busy = self
             .ids
             .iter()
@@ -18,5 +18,5 @@ plant(
             return Submit::Queued;
         }
         if is_stop(id) {
-            let (grace, ordered) = (self.grace, self.ordered);""",
+            let (grace, ordered, hold) = (self.grace, self.ordered, self.holds.0);""",
 )
