@@ -344,27 +344,42 @@ fn stops_reach_the_device(
         // recovery probes, and two such in a row outlast the window (the open design question
         // of wsg-serial:0xde1245ed22975681, wsg-serial:0x05084d134e5f8e7a).
         // Lost: a motion request the client wrote after the call (within the window) never
-        // reached the device intact (no intact request of its id and payload after the
-        // write). Counting the motion requests received in the window instead took one
-        // written before the call, held on the way, for one written after it
-        // (wsg-serial:0x6295f3317fb5766c).
-        let intact = || {
-            record.records.iter().filter_map(|r| match &r.event {
-                SimEvent::Request {
-                    id,
-                    payload,
-                    corrupt: false,
-                } if r.session == *session => Some((t0 + r.at, *id, payload)),
-                _ => None,
-            })
-        };
-        let motion_lost = written_frames(tap).iter().any(|(at, f)| {
-            is_motion(f.id)
-                && *at >= c.start
-                && *at <= until
-                && !intact()
-                    .any(|(got, id, payload)| got >= *at && id == f.id && *payload == f.payload)
-        });
+        // reached the device intact. The stream keeps the order, so the intact motion requests
+        // the device received are the client's motion writes with some left out: each answers
+        // the next write of its id and payload made before it. Counting the motion requests
+        // received in the window instead took one written before the call, held on the way,
+        // for one written after it (wsg-serial:0x6295f3317fb5766c).
+        let writes: Vec<(Instant, gripper::wsg::Frame)> = written_frames(tap)
+            .into_iter()
+            .filter(|(_, f)| is_motion(f.id))
+            .collect();
+        let mut reached_device = vec![false; writes.len()];
+        let mut next = 0;
+        for r in &record.records {
+            let SimEvent::Request {
+                id,
+                payload,
+                corrupt: false,
+            } = &r.event
+            else {
+                continue;
+            };
+            if r.session != *session || !is_motion(*id) {
+                continue;
+            }
+            let got = t0 + r.at;
+            let write = writes[next..]
+                .iter()
+                .position(|(at, f)| *at <= got && f.id == *id && f.payload == *payload);
+            if let Some(k) = write {
+                reached_device[next + k] = true;
+                next += k + 1;
+            }
+        }
+        let motion_lost = writes
+            .iter()
+            .zip(&reached_device)
+            .any(|((at, _), reached)| !reached && *at >= c.start && *at <= until);
         if !reached && link_works && !moved_on {
             let tag = if motion_lost {
                 HELD_FOR_A_LOST_MOTION
