@@ -136,6 +136,13 @@ pub(crate) struct Request {
     pub(crate) deadline: Instant,
 }
 
+/// How many times in a row a request of a streamed id is sent again because a damaged frame
+/// came before its barrier's echo ([`Pairing::settle`]): each costs a round trip, and a line
+/// that damages something in every round trip answers nothing reliably; then the request
+/// waits for its release, as one whose reply was lost (a caller without timeout is bounded by
+/// the reply hold from the last send).
+pub(crate) const MAX_ASKED_AGAIN: u8 = 3;
+
 /// What the echo of a barrier settling a request of a streamed id decides ([`Pairing::settle`]).
 #[derive(Debug)]
 enum Settled {
@@ -628,7 +635,7 @@ impl Pairing {
     /// after the device received the request): it answers, and the id is free. Unless a
     /// damaged frame came in between, which may have been the reply: the request is to be sent
     /// again (a query or a stream's switch, both idempotent), with a barrier of its own
-    /// ([`Settled::Again`]). Nothing when the request is no longer on the wire, or got no frame
+    /// ([`Settled::Again`]), at most [`MAX_ASKED_AGAIN`] times. Nothing when the request is no longer on the wire, or got no frame
     /// at all (then it is lost: it waits for its release, and no later frame answers it).
     fn settle(&mut self, id: u8, token: Token, now: Instant) -> Settled {
         let (reply_hold, _) = self.holds_of(id);
@@ -641,6 +648,15 @@ impl Pairing {
             return Settled::Nothing;
         };
         if damaged {
+            if f.asked_again >= MAX_ASKED_AGAIN {
+                tracing::warn!(
+                    id,
+                    "WSG frames damaged before every echo of a streamed query: \
+                    no answer taken, the query waits for its release"
+                );
+                return Settled::Nothing;
+            }
+            f.asked_again += 1;
             // Sent again now: a caller without timeout waits the reply hold from this send.
             f.unacked_release_at = after(after(now, reply_hold), grace);
             return Settled::Again(Request {

@@ -48,6 +48,9 @@ pub(super) struct InFlight {
     /// request of this id (see [`IdState::pending_owed`]): an E_ALREADY_RUNNING may then be
     /// this request's own refusal, and is not dropped.
     pub(super) ack_doubtful: bool,
+    /// How many times it was sent again because a damaged frame came before its barrier's
+    /// echo ([`super::Pairing::settle`], at most [`super::MAX_ASKED_AGAIN`]).
+    pub(super) asked_again: u8,
     /// The payload sent: a loop reply (0x06) must echo it.
     pub(super) payload: Bytes,
     /// How its reply is told from the auto-updates of its id (see
@@ -97,6 +100,7 @@ impl InFlight {
             probe_at: None,
             idle_seen: None,
             ack_doubtful: false,
+            asked_again: 0,
             payload: req.frame.payload.clone(),
             settle: Settle::First,
         }

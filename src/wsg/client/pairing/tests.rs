@@ -134,6 +134,22 @@ fn a_streamed_query_with_a_damaged_frame_before_its_echo_is_asked_again() {
         Event::Unsolicited(width(2))
     );
     assert!(matches!(p.settle(0x43, 1, later), Settled::Answer(r) if r == width(2)));
+    // A line that damages a frame in every round trip: asked again MAX_ASKED_AGAIN times, then
+    // no answer is taken (the request waits for its release), however many frames came.
+    assert_eq!(sent(p.submit(req(2, 0x43, never), later)), Some(2));
+    for round in 0..=MAX_ASKED_AGAIN {
+        p.settle_by_barrier(0x43, 2);
+        let update = p.on_reply(width(3), Instant::now);
+        assert_eq!(update, Event::Unsolicited(width(3)));
+        p.on_damage();
+        let settled = p.settle(0x43, 2, later);
+        if round < MAX_ASKED_AGAIN {
+            assert!(matches!(settled, Settled::Again(_)), "{settled:?}");
+        } else {
+            assert!(matches!(settled, Settled::Nothing), "{settled:?}");
+        }
+    }
+    assert!(!p.done(0x43), "held until its release");
 }
 
 #[test]
