@@ -100,10 +100,10 @@ pub(crate) enum StopDue {
     Barrier,
 }
 
-/// UDP: unanswered stops, `len` of them, the oldest numbered `first` and the rest later
-/// (consecutive unless a run between them was given up), all counting as lost at `lost_at`.
-/// A reply answers the oldest: numbering the next one `first + 1` is never later than the
-/// stop it stands for, so a call may complete a reply late, never early.
+/// UDP: unanswered stops, `len` of them numbered from `first` on, all counting as lost at
+/// `lost_at`. A reply answers the oldest (the next is `first + 1`). A stop joins a run only
+/// when every run is kept ([`MAX_UNANSWERED`]), and only the newest, so a run's stops are
+/// consecutive.
 #[derive(Debug)]
 struct Run {
     first: u64,

@@ -239,7 +239,10 @@ impl Task {
                     self.partial_since = None;
                     // The partial frame dropped as noise may have been a reply.
                     self.pairing.on_damage();
-                    for frame in self.link.resync() {
+                    let frames = self.link.resync();
+                    // Told already: the frames found after it were not damaged since.
+                    self.damage_seen = self.link.damage();
+                    for frame in frames {
                         self.on_frame(frame).await.map_err(io_reason)?;
                     }
                 }
