@@ -282,10 +282,11 @@ fn stops_at_once(
 /// resync pause if that too is lost) and sends it again.
 const RESEND_WINDOW: Duration = Duration::from_secs(10);
 
-/// The tag of a lost stop held while a motion written after it within the window did not reach
-/// the device intact either (see [`stops_reach_the_device`]).
-const HELD_FOR_A_LOST_MOTION: &str =
-    " [held while a motion written after it did not reach the device intact (stops.rs)]";
+/// The tag of a lost stop held while a motion written after it within the window has no answer
+/// the client could read: its request or its immediate reply was damaged on the way (see
+/// [`stops_reach_the_device`]).
+const HELD_FOR_A_LOST_MOTION: &str = " [held while a motion written after it has no answer the \
+     client could read: its request or its reply damaged (stops.rs)]";
 
 /// Rule 9, the re-send (TCP, serial): a stop or FAST STOP call that did not get its reply (it
 /// timed out, or its caller gave up) on a connection that held must still reach the device: the
@@ -343,43 +344,57 @@ fn stops_reach_the_device(
         // request was lost on the way too is decided only at its caller's deadline and the
         // recovery probes, and two such in a row outlast the window (the open design question
         // of wsg-serial:0xde1245ed22975681, wsg-serial:0x05084d134e5f8e7a).
-        // Lost: a motion request the client wrote after the call (within the window) never
-        // reached the device intact. The stream keeps the order, so the intact motion requests
-        // the device received are the client's motion writes with some left out: each answers
-        // the next write of its id and payload made before it. Counting the motion requests
-        // received in the window instead took one written before the call, held on the way,
-        // for one written after it (wsg-serial:0x6295f3317fb5766c).
+        // The client holds a lost stop while a motion written after it has no answer, and
+        // decides it at that motion's deadline and the recovery probes (the open design
+        // question, stops.rs). Lost: a motion request written after the call within the
+        // window that did not reach the device intact (fewer intact requests of its id and
+        // payload from its write on than writes of them: identical writes count for each
+        // other, so a damaged one is not taken for one that came through), or one that did,
+        // whose immediate reply (the next reply of its id) did not reach the client intact.
+        // Counting all motion requests received in the window took a release written before
+        // the call, held on the way, for a lost one (wsg-serial:0x6295f3317fb5766c); searching
+        // any receipt after a write took a home received 40 s later for a damaged one
+        // (wsg-serial:0x05084d134e5f8e7a); a pre_position refused at once, its refusal
+        // damaged on the way back, held the stop 13 s (wsg-serial:0x39ed1f19df1605d4).
         let writes: Vec<(Instant, gripper::wsg::Frame)> = written_frames(tap)
             .into_iter()
             .filter(|(_, f)| is_motion(f.id))
             .collect();
-        let mut reached_device = vec![false; writes.len()];
-        let mut next = 0;
-        for r in &record.records {
-            let SimEvent::Request {
-                id,
-                payload,
-                corrupt: false,
-            } = &r.event
-            else {
-                continue;
-            };
-            if r.session != *session || !is_motion(*id) {
-                continue;
-            }
-            let got = t0 + r.at;
-            let write = writes[next..]
-                .iter()
-                .position(|(at, f)| *at <= got && f.id == *id && f.payload == *payload);
-            if let Some(k) = write {
-                reached_device[next + k] = true;
-                next += k + 1;
-            }
-        }
-        let motion_lost = writes
+        let receipts: Vec<(usize, Instant, u8, &bytes::Bytes)> = record
+            .records
             .iter()
-            .zip(&reached_device)
-            .any(|((at, _), reached)| !reached && *at >= c.start && *at <= until);
+            .enumerate()
+            .filter_map(|(k, r)| match &r.event {
+                SimEvent::Request {
+                    id,
+                    payload,
+                    corrupt: false,
+                } if r.session == *session && is_motion(*id) => Some((k, t0 + r.at, *id, payload)),
+                _ => None,
+            })
+            .collect();
+        let request_lost = writes.iter().any(|(at, f)| {
+            let written = writes
+                .iter()
+                .filter(|(w, g)| w >= at && g.id == f.id && g.payload == f.payload)
+                .count();
+            let received = receipts
+                .iter()
+                .filter(|(_, got, id, payload)| got >= at && *id == f.id && **payload == f.payload)
+                .count();
+            *at >= c.start && *at <= until && received < written
+        });
+        let reply_lost = receipts.iter().any(|&(k, got, id, payload)| {
+            let ours = writes
+                .iter()
+                .any(|(at, f)| *at >= c.start && *at <= got && f.id == id && f.payload == *payload);
+            let reply = record.records[k..].iter().position(|r| {
+                r.session == *session && matches!(r.event, SimEvent::Reply { id: i, .. } if i == id)
+            });
+            ours && got <= until
+                && reply.is_some_and(|j| delivered_intact(record, view, k + j).is_none())
+        });
+        let motion_lost = request_lost || reply_lost;
         if !reached && link_works && !moved_on {
             let tag = if motion_lost {
                 HELD_FOR_A_LOST_MOTION
