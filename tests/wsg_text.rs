@@ -199,6 +199,22 @@ async fn grip_without_a_part_holds_at_zero() {
     g.expect("POS?", &["POS=10.0"]).await;
 }
 
+/// A grip with its force (`GRIP(f)`) on a simulator whose motion takes no time: `ACK GRIP`,
+/// then `FIN GRIP`, and the part is held with that force. The force used to be set after the
+/// grasp started, which ran the device on and ended the grasp first: `FIN GRIP` came before
+/// `ACK GRIP` (the explorer's `wsg-text:0x53236ba78b027b2d`).
+#[tokio::test]
+async fn a_grip_with_its_force_is_acknowledged_before_it_ends() {
+    let server = sim().await;
+    let mut g = Strict::connect(&server).await;
+    // Homed closed: the grip has nowhere to travel and ends as it starts.
+    g.expect("HOME(0)", &["ACK HOME", "FIN HOME"]).await;
+    g.expect("POS?", &["POS=0.0"]).await;
+    g.expect("GRIP(20)", &["ACK GRIP", "FIN GRIP"]).await;
+    g.expect("GRIPSTATE?", &["GRIPSTATE=4"]).await;
+    g.expect("FORCE?", &["FORCE=20.0"]).await;
+}
+
 #[tokio::test]
 async fn several_commands_in_one_segment_and_one_command_in_pieces() {
     let server = sim().await;

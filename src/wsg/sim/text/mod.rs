@@ -227,6 +227,15 @@ impl TextSession {
             }
         };
         let speed_mm_per_s = args.get(2).map_or(default_speed, |v| *v as f32);
+        // The force of this grip (clamped to the model's range like 0x32), set before the
+        // grasp starts: set after it, the command ran the device up to now, which ended an
+        // instant grasp at once, and its `FIN GRIP` was written before its `ACK GRIP`
+        // (`wsg-text:0x53236ba78b027b2d`; the manual: `ACK` at once, `FIN` when done). A grasp
+        // refused keeps the force the gripper had.
+        let force_before = device.force_limit;
+        if let Some(force) = args.first() {
+            let _ = run(device, Command::SetForce(*force as f32));
+        }
         let status = run(
             device,
             Command::Grasp {
@@ -235,9 +244,8 @@ impl TextSession {
             },
         );
         (device.cfg.part, device.cfg.clamping_travel_mm) = saved;
-        if let (Status::CmdPending, Some(force)) = (status, args.first()) {
-            // The force of this grip (clamped to the model's range like 0x32).
-            let _ = run(device, Command::SetForce(*force as f32));
+        if status != Status::CmdPending {
+            device.force_limit = force_before;
         }
         status
     }
