@@ -88,6 +88,30 @@ async fn replies_are_paired_by_name_whatever_their_order() {
     within("MOVE", mover).await.unwrap().unwrap();
 }
 
+/// A motion's `FIN` comes after its `ACK`: a `FIN GRIP` before this GRIP's `ACK`, with nothing
+/// unreadable between, is an earlier GRIP's (the explorer's `wsg-text:0xa1fd31cdef49e64e`:
+/// after a damaged `GRIPSTATE?` answered `ERR GRIP 15` was taken by a GRIP, GRIP's replies ran
+/// one behind, and an old `FIN GRIP` reported a GRIP done that the gripper had only read). The
+/// call ends with its own reply.
+#[tokio::test]
+async fn a_fin_before_its_motions_ack_is_not_its_end() {
+    let (g, mut fake) = Fake::pair(ClientConfig::default()).await;
+    let grip = spawn(&g, |g| async move { g.grip(Some(20.0)).await });
+    assert_eq!(fake.read().await, "GRIP(20)");
+    fake.say(
+        "FIN GRIP
+ACK GRIP
+ERR GRIP 19 E_CMD_ABORTED
+",
+    )
+    .await;
+    let end = within("GRIP", grip).await.unwrap();
+    assert!(
+        matches!(&end, Err(Error::Device { line, .. }) if line.starts_with("ERR GRIP 19")),
+        "{end:?}"
+    );
+}
+
 #[tokio::test]
 async fn one_command_of_each_name_on_the_wire() {
     let (g, mut fake) = Fake::pair(ClientConfig::default()).await;

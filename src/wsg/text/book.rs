@@ -749,6 +749,26 @@ impl<C: Caller> Book<C> {
             self.damage(text);
             return Handled::Nothing;
         };
+        // A motion's `FIN` comes after its `ACK`, which the gripper sends at once (§3 of the
+        // text interface note: `ACK <NAME>` at once, `FIN <NAME>` when done). One read before
+        // any `ACK` of the motion on the wire, with no line since its write that could have
+        // been that `ACK` unreadable, ends another motion of the name: one whose replies
+        // another call took, after a damaged line answered in its name
+        // (`wsg-text:0xa1fd31cdef49e64e`: GRIP's replies one behind after `GRIPSTATE?`,
+        // damaged into `GRIP[TATE?`, was answered `ERR GRIP 15`; that `FIN GRIP` reported a
+        // GRIP done which the gripper had only just read). Dropped, not its end.
+        if matches!(reply, ReplyLine::Fin(_))
+            && slot.expect == Expect::Fin
+            && !slot.acked
+            && self.damages == slot.damages_at_write
+        {
+            tracing::warn!(
+                line = text,
+                command = %slot.line,
+                "wsg text: FIN before the ACK of the motion on the wire: another motion's, dropped"
+            );
+            return Handled::Nothing;
+        }
         // A reply to a line written after a damaged one: the replies before it have come.
         // (A motion's `FIN` is no such sign: it comes when the motion ends.)
         if !matches!(reply, ReplyLine::Fin(_)) {
@@ -999,6 +1019,33 @@ mod tests {
             matches!(&done[..], [(3, Err(Error::Timeout { .. }))]),
             "{done:?}"
         );
+    }
+
+    /// A motion's `FIN` comes after its `ACK`: one read before the `ACK` of the motion on the
+    /// wire, no unreadable line since its write, is another motion's (the damaged name's
+    /// cascade, `wsg-text:0xa1fd31cdef49e64e`) and ends nothing. After an unreadable line
+    /// (which may have been the `ACK`) it ends the motion, as before.
+    #[test]
+    fn a_fin_before_the_motions_ack_is_another_motions() {
+        let t0 = Instant::now();
+        let mut book = Book::new(GIVE_UP_AFTER);
+        assert!(call(&mut book, 1, "GRIP", "GRIP(10)", Expect::Fin, t0));
+        assert!(matches!(book.on_line("FIN GRIP", t0), Handled::Nothing));
+        assert!(done(&mut book).is_empty(), "not its end");
+        assert!(matches!(book.on_line("ACK GRIP", t0), Handled::Nothing));
+        assert!(matches!(
+            book.on_line("FIN GRIP", t0 + S),
+            Handled::Freed("GRIP")
+        ));
+        assert!(matches!(&done(&mut book)[..], [(1, Ok(e))] if e.is_empty()));
+        // An unreadable line after the write may have been its ACK: the FIN ends it.
+        assert!(call(&mut book, 2, "GRIP", "GRIP(20)", Expect::Fin, t0));
+        book.damage("ACK G\u{1}IP");
+        assert!(matches!(
+            book.on_line("FIN GRIP", t0 + S),
+            Handled::Freed("GRIP")
+        ));
+        assert!(matches!(&done(&mut book)[..], [(2, Ok(e))] if e.is_empty()));
     }
 
     /// Issue 29 M: a line that cannot be read, then the reply of a command written after it:
