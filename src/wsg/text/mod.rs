@@ -66,7 +66,15 @@
 //! [`ClientConfig::give_up_after`] past its call's timeout ends the connection
 //! ([`Error::ConnectionLost`]): a later line with that name could no longer be paired with
 //! confidence. An `ERR` line without a command name, or a line that is not GCL, is logged and
-//! dropped (its caller times out) rather than failing a caller it may not belong to.
+//! dropped (its caller times out) rather than failing a caller it may not belong to. A motion's
+//! `FIN` comes after its `ACK` (§3): a `FIN` read before the `ACK` of the motion on the wire,
+//! with no unreadable line since that motion was written, belongs to an earlier motion of the
+//! name and ends nothing.
+//!
+//! Residual risk, inherent in GCL: a line damaged on its way to the gripper may read as another
+//! command's name (`GRIPSTATE?` as `GRIP…`), and the gripper's `ERR GRIP 15` for it is then
+//! taken by the `GRIP` on the wire, though that GRIP runs. The `FIN` rule above keeps the
+//! replies that follow from shifting onto later calls of the name.
 //!
 //! The client writes a query on its own now and then (`GRIPSTATE?`, `POS?` or `SPEED?`): after
 //! a reply line it could not read, to learn which calls lost their reply, and for an
