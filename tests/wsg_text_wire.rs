@@ -112,6 +112,29 @@ ERR GRIP 19 E_CMD_ABORTED
     );
 }
 
+/// An LF flipped to `*` runs `ACK HOME` into the free text of GRIP's `ERR` line. Taken for
+/// GRIP's `ERR`, the line swallowed HOME's `ACK` unseen, and HOME's `FIN` then came with no
+/// `ACK` before it (the explorer's `wsg-text:0xea94665dbf03df00`). Such a line is one that could
+/// not be read: HOME's `FIN` after it ends HOME.
+#[tokio::test]
+async fn an_ack_run_into_an_err_line_is_damage_not_swallowed() {
+    let (g, mut fake) = Fake::pair(ClientConfig::default()).await;
+    let grip = spawn(&g, |g| async move { g.grip(Some(20.0)).await });
+    assert_eq!(fake.read().await, "GRIP(20)");
+    fake.say("ACK GRIP\n").await;
+    let home = spawn(
+        &g,
+        |g| async move { g.home(HomingDirection::Default).await },
+    );
+    assert_eq!(fake.read().await, "HOME()");
+    fake.say("ERR GRIP 19*ACK HOME\nFIN HOME\n").await;
+    within("HOME", home).await.unwrap().unwrap();
+    assert!(
+        !grip.is_finished(),
+        "GRIP ended by a line that could not be read"
+    );
+}
+
 #[tokio::test]
 async fn one_command_of_each_name_on_the_wire() {
     let (g, mut fake) = Fake::pair(ClientConfig::default()).await;

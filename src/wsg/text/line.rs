@@ -117,6 +117,9 @@ pub fn parse_reply(line: &str) -> Result<ReplyLine<'_>, Malformed> {
     } else if is("FIN") {
         Ok(ReplyLine::Fin(name(rest)?))
     } else if is("ERR") {
+        if runs_into_another_reply(rest) {
+            return Err(Malformed::Unknown);
+        }
         Ok(parse_err(rest))
     } else {
         let (n, value) = line.split_once('=').ok_or(Malformed::Unknown)?;
@@ -125,6 +128,29 @@ pub fn parse_reply(line: &str) -> Result<ReplyLine<'_>, Malformed> {
             value: value.trim(),
         })
     }
+}
+
+/// Whether the words after `ERR` hold a second reply, run in by an LF with a bit flipped to a
+/// printable character (0x0A read as `*` or `J`): `ERR GRIP 19*ACK HOME`. Every other reply form
+/// refuses it (a name takes no `*` or space, a value is a number), but an `ERR` line's text is
+/// free, so it took the line for GRIP's and swallowed `ACK HOME` unseen, and HOME's `FIN` then
+/// came with no `ACK` before it (`wsg-text:0xea94665dbf03df00`). GCL's texts are status symbols
+/// (`E_CMD_ABORTED`): a `*` or `J` followed by a reply's start is damage, counted as a reply
+/// that could not be read.
+fn runs_into_another_reply(rest: &str) -> bool {
+    rest.match_indices(['*', 'J']).any(|(at, _)| {
+        let next = &rest[at + 1..];
+        let keyword = ["ACK ", "FIN ", "ERR "].iter().any(|k| {
+            next.get(..k.len())
+                .is_some_and(|w| w.eq_ignore_ascii_case(k))
+        });
+        let value = next
+            .strip_prefix('@')
+            .unwrap_or(next)
+            .split_once('=')
+            .is_some_and(|(n, _)| is_name(n));
+        keyword || value
+    })
 }
 
 /// The tokens after `ERR`: `<NAME> <code> <text>`, or (not seen, but GRIPLINK's form, §4.3)
@@ -266,6 +292,26 @@ mod tests {
             Err(Malformed::Unknown)
         );
         assert_eq!(parse_reply("POS=1\u{8}POS=2"), Err(Malformed::Unknown));
+        // An LF flipped to `*` or `J` (printable) runs a reply into an ERR's free text.
+        for damaged in [
+            "ERR GRIP 19*ACK HOME",
+            "ERR GRIP 19JACK HOME",
+            "ERR MOVE 19 E_CMD_ABORTED*FIN HOME",
+            "ERR GRIP 4JERR MOVE 4",
+            "ERR GRIP 19*POS=12.5",
+            "ERR GRIP 19J@POS=12.5",
+        ] {
+            assert_eq!(parse_reply(damaged), Err(Malformed::Unknown), "{damaged}");
+        }
+        // A text with a J in it is still an ERR's.
+        assert_eq!(
+            parse_reply("ERR GRIP 18 E_JAMMED"),
+            Ok(ReplyLine::Err {
+                name: Some("GRIP"),
+                code: Some(18),
+                text: "E_JAMMED"
+            })
+        );
     }
 
     #[test]
