@@ -69,7 +69,12 @@
 //! dropped (its caller times out) rather than failing a caller it may not belong to. A motion's
 //! `FIN` comes after its `ACK` (§3): a `FIN` read before the `ACK` of the motion on the wire,
 //! with no unreadable line since that motion was written, belongs to an earlier motion of the
-//! name and ends nothing.
+//! name and ends nothing. (Where the field might differ: a gripper that sent a `FIN` without
+//! its `ACK` would see such a motion end by its timeout, not by that `FIN`. The manual and the
+//! public drivers have the `ACK` at once, §3.) An `ERR` line holding another reply run into
+//! its text (an LF damaged into `*` or `J`) counts as unreadable, whole: the `ERR` part too,
+//! so that motion ends as one whose `ERR` could not be read, never with a code the damage may
+//! have touched.
 //!
 //! Residual risk, inherent in GCL: a line damaged on its way to the gripper may read as another
 //! command's name (`GRIPSTATE?` as `GRIP…`), and the gripper's `ERR GRIP 15` for it is then
