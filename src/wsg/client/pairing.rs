@@ -648,22 +648,17 @@ impl Pairing {
             return Settled::Nothing;
         };
         if damaged {
-            if f.asked_again >= MAX_ASKED_AGAIN {
-                tracing::warn!(
-                    id,
-                    "WSG frames damaged before every echo of a streamed query: \
-                    no answer taken, the query waits for its release"
-                );
-                return Settled::Nothing;
-            }
-            f.asked_again += 1;
-            // Sent again now: a caller without timeout waits the reply hold from this send.
-            f.unacked_release_at = after(after(now, reply_hold), grace);
-            return Settled::Again(Request {
-                token,
-                frame: Frame::new(id, f.payload.clone()),
-                deadline: f.deadline,
-            });
+            return match f.ask_again(id, token, now, reply_hold, grace) {
+                Some(request) => Settled::Again(request),
+                None => {
+                    tracing::warn!(
+                        id,
+                        "WSG frames damaged before every echo of a streamed query: \
+                        no answer taken, the query waits for its release"
+                    );
+                    Settled::Nothing
+                }
+            };
         }
         let Some(reply) = last else {
             return Settled::Nothing;

@@ -12,7 +12,7 @@ use super::{is_motion, Request, Token};
 use crate::deadline::{after, is_never};
 use crate::wsg::client::FINGER_POWER_ON_DURATION;
 use crate::wsg::command::id;
-use crate::wsg::{Reply, Status};
+use crate::wsg::{Frame, Reply, Status};
 
 #[derive(Debug)]
 pub(super) struct InFlight {
@@ -81,6 +81,12 @@ pub(super) enum Settle {
     Lost,
 }
 
+/// When an unacknowledged request sent at `sent` gives its id up if its caller's deadline does
+/// not bound it: the reply hold + grace (1.2.2, 1.3: the device answers at once).
+fn unacked_release(sent: Instant, reply_hold: Duration, grace: Duration) -> Instant {
+    after(after(sent, reply_hold), grace)
+}
+
 impl InFlight {
     pub(super) fn new(
         req: &Request,
@@ -94,7 +100,7 @@ impl InFlight {
             deadline: req.deadline,
             release_at: after(req.deadline, grace),
             held: !is_never(req.deadline, now),
-            unacked_release_at: after(after(now, holds.0), grace),
+            unacked_release_at: unacked_release(now, holds.0, grace),
             ended_release_at: after(after(now, FINGER_POWER_ON_DURATION), grace),
             motion_probe_at: after(now, holds.1),
             probe_at: None,
@@ -104,6 +110,30 @@ impl InFlight {
             payload: req.frame.payload.clone(),
             settle: Settle::First,
         }
+    }
+
+    /// Asks to be sent again at `now` (a streamed request whose settle window saw damage,
+    /// [`super::Pairing::settle`]): a request to write (the same token and deadline), and a
+    /// caller without timeout waits the reply hold from this send, as from the first. `None`
+    /// once it was asked again [`super::MAX_ASKED_AGAIN`] times in a row.
+    pub(super) fn ask_again(
+        &mut self,
+        id: u8,
+        token: Token,
+        now: Instant,
+        reply_hold: Duration,
+        grace: Duration,
+    ) -> Option<Request> {
+        if self.asked_again >= super::MAX_ASKED_AGAIN {
+            return None;
+        }
+        self.asked_again += 1;
+        self.unacked_release_at = unacked_release(now, reply_hold, grace);
+        Some(Request {
+            token,
+            frame: Frame::new(id, self.payload.clone()),
+            deadline: self.deadline,
+        })
     }
 
     /// Whether `reply` provably answers some other request of the same id: a duplicate of an
