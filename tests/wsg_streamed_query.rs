@@ -133,6 +133,24 @@ async fn a_width_query_during_a_stream_is_answered_by_a_frame_sent_after_it() {
     assert_eq!(loops.load(Ordering::SeqCst), 4);
 }
 
+/// A client attached to [`device_with`]`(damaged, stalled)`, subscribed to the width (request
+/// 1, its first value read), and the device's count of loop-backs.
+async fn subscribed(
+    damaged: u8,
+    stalled: u8,
+) -> (Client, gripper::wsg::Subscription<f32>, Arc<AtomicUsize>) {
+    let (ours, theirs) = tokio::io::duplex(1 << 16);
+    let loops = Arc::new(AtomicUsize::new(0));
+    device_with(theirs, loops.clone(), damaged, stalled);
+    let client = Client::builder().attach(ours);
+    let mut sub = client
+        .subscribe_width_mm(UpdateOptions::periodic(Duration::from_millis(100)))
+        .await
+        .unwrap();
+    assert_eq!(sub.next().await.unwrap(), 1.0);
+    (client, sub, loops)
+}
+
 /// Issue 29 A: the query's own reply damaged on the wire (the decoder drops it), while an update
 /// that crossed the request reached the client whole. The last frame of the id before the
 /// loop-back's echo was then that update, a value the device sent before it read the query,
@@ -140,15 +158,7 @@ async fn a_width_query_during_a_stream_is_answered_by_a_frame_sent_after_it() {
 /// query is asked again, and answered by its second reply.
 #[tokio::test(start_paused = true)]
 async fn a_streamed_query_whose_reply_was_damaged_is_not_answered_by_an_older_update() {
-    let (ours, theirs) = tokio::io::duplex(1 << 16);
-    let loops = Arc::new(AtomicUsize::new(0));
-    device_with(theirs, loops.clone(), 2, 0);
-    let client = Client::builder().attach(ours);
-    let mut sub = client
-        .subscribe_width_mm(UpdateOptions::periodic(Duration::from_millis(100)))
-        .await
-        .unwrap();
-    assert_eq!(sub.next().await.unwrap(), 1.0);
+    let (client, mut sub, loops) = subscribed(2, 0).await;
     // Request 2: the update of 2.5 mm crossed it, its reply of 2 mm is damaged.
     let answer = client.width_mm().await.unwrap();
     assert_ne!(
@@ -169,15 +179,8 @@ async fn a_streamed_query_whose_reply_was_damaged_is_not_answered_by_an_older_up
 /// again for nothing.)
 #[tokio::test(start_paused = true)]
 async fn a_partial_frame_dropped_before_a_streamed_query_does_not_make_it_ask_again() {
-    let (ours, theirs) = tokio::io::duplex(1 << 16);
-    let loops = Arc::new(AtomicUsize::new(0));
-    device_with(theirs, loops.clone(), 0, 1);
-    let client = Client::builder().attach(ours);
-    let mut sub = client
-        .subscribe_width_mm(UpdateOptions::periodic(Duration::from_millis(100)))
-        .await
-        .unwrap();
-    assert_eq!(sub.next().await.unwrap(), 1.0);
+    // The subscription stays alive: the stream is on, so the query is settled by a loop-back.
+    let (client, _sub, loops) = subscribed(0, 1).await;
     // The partial frame is dropped after the partial frame timeout of silence (paused clock).
     tokio::time::sleep(DEFAULT_PARTIAL_FRAME_TIMEOUT * 2).await;
     assert_eq!(client.width_mm().await.unwrap(), 2.0);
