@@ -135,6 +135,50 @@ async fn an_ack_run_into_an_err_line_is_damage_not_swallowed() {
     );
 }
 
+/// A request damaged on the way is answered under whatever name the damage left: a flipped bit
+/// made `GRIPSTATE?` into `GRIP\x13TATE?`, answered `ERR GRIP 15`, and the program's `GRIP(…)`
+/// on the wire then took it while its own `ACK GRIP` followed (the explorer's
+/// `wsg-text:0xba0682223c8b01a8`). The gripper answers in order, so the `ACK GRIP` after it
+/// shows the line was the query's: the query fails, GRIP ends with its own `FIN`. When the line
+/// is GRIP's own, a reply to a line written after GRIP (the client's probe) says so.
+#[tokio::test]
+async fn a_parse_error_answering_a_damaged_line_is_not_the_next_commands() {
+    let (g, mut fake) = Fake::pair(ClientConfig::default()).await;
+    let state = spawn(&g, |g| async move { g.grip_state().await });
+    assert_eq!(fake.read().await, "GRIPSTATE?");
+    let grip = spawn(&g, |g| async move { g.grip(Some(20.0)).await });
+    assert_eq!(fake.read().await, "GRIP(20)");
+    fake.say("ERR GRIP 15\nACK GRIP\nFIN GRIP\n").await;
+    within("GRIP", grip).await.unwrap().unwrap();
+    let state = within("GRIPSTATE?", state).await.unwrap();
+    assert!(
+        matches!(&state, Err(Error::MalformedReply { line, .. }) if line == "ERR GRIP 15"),
+        "{state:?}"
+    );
+
+    // GRIP's own: the probe's answer settles it for GRIP.
+    // (POS?'s reply is lost.)
+    let pos = spawn(&g, |g| async move { g.position_mm().await });
+    assert_eq!(fake.read().await, "POS?");
+    let grip = spawn(&g, |g| async move { g.grip(Some(20.0)).await });
+    assert_eq!(fake.read().await, "GRIP(20)");
+    fake.say("ERR GRIP 15\n").await;
+    assert_eq!(fake.read().await, "GRIPSTATE?", "a probe");
+    fake.say("GRIPSTATE=0\n").await;
+    let end = within("GRIP", grip).await.unwrap();
+    assert!(
+        matches!(
+            &end,
+            Err(Error::Device {
+                status: Some(Status::CmdFormatError),
+                ..
+            })
+        ),
+        "{end:?}"
+    );
+    drop(pos);
+}
+
 #[tokio::test]
 async fn one_command_of_each_name_on_the_wire() {
     let (g, mut fake) = Fake::pair(ClientConfig::default()).await;

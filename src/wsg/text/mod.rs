@@ -76,10 +76,18 @@
 //! so that motion ends as one whose `ERR` could not be read, never with a code the damage may
 //! have touched.
 //!
-//! Residual risk, inherent in GCL: a line damaged on its way to the gripper may read as another
-//! command's name (`GRIPSTATE?` as `GRIP…`), and the gripper's `ERR GRIP 15` for it is then
-//! taken by the `GRIP` on the wire, though that GRIP runs. The `FIN` rule above keeps the
-//! replies that follow from shifting onto later calls of the name.
+//! A line damaged on its way to the gripper may read as another command's name (`GRIPSTATE?` as
+//! `GRIP…`), answered `ERR GRIP 15` (format error; 14, unknown command). Such an `ERR` read while
+//! a command written before that `GRIP` still waits for its reply is held, not handed to GRIP:
+//! the gripper answers in order, so the next reply tells whose it was. GRIP's own `ACK`, or a
+//! reply to a line written before GRIP, shows it answered an earlier line (which then fails as
+//! one whose reply could not be read); a reply to a line written after GRIP shows it was GRIP's.
+//! When no such reply is due, the client writes a query of its own to draw one. Residual risk,
+//! inherent in GCL: a call whose deadline comes first gets the held `ERR` just before it, as
+//! it would have without the doubt; the `FIN` rule above then keeps the replies that follow
+//! from shifting onto later calls of the name. (Where the field might differ: the codes are our
+//! reading of the binary table, §4.3; on a gripper that numbered otherwise the rule holds a
+//! refusal a moment, never hands it to another call.)
 //!
 //! The client writes a query on its own now and then (`GRIPSTATE?`, `POS?` or `SPEED?`): after
 //! a reply line it could not read, to learn which calls lost their reply, and for an

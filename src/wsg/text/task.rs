@@ -263,6 +263,7 @@ async fn exchange(
         setting.expect,
         Some(waiter),
         deadline,
+        deadline,
         Instant::now(),
         false,
     );
@@ -451,6 +452,7 @@ async fn serve(
                 request.line,
                 request.expect,
                 request.waiter,
+                request.deadline,
                 give_up_at,
                 Instant::now(),
                 request.probe,

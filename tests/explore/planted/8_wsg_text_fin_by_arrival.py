@@ -9,12 +9,12 @@ plant(
     "src/wsg/text/book.rs",
     """        let Some((&key, slot)) = self
             .on_wire
-            .iter_mut()
+            .iter()
             .find(|(k, _)| k.eq_ignore_ascii_case(name))""",
     """        let fin = matches!(reply, ReplyLine::Fin(_))
             && self.on_wire.values().any(|s| s.expect == Expect::Fin);
         let Some((&key, slot)) = self
             .on_wire
-            .iter_mut()
+            .iter()
             .find(|(k, s)| if fin { s.expect == Expect::Fin } else { k.eq_ignore_ascii_case(name) })""",
 )
