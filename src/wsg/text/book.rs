@@ -15,8 +15,9 @@
 //! second (binary E_ALREADY_RUNNING, our reading §6.2) would end whichever call came first.
 //!
 //! The rules it holds besides: what a reply line that cannot be read settles (issue 29 M), the
-//! probes that find out, the check of an overdue motion with `GRIPSTATE?` (issue 29 L), and when
-//! `ACK BYE` may have been an unreadable line (issue 29 N).
+//! probes that find out, the check of an overdue motion with `GRIPSTATE?` (issue 29 L), when
+//! `ACK BYE` may have been an unreadable line (issue 29 N), and whose a parse error out of its
+//! command's place is ([`Held`]: a damaged request answered under another command's name).
 
 use std::collections::{BTreeMap, VecDeque};
 use std::time::Duration;
