@@ -140,7 +140,8 @@ async fn an_ack_run_into_an_err_line_is_damage_not_swallowed() {
 /// on the wire then took it while its own `ACK GRIP` followed (the explorer's
 /// `wsg-text:0xba0682223c8b01a8`). The gripper answers in order, so the `ACK GRIP` after it
 /// shows the line was the query's: the query fails, GRIP ends with its own `FIN`. When the line
-/// is GRIP's own, a reply to a line written after GRIP (the client's probe) says so.
+/// is GRIP's own, a reply to a line written after GRIP (the client's probe) says so, and that
+/// the query written before GRIP lost its reply.
 #[tokio::test]
 async fn a_parse_error_answering_a_damaged_line_is_not_the_next_commands() {
     let (g, mut fake) = Fake::pair(ClientConfig::default()).await;
@@ -149,6 +150,9 @@ async fn a_parse_error_answering_a_damaged_line_is_not_the_next_commands() {
     let grip = spawn(&g, |g| async move { g.grip(Some(20.0)).await });
     assert_eq!(fake.read().await, "GRIP(20)");
     fake.say("ERR GRIP 15\nACK GRIP\nFIN GRIP\n").await;
+    // Held, and nothing written after GRIP waits for a reply: a probe draws one.
+    assert_eq!(fake.read().await, "POS?", "a probe");
+    fake.say("POS=1.0\n").await;
     within("GRIP", grip).await.unwrap().unwrap();
     let state = within("GRIPSTATE?", state).await.unwrap();
     assert!(
@@ -176,7 +180,9 @@ async fn a_parse_error_answering_a_damaged_line_is_not_the_next_commands() {
         ),
         "{end:?}"
     );
-    drop(pos);
+    // In order, POS?'s reply came before GRIP's: the probe's answer shows it lost.
+    let pos = within("POS?", pos).await.unwrap();
+    assert!(matches!(pos, Err(Error::MalformedReply { .. })), "{pos:?}");
 }
 
 #[tokio::test]

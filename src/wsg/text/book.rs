@@ -143,6 +143,20 @@ struct Held {
     line: String,
     /// When the call gets it all the same.
     settle_at: Instant,
+    /// `Book::damages` once it was held: it counts as a line that could not be read from the
+    /// moment it is read, so that commands written after it see it before their write.
+    damages: u64,
+    /// `Book::holds` once it was held: with `damages`, whether a line that could not be read
+    /// came after it.
+    holds: u64,
+}
+
+impl Held {
+    /// Whether a line that could not be read (not another held one) came after it, by the
+    /// book's counts now.
+    fn unreadable_since(&self, damages: u64, holds: u64) -> bool {
+        damages - self.damages > holds - self.holds
+    }
 }
 
 /// How long a command may stay unanswered before the client asks, when its call's deadline is
@@ -213,8 +227,10 @@ pub(crate) struct Book<C> {
     freed: Vec<&'static str>,
     /// `TaskConfig::give_up_after`.
     give_up_after: Duration,
-    /// Reply lines that could not be paired so far.
+    /// Reply lines that could not be paired so far (held ones included, [`Held`]).
     damages: u64,
+    /// Lines held so far ([`Held`]).
+    holds: u64,
     /// The last answer to a probe of each name not yet handed to a call: when the probe was
     /// written, its line, its value (`Book::answer_from_probe`).
     probe_answers: BTreeMap<&'static str, (Instant, String, String)>,
@@ -231,6 +247,7 @@ impl<C: Caller> Book<C> {
         Book {
             give_up_after,
             damages: 0,
+            holds: 0,
             on_wire: BTreeMap::new(),
             waiting: VecDeque::new(),
             sent: 0,
@@ -309,12 +326,10 @@ impl<C: Caller> Book<C> {
         }
     }
 
-    /// A line read as an answer (not paired with it) to one of the commands written up to
-    /// `upto` came before the reply to the command written as `seq`, read at `now`: it counts
-    /// as a line that could not be read, and the commands answered at once written by `upto`
-    /// and still unanswered lost their reply to it ([`Book::settle`]).
-    fn damage_before(&mut self, upto: u64, line: String, seq: u64, now: Instant) {
-        self.damages += 1;
+    /// The reply to the command written as `seq`, read at `now`, shows that the commands
+    /// answered at once written up to `upto` and still unanswered lost their reply: to `line`,
+    /// read as an answer but not paired with them, or (empty) to nothing ([`Book::settle`]).
+    fn settle_before(&mut self, upto: u64, line: String, seq: u64, now: Instant) {
         let earlier = self.damaged.replace((upto, line));
         self.settle(seq, now);
         self.damaged = earlier;
@@ -359,6 +374,9 @@ impl<C: Caller> Book<C> {
         if !out_of_place || settle_at <= now {
             return false;
         }
+        self.damages += 1;
+        self.holds += 1;
+        let (damages, holds) = (self.damages, self.holds);
         let Some(slot) = self.on_wire.get_mut(key) else {
             return false;
         };
@@ -371,37 +389,64 @@ impl<C: Caller> Book<C> {
             },
             line: text.to_owned(),
             settle_at,
+            damages,
+            holds,
         });
         true
     }
 
     /// A reply due at once to the command `key`, written as `seq`, was read at `now` (not an
     /// acknowledged motion's `FIN` or `ERR`, which comes when the motion ends): it settles every
-    /// held `ERR` ([`Held`]). The gripper
-    /// answers in order, so one held by a command written before `key` was that command's; one
-    /// held by `key` itself, or by a command written after it, answered a line written before
-    /// this reply's, damaged: it counts as a line that could not be read.
+    /// held `ERR` ([`Held`]). The gripper answers in order:
+    /// - one held by a command written before `key` was that command's, and the commands written
+    ///   before that one and still unanswered lost their replies; unless a line that could not be
+    ///   read came after it, which may have been that command's own reply (its `ACK` damaged):
+    ///   then that command lost its reply in the damage, as any whose reply could not be read;
+    /// - one held by `key` itself, or by a command written after it, answered a line written
+    ///   before this reply's, damaged.
+    ///
+    /// The first kind is settled first, so that the outcome does not hang on the names' order.
     fn settle_held(&mut self, key: &str, seq: u64, now: Instant) {
-        let held: Vec<(&'static str, bool)> = self
+        let (damages, holds) = (self.damages, self.holds);
+        let mut held: Vec<(&'static str, u64, Option<bool>)> = self
             .on_wire
             .iter()
-            .filter(|(_, s)| s.held.is_some())
-            .map(|(&name, s)| (name, name != key && s.seq < seq))
+            .filter_map(|(&name, s)| {
+                let h = s.held.as_ref()?;
+                let verdict =
+                    (name != key && s.seq < seq).then(|| !h.unreadable_since(damages, holds));
+                Some((name, s.seq, verdict))
+            })
             .collect();
-        for (name, its_own) in held {
-            if its_own {
-                self.release_held(name);
-            } else if let Some(held) = self.on_wire.get_mut(name).and_then(|s| s.held.take()) {
-                tracing::warn!(line = %held.line, "wsg text: a parse error out of its place was another command's, taken as damaged");
-                self.damage_before(seq - 1, held.line, seq, now);
+        // Its own (`Some(true)`), then in doubt (`Some(false)`), then another's (`None`).
+        held.sort_by_key(|&(_, held_seq, verdict)| (std::cmp::Reverse(verdict), held_seq));
+        for (name, held_seq, verdict) in held {
+            match verdict {
+                Some(true) => {
+                    if self.release_held(name) {
+                        self.settle_before(held_seq - 1, String::new(), seq, now);
+                    }
+                }
+                Some(false) => {
+                    if let Some(held) = self.on_wire.get_mut(name).and_then(|s| s.held.take()) {
+                        tracing::warn!(line = %held.line, "wsg text: a parse error out of its place, and a line that could not be read after it: its command's reply taken as lost");
+                        self.settle_before(held_seq, held.line, seq, now);
+                    }
+                }
+                None => {
+                    if let Some(held) = self.on_wire.get_mut(name).and_then(|s| s.held.take()) {
+                        tracing::warn!(line = %held.line, "wsg text: a parse error out of its place was another command's, taken as damaged");
+                        self.settle_before(seq - 1, held.line, seq, now);
+                    }
+                }
             }
         }
     }
 
-    /// The command `name` gets the `ERR` it held: the name is free.
-    fn release_held(&mut self, name: &'static str) {
+    /// The command `name` gets the `ERR` it held: the name is free. Whether it held one.
+    fn release_held(&mut self, name: &'static str) -> bool {
         if self.on_wire.get(name).is_none_or(|s| s.held.is_none()) {
-            return;
+            return false;
         }
         if let Some(Slot {
             caller,
@@ -412,6 +457,7 @@ impl<C: Caller> Book<C> {
             self.complete(caller, Err(held.error));
             self.freed.push(name);
         }
+        true
     }
 
     /// The calls whose held `ERR` was not settled by `now`, just before their deadline, get it
@@ -1334,19 +1380,24 @@ mod tests {
         assert!(
             matches!(
                 &first[..],
-                [(
-                    2,
-                    Err(Error::Device {
-                        status: Some(Status::CmdFormatError),
-                        ..
-                    })
-                )]
+                [
+                    (
+                        2,
+                        Err(Error::Device {
+                            status: Some(Status::CmdFormatError),
+                            ..
+                        })
+                    ),
+                    // In order, POS?'s reply came before GRIP's: it was lost.
+                    (1, Err(Error::MalformedReply { .. }))
+                ]
             ),
             "{first:?}"
         );
-        assert_eq!(book.take_freed(), ["GRIP"]);
+        assert_eq!(book.take_freed(), ["GRIP", "POS"]);
 
         // No reply comes: the call gets it just before its deadline (`call`'s is a second).
+        assert!(call(&mut book, 4, "POS", "POS?", Expect::Value, t0));
         assert!(call(&mut book, 3, "GRIP", "GRIP(10)", Expect::Fin, t0));
         assert!(matches!(book.on_line("ERR GRIP 14", t0), Handled::Nothing));
         assert_eq!(book.give_up_at(), Some(t0 + S - HELD_MARGIN));
@@ -1400,6 +1451,99 @@ mod tests {
             book.on_line("ERR GRIPSTATE 15", t0),
             Handled::Freed("GRIPSTATE")
         ));
+    }
+
+    /// A line that could not be read after a held one may have been the held command's own
+    /// reply (GRIP's `ACK` read as `ICK GRIP`): the held `ERR GRIP 15` may then be the earlier
+    /// query's, and GRIP runs. A later reply settles it as a reply lost in the damage (GRIP is
+    /// taken as acknowledged, its `FIN` ends it), never as GRIP's refusal (review, session 10).
+    #[test]
+    fn a_held_parse_error_followed_by_an_unreadable_line_is_no_ones_for_sure() {
+        let t0 = Instant::now();
+        let mut book = Book::new(GIVE_UP_AFTER);
+        assert!(call(
+            &mut book,
+            1,
+            "GRIPSTATE",
+            "GRIPSTATE?",
+            Expect::Value,
+            t0
+        ));
+        assert!(call(&mut book, 2, "GRIP", "GRIP(10)", Expect::Fin, t0));
+        assert!(matches!(book.on_line("ERR GRIP 15", t0), Handled::Nothing));
+        assert!(matches!(book.on_line("ICK GRIP", t0), Handled::Nothing));
+        let probe = book.probe(S, t0).expect("a probe");
+        assert_eq!(probe.line, "POS?");
+        write(&mut book, probe, t0);
+        book.on_line("POS=1.0", t0);
+        let first = done(&mut book);
+        assert!(
+            matches!(&first[..], [(1, Err(Error::MalformedReply { .. }))]),
+            "{first:?}"
+        );
+        book.on_line("FIN GRIP", t0);
+        let second = done(&mut book);
+        assert!(matches!(&second[..], [(2, Ok(_))]), "{second:?}");
+    }
+
+    /// A held line counts as one that could not be read from the moment it is read, not from
+    /// when it is settled: a command written in between did not have it after its write. A
+    /// parse error for a command written then is held in turn (TEMP? still waits), and a
+    /// `BYE()` written then still waits for its `ACK BYE` (review, session 10).
+    #[test]
+    fn a_held_line_counts_where_it_was_read() {
+        let t0 = Instant::now();
+        let mut book = Book::new(GIVE_UP_AFTER);
+        assert!(call(&mut book, 1, "POS", "POS?", Expect::Value, t0));
+        assert!(call(&mut book, 2, "GRIP", "GRIP(10)", Expect::Fin, t0));
+        assert!(matches!(book.on_line("ERR GRIP 15", t0), Handled::Nothing));
+        assert!(call(&mut book, 3, "TEMP", "TEMP?", Expect::Value, t0));
+        assert!(call(&mut book, 4, "MOVE", "MOVE(10)", Expect::Fin, t0));
+        book.on_line("ACK GRIP", t0);
+        assert!(matches!(&done(&mut book)[..], [(1, Err(_))]));
+        assert!(matches!(book.on_line("ERR MOVE 15", t0), Handled::Nothing));
+        assert!(done(&mut book).is_empty(), "MOVE's ERR is held");
+
+        let mut book = Book::new(GIVE_UP_AFTER);
+        assert!(call(&mut book, 1, "POS", "POS?", Expect::Value, t0));
+        assert!(call(&mut book, 2, "GRIP", "GRIP(10)", Expect::Fin, t0));
+        assert!(matches!(book.on_line("ERR GRIP 15", t0), Handled::Nothing));
+        assert!(call(&mut book, 3, "BYE", "BYE()", Expect::Ack, t0));
+        book.on_line("ACK GRIP", t0);
+        assert!(!book.bye_lost_in_damage(), "ACK BYE is still to come");
+    }
+
+    /// Two held lines settled by one reply: the one of a command written before it is that
+    /// command's, whatever the names' order (review, session 10): `ERR SPEED 15` is SPEED?'s,
+    /// `ERR GRIP 15` answered a line before `TEMP?`, and POS? lost its reply.
+    #[test]
+    fn held_lines_are_settled_in_the_order_of_their_commands() {
+        let t0 = Instant::now();
+        let mut book = Book::new(GIVE_UP_AFTER);
+        assert!(call(&mut book, 1, "POS", "POS?", Expect::Value, t0));
+        assert!(call(&mut book, 2, "SPEED", "SPEED?", Expect::Value, t0));
+        assert!(matches!(book.on_line("ERR SPEED 15", t0), Handled::Nothing));
+        assert!(call(&mut book, 3, "TEMP", "TEMP?", Expect::Value, t0));
+        assert!(call(&mut book, 4, "GRIP", "GRIP(10)", Expect::Fin, t0));
+        assert!(matches!(book.on_line("ERR GRIP 15", t0), Handled::Nothing));
+        book.on_line("TEMP=23.0", t0);
+        let done = done(&mut book);
+        assert!(
+            matches!(
+                &done[..],
+                [
+                    (2, Err(Error::Device { line: speed, .. })),
+                    (1, Err(Error::MalformedReply { .. })),
+                    (3, Ok(temp)),
+                ] if speed == "ERR SPEED 15" && temp == "23.0"
+            ),
+            "{done:?}"
+        );
+        assert_eq!(
+            book.give_up_at(),
+            Some(t0 + S + GIVE_UP_AFTER),
+            "GRIP waits"
+        );
     }
 
     /// An acknowledged motion's `ERR` comes when the motion ends, not in the order the lines
