@@ -687,6 +687,19 @@ fn resolve_conns(
         if let Some((k, seq)) = found {
             taken.insert((c.client, k, seq), c.start);
             c.conn = k;
+        } else if matches!(c.res, Res::Lost(_)) {
+            // Never written, yet lost with a connection: the one open when it ended, not the
+            // one current when it began (wsg-text:0xe717a526d9d1e7a2: a `MOVE` made on
+            // connection 3, waiting behind another until connection 4 was given up, had that
+            // loss judged on connection 3, whose restore's `VERBOSE=0` was answered; rule 6).
+            if let Some((k, _)) = conns[c.client]
+                .iter()
+                .enumerate()
+                .skip(c.conn)
+                .rfind(|(_, conn)| conn.opened <= c.end)
+            {
+                c.conn = k;
+            }
         }
     }
     let written_on = |client: usize, from: usize, line: &str, start: Instant, end: Instant| {

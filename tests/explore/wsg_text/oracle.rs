@@ -305,6 +305,10 @@ fn candidates(
         for (j, e) in evs.iter().enumerate() {
             let Some(line) = e.request else { continue };
             let mine = line == c.line || !exact && request_name(line) == c.name;
+            if !mine && !exact && damaged_copy(line, &c.line) {
+                out.extend(damaged_copy_answer(c, (s, j), evs));
+                continue;
+            }
             if !mine || e.at < c.start || e.at > c.end {
                 continue;
             }
@@ -324,6 +328,43 @@ fn candidates(
         }
     }
     out
+}
+
+/// Whether the device read `request` as the call's own `line` with one byte changed on the way
+/// (`RELEASE()` read as `BELEASE()`, wsg-text:0xcdaeb186861eeadc): the call's request, answered
+/// under the name the damage left. Never another command's line: a `GRIPSTATE?` damaged into
+/// `GRIP\x13TATE?` and answered `ERR GRIP 15` is no `GRIP(…)`'s (wsg-text:0xba0682223c8b01a8).
+fn damaged_copy(request: &str, line: &str) -> bool {
+    request.len() == line.len()
+        && request
+            .bytes()
+            .zip(line.bytes())
+            .filter(|(a, b)| a != b)
+            .count()
+            == 1
+}
+
+/// The call's own request read damaged (`evs[j]`, [`damaged_copy`]) as a candidate, when the
+/// device's answer to it (at once, before it read another line) is the call's `ERR`, or that
+/// line with a damaged name byte ([`same_err`]: `ERR BELEASE 14` read as `ERR RELEASE 14`).
+fn damaged_copy_answer(c: &CallRec, (s, j): (SessionId, usize), evs: &[Ev]) -> Option<Cand> {
+    let Res::Device(got) = &c.res else {
+        return None;
+    };
+    if evs[j].at < c.start || evs[j].at > c.end {
+        return None;
+    }
+    evs[j + 1..]
+        .iter()
+        .take_while(|r| r.request.is_none())
+        .find_map(|r| {
+            let (l, moving) = r.reply?;
+            (r.at <= c.end && same_err(l, got)).then(|| Cand {
+                request: (s, j),
+                reply: l.to_owned(),
+                moving,
+            })
+        })
 }
 
 /// On each session, the requests and final replies of one name alternate: the client never
