@@ -78,6 +78,12 @@ pub struct ClientView {
 /// residual risk of UDP (no sequence numbers), which `known.txt` may name for `wsg-udp` only.
 pub const FROM_FAULTED: &str = "[fits a duplicated or delayed datagram delivered during the call]";
 
+/// Appended to a promise 2 violation whose call fits a reply the device sent, which the matching
+/// gave to another call that may itself have taken a duplicated or delayed datagram (the
+/// matching has no item for such a copy): the UDP residual of that other call, seen here.
+pub const DISPLACED: &str =
+    "[its reply went to a call that fits a duplicated or delayed datagram delivered during it]";
+
 /// Appended to a promise 2 violation of a streamed id's call none of whose requests reached the
 /// device intact before the call ended (a corrupted or cut request; the client answers only
 /// after the echo of a loop-back sent after the request, so a request that was not lost was
@@ -322,14 +328,28 @@ fn check_client(
             continue;
         }
         let (strict, received, _) = windows[i];
-        let fits = |s: &Sent| fits(c, s);
+        // Whether call `o` may have taken a faulted copy delivered during it, beyond the
+        // client's rule (the documented UDP residual).
+        let took_faulted = |o: &CallRec| {
+            (0..faulted.len()).any(|k| {
+                let s = &faulted[k];
+                s.at >= o.start && s.at <= o.end && fits(o, s) && stale::beyond_the_rule(&stale, k, o)
+            })
+        };
+        // Displaced: a genuine reply it fits went, in the matching, to another call that may
+        // itself have taken a faulted copy; the matching has no item for the copy, so that call
+        // took the reply this one needed (wsg-udp:0x2853d243948c6cd4: a delayed grip state 6
+        // answered a subscribe, whose window held the one genuine 0x41 reply, the 7 of the
+        // grip_state after it).
+        let displaced = candidates(i)
+            .iter()
+            .filter_map(|e| owner.get(e))
+            .any(|&j| took_faulted(answered[j]));
         let window = format!("[{}, {}]", t(c.start, t0), t(c.end, t0));
-        let from_faulted = (0..faulted.len()).any(|k| {
-            let s = &faulted[k];
-            s.at >= c.start && s.at <= c.end && fits(s) && stale::beyond_the_rule(&stale, k, c)
-        });
-        let tag = if from_faulted {
+        let tag = if took_faulted(c) {
             FROM_FAULTED
+        } else if displaced {
+            DISPLACED
         } else if strict && received.is_none_or(|at| at >= c.end) {
             NO_REQUEST
         } else if answer(c).is_some_and(|r| passed_crc_damaged(record, view, &r, c.end)) {
