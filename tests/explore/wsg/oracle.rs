@@ -333,7 +333,10 @@ fn check_client(
         let took_faulted = |o: &CallRec| {
             (0..faulted.len()).any(|k| {
                 let s = &faulted[k];
-                s.at >= o.start && s.at <= o.end && fits(o, s) && stale::beyond_the_rule(&stale, k, o)
+                s.at >= o.start
+                    && s.at <= o.end
+                    && fits(o, s)
+                    && stale::beyond_the_rule(&stale, k, o)
             })
         };
         // Displaced: a genuine reply it fits went, in the matching, to another call that may
