@@ -105,6 +105,12 @@ struct Slot<C> {
     /// The gripper reported that motion over without its `FIN` read: if none comes within
     /// `give_up_after` more, the connection is given up.
     over: bool,
+    /// The gripper reported it over once with no `FIN` read before that report and no line
+    /// that could not be read since its `ACK`. The gripper answers in order, so its `FIN`
+    /// would have come first: the report may be a value damaged on the way into another valid
+    /// one (`wsg-text:0x9b99dd46f33e9019`: `GRIPSTATE=6` read as `GRIPSTATE=2`, and a healthy
+    /// connection was given up while HOME ran). It is asked again; a second such report counts.
+    over_unconfirmed: bool,
     /// `Book::damages` when its `ACK` was read.
     damages_at_ack: u64,
     /// A motion whose first reply (`ACK` or `ERR`) never came or could not be read, shown lost
@@ -301,6 +307,7 @@ impl<C: Caller> Book<C> {
             acked: false,
             checking: false,
             over: false,
+            over_unconfirmed: false,
             damages_at_ack: 0,
             first_reply_lost: false,
             damages_at_write: self.damages,
@@ -648,11 +655,14 @@ impl<C: Caller> Book<C> {
         let mut ended = Vec::new();
         for (&name, slot) in self.on_wire.iter_mut().filter(|(_, s)| s.checking) {
             slot.checking = false;
-            slot.over = over;
+            let against_order = over && damages == slot.damages_at_ack && !slot.first_reply_lost;
+            let first = against_order && !slot.over_unconfirmed;
+            slot.over_unconfirmed = first;
+            slot.over = over && !first;
             slot.give_up_at = after(now, give_up_after.max(RECHECK_FLOOR));
             // Asked again later even when `give_up_after` is `Duration::MAX`.
             slot.doubt_at = motion_doubt(slot.give_up_at, now);
-            tracing::debug!(command = %slot.line, value, over, "wsg text: overdue motion checked");
+            tracing::debug!(command = %slot.line, value, over, first, "wsg text: overdue motion checked");
             // Over, and a line that could not be read came after its `ACK`: that was its `FIN`
             // or `ERR` (the gripper answers in order: it came before this state). The call
             // ends and the name is free (issue 29 M for motions). So too when its first reply
@@ -1607,6 +1617,49 @@ mod tests {
             book.overdue(S, GIVE_UP_AFTER, at).unwrap_err(),
             "POS?".to_owned()
         );
+    }
+
+    /// An acknowledged motion reported over with no `FIN` before the report and nothing
+    /// unreadable since its `ACK` is asked again, not given up a `give_up_after` later: in
+    /// order its `FIN` would have come first, and the value may have been damaged into another
+    /// valid one (`wsg-text:0x9b99dd46f33e9019`: `GRIPSTATE=6` read as `GRIPSTATE=2` while
+    /// HOME ran). A second such report counts: its `FIN` then has `give_up_after` to come.
+    #[test]
+    fn a_motion_reported_over_against_the_order_is_asked_again() {
+        for second in ["GRIPSTATE=6", "GRIPSTATE=0"] {
+            let t0 = Instant::now();
+            let mut book = Book::new(GIVE_UP_AFTER);
+            assert!(call(&mut book, 1, "HOME", "HOME()", Expect::Fin, t0));
+            book.on_line("ACK HOME", t0);
+            let at = book.give_up_at().expect("HOME on the wire");
+            let check = book
+                .overdue(S, GIVE_UP_AFTER, at)
+                .unwrap()
+                .expect("a check");
+            write(&mut book, check, at);
+            book.on_line("GRIPSTATE=2", at);
+            let at2 = book.give_up_at().expect("HOME still on the wire");
+            let again = book.overdue(S, GIVE_UP_AFTER, at2);
+            let Ok(Some(again)) = again else {
+                panic!("{second}: not asked again: {again:?}");
+            };
+            assert_eq!(again.line, "GRIPSTATE?");
+            write(&mut book, again, at2);
+            book.on_line(second, at2);
+            assert!(done(&mut book).is_empty());
+            let at3 = book.give_up_at().expect("HOME still on the wire");
+            if second == "GRIPSTATE=6" {
+                assert!(matches!(book.overdue(S, GIVE_UP_AFTER, at3), Ok(Some(_))));
+                assert!(matches!(
+                    book.on_line("FIN HOME", at3),
+                    Handled::Freed("HOME")
+                ));
+                assert!(matches!(&done(&mut book)[..], [(1, Ok(_))]));
+            } else {
+                let end = book.overdue(S, GIVE_UP_AFTER, at3).unwrap_err();
+                assert_eq!(end, "HOME()", "{second}");
+            }
+        }
     }
 
     /// Call `id`'s request `line` without timeout (`Duration::MAX`), written at `t0`.

@@ -36,7 +36,9 @@ pub struct ClientConfig {
     /// (`ACK` read) whose `FIN` is that late is not given up on time alone: the client asks
     /// `GRIPSTATE?`, and keeps waiting (asking again every `give_up_after`, at least 100 ms)
     /// while the gripper reports it running; reported over, its `FIN` has one more
-    /// `give_up_after` to come before the connection is given up.
+    /// `give_up_after` to come before the connection is given up. (A report of "over" with no
+    /// `FIN` before it and nothing unreadable since the `ACK` is asked once more first: the
+    /// gripper answers in order, so such a report may be a value damaged on the way.)
     pub give_up_after: Duration,
     /// Timeout of the TCP connect. Default 5 s.
     pub connect_timeout: Duration,
