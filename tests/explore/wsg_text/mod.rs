@@ -687,6 +687,17 @@ fn resolve_conns(
         if let Some((k, seq)) = found {
             taken.insert((c.client, k, seq), c.start);
             c.conn = k;
+        } else if let Some((k, _)) = conns[c.client]
+            .iter()
+            .enumerate()
+            .skip(c.conn + 1)
+            .rfind(|(_, conn)| conn.opened <= c.start)
+        {
+            // Never written, and begun once a later connection was open: made at the instant
+            // the opener recorded it, but before, it was filed under the lost one
+            // (wsg-text:0xed902f456207c5f0: a `STOP()` waiting behind the unanswered `STOP()`
+            // of connection 4 was judged on connection 3, and rule 9 saw no stop on the wire).
+            c.conn = k;
         } else if matches!(c.res, Res::Lost(_)) {
             // Never written, yet lost with a connection: the one open when it ended, not the
             // one current when it began (wsg-text:0xe717a526d9d1e7a2: a `MOVE` made on
