@@ -111,14 +111,16 @@ struct Slot<C> {
     /// one (`wsg-text:0x9b99dd46f33e9019`: `GRIPSTATE=6` read as `GRIPSTATE=2`, and a healthy
     /// connection was given up while HOME ran). It is asked again; a second such report counts.
     over_unconfirmed: bool,
-    /// `Book::damages` when its `ACK` was read.
-    damages_at_ack: u64,
+    /// [`Book::unreadable`] when its `ACK` was read.
+    unreadable_at_ack: u64,
     /// A motion whose first reply (`ACK` or `ERR`) never came or could not be read, shown lost
     /// by a later reply ([`Book::settle`]): reported over, it ends, for its `FIN` or `ERR`
     /// (which comes before that report, in order) will not come either.
     first_reply_lost: bool,
     /// `Book::damages` when it was written.
     damages_at_write: u64,
+    /// [`Book::unreadable`] when it was written.
+    unreadable_at_write: u64,
     /// When it was written, if it is a probe (`Request::probe`).
     probe_at: Option<Instant>,
     /// A command whose reply is not due before this (a call without timeout, or with a long
@@ -308,9 +310,10 @@ impl<C: Caller> Book<C> {
             checking: false,
             over: false,
             over_unconfirmed: false,
-            damages_at_ack: 0,
+            unreadable_at_ack: 0,
             first_reply_lost: false,
             damages_at_write: self.damages,
+            unreadable_at_write: self.unreadable(),
             probe_at,
             doubt_at,
             deadline,
@@ -331,6 +334,13 @@ impl<C: Caller> Book<C> {
         if self.on_wire.values().any(Book::answered_at_once) {
             self.damaged = Some((self.sent, text.to_owned()));
         }
+    }
+
+    /// Reply lines that could not be read so far, held ones ([`Held`]) left out: what could
+    /// have been a motion's `ACK`, `FIN` or `ERR` (a held line is an `ERR` 14 or 15, which no
+    /// accepted motion ends with, and no `ACK`).
+    fn unreadable(&self) -> u64 {
+        self.damages - self.holds
     }
 
     /// The reply to the command written as `seq`, read at `now`, shows that the commands
@@ -366,11 +376,17 @@ impl<C: Caller> Book<C> {
         let (earlier, oldest) = self
             .on_wire
             .values()
-            .filter(|s| s.seq < seq && s.held.is_none() && Book::answered_at_once(s))
+            .filter(|s| s.seq < seq && Book::answered_at_once(s))
             .fold((0u64, u64::MAX), |(n, oldest), s| {
                 (n + 1, oldest.min(s.damages_at_write))
             });
-        let out_of_place = slot.held.is_none()
+        // Never a stop's: its name must free at once, for the next stop goes out only then
+        // (shared note §3.7; wsg-text:0x1836d2bb3a465209: a second `STOP()` waited 40 ms
+        // behind a held `ERR STOP 15`, the first one's own). A stop taken to have failed when
+        // it worked is the safe side: its caller stops again.
+        let stop = matches!(key, "STOP" | "FASTSTOP");
+        let out_of_place = !stop
+            && slot.held.is_none()
             && Book::answered_at_once(slot)
             && self.damages.saturating_sub(oldest) < earlier;
         let settle_at = slot
@@ -497,7 +513,7 @@ impl<C: Caller> Book<C> {
             if slot.seq <= upto && slot.expect == Expect::Fin && !slot.acked {
                 tracing::debug!(command = %slot.line, %line, "wsg text: a motion's first reply damaged, taken as acknowledged");
                 slot.acked = true;
-                slot.damages_at_ack = slot.damages_at_write;
+                slot.unreadable_at_ack = slot.unreadable_at_write;
                 slot.first_reply_lost = true;
                 // Without a give-up time (no timeout) it is asked whether it runs a while
                 // after this (not at once: a motion just accepted might not show yet), else it
@@ -651,11 +667,12 @@ impl<C: Caller> Book<C> {
                     | GripState::Error
             )
         );
-        let damages = self.damages;
+        let unreadable = self.unreadable();
         let mut ended = Vec::new();
         for (&name, slot) in self.on_wire.iter_mut().filter(|(_, s)| s.checking) {
             slot.checking = false;
-            let against_order = over && damages == slot.damages_at_ack && !slot.first_reply_lost;
+            let against_order =
+                over && unreadable == slot.unreadable_at_ack && !slot.first_reply_lost;
             let first = against_order && !slot.over_unconfirmed;
             slot.over_unconfirmed = first;
             slot.over = over && !first;
@@ -669,7 +686,7 @@ impl<C: Caller> Book<C> {
             // was lost: with no line read in its place (a request the gripper never read,
             // `Book::doubt`), none of its replies came, and none will
             // (`wsg-text:0x66c3c8e7252d7f83`: `HOME()` held with `give_up_after` `Duration::MAX`).
-            if over && (damages > slot.damages_at_ack || slot.first_reply_lost) {
+            if over && (unreadable > slot.unreadable_at_ack || slot.first_reply_lost) {
                 ended.push(name);
             }
         }
@@ -993,6 +1010,7 @@ impl<C: Caller> Book<C> {
         if in_order {
             self.settle_held(key, seq, now);
         }
+        let unreadable = self.unreadable();
         let Some(slot) = self.on_wire.get_mut(key) else {
             return Handled::Nothing;
         };
@@ -1007,7 +1025,7 @@ impl<C: Caller> Book<C> {
         if matches!(reply, ReplyLine::Fin(_))
             && slot.expect == Expect::Fin
             && !slot.acked
-            && self.damages == slot.damages_at_write
+            && unreadable == slot.unreadable_at_write
         {
             tracing::warn!(
                 line = text,
@@ -1021,7 +1039,7 @@ impl<C: Caller> Book<C> {
         if !matches!(reply, ReplyLine::Fin(_)) {
             if matches!(reply, ReplyLine::Ack(_)) && slot.expect == Expect::Fin {
                 slot.acked = true;
-                slot.damages_at_ack = self.damages;
+                slot.unreadable_at_ack = unreadable;
                 slot.doubt_at = motion_doubt(slot.give_up_at, now);
             }
             self.settle(seq, now);
@@ -1441,6 +1459,25 @@ mod tests {
             matches!(&third[..], [(4, Err(Error::Device { .. }))]),
             "{third:?}"
         );
+    }
+
+    /// A stop's parse error is never held: the stop's name must free at once, for the next
+    /// stop goes out only then (`wsg-text:0x1836d2bb3a465209`: a second `STOP()` waited 40 ms
+    /// behind a held `ERR STOP 15`).
+    #[test]
+    fn a_stops_parse_error_is_never_held() {
+        let t0 = Instant::now();
+        let mut book = Book::new(GIVE_UP_AFTER);
+        assert!(call(&mut book, 1, "POS", "POS?", Expect::Value, t0));
+        assert!(call(&mut book, 2, "STOP", "STOP()", Expect::Ack, t0));
+        assert!(matches!(
+            book.on_line("ERR STOP 15", t0),
+            Handled::Freed("STOP")
+        ));
+        assert!(matches!(
+            &done(&mut book)[..],
+            [(2, Err(Error::Device { .. }))]
+        ));
     }
 
     /// A parse error is in its place when each command written before it that still waits for

@@ -344,10 +344,17 @@ fn check_client(
         // took the reply this one needed (wsg-udp:0x2853d243948c6cd4: a delayed grip state 6
         // answered a subscribe, whose window held the one genuine 0x41 reply, the 7 of the
         // grip_state after it).
-        let displaced = candidates(i)
-            .iter()
-            .filter_map(|e| owner.get(e))
-            .any(|&j| took_faulted(answered[j]));
+        // Not when it fits a faulted copy the client's rule should have kept from it (planted
+        // bug 1's mistake): that copy, not the displacement, may be what it took.
+        let within_rule = (0..faulted.len()).any(|k| {
+            let s = &faulted[k];
+            s.at >= c.start && s.at <= c.end && fits(c, s) && !stale::beyond_the_rule(&stale, k, c)
+        });
+        let displaced = !within_rule
+            && candidates(i)
+                .iter()
+                .filter_map(|e| owner.get(e))
+                .any(|&j| took_faulted(answered[j]));
         let window = format!("[{}, {}]", t(c.start, t0), t(c.end, t0));
         let tag = if took_faulted(c) {
             FROM_FAULTED

@@ -35,6 +35,7 @@ use gripper::reconnect::{ConnectionEvent, ConnectionEvents};
 use gripper::wsg::sim::{Model, SessionId, SessionKind, SimConfig, SimEvent, SimServer};
 use gripper::wsg::text::{Client, ClientConfig, Error};
 use gripper::wsg::HomingDirection;
+use gripper::wsg::SystemState;
 use tokio::time::Instant;
 
 use self::tap::{Cut, SharedTap, Tap};
@@ -295,7 +296,7 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
 
     let mut v = Vec::new();
     for ctx in &ctxs {
-        v.extend(recovery(ctx, &log, &trace).await);
+        v.extend(recovery(ctx, &sim, &log, &trace).await);
     }
     for ctx in &ctxs {
         v.extend(restore::check(ctx, &log, &trace).await);
@@ -442,7 +443,7 @@ const RECOVERY_TIMEOUT: Duration = Duration::from_secs(2);
 /// client has reconnected by then if its connection was lost: its backoff is at most 0.5 s);
 /// one that does not reconnect fails with `ConnectionLost` if, and only if, its connection
 /// ended.
-async fn recovery(ctx: &Ctx, log: &Log, trace: &SharedTrace) -> Vec<String> {
+async fn recovery(ctx: &Ctx, sim: &SimServer, log: &Log, trace: &SharedTrace) -> Vec<String> {
     if ctx.closing.load(Ordering::SeqCst) {
         return Vec::new();
     }
@@ -451,6 +452,16 @@ async fn recovery(ctx: &Ctx, log: &Log, trace: &SharedTrace) -> Vec<String> {
     let longest_call = ctx.config.motion_timeout.clamp(Duration::from_secs(5), cap);
     let bound = longest_call + ctx.config.give_up_after.min(cap) + Duration::from_secs(12);
     tokio::time::sleep(bound).await;
+    // A motion the fault phase started may outlast that bound: a damaged argument can slow it
+    // to the model's least speed (`GRIP(57,2.5)` read as `GRIP(57,2,5)`, 5 mm/s, ran 22 s, and
+    // the quiet phase's HOME was refused E_ALREADY_RUNNING: wsg-text:0xc56aae17ae8b2929). The
+    // recovery waits for the fingers to rest too, at most as long as 110 mm at 0.1 mm/s
+    // takes. Reading the simulator's state writes nothing: a run whose fingers rest by then
+    // takes the path it took before.
+    let rest_by = Instant::now() + Duration::from_secs(1200);
+    while sim.snapshot().system_state.contains(SystemState::MOVING) && Instant::now() < rest_by {
+        tokio::time::sleep(Duration::from_millis(500)).await;
+    }
     if ctx.corrupting {
         // A corrupted LF in the fault phase leaves a fragment in the client's reader that eats
         // the next reply line (it ends it): a query whose answer nobody checks clears it. The
@@ -663,6 +674,10 @@ fn resolve_conns(
     let mut taken = BTreeMap::new();
     for i in order {
         let c = &mut calls[i];
+        // A caller's calls after a lost one are filed under the next connection
+        // (`workload::caller`), which never opens for a client that does not reconnect: such a
+        // call is judged on the last one there is.
+        c.conn = c.conn.min(conns[c.client].len().saturating_sub(1));
         let found = conns[c.client]
             .iter()
             .enumerate()
@@ -687,17 +702,6 @@ fn resolve_conns(
         if let Some((k, seq)) = found {
             taken.insert((c.client, k, seq), c.start);
             c.conn = k;
-        } else if let Some((k, _)) = conns[c.client]
-            .iter()
-            .enumerate()
-            .skip(c.conn + 1)
-            .rfind(|(_, conn)| conn.opened <= c.start)
-        {
-            // Never written, and begun once a later connection was open: made at the instant
-            // the opener recorded it, but before, it was filed under the lost one
-            // (wsg-text:0xed902f456207c5f0: a `STOP()` waiting behind the unanswered `STOP()`
-            // of connection 4 was judged on connection 3, and rule 9 saw no stop on the wire).
-            c.conn = k;
         } else if matches!(c.res, Res::Lost(_)) {
             // Never written, yet lost with a connection: the one open when it ended, not the
             // one current when it began (wsg-text:0xe717a526d9d1e7a2: a `MOVE` made on
@@ -711,6 +715,17 @@ fn resolve_conns(
             {
                 c.conn = k;
             }
+        } else if let Some((k, _)) = conns[c.client]
+            .iter()
+            .enumerate()
+            .skip(c.conn + 1)
+            .rfind(|(_, conn)| conn.opened <= c.start)
+        {
+            // Never written, and begun once a later connection was open: made at the instant
+            // the opener recorded it, but before, it was filed under the lost one
+            // (wsg-text:0xed902f456207c5f0: a `STOP()` waiting behind the unanswered `STOP()`
+            // of connection 4 was judged on connection 3, and rule 9 saw no stop on the wire).
+            c.conn = k;
         }
     }
     let written_on = |client: usize, from: usize, line: &str, start: Instant, end: Instant| {

@@ -152,7 +152,7 @@ pub fn check(
             }
             Res::Lost(_) | Res::Timeout | Res::Cancelled | Res::Hung => continue,
         }
-        edges[i] = candidates(c, &sessions[c.client], &by_session, exact);
+        edges[i] = candidates(c, calls, &sessions[c.client], &by_session, exact);
     }
     let requests: Vec<Vec<(SessionId, usize)>> = edges
         .iter()
@@ -295,6 +295,7 @@ fn same_err(a: &str, b: &str) -> bool {
 
 fn candidates(
     c: &CallRec,
+    calls: &[CallRec],
     sessions: &[SessionId],
     by_session: &BTreeMap<SessionId, Vec<Ev>>,
     exact: bool,
@@ -305,7 +306,18 @@ fn candidates(
         for (j, e) in evs.iter().enumerate() {
             let Some(line) = e.request else { continue };
             let mine = line == c.line || !exact && request_name(line) == c.name;
-            if !mine && !exact && damaged_copy(line, &c.line) {
+            // One byte from another call's line of its client in flight then too (`POS?` and
+            // `PWT?` are two apart): whose it was cannot be told, and it is no candidate.
+            let another = || {
+                calls.iter().any(|o| {
+                    o.client == c.client
+                        && o.line != c.line
+                        && o.start <= e.at
+                        && e.at <= o.end
+                        && damaged_copy(line, &o.line)
+                })
+            };
+            if !mine && !exact && damaged_copy(line, &c.line) && !another() {
                 out.extend(damaged_copy_answer(c, (s, j), evs));
                 continue;
             }
