@@ -807,3 +807,31 @@ async fn an_overdue_motion_is_checked_again_without_a_query_timeout() {
     reply("FIN MOVE").await;
     next.await.unwrap().unwrap();
 }
+
+/// Issue 29 M for `close()`: a `BYE()` without timeout that nothing answers (its request
+/// damaged on the way, so the gripper read no line, `wsg-text:0x7af44aab63b7c9f1`) waited for
+/// ever: nothing may be written after `BYE()`, so no probe could draw an answer. It waits 10 s,
+/// then fails `Timeout` with that bound, and the connection is closed (a later call: `Closed`).
+#[tokio::test(start_paused = true)]
+async fn close_without_timeout_that_nothing_answers_ends_after_ten_seconds() {
+    let (client, mut gripper) = pair(ClientConfig::default()).await;
+    let forever = client.with_timeout(Duration::MAX);
+    let start = tokio::time::Instant::now();
+    let close = tokio::spawn(async move { forever.close().await });
+    assert_eq!(gripper.line().await.as_deref(), Some("BYE()"));
+    let ended = close.await.unwrap();
+    assert!(
+        matches!(
+            ended,
+            Err(gripper::wsg::text::Error::Timeout { timeout, .. }) if timeout == Duration::from_secs(10)
+        ),
+        "{ended:?}"
+    );
+    assert_eq!(start.elapsed(), Duration::from_secs(10));
+    assert_eq!(lines_until_closed(&mut gripper).await, Vec::<String>::new());
+    let after = client.position_mm().await;
+    assert!(
+        matches!(after, Err(gripper::wsg::text::Error::Closed)),
+        "{after:?}"
+    );
+}

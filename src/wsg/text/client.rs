@@ -425,6 +425,9 @@ impl Client {
     /// whether it was `ACK BYE`, so a `close()` without timeout would wait for ever), the
     /// connection is closed all the same (the gripper may then raise FAST STOP). So it is
     /// when the future of `close()` is dropped after `BYE()` was written, before `ACK BYE`.
+    /// Without timeout (`Duration::MAX`) it waits for `ACK BYE` at most 10 s, then fails
+    /// [`Error::Timeout`] with that bound: a `BYE()` damaged on the way may be answered with
+    /// nothing at all, and nothing written after it could draw an answer.
     ///
     /// While the client reconnects ([`ClientConfig::reconnect`]), in a backoff wait or an
     /// attempt, it stops at once and this returns `Ok(())` without any `BYE()`: there is no

@@ -15,7 +15,7 @@ pub(crate) use super::book::{Answer, Expect};
 use super::book::{Book, Handled, WaitingCallers};
 use super::error::Error;
 use super::push::{Push, PushSubscriber};
-use crate::deadline::move_timer;
+use crate::deadline::{is_never, move_timer};
 use crate::line::{io_error, peer_closed, restore_wait, Failure, LineConn, LineError, LineTask};
 use crate::supervisor::CloseRequest;
 
@@ -244,6 +244,9 @@ impl LineTask for Task {
     }
 }
 
+/// The longest a `close()` without timeout waits for `ACK BYE` ([`super::Client::close`]).
+const BYE_WAIT_MAX: Duration = Duration::from_secs(10);
+
 /// One setting sent again on a new connection, before any call is served on it: paired by the
 /// same rules as a call's reply (pushes that arrive meanwhile go to their subscribers).
 async fn exchange(
@@ -437,8 +440,16 @@ async fn serve(
             }
             tracing::trace!(command = %request.line, "wsg text: sent");
             if request.name == "BYE" {
-                closing = Some(request.timeout);
-                move_timer(bye_timer.as_mut(), request.deadline);
+                // Without timeout, bounded all the same: a `BYE()` damaged on the way may
+                // be answered with nothing, and nothing written after it could draw an answer
+                // (`wsg-text:0x7af44aab63b7c9f1`: `close()` without timeout waited for ever).
+                let (timeout, deadline) = if is_never(request.deadline, Instant::now()) {
+                    (BYE_WAIT_MAX, after(Instant::now(), BYE_WAIT_MAX))
+                } else {
+                    (request.timeout, request.deadline)
+                };
+                closing = Some(timeout);
+                move_timer(bye_timer.as_mut(), deadline);
                 // The calls waiting for their name are never sent now.
                 book.close_waiting();
                 complete(&mut book);
