@@ -146,9 +146,8 @@ struct Slot<C> {
 /// the doubt.
 #[derive(Debug)]
 struct Held {
-    /// The call's answer if the line is its own.
+    /// The call's answer if the line is its own (`Error::Device`, which carries the line).
     error: Error,
-    line: String,
     /// When the call gets it all the same.
     settle_at: Instant,
     /// `Book::damages` once it was held: it counts as a line that could not be read from the
@@ -160,6 +159,14 @@ struct Held {
 }
 
 impl Held {
+    /// The line it holds.
+    fn line(self) -> String {
+        match self.error {
+            Error::Device { line, .. } => line,
+            _ => String::new(),
+        }
+    }
+
     /// Whether a line that could not be read (not another held one) came after it, by the
     /// book's counts now.
     fn unreadable_since(&self, damages: u64, holds: u64) -> bool {
@@ -410,7 +417,6 @@ impl<C: Caller> Book<C> {
                 status: code.map(Status::from_code),
                 line: text.to_owned(),
             },
-            line: text.to_owned(),
             settle_at,
             damages,
             holds,
@@ -452,14 +458,16 @@ impl<C: Caller> Book<C> {
                 }
                 Some(false) => {
                     if let Some(held) = self.on_wire.get_mut(name).and_then(|s| s.held.take()) {
-                        tracing::warn!(line = %held.line, "wsg text: a parse error out of its place, and a line that could not be read after it: its command's reply taken as lost");
-                        self.settle_before(held_seq, held.line, seq, now);
+                        let line = held.line();
+                        tracing::warn!(%line, "wsg text: a parse error out of its place, and a line that could not be read after it: its command's reply taken as lost");
+                        self.settle_before(held_seq, line, seq, now);
                     }
                 }
                 None => {
                     if let Some(held) = self.on_wire.get_mut(name).and_then(|s| s.held.take()) {
-                        tracing::warn!(line = %held.line, "wsg text: a parse error out of its place was another command's, taken as damaged");
-                        self.settle_before(seq - 1, held.line, seq, now);
+                        let line = held.line();
+                        tracing::warn!(%line, "wsg text: a parse error out of its place was another command's, taken as damaged");
+                        self.settle_before(seq - 1, line, seq, now);
                     }
                 }
             }

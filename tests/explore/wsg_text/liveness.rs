@@ -80,8 +80,14 @@ fn expect_of(name: &str, calls: &[CallRec]) -> Expect {
 /// Whether `line` is an `ERR <name> 14` or `15` (unknown command, format error): the gripper's
 /// answer to a line it could not parse, under whatever name the line began with.
 fn parse_error(line: &str) -> bool {
-    let mut w = line.split(' ');
-    w.next() == Some("ERR") && w.next().is_some() && matches!(w.next(), Some("14" | "15"))
+    matches!(
+        parse_reply(line),
+        Ok(ReplyLine::Err {
+            name: Some(_),
+            code: Some(14 | 15),
+            ..
+        })
+    )
 }
 
 fn reply_read<'a>(
