@@ -318,6 +318,26 @@ async fn corrupt_length_to_zero_is_malformed_not_server_too_old() {
 }
 
 #[tokio::test]
+async fn an_empty_message_below_the_version_the_server_said_is_malformed_not_server_too_old() {
+    // smartgrasp-v3:0xd2a532f64f1247cd: a damaged request drew the server's empty message, and a
+    // damaged byte of it claimed v2. This server answered GET_PROTOCOL_VERSION with 3 on this
+    // very connection: the "too old" answer would contradict it, so it is a damaged frame (the
+    // connection is lost, a fresh one works), never the terminal ServerTooOld.
+    let (rig, client, length) = with_fault(REPLIES, corrupt(at::LENGTH_LOW, 74)).await;
+    let version = REPLIES(&rig.proxy).add(corrupt(at::VERSION_LOW, 0x01));
+    let err = count(&client, 1).await.unwrap_err();
+    assert_eq!((length.fired(), version.fired()), (1, 1));
+    assert!(
+        matches!(
+            err,
+            Error::MalformedReply(Malformed::FrameLength { length: 0 })
+        ),
+        "{err}"
+    );
+    assert_broken_then_fresh_works(&rig, &client).await;
+}
+
+#[tokio::test]
 async fn corrupt_version_byte_is_malformed() {
     let err = count_breaks(REPLIES, corrupt(at::VERSION_LOW, 0x04)).await;
     assert!(

@@ -108,19 +108,29 @@ fn take(src: &mut BytesMut) -> Result<Option<Taken>, Malformed> {
 /// prefix's version says).
 ///
 /// Decoder errors: [`Error::ServerTooOld`] for an empty message from a server older than
-/// [`version`](Self::version), [`Malformed::FrameLength`] for any other empty message and any
-/// length but 74 and 0. Both end the stream.
+/// [`version`](Self::version) before the server said its
+/// [`server_version`](Self::server_version), [`Malformed::FrameLength`] for any other empty
+/// message and any length but 74 and 0. Each ends the stream.
 #[derive(Debug, Clone, Copy)]
 pub struct ClientCodec {
     /// The protocol version the client sends: an empty message with a lower version says the
     /// server is older (manual 1.3).
     pub version: u16,
+    /// The highest version the server said it speaks on this connection (its answer to
+    /// GET_PROTOCOL_VERSION), once known. A client never sends a version above it, so from
+    /// then on the server has no cause to send an empty message: one that arrives is a damaged
+    /// frame ([`Malformed::FrameLength`]), never [`Error::ServerTooOld`], whatever version it
+    /// claims.
+    pub server_version: Option<u16>,
 }
 
 impl ClientCodec {
-    /// A codec for a client sending protocol `version`.
+    /// A codec for a client sending protocol `version`, the server's version not yet known.
     pub fn new(version: u16) -> ClientCodec {
-        ClientCodec { version }
+        ClientCodec {
+            version,
+            server_version: None,
+        }
     }
 }
 
@@ -141,11 +151,17 @@ impl Decoder for ClientCodec {
             Some(Taken::Frame(bytes)) => Ok(Some(AnyResponseFrame::decode(&bytes))),
             // Only a server older than this client answers with an empty message (manual 1.3);
             // one that claims this client's version or newer is a damaged frame, not a version
-            // answer.
-            Some(Taken::Empty { version }) if version < self.version => Err(Error::ServerTooOld {
-                server_version: version,
-                client_version: self.version,
-            }),
+            // answer. So is one that claims less than the server said it speaks on this
+            // connection: a damaged request draws an empty message, and a damaged byte of it
+            // then forged "too old" (smartgrasp-v3:0xd2a532f64f1247cd).
+            Some(Taken::Empty { version })
+                if version < self.version && self.server_version.is_none() =>
+            {
+                Err(Error::ServerTooOld {
+                    server_version: version,
+                    client_version: self.version,
+                })
+            }
             Some(Taken::Empty { .. }) => Err(Malformed::FrameLength { length: 0 }.into()),
         }
     }
@@ -262,6 +278,28 @@ mod tests {
                 client_version: 3
             }
         ));
+    }
+
+    #[test]
+    fn empty_message_after_the_server_said_its_version_is_malformed_not_server_too_old() {
+        let empty = |version| BytesMut::from(&Prefix { version, length: 0 }.encode()[..]);
+        let said_v3 = ClientCodec {
+            server_version: Some(3),
+            ..ClientCodec::default()
+        };
+        for version in [2, 3] {
+            let err = { said_v3 }.decode(&mut empty(version)).unwrap_err();
+            assert!(
+                matches!(
+                    err,
+                    Error::MalformedReply(Malformed::FrameLength { length: 0 })
+                ),
+                "{version}: {err:?}"
+            );
+        }
+        // Before the server said its version, the same message is its "too old" answer.
+        let err = ClientCodec::default().decode(&mut empty(2)).unwrap_err();
+        assert!(matches!(err, Error::ServerTooOld { .. }), "{err:?}");
     }
 
     #[test]

@@ -136,6 +136,13 @@ impl Link {
         self.stream.decoder_mut().version = version;
     }
 
+    /// Records the version the server answered GET_PROTOCOL_VERSION with: an empty message
+    /// below it is a damaged frame from then on, not the server's "too old" answer (see
+    /// [`ClientCodec::server_version`]).
+    pub(crate) fn set_server_version(&mut self, server_version: u16) {
+        self.stream.decoder_mut().server_version = Some(server_version);
+    }
+
     /// One request with nothing else in flight (the opening sequence), in the link's version,
     /// answered within the configured timeout of its type. After an error the link must be
     /// dropped.

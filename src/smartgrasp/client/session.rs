@@ -116,6 +116,7 @@ impl Session {
             ResponseBody::ProtocolVersion(v) => v,
             other => return Err(unexpected_body(other)),
         };
+        link.set_server_version(server_version);
         let wanted = config.protocol_version.unwrap_or(HIGHEST_VERSION);
         check_pinned(wanted)?;
         let version = if config.protocol_version.is_some() {
