@@ -260,11 +260,14 @@ fn timeout(
     let c = &calls[i];
     let deadline = c.start.checked_add(c.timeout)?;
     let (w, seq) = own[i].filter(|(w, _)| *w < deadline)?;
-    // Another live call of the connection with the very same line: the write may be either's.
+    // Another live call of the client with the very same line: the write may be either's. On
+    // any connection: a call made during a reconnect that no write was credited to stays filed
+    // on the old one, yet its request may be this write, and this call's own a later one
+    // (wsg-text:0x6fe85ed992023b5a: two `POS?`, the later call's written first after the
+    // reconnect; the client has one connection at a time, so a call live at the write was in it).
     let shared = calls.iter().enumerate().any(|(j, o)| {
         j != i
             && o.client == c.client
-            && o.conn == c.conn
             && o.line == c.line
             && o.start <= w
             && w <= o.end
