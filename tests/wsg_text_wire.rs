@@ -185,6 +185,55 @@ async fn a_parse_error_answering_a_damaged_line_is_not_the_next_commands() {
     assert!(matches!(pos, Err(Error::MalformedReply { .. })), "{pos:?}");
 }
 
+/// `wsg-text:0x939e47e5d1d27846`: GRIP's own `ERR GRIP 15` held behind POS?, then a line that
+/// could not be read (the probe's own reply, damaged). It may have been GRIP's `ACK` (the
+/// `ERR` then POS?'s), so GRIP is in doubt and the client asks whether it runs: idle, with no
+/// `FIN` before, GRIP never ran and the `ERR` was its own. Before, GRIP was taken as
+/// acknowledged and its call timed out with its refusal in hand; moving, GRIP's `FIN` ends it.
+#[tokio::test]
+async fn a_held_parse_error_in_doubt_is_settled_by_asking_whether_the_motion_runs() {
+    for moving in [false, true] {
+        let (g, mut fake) = Fake::pair(ClientConfig::default()).await;
+        let pos = spawn(&g, |g| async move { g.position_mm().await });
+        assert_eq!(fake.read().await, "POS?");
+        let grip = spawn(&g, |g| async move { g.grip(Some(79.5)).await });
+        assert_eq!(fake.read().await, "GRIP(79.5)");
+        fake.say("ERR GRIP 15\n").await;
+        assert_eq!(fake.read().await, "GRIPSTATE?", "a probe");
+        fake.say("GRI\x10STATE=6\n").await;
+        let probe = fake.read().await;
+        let answer = format!("{}=1.0\n", probe.trim_end_matches('?'));
+        fake.say(&answer).await;
+        // POS?'s reply came before GRIP's either way: lost.
+        let pos = within("POS?", pos).await.unwrap();
+        assert!(matches!(pos, Err(Error::MalformedReply { .. })), "{pos:?}");
+        assert_eq!(
+            fake.read().await,
+            "GRIPSTATE?",
+            "{moving}: is GRIP running?"
+        );
+        if moving {
+            fake.say("GRIPSTATE=1\n").await;
+            fake.say("FIN GRIP\n").await;
+            within("GRIP", grip).await.unwrap().unwrap();
+        } else {
+            fake.say("GRIPSTATE=0\n").await;
+            let end = within("GRIP", grip).await.unwrap();
+            assert!(
+                matches!(
+                    &end,
+                    Err(Error::Device {
+                        status: Some(Status::CmdFormatError),
+                        line,
+                        ..
+                    }) if line == "ERR GRIP 15"
+                ),
+                "{end:?}"
+            );
+        }
+    }
+}
+
 #[tokio::test]
 async fn one_command_of_each_name_on_the_wire() {
     let (g, mut fake) = Fake::pair(ClientConfig::default()).await;

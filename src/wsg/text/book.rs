@@ -430,7 +430,8 @@ impl<C: Caller> Book<C> {
     /// - one held by a command written before `key` was that command's, and the commands written
     ///   before that one and still unanswered lost their replies; unless a line that could not be
     ///   read came after it, which may have been that command's own reply (its `ACK` damaged):
-    ///   then that command lost its reply in the damage, as any whose reply could not be read;
+    ///   then that command lost its reply in the damage, as any whose reply could not be read,
+    ///   or, a motion, the gripper is asked whether it runs (`Book::doubt_held_motion`);
     /// - one held by `key` itself, or by a command written after it, answered a line written
     ///   before this reply's, damaged.
     ///
@@ -441,7 +442,9 @@ impl<C: Caller> Book<C> {
             .on_wire
             .iter()
             .filter_map(|(&name, s)| {
-                let h = s.held.as_ref()?;
+                // A motion's held line in doubt waits for the gripper's state instead
+                // (`Book::doubt_held_motion`).
+                let h = s.held.as_ref().filter(|_| !s.acked)?;
                 let verdict =
                     (name != key && s.seq < seq).then(|| !h.unreadable_since(damages, holds));
                 Some((name, s.seq, verdict))
@@ -456,6 +459,7 @@ impl<C: Caller> Book<C> {
                         self.settle_before(held_seq - 1, String::new(), seq, now);
                     }
                 }
+                Some(false) if self.doubt_held_motion(name, held_seq, seq, now) => {}
                 Some(false) => {
                     if let Some(held) = self.on_wire.get_mut(name).and_then(|s| s.held.take()) {
                         let line = held.line();
@@ -472,6 +476,48 @@ impl<C: Caller> Book<C> {
                 }
             }
         }
+    }
+
+    /// A motion `name`, written as `held_seq`, holds an `ERR` in doubt when the reply to the
+    /// command written as `seq` is read at `now`: either the `ERR` was its own (it never ran),
+    /// or it answered an earlier line and the line that could not be read after it was the
+    /// motion's `ACK` (it runs). The commands written before it lost their reply either way.
+    /// The gripper is asked at once (`GRIPSTATE?`, shared note §3.7); `Book::motion_state`
+    /// reads its answer: moving, the `ERR` was another's; over with no `FIN` and nothing
+    /// unreadable since, its `FIN` (which would have come first, in order) was never sent, and
+    /// the `ERR` was its own. Before, the motion was taken as acknowledged at once and its
+    /// call timed out with its own refusal in hand (`wsg-text:0x939e47e5d1d27846`: the
+    /// unreadable line was the probe's own reply, `GRI\x10STATE=6`). The call still gets the
+    /// held line just before its deadline if no answer comes. Whether `name` is such a
+    /// motion.
+    fn doubt_held_motion(
+        &mut self,
+        name: &'static str,
+        held_seq: u64,
+        seq: u64,
+        now: Instant,
+    ) -> bool {
+        let Some(slot) = self.on_wire.get(name) else {
+            return false;
+        };
+        let Some(Held {
+            error: Error::Device { line, .. },
+            ..
+        }) = slot.held.as_ref().filter(|_| slot.expect == Expect::Fin)
+        else {
+            return false;
+        };
+        tracing::warn!(%line, "wsg text: a parse error out of its place, and a line that could not be read after it: asking the gripper whether its motion runs");
+        let line = line.clone();
+        self.settle_before(held_seq - 1, line, seq, now);
+        let unreadable = self.unreadable();
+        if let Some(slot) = self.on_wire.get_mut(name) {
+            slot.acked = true;
+            slot.first_reply_lost = true;
+            slot.unreadable_at_ack = unreadable;
+            slot.doubt_at = Some(now);
+        }
+        true
     }
 
     /// The command `name` gets the `ERR` it held: the name is free. Whether it held one.
@@ -676,9 +722,27 @@ impl<C: Caller> Book<C> {
             )
         );
         let unreadable = self.unreadable();
-        let mut ended = Vec::new();
+        let (mut ended, mut refused) = (Vec::new(), Vec::new());
         for (&name, slot) in self.on_wire.iter_mut().filter(|(_, s)| s.checking) {
             slot.checking = false;
+            // A motion whose held `ERR` is in doubt (`Book::doubt_held_motion`): moving, the
+            // `ERR` answered another line; over with nothing unreadable since, it was its own.
+            // A state that says neither (damaged, reserved) is asked again.
+            if slot.held.is_some() {
+                let moving = matches!(
+                    state,
+                    Some(GripState::Grasping | GripState::Releasing | GripState::Positioning)
+                );
+                if over && unreadable == slot.unreadable_at_ack {
+                    refused.push(name);
+                    continue;
+                }
+                if !over && !moving {
+                    slot.doubt_at = Some(after(now, RECHECK_FLOOR));
+                    continue;
+                }
+                slot.held = None;
+            }
             let against_order =
                 over && unreadable == slot.unreadable_at_ack && !slot.first_reply_lost;
             let first = against_order && !slot.over_unconfirmed;
@@ -710,6 +774,13 @@ impl<C: Caller> Book<C> {
                 self.complete(slot.caller, Err(error));
                 self.freed.push(name);
             }
+        }
+        for name in refused {
+            tracing::debug!(
+                name,
+                "wsg text: the motion never ran: the held parse error was its own"
+            );
+            self.release_held(name);
         }
     }
 
@@ -1539,6 +1610,93 @@ mod tests {
         book.on_line("FIN GRIP", t0);
         let second = done(&mut book);
         assert!(matches!(&second[..], [(2, Ok(_))]), "{second:?}");
+    }
+
+    /// `wsg-text:0x939e47e5d1d27846`: GRIP's own `ERR GRIP 15` (its argument damaged on the
+    /// way) was held behind POS?, and the line that could not be read after it was the probe's
+    /// own reply (`GRI\x10STATE=6`). The motion is in doubt: the gripper is asked whether it
+    /// runs. Idle with nothing unreadable since: GRIP never ran, and the `ERR` was its own (it
+    /// timed out before, its refusal in hand). Moving: the `ERR` was another's, and GRIP's
+    /// `FIN` ends it. Over after another unreadable line (maybe its `FIN`): a reply lost.
+    /// Unanswered: the call gets the held line just before its deadline.
+    #[test]
+    fn a_held_motion_in_doubt_is_settled_by_the_grippers_state() {
+        #[derive(Debug, Clone, Copy)]
+        enum Then {
+            Idle,
+            Moving,
+            UnreadableThenIdle,
+            NoAnswer,
+        }
+        for then in [
+            Then::Idle,
+            Then::Moving,
+            Then::UnreadableThenIdle,
+            Then::NoAnswer,
+        ] {
+            let t0 = Instant::now();
+            let mut book = Book::new(GIVE_UP_AFTER);
+            assert!(call(&mut book, 1, "POS", "POS?", Expect::Value, t0));
+            assert!(call(&mut book, 2, "GRIP", "GRIP(79.5)", Expect::Fin, t0));
+            assert!(matches!(book.on_line("ERR GRIP 15", t0), Handled::Nothing));
+            let probe = book.probe(S, t0).expect("a probe draws the next reply");
+            assert_eq!(probe.line, "GRIPSTATE?");
+            write(&mut book, probe, t0);
+            book.damage("GRI\u{10}STATE=6");
+            let probe = book.probe(S, t0).expect("a second probe");
+            let answer = format!("{}=1.0", probe.name);
+            write(&mut book, probe, t0);
+            book.on_line(&answer, t0);
+            let first = done(&mut book);
+            assert!(
+                matches!(&first[..], [(1, Err(Error::MalformedReply { .. }))]),
+                "{then:?}: {first:?}"
+            );
+            // GRIP waits for the gripper's state, asked at once.
+            let check = book.overdue(S, GIVE_UP_AFTER, t0);
+            let Ok(Some(check)) = check else {
+                panic!("{then:?}: {check:?}")
+            };
+            assert_eq!(check.line, "GRIPSTATE?");
+            write(&mut book, check, t0);
+            let outcome = match then {
+                Then::Idle => {
+                    book.on_line("GRIPSTATE=0", t0);
+                    done(&mut book)
+                }
+                Then::Moving => {
+                    book.on_line("GRIPSTATE=1", t0);
+                    assert!(done(&mut book).is_empty(), "GRIP runs");
+                    book.on_line("FIN GRIP", t0 + S / 2);
+                    done(&mut book)
+                }
+                Then::UnreadableThenIdle => {
+                    book.damage("FIN G\u{1}IP");
+                    book.on_line("GRIPSTATE=0", t0);
+                    done(&mut book)
+                }
+                Then::NoAnswer => {
+                    assert!(matches!(
+                        book.overdue(S, GIVE_UP_AFTER, t0 + S - HELD_MARGIN),
+                        Ok(None)
+                    ));
+                    done(&mut book)
+                }
+            };
+            let ok = match (then, &outcome[..]) {
+                (Then::Idle | Then::NoAnswer, [(2, Err(Error::Device { line, status, .. }))]) => {
+                    line == "ERR GRIP 15" && *status == Some(Status::CmdFormatError)
+                }
+                (Then::Moving, [(2, Ok(_))]) => true,
+                (Then::UnreadableThenIdle, [(2, Err(Error::MalformedReply { .. }))]) => true,
+                _ => false,
+            };
+            assert!(ok, "{then:?}: {outcome:?}");
+            assert!(
+                book.on_wire.get("GRIP").is_none(),
+                "{then:?}: GRIP's name is free"
+            );
+        }
     }
 
     /// A held line counts as one that could not be read from the moment it is read, not from

@@ -266,11 +266,7 @@ fn timeout(
     // (wsg-text:0x6fe85ed992023b5a: two `POS?`, the later call's written first after the
     // reconnect; the client has one connection at a time, so a call live at the write was in it).
     let shared = calls.iter().enumerate().any(|(j, o)| {
-        j != i
-            && o.client == c.client
-            && o.line == c.line
-            && o.start <= w
-            && w <= o.end
+        j != i && o.client == c.client && o.line == c.line && o.start <= w && w <= o.end
     });
     if shared {
         return None;
