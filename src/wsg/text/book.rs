@@ -1693,7 +1693,7 @@ mod tests {
             };
             assert!(ok, "{then:?}: {outcome:?}");
             assert!(
-                book.on_wire.get("GRIP").is_none(),
+                !book.on_wire.contains_key("GRIP"),
                 "{then:?}: GRIP's name is free"
             );
         }
