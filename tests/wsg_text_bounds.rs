@@ -841,3 +841,50 @@ async fn close_without_timeout_that_nothing_answers_ends_after_ten_seconds() {
         "{after:?}"
     );
 }
+
+/// `wsg-text:0x4a805d181f1854b8` (issue 29 M): every name a probe could use (`GRIPSTATE?`,
+/// `POS?`, `SPEED?`) was on the wire unanswered (one line run into the next by a damaged LF,
+/// one swallowed by it), and `give_up_after` was `Duration::MAX`: no probe could be written,
+/// nothing settled them, and a `MOVE` without timeout waited for its name for ever. A fourth
+/// name, `FORCE?` (answered at once in every state, shared note), draws the reply that shows
+/// theirs lost, and their names are free again.
+#[tokio::test(start_paused = true)]
+async fn a_probe_goes_out_when_the_other_probe_names_wait_unanswered() {
+    let config = ClientConfig {
+        give_up_after: Duration::MAX,
+        ..ClientConfig::default()
+    };
+    let (client, mut gripper) = pair(config).await;
+    let short = client.with_timeout(Duration::from_millis(100));
+    let (state, pos, speed) = tokio::join!(
+        short.grip_state(),
+        short.position_mm(),
+        short.speed_mm_per_s(),
+    );
+    for (what, result) in [
+        ("GRIPSTATE?", state.map(|_| ())),
+        ("POS?", pos.map(|_| ())),
+        ("SPEED?", speed.map(|_| ())),
+    ] {
+        assert!(
+            matches!(result, Err(gripper::wsg::text::Error::Timeout { .. })),
+            "{what}: {result:?}"
+        );
+    }
+    let mut written = Vec::new();
+    for _ in 0..3 {
+        written.push(gripper.line().await.unwrap());
+    }
+    written.sort();
+    assert_eq!(written, ["GRIPSTATE?", "POS?", "SPEED?"]);
+    // Nothing answered: after the doubt time the client asks, on the one name left.
+    assert_eq!(gripper.line().await.as_deref(), Some("FORCE?"));
+    gripper.reply("FORCE=0.0").await;
+    let pos = tokio::spawn({
+        let client = client.clone();
+        async move { client.position_mm().await }
+    });
+    assert_eq!(gripper.line().await.as_deref(), Some("POS?"));
+    gripper.reply("POS=12.0").await;
+    assert_eq!(pos.await.unwrap().unwrap(), 12.0);
+}

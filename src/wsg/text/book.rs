@@ -213,11 +213,16 @@ pub(crate) fn probe_timeout(query_timeout: Duration) -> Duration {
     query_timeout.min(PROBE_TIMEOUT_MAX)
 }
 
-/// The names a probe may use (queries answered at once, harmless), in order of preference.
-const PROBES: [(&str, &str); 3] = [
+/// The names a probe may use (queries answered at once in every state, harmless: shared note,
+/// "always"), in order of preference. Four, not three: with `give_up_after` `Duration::MAX`,
+/// the first three were once all on the wire unanswered (a damaged LF ran one line into the
+/// next, which swallowed a third), no probe could draw the reply that settles them, and a call
+/// without timeout waited for its name for ever (`wsg-text:0x4a805d181f1854b8`, issue 29 M).
+const PROBES: [(&str, &str); 4] = [
     ("GRIPSTATE", "GRIPSTATE?"),
     ("POS", "POS?"),
     ("SPEED", "SPEED?"),
+    ("FORCE", "FORCE?"),
 ];
 
 /// The commands on the wire (one per name) and the requests waiting for their name, their

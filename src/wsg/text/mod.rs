@@ -89,9 +89,10 @@
 //! reading of the binary table, §4.3; on a gripper that numbered otherwise the rule holds a
 //! refusal a moment, never hands it to another call.)
 //!
-//! The client writes a query on its own now and then (`GRIPSTATE?`, `POS?` or `SPEED?`): after
-//! a reply line it could not read, to learn which calls lost their reply, and for an
-//! acknowledged motion past its give-up time, to learn whether it still runs. A call of the
+//! The client writes a query on its own now and then (`GRIPSTATE?`, `POS?`, `SPEED?` or
+//! `FORCE?`, whichever name is free): after a reply line it could not read, to learn which
+//! calls lost their reply, and for an acknowledged motion past its give-up time (or one whose
+//! refusal is in doubt), to learn whether it still runs. A call of the
 //! same query made before such a line was written takes its answer (the gripper read that
 //! very line after the call was made) instead of writing the query again.
 //!
