@@ -188,8 +188,9 @@ async fn a_parse_error_answering_a_damaged_line_is_not_the_next_commands() {
 /// `wsg-text:0x939e47e5d1d27846`: GRIP's own `ERR GRIP 15` held behind POS?, then a line that
 /// could not be read (the probe's own reply, damaged). It may have been GRIP's `ACK` (the
 /// `ERR` then POS?'s), so GRIP is in doubt and the client asks whether it runs: idle, with no
-/// `FIN` before, GRIP never ran and the `ERR` was its own. Before, GRIP was taken as
-/// acknowledged and its call timed out with its refusal in hand; moving, GRIP's `FIN` ends it.
+/// `FIN` before (asked twice), GRIP never ran and the `ERR` was its own. Before, GRIP was taken
+/// as acknowledged and its call timed out with its refusal in hand; grasping, GRIP's `FIN` ends
+/// it.
 #[tokio::test]
 async fn a_held_parse_error_in_doubt_is_settled_by_asking_whether_the_motion_runs() {
     for moving in [false, true] {
@@ -217,6 +218,9 @@ async fn a_held_parse_error_in_doubt_is_settled_by_asking_whether_the_motion_run
             fake.say("FIN GRIP\n").await;
             within("GRIP", grip).await.unwrap().unwrap();
         } else {
+            // Twice: one flipped bit turns a moving state into an idle one.
+            fake.say("GRIPSTATE=0\n").await;
+            assert_eq!(fake.read().await, "GRIPSTATE?", "asked again");
             fake.say("GRIPSTATE=0\n").await;
             let end = within("GRIP", grip).await.unwrap();
             assert!(

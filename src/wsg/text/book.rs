@@ -189,6 +189,17 @@ fn motion_doubt(give_up_at: Instant, from: Instant) -> Option<Instant> {
     is_never(give_up_at, from).then(|| after(from, DOUBT_AFTER))
 }
 
+/// The state `GRIPSTATE?` reports while the motion `name` runs (shared note §4.4): that, and
+/// not another motion's, shows it runs.
+fn moving_state(name: &str) -> Option<GripState> {
+    match name {
+        "GRIP" => Some(GripState::Grasping),
+        "RELEASE" => Some(GripState::Releasing),
+        "HOME" | "MOVE" => Some(GripState::Positioning),
+        _ => None,
+    }
+}
+
 /// How long before its caller's deadline a call whose `ERR` is held in doubt ([`Held`]) gets
 /// it: the caller's own timer ends the call at the deadline itself, and must not find it
 /// unanswered while its answer is here.
@@ -505,13 +516,27 @@ impl<C: Caller> Book<C> {
         let Some(slot) = self.on_wire.get(name) else {
             return false;
         };
-        let Some(Held {
-            error: Error::Device { line, .. },
-            ..
-        }) = slot.held.as_ref().filter(|_| slot.expect == Expect::Fin)
+        let Some(
+            held @ Held {
+                error: Error::Device { line, .. },
+                ..
+            },
+        ) = slot.held.as_ref().filter(|_| slot.expect == Expect::Fin)
         else {
             return false;
         };
+        // The unreadable lines since the hold must all be able to be the replies of the
+        // commands answered at once written between it and `seq` (which lost theirs): one more
+        // may have held the motion's `ACK` and its `FIN` run together (`ACK GRIP\x0bFIN GRIP`),
+        // and a state reported after that says nothing of whether it ran (review, session 11).
+        let between = self
+            .on_wire
+            .values()
+            .filter(|s| s.seq > held_seq && s.seq < seq && Book::answered_at_once(s))
+            .count() as u64;
+        if self.unreadable() - (held.damages - held.holds) > between {
+            return false;
+        }
         tracing::warn!(%line, "wsg text: a parse error out of its place, and a line that could not be read after it: asking the gripper whether its motion runs");
         let line = line.clone();
         self.settle_before(held_seq - 1, line, seq, now);
@@ -552,7 +577,15 @@ impl<C: Caller> Book<C> {
             .map(|(&name, _)| name)
             .collect();
         for name in due {
-            self.release_held(name);
+            // A motion asked whether it runs (`Book::doubt_held_motion`) with no answer yet
+            // may be running: its caller times out rather than get a refusal that may be
+            // another line's (review, session 11); the motion is checked on as any overdue one.
+            match self.on_wire.get_mut(name) {
+                Some(slot) if slot.acked => slot.held = None,
+                _ => {
+                    self.release_held(name);
+                }
+            }
         }
     }
 
@@ -732,14 +765,20 @@ impl<C: Caller> Book<C> {
             slot.checking = false;
             // A motion whose held `ERR` is in doubt (`Book::doubt_held_motion`): moving, the
             // `ERR` answered another line; over with nothing unreadable since, it was its own.
-            // A state that says neither (damaged, reserved) is asked again.
+            // Over twice (one flipped bit turns `GRIPSTATE=1` into `=0`; the gripper answers
+            // in order, so a FIN would have come before either report). A state that says
+            // neither (damaged, reserved, another motion's) is asked again.
+            // Moving, or over after a line that could not be read (maybe its `FIN`): the
+            // held line goes, and the motion is checked as any other.
             if slot.held.is_some() {
-                let moving = matches!(
-                    state,
-                    Some(GripState::Grasping | GripState::Releasing | GripState::Positioning)
-                );
+                let moving = state.is_some() && state == moving_state(name);
                 if over && unreadable == slot.unreadable_at_ack {
-                    refused.push(name);
+                    if slot.over_unconfirmed {
+                        refused.push(name);
+                        continue;
+                    }
+                    slot.over_unconfirmed = true;
+                    slot.doubt_at = Some(after(now, RECHECK_FLOOR));
                     continue;
                 }
                 if !over && !moving {
@@ -747,6 +786,7 @@ impl<C: Caller> Book<C> {
                     continue;
                 }
                 slot.held = None;
+                slot.over_unconfirmed = false;
             }
             let against_order =
                 over && unreadable == slot.unreadable_at_ack && !slot.first_reply_lost;
@@ -958,7 +998,9 @@ impl<C: Caller> Book<C> {
         while let Some((_, slot)) = self.on_wire.pop_first() {
             // A held `ERR` came from the gripper: the call gets it, as it would have without
             // the doubt.
-            let error = slot.held.map_or_else(|| reason.clone(), |h| h.error);
+            // Not a motion's in doubt (`Book::doubt_held_motion`): it may run.
+            let held = slot.held.filter(|_| !slot.acked);
+            let error = held.map_or_else(|| reason.clone(), |h| h.error);
             self.complete(slot.caller, Err(error));
         }
         for request in self.waiting.drain(..) {
@@ -1086,6 +1128,23 @@ impl<C: Caller> Book<C> {
         };
         // A reply due at once comes in the order the lines were written (an acknowledged
         // motion's `FIN` or `ERR` comes when the motion ends).
+        // No accepted motion ends with a parse error (14, 15: the gripper could not read a
+        // line, §4.3), and the client writes one command of a name at a time: one under the
+        // name of an acknowledged motion answered another line, damaged into that name (its
+        // check `GRIPSTATE?` read as `GRIP\x13TATE?`, review, session 11). Not its end.
+        if matches!(
+            reply,
+            ReplyLine::Err {
+                code: Some(14 | 15),
+                ..
+            }
+        ) && slot.expect == Expect::Fin
+            && slot.acked
+        {
+            tracing::warn!(line = text, command = %slot.line, "wsg text: a parse error in the name of a running motion: another line's, damaged");
+            self.damage(text);
+            return Handled::Nothing;
+        }
         let in_order = Book::answered_at_once(slot) && !matches!(reply, ReplyLine::Fin(_));
         let seq = slot.seq;
         if self.hold(key, &reply, text, now) {
@@ -1617,91 +1676,167 @@ mod tests {
         assert!(matches!(&second[..], [(2, Ok(_))]), "{second:?}");
     }
 
-    /// `wsg-text:0x939e47e5d1d27846`: GRIP's own `ERR GRIP 15` (its argument damaged on the
-    /// way) was held behind POS?, and the line that could not be read after it was the probe's
-    /// own reply (`GRI\x10STATE=6`). The motion is in doubt: the gripper is asked whether it
-    /// runs. Idle with nothing unreadable since: GRIP never ran, and the `ERR` was its own (it
-    /// timed out before, its refusal in hand). Moving: the `ERR` was another's, and GRIP's
-    /// `FIN` ends it. Over after another unreadable line (maybe its `FIN`): a reply lost.
-    /// Unanswered: the call gets the held line just before its deadline.
+    /// The book of `wsg-text:0x939e47e5d1d27846` up to the moment GRIP is in doubt: POS?, then
+    /// GRIP(79.5), whose own `ERR GRIP 15` (its argument damaged on the way) is held behind
+    /// POS?; the probe's own reply cannot be read (`GRI\x10STATE=6`), and a second probe's
+    /// answer settles POS? as lost. GRIP's check (`GRIPSTATE?`) is written at `t0`.
+    fn grip_in_doubt(t0: Instant) -> Book<Call> {
+        let mut book = Book::new(GIVE_UP_AFTER);
+        assert!(call(&mut book, 1, "POS", "POS?", Expect::Value, t0));
+        assert!(call(&mut book, 2, "GRIP", "GRIP(79.5)", Expect::Fin, t0));
+        assert!(matches!(book.on_line("ERR GRIP 15", t0), Handled::Nothing));
+        let probe = book.probe(S, t0).expect("a probe draws the next reply");
+        assert_eq!(probe.line, "GRIPSTATE?");
+        write(&mut book, probe, t0);
+        book.damage("GRI\u{10}STATE=6");
+        let probe = book.probe(S, t0).expect("a second probe");
+        let answer = format!("{}=1.0", probe.name);
+        write(&mut book, probe, t0);
+        book.on_line(&answer, t0);
+        let first = done(&mut book);
+        assert!(
+            matches!(&first[..], [(1, Err(Error::MalformedReply { .. }))]),
+            "{first:?}"
+        );
+        ask(&mut book, t0);
+        book
+    }
+
+    /// The check `overdue` writes at `now` for a motion in doubt.
+    fn ask(book: &mut Book<Call>, now: Instant) {
+        let check = book.overdue(S, GIVE_UP_AFTER, now);
+        let Ok(Some(check)) = check else {
+            panic!("no check at {now:?}: {check:?}")
+        };
+        assert_eq!(check.line, "GRIPSTATE?");
+        write(book, check, now);
+    }
+
+    /// `wsg-text:0x939e47e5d1d27846` (`grip_in_doubt`): GRIP is asked whether it runs. Idle
+    /// twice (one flipped bit turns `GRIPSTATE=1` into `=0`) with nothing unreadable since:
+    /// GRIP never ran, and the `ERR` was its own (before, the call timed out with its refusal
+    /// in hand). Its own motion's state (Grasping): the `ERR` was another's, dropped, and
+    /// GRIP's `FIN` ends it. Another motion's state, or a parse error in GRIP's name (the
+    /// check damaged into it): asked again. Over after an unreadable line (maybe its `FIN`): a
+    /// reply lost. Unanswered at the deadline: the call is left to time out, never handed a
+    /// refusal that may be another line's.
     #[test]
     fn a_held_motion_in_doubt_is_settled_by_the_grippers_state() {
-        #[derive(Debug, Clone, Copy)]
-        enum Then {
-            Idle,
-            Moving,
-            UnreadableThenIdle,
-            NoAnswer,
-        }
-        for then in [
-            Then::Idle,
-            Then::Moving,
-            Then::UnreadableThenIdle,
-            Then::NoAnswer,
-        ] {
-            let t0 = Instant::now();
-            let mut book = Book::new(GIVE_UP_AFTER);
-            assert!(call(&mut book, 1, "POS", "POS?", Expect::Value, t0));
-            assert!(call(&mut book, 2, "GRIP", "GRIP(79.5)", Expect::Fin, t0));
-            assert!(matches!(book.on_line("ERR GRIP 15", t0), Handled::Nothing));
-            let probe = book.probe(S, t0).expect("a probe draws the next reply");
-            assert_eq!(probe.line, "GRIPSTATE?");
-            write(&mut book, probe, t0);
-            book.damage("GRI\u{10}STATE=6");
-            let probe = book.probe(S, t0).expect("a second probe");
-            let answer = format!("{}=1.0", probe.name);
-            write(&mut book, probe, t0);
-            book.on_line(&answer, t0);
-            let first = done(&mut book);
+        let refused = |outcome: &[(u8, std::result::Result<String, Error>)]| {
+            matches!(outcome, [(2, Err(Error::Device { line, status, .. }))]
+                if line == "ERR GRIP 15" && *status == Some(Status::CmdFormatError))
+        };
+        let recheck = |t0: Instant| t0 + RECHECK_FLOOR;
+        let deadline = |t0: Instant| t0 + S - HELD_MARGIN;
+
+        // Idle, twice.
+        let t0 = Instant::now();
+        let mut book = grip_in_doubt(t0);
+        book.on_line("GRIPSTATE=0", t0);
+        assert!(done(&mut book).is_empty(), "one report is not enough");
+        ask(&mut book, recheck(t0));
+        book.on_line("GRIPSTATE=0", recheck(t0));
+        let outcome = done(&mut book);
+        assert!(refused(&outcome), "{outcome:?}");
+        assert!(!book.on_wire.contains_key("GRIP"));
+
+        // Idle once (a damaged value), then Grasping: it runs.
+        for first in ["GRIPSTATE=0", "GRIPSTATE=6", "ERR GRIP 15"] {
+            let mut book = grip_in_doubt(t0);
+            book.on_line(first, t0);
+            assert!(done(&mut book).is_empty(), "{first}");
+            if first == "ERR GRIP 15" {
+                // The check's own reply, damaged into GRIP's name, is lost: a probe's answer
+                // settles it, and GRIP runs on.
+                let probe = book.probe(S, t0).expect("a probe");
+                assert_eq!(probe.line, "POS?");
+                write(&mut book, probe, t0);
+                book.on_line("POS=1.0", t0);
+                assert!(done(&mut book).iter().all(|(id, _)| *id != 2), "{first}");
+                assert!(book.on_wire.contains_key("GRIP"), "{first}: not its end");
+                continue;
+            }
+            ask(&mut book, recheck(t0));
+            book.on_line("GRIPSTATE=1", recheck(t0));
+            assert!(book.overdue(S, GIVE_UP_AFTER, deadline(t0)).is_ok());
             assert!(
-                matches!(&first[..], [(1, Err(Error::MalformedReply { .. }))]),
-                "{then:?}: {first:?}"
+                done(&mut book).is_empty(),
+                "{first}: the held line is dropped"
             );
-            // GRIP waits for the gripper's state, asked at once.
-            let check = book.overdue(S, GIVE_UP_AFTER, t0);
-            let Ok(Some(check)) = check else {
-                panic!("{then:?}: {check:?}")
-            };
-            assert_eq!(check.line, "GRIPSTATE?");
-            write(&mut book, check, t0);
-            let outcome = match then {
-                Then::Idle => {
-                    book.on_line("GRIPSTATE=0", t0);
-                    done(&mut book)
-                }
-                Then::Moving => {
-                    book.on_line("GRIPSTATE=1", t0);
-                    assert!(done(&mut book).is_empty(), "GRIP runs");
-                    book.on_line("FIN GRIP", t0 + S / 2);
-                    done(&mut book)
-                }
-                Then::UnreadableThenIdle => {
-                    book.damage("FIN G\u{1}IP");
-                    book.on_line("GRIPSTATE=0", t0);
-                    done(&mut book)
-                }
-                Then::NoAnswer => {
-                    assert!(matches!(
-                        book.overdue(S, GIVE_UP_AFTER, t0 + S - HELD_MARGIN),
-                        Ok(None)
-                    ));
-                    done(&mut book)
-                }
-            };
-            let ok = match (then, &outcome[..]) {
-                (Then::Idle | Then::NoAnswer, [(2, Err(Error::Device { line, status, .. }))]) => {
-                    line == "ERR GRIP 15" && *status == Some(Status::CmdFormatError)
-                }
-                (Then::Moving, [(2, Ok(_))]) => true,
-                (Then::UnreadableThenIdle, [(2, Err(Error::MalformedReply { .. }))]) => true,
-                _ => false,
-            };
-            assert!(ok, "{then:?}: {outcome:?}");
-            assert!(
-                !book.on_wire.contains_key("GRIP"),
-                "{then:?}: GRIP's name is free"
-            );
+            book.on_line("FIN GRIP", t0 + 2 * S);
+            let outcome = done(&mut book);
+            assert!(matches!(&outcome[..], [(2, Ok(_))]), "{first}: {outcome:?}");
         }
+
+        // Over after a line that could not be read: its FIN may have been in it.
+        let mut book = grip_in_doubt(t0);
+        book.damage("FIN G\u{1}IP");
+        book.on_line("GRIPSTATE=0", t0);
+        let outcome = done(&mut book);
+        assert!(
+            matches!(&outcome[..], [(2, Err(Error::MalformedReply { .. }))]),
+            "{outcome:?}"
+        );
+
+        // No answer by the deadline: no refusal; the motion stays, checked as any other.
+        let mut book = grip_in_doubt(t0);
+        assert!(book.overdue(S, GIVE_UP_AFTER, deadline(t0)).is_ok());
+        assert!(done(&mut book).is_empty());
+        assert!(book.on_wire.get("GRIP").is_some_and(|s| s.held.is_none()));
+
+        // The connection ends: the connection's error, not the refusal in doubt.
+        let mut book = grip_in_doubt(t0);
+        book.drain(&Error::Closed);
+        let outcome = done(&mut book);
+        assert!(
+            matches!(&outcome[..], [(2, Err(Error::Closed)), ..]),
+            "{outcome:?}"
+        );
+    }
+
+    /// The unreadable lines since the hold outnumber the replies due at once written between
+    /// it and the settling reply: one of them may have held GRIP's `ACK` and `FIN` run
+    /// together (`ACK GRIP\x0bFIN GRIP`, a fast grip), so a state reported now says nothing
+    /// of whether it ran. It is not asked: no refusal, ever; a reply lost (review, session 11).
+    #[test]
+    fn a_held_motion_whose_end_may_be_unreadable_is_not_refused() {
+        let t0 = Instant::now();
+        let mut book = Book::new(GIVE_UP_AFTER);
+        let query = Expect::Value;
+        assert!(call(&mut book, 1, "GRIPSTATE", "GRIPSTATE?", query, t0));
+        assert!(call(&mut book, 2, "GRIP", "GRIP(79.5)", Expect::Fin, t0));
+        assert!(matches!(book.on_line("ERR GRIP 15", t0), Handled::Nothing));
+        let probe = book.probe(S, t0).expect("a probe");
+        assert_eq!(probe.line, "POS?");
+        write(&mut book, probe, t0);
+        book.damage("ACK GRIP\u{b}FIN GRIP");
+        book.on_line("POS=79.5", t0);
+        let first = done(&mut book);
+        assert!(
+            matches!(&first[..], [(1, Err(Error::MalformedReply { .. }))]),
+            "{first:?}"
+        );
+        assert!(book.on_wire.get("GRIP").is_some_and(|s| s.held.is_none()));
+        assert!(book.overdue(S, GIVE_UP_AFTER, t0 + S - HELD_MARGIN).is_ok());
+        assert!(done(&mut book).is_empty(), "never its refusal");
+    }
+
+    /// An acknowledged motion never ends with a parse error: `ERR GRIP 15` after `ACK GRIP`
+    /// answered another line damaged into GRIP's name (review, session 11). GRIP's `FIN` ends
+    /// it.
+    #[test]
+    fn a_parse_error_in_a_running_motions_name_is_not_its_end() {
+        let t0 = Instant::now();
+        let mut book = Book::new(GIVE_UP_AFTER);
+        assert!(call(&mut book, 1, "GRIP", "GRIP(10)", Expect::Fin, t0));
+        assert!(matches!(book.on_line("ACK GRIP", t0), Handled::Nothing));
+        assert!(matches!(book.on_line("ERR GRIP 15", t0), Handled::Nothing));
+        assert!(done(&mut book).is_empty());
+        assert!(matches!(
+            book.on_line("FIN GRIP", t0),
+            Handled::Freed("GRIP")
+        ));
+        assert!(matches!(&done(&mut book)[..], [(1, Ok(_))]));
     }
 
     /// A held line counts as one that could not be read from the moment it is read, not from

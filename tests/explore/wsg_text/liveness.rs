@@ -289,7 +289,7 @@ fn timeout(
     }
     (r.at + MARGIN <= deadline).then(|| {
         format!(
-            "7 (a Timeout only when its reply did not arrive in time): client {} {} (timeout {:?}) ended Timeout, yet the client wrote it {:?} after the call began and read {:?} {:?} after, {:?} before its deadline{}",
+            "7 (a Timeout only when its reply did not arrive in time): client {} {} (timeout {:?}) ended Timeout, yet the client wrote it {:?} after the call began and read {:?} {:?} after, {:?} before its deadline{}{}",
             c.client,
             c.line,
             c.timeout,
@@ -297,13 +297,38 @@ fn timeout(
             r.text,
             r.at - w,
             deadline - r.at,
-            probe_tag(i, calls, own, log, (deadline, r.at, queue_len))
+            probe_tag(i, calls, own, log, (deadline, r.at, queue_len)),
+            refusal_in_doubt_tag(c.name, r, log, deadline),
         )
     })
 }
 
+/// The tag of a motion's Timeout whose reply was a parse error (`ERR <name> 14|15`) followed,
+/// before its deadline, by two lines that could not be read. The client holds such a line
+/// while an earlier command's reply is due (it may answer that line, damaged into the name);
+/// after a line that could not be read (maybe the motion's `ACK`) it asks the gripper whether
+/// the motion runs, and takes the line for the motion's own only on two reports of no motion
+/// with nothing unreadable since (src/wsg/text/book.rs `Book::doubt_held_motion`). A second
+/// unreadable line may have held the motion's `FIN`, so from then on no report can tell a
+/// motion that never ran from one that ran and ended: the call times out rather than take a
+/// refusal that may be another line's (`wsg-text:0x939e47e5d1d27846` after session 11's
+/// review: the second check's reply read as `GRIPSTATE96`).
+fn refusal_in_doubt_tag(name: &str, r: &Line, log: &TapLog, deadline: Instant) -> &'static str {
+    let unreadable = log
+        .read
+        .lines
+        .iter()
+        .filter(|l| l.seq > r.seq && l.at < deadline && damaged(&l.text))
+        .count();
+    if MOTIONS.contains(&name) && parse_error(&r.text) && unreadable >= 2 {
+        " [a parse error in its name, then two lines that could not be read before its deadline]"
+    } else {
+        ""
+    }
+}
+
 /// The queries the text client writes on its own (its probes, issue 29 L and M).
-const PROBES: [&str; 3] = ["GRIPSTATE?", "POS?", "SPEED?"];
+const PROBES: [&str; 4] = ["GRIPSTATE?", "POS?", "SPEED?", "FORCE?"];
 
 /// The tag of a Timeout whose write of its text may have been the client's own probe: a
 /// probe's query behind a full queue, else [`own_probe`]'s. A probe's answer serves a call of
