@@ -33,7 +33,7 @@ use gripper::wsg::text::line::{parse_reply, ReplyLine};
 use gripper::wsg::text::ClientConfig;
 use tokio::time::Instant;
 
-use super::oracle::request_name;
+use super::oracle::{request_name, same_err};
 use super::tap::{Line, SharedTap, TapLog};
 use super::workload::{AfterClose, CallRec, Expect, Res, FOREVER_BOUND};
 
@@ -79,7 +79,7 @@ fn expect_of(name: &str, calls: &[CallRec]) -> Expect {
 /// longer than the client reads.
 /// Whether `line` is an `ERR <name> 14` or `15` (unknown command, format error): the gripper's
 /// answer to a line it could not parse, under whatever name the line began with.
-fn parse_error(line: &str) -> bool {
+pub fn parse_error(line: &str) -> bool {
     matches!(
         parse_reply(line),
         Ok(ReplyLine::Err {
@@ -179,6 +179,7 @@ fn own_writes(
 pub fn check(
     calls: &[CallRec],
     taps: &[Vec<SharedTap>],
+    damaged_errors: &[Vec<Vec<(Instant, String)>>],
     configs: &[ClientConfig],
     after_close: &[AfterClose],
     downs: &[Vec<super::Down>],
@@ -198,7 +199,8 @@ pub fn check(
         match &c.res {
             Res::Timeout => {
                 let queue_len = configs[c.client].queue_len;
-                out.extend(timeout(i, calls, &own, &log, (max, queue_len)));
+                let damaged = &damaged_errors[c.client][c.conn];
+                out.extend(timeout(i, calls, &own, &log, damaged, (max, queue_len)));
             }
             Res::Lost(why) if judged_losses.insert((c.client, c.conn)) => {
                 let who = format!("client {} (connection {})", c.client, c.conn);
@@ -255,6 +257,7 @@ fn timeout(
     calls: &[CallRec],
     own: &[Option<(Instant, u64)>],
     log: &TapLog,
+    damaged_errors: &[(Instant, String)],
     (max, queue_len): (usize, usize),
 ) -> Option<String> {
     let c = &calls[i];
@@ -277,13 +280,22 @@ fn timeout(
     // order and answers each line once, and the client holds such a line until it can tell
     // (src/wsg/text/book.rs `Held`; wsg-text:0x0518b210eda1929b: `GRIPSTATE?` read as
     // `GRIP\x13TATE?`, then GRIP's own `ACK GRIP`). The call's reply is a later one.
+    // So too one the device sent in answer to a request damaged on the way (it answers under
+    // whatever name the damage left): the call's reply is a later one, if any came in time
+    // (`oracle::damaged_parse_errors`; wsg-text:0xe8d183fd8b4c4f31).
     let ack = format!("ACK {}", c.name);
-    while parse_error(&r.text)
-        && log.read.lines.iter().any(|l| {
-            l.seq > r.seq
-                && l.at < deadline
-                && (l.text == ack || (!parse_error(&l.text) && ends(&l.text, c.name, c.expect)))
+    let answers_damage = |r: &Line| {
+        damaged_errors.iter().any(|(at, text)| {
+            *at <= r.at && *at + super::oracle::DAMAGE_REACH >= c.start && same_err(text, &r.text)
         })
+    };
+    while parse_error(&r.text)
+        && (answers_damage(r)
+            || log.read.lines.iter().any(|l| {
+                l.seq > r.seq
+                    && l.at < deadline
+                    && (l.text == ack || (!parse_error(&l.text) && ends(&l.text, c.name, c.expect)))
+            }))
     {
         r = reply_read(log, c.name, c.expect, (r.seq, deadline), max)?;
     }

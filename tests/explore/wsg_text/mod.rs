@@ -387,9 +387,11 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
     let mut all = oracle::check(
         &calls, &pushes, &record, sim_t0, &sessions, &closed_at, exact,
     );
+    let damaged_errors = oracle::damaged_parse_errors(&record, sim_t0, &sessions);
     all.extend(liveness::check(
         &calls,
         &taps,
+        &damaged_errors,
         &configs,
         &after_close,
         &downs,

@@ -239,7 +239,7 @@ const DAMAGED_INTO_ITS_NAME: &str =
 
 /// How long before a call the damaged request may have been read (its reply then held on the
 /// way until the call's own request was on the wire).
-const DAMAGE_REACH: Duration = Duration::from_secs(5);
+pub const DAMAGE_REACH: Duration = Duration::from_secs(5);
 
 /// Whether call `c` (an `ERR` of its name) got a line the device sent, during the call, in answer
 /// to a request line the client never wrote that way: damaged on the way, so that it holds a
@@ -275,10 +275,55 @@ fn answers_a_damaged_request(
     })
 }
 
+/// The device's parse errors (`ERR <name> 14|15`) that answered a request damaged on the way
+/// (a control character, or a name that is no GCL command), per client and connection (as
+/// `sessions`), each with when the device sent it. Liveness rule 7 does not take such a line
+/// for a call's reply: the gripper answers the damaged line under whatever name the damage
+/// left (`GRIPSTATE?` read as `GRIP\x13TATE?`, answered `ERR GRIP 15`, while GRIP's own
+/// `ERR GRIP 4` was still on the way: wsg-text:0xe8d183fd8b4c4f31).
+pub fn damaged_parse_errors(
+    record: &SimRecording,
+    sim_t0: Instant,
+    sessions: &[Vec<SessionId>],
+) -> Vec<Vec<Vec<(Instant, String)>>> {
+    let mut by_session: BTreeMap<SessionId, Vec<(Instant, String)>> = BTreeMap::new();
+    let mut damaged = BTreeMap::new();
+    for r in &record.records {
+        match &r.event {
+            SimEvent::TextRequest { line } => {
+                let line = line.as_deref().unwrap_or("");
+                let bad = line.chars().any(|ch| ch.is_control())
+                    || !super::liveness::NAMES
+                        .iter()
+                        .any(|n| n.eq_ignore_ascii_case(&request_name(line)));
+                damaged.insert(r.session, bad);
+            }
+            SimEvent::TextReply { line, .. }
+                if damaged.get(&r.session) == Some(&true) && super::liveness::parse_error(line) =>
+            {
+                by_session
+                    .entry(r.session)
+                    .or_default()
+                    .push((sim_t0 + r.at, line.clone()));
+            }
+            _ => {}
+        }
+    }
+    sessions
+        .iter()
+        .map(|conns| {
+            conns
+                .iter()
+                .map(|s| by_session.remove(s).unwrap_or_default())
+                .collect()
+        })
+        .collect()
+}
+
 /// The same `ERR` line, or one whose name a single damaged byte changed on its way back
 /// (`ERR RELEACE 14` read as `ERR RELEASE 14`, wsg-text:0x8ddb4ae5bbe5540e): same code, names
 /// of one length differing in one byte.
-fn same_err(a: &str, b: &str) -> bool {
+pub fn same_err(a: &str, b: &str) -> bool {
     fn parts(l: &str) -> Option<(Option<&str>, Option<&str>)> {
         let mut w = l.split(' ');
         (w.next() == Some("ERR")).then(|| (w.next(), w.next()))
