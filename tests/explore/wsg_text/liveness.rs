@@ -175,11 +175,12 @@ fn own_writes(
     own
 }
 
-/// Every rule above; `taps[i][k]`: client `i`'s connection `k`.
+/// Every rule above. What each connection carried, client `i`'s connection `k` at `[i][k]`:
+/// the client's side of the wire (`taps`), and the device's parse errors that answered a
+/// request damaged on the way (`damaged_errors`, `oracle::damaged_parse_errors`).
 pub fn check(
     calls: &[CallRec],
-    taps: &[Vec<SharedTap>],
-    damaged_errors: &[Vec<Vec<(Instant, String)>>],
+    (taps, damaged_errors): (&[Vec<SharedTap>], &[Vec<Vec<(Instant, String)>>]),
     configs: &[ClientConfig],
     after_close: &[AfterClose],
     downs: &[Vec<super::Down>],

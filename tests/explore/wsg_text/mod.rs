@@ -390,8 +390,7 @@ async fn run(variant: &'static str, seed: u64, caps: Caps, trace: SharedTrace) -
     let damaged_errors = oracle::damaged_parse_errors(&record, sim_t0, &sessions);
     all.extend(liveness::check(
         &calls,
-        &taps,
-        &damaged_errors,
+        (&taps, &damaged_errors),
         &configs,
         &after_close,
         &downs,
