@@ -33,7 +33,7 @@ use gripper::wsg::text::line::{parse_reply, ReplyLine};
 use gripper::wsg::text::ClientConfig;
 use tokio::time::Instant;
 
-use super::oracle::{request_name, same_err};
+use super::oracle::{request_name, same_err, ParseErrors};
 use super::tap::{Line, SharedTap, TapLog};
 use super::workload::{AfterClose, CallRec, Expect, Res, FOREVER_BOUND};
 
@@ -180,7 +180,7 @@ fn own_writes(
 /// request damaged on the way (`damaged_errors`, `oracle::damaged_parse_errors`).
 pub fn check(
     calls: &[CallRec],
-    (taps, damaged_errors): (&[Vec<SharedTap>], &[Vec<Vec<(Instant, String)>>]),
+    (taps, damaged_errors): (&[Vec<SharedTap>], &[Vec<ParseErrors>]),
     configs: &[ClientConfig],
     after_close: &[AfterClose],
     downs: &[Vec<super::Down>],

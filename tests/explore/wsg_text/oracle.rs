@@ -275,6 +275,9 @@ fn answers_a_damaged_request(
     })
 }
 
+/// Parse errors a device sent on one connection, each with when it sent it.
+pub type ParseErrors = Vec<(Instant, String)>;
+
 /// The device's parse errors (`ERR <name> 14|15`) that answered a request damaged on the way
 /// (a control character, or a name that is no GCL command), per client and connection (as
 /// `sessions`), each with when the device sent it. Liveness rule 7 does not take such a line
@@ -285,7 +288,7 @@ pub fn damaged_parse_errors(
     record: &SimRecording,
     sim_t0: Instant,
     sessions: &[Vec<SessionId>],
-) -> Vec<Vec<Vec<(Instant, String)>>> {
+) -> Vec<Vec<ParseErrors>> {
     let mut by_session: BTreeMap<SessionId, Vec<(Instant, String)>> = BTreeMap::new();
     let mut damaged = BTreeMap::new();
     for r in &record.records {
