@@ -179,7 +179,7 @@ impl Held {
 /// (a call without timeout whose request was damaged on the way, so that the gripper answered
 /// nothing, waited for ever and held its name), or whether an acknowledged motion still runs
 /// (a motion without timeout whose `FIN` or `ERR` could not be read waited for ever).
-const DOUBT_AFTER: Duration = Duration::from_secs(10);
+pub(super) const DOUBT_AFTER: Duration = Duration::from_secs(10);
 
 /// When to ask whether an acknowledged motion still runs, `DOUBT_AFTER` past `from`, if its
 /// give-up time is never: one with a give-up time is checked then (issue 29 L),

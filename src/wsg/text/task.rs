@@ -244,8 +244,10 @@ impl LineTask for Task {
     }
 }
 
-/// The longest a `close()` without timeout waits for `ACK BYE` ([`super::Client::close`]).
-const BYE_WAIT_MAX: Duration = Duration::from_secs(10);
+/// The longest a `close()` without timeout waits for `ACK BYE` ([`super::Client::close`]): as
+/// long as any reply due at once is waited for before the client asks after it
+/// (`book::DOUBT_AFTER`); after `BYE()` nothing may be written to ask.
+const BYE_WAIT_MAX: Duration = super::book::DOUBT_AFTER;
 
 /// One setting sent again on a new connection, before any call is served on it: paired by the
 /// same rules as a call's reply (pushes that arrive meanwhile go to their subscribers).
