@@ -258,3 +258,88 @@ async fn a_finger_power_final_reply_stalled_past_the_grace_never_answers_the_nex
         "the stalled final reply of the first call answered the second: {second:?}"
     );
 }
+
+/// A TCP "gripper" whose first finger power on reaches it 400 ms after it was written (held on
+/// the way, the requests behind it too): it acknowledges it then and ends it
+/// `FINGER_POWER_ON_DURATION` later, sending the final E_SUCCESS with whatever it answers next
+/// once that time has come (a later finger power waits for it, as the device's interpreter
+/// does). The later finger power on is acknowledged and fails (E_CMD_FAILED), so its answer
+/// tells it from the first's.
+async fn late_received_finger_power_device() -> SocketAddr {
+    use gripper::wsg::client::FINGER_POWER_ON_DURATION;
+    use tokio::time::{sleep_until, Instant};
+    let mut final_due: Option<Instant> = None;
+    let mut powers = 0;
+    common::wsg_tcp_device(move |request| {
+        let now = Instant::now();
+        let mut wait_until = None;
+        let mut answer = Vec::new();
+        match request.id {
+            id::FINGER1_POWER if powers == 0 => {
+                // The first: received 400 ms from now, acknowledged then.
+                powers += 1;
+                let received = now + Duration::from_millis(400);
+                final_due = Some(received + FINGER_POWER_ON_DURATION);
+                wait_until = Some(received);
+                answer.extend(status_reply(id::FINGER1_POWER, CMD_PENDING));
+            }
+            id::FINGER1_POWER => {
+                // The next one: the first's final reply goes first, when it is due.
+                if let Some(due) = final_due.take() {
+                    answer.extend(status_reply(id::FINGER1_POWER, 0));
+                    wait_until = Some(due);
+                }
+                answer.extend(status_reply(id::FINGER1_POWER, CMD_PENDING));
+                answer.extend(status_reply(id::FINGER1_POWER, CMD_FAILED));
+            }
+            other => {
+                if final_due.take_if(|due| now >= *due).is_some() {
+                    answer.extend(status_reply(id::FINGER1_POWER, 0));
+                }
+                answer.extend(if other == id::LOOP {
+                    echo(&request)
+                } else {
+                    reply(other, &[])
+                });
+            }
+        }
+        async move {
+            if let Some(at) = wait_until {
+                sleep_until(at).await;
+            }
+            answer
+        }
+    })
+    .await
+}
+
+/// (d) TCP: finger power on held on the way reached the device 630 ms after it was written, and
+/// its E_CMD_PENDING came back before the id's release, counted from the write
+/// (`wsg-tcp:0x4214ee25a9542f20`). The device ends it `FINGER_POWER_ON_DURATION` after it
+/// received it: released earlier, the id's barrier came back before that final reply, and the
+/// next finger power call returned the first's E_SUCCESS. The id is now kept until
+/// `FINGER_POWER_ON_DURATION` + grace after the acknowledgement.
+#[tokio::test]
+async fn a_finger_power_on_received_late_never_answers_the_next_call() {
+    let addr = late_received_finger_power_device().await;
+    let client = first_call_timed_out(addr, "first finger power on", |c| async move {
+        c.set_finger_power(gripper::wsg::Finger::One, true).await
+    })
+    .await;
+    let patient = client.with_timeouts(Duration::from_secs(5), Duration::from_secs(5));
+    let second = within(
+        "second finger power on",
+        patient.set_finger_power(gripper::wsg::Finger::One, false),
+    )
+    .await;
+    assert!(
+        matches!(
+            second,
+            Err(gripper::wsg::Error::Device {
+                command: id::FINGER1_POWER,
+                status: gripper::wsg::Status::CmdFailed
+            })
+        ),
+        "the first call's final reply answered the second: {second:?}"
+    );
+}

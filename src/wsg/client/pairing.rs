@@ -62,7 +62,8 @@
 //! acknowledged non-motion command (finger power on, 3.6.3) is fenced too: its final reply
 //! comes when it ends, "nach etwa 500 ms" ([`FINGER_POWER_ON_DURATION`](super::FINGER_POWER_ON_DURATION)), and its release
 //! comes later than that (its caller's deadline, by default the query timeout +
-//! that duration, plus the grace; at least that duration + grace after it was sent), so the device has sent that reply before it
+//! that duration, plus the grace; at least that duration + grace after it was sent or acknowledged,
+//! whichever is later), so the device has sent that reply before it
 //! receives the barrier, and the echo comes after it. Released as before, a final reply stalled
 //! past the grace completed the next call of the id (the explorer's
 //! `wsg-serial:0xfdb842249ad7b4b3`); the residual risk is a device that ends the command later
@@ -583,6 +584,16 @@ impl Pairing {
                 f.acknowledged = true;
                 f.ack_doubtful = std::mem::take(&mut st.pending_owed);
                 f.probe_at = Some(f.recovery_at());
+                if !is_motion(reply.id) {
+                    // Finger power on ends about FINGER_POWER_ON_DURATION after the device
+                    // *received* it, which is no later than this acknowledgement's arrival:
+                    // from its write alone, a request held on the way was released before its
+                    // final reply, and that reply answered the next request of the id (the
+                    // explorer's wsg-tcp:0x4214ee25a9542f20: received 630 ms after its write).
+                    f.ended_release_at = f
+                        .ended_release_at
+                        .max(after(after(now(), FINGER_POWER_ON_DURATION), self.grace));
+                }
                 self.motion_answered(reply.id, true);
             }
             return Event::Accepted(token);

@@ -31,9 +31,10 @@ pub(super) struct InFlight {
     /// or acknowledges it with E_CMD_PENDING, at once).
     pub(super) unacked_release_at: Instant,
     /// When an acknowledged command that is no motion (finger power on) gives its id up at the
-    /// earliest: sent + [`FINGER_POWER_ON_DURATION`] + grace. The device ends it that long after
-    /// it received it (3.6.3: "nach etwa 500 ms"), so its final reply has been sent by then,
-    /// whatever its caller's timeout (zero included).
+    /// earliest: sent + [`FINGER_POWER_ON_DURATION`] + grace, moved to its E_CMD_PENDING's
+    /// arrival + that duration + grace if later. The device ends it that long after it received
+    /// it (3.6.3: "nach etwa 500 ms"), no later than the acknowledgement came, so its final reply
+    /// has been sent by then, whatever its caller's timeout (zero included).
     pub(super) ended_release_at: Instant,
     /// When an acknowledged motion goes under recovery if not [`InFlight::held`]: sent +
     /// the motion hold (recovery releases only on evidence, so starting it early is sound).

@@ -865,6 +865,52 @@ fn a_finger_power_on_acknowledged_after_its_release_keeps_its_id_until_it_has_en
     );
 }
 
+/// The explorer's `wsg-tcp:0x4214ee25a9542f20`, distilled: a finger power on held on the way
+/// reaches the device late, and its E_CMD_PENDING comes back before its release. The device
+/// ends it FINGER_POWER_ON_DURATION after it *received* it: the id is kept until then + grace
+/// (counted from the acknowledgement), so its final reply answers it, not the next call.
+/// (Before the fix the id was released at its write + FINGER_POWER_ON_DURATION + grace, the
+/// echo freed it, and the next finger power call returned the old one's E_SUCCESS.)
+#[test]
+fn a_finger_power_on_acknowledged_late_keeps_its_id_until_it_has_ended() {
+    let now = Instant::now();
+    let t = now + Duration::from_millis(100);
+    let grace = Duration::from_millis(50);
+    let mut p = Pairing::new(grace);
+    p.set_ordered(true);
+    assert_eq!(sent(p.submit(req(1, id::FINGER1_POWER, t), now)), Some(1));
+    // Acknowledged 400 ms after the write, before its release (the write +
+    // FINGER_POWER_ON_DURATION + grace; its caller's deadline + grace has passed).
+    let acked = now + Duration::from_millis(400);
+    assert!(acked > t + grace && acked < now + FINGER_POWER_ON_DURATION + grace);
+    assert_eq!(
+        p.on_reply(reply(id::FINGER1_POWER, Status::CmdPending), || acked),
+        Event::Accepted(1)
+    );
+    // Past the write + FINGER_POWER_ON_DURATION + grace, and the deadline + grace: still kept.
+    assert!(p.due(now + FINGER_POWER_ON_DURATION + grace).is_empty());
+    assert!(p.due(acked + FINGER_POWER_ON_DURATION).is_empty());
+    assert!(matches!(
+        p.submit(
+            req(2, id::FINGER1_POWER, acked + FINGER_POWER_ON_DURATION),
+            acked
+        ),
+        Submit::Queued
+    ));
+    // Its final reply answers it (its caller is gone), not the next call.
+    let ended = acked + FINGER_POWER_ON_DURATION;
+    assert!(matches!(
+        p.on_reply(reply(id::FINGER1_POWER, Status::Success), || ended),
+        Event::Resolved(1, _)
+    ));
+    assert_eq!(
+        p.next(id::FINGER1_POWER, |_| true, ended)
+            .0
+            .map(|r| r.token),
+        Some(2)
+    );
+}
+
 /// The explorer's `wsg-tcp:0xbd5fd685504fe279`, distilled: a home's E_CMD_PENDING is
 /// corrupted (dropped), so the home is released with no reply at all and fenced; the
 /// barrier comes back without it. The home runs nevertheless, and its final reply, later,
