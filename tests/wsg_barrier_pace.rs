@@ -208,3 +208,81 @@ async fn a_lost_barrier_is_sent_again_on_a_client_without_query_timeout() {
         "the barrier went out again too soon: {loops:?}"
     );
 }
+
+/// How long the device below takes to echo a loop-back (and so to read the next frame): below
+/// a loop-back's time on the wire (`QUERY` + `RESYNC` + `GRACE`), so none is given up.
+const ECHO: Duration = Duration::from_millis(300);
+
+/// The explorer's `wsg-serial:0xc592a5bd282c39eb`: a stop damaged on the way is sent again at
+/// the echo of a loop-back that proves it lost. That loop-back queued behind the barriers of
+/// other ids released without a reply, each as slow to come back as the device is, and the
+/// stop went out again 12.5 s after its call. Three queries time out (the device answers
+/// none), three barriers take the loop-back id; the device drops the first stop and echoes
+/// each loop-back `ECHO` after it came. The stop's loop-back goes next, ahead of the queued
+/// barriers: the stop reaches the device within the re-send interval and two echoes.
+#[tokio::test(start_paused = true)]
+async fn a_lost_stops_loop_back_does_not_wait_behind_other_ids_barriers() {
+    use gripper::wsg::client::RESEND_STOP_AFTER;
+    use gripper::wsg::frame;
+    use gripper::wsg::{Reply, Status};
+    use tokio::io::AsyncWriteExt;
+    assert!(ECHO < QUERY + RESYNC + GRACE);
+    let (ours, theirs) = tokio::io::duplex(1 << 16);
+    let t0 = Instant::now();
+    // The "device": answers no query, drops the first stop (as if its checksum were damaged),
+    // answers later stops, echoes loop-backs; notes when each stop came.
+    let device = tokio::spawn(async move {
+        let (rd, mut wr) = tokio::io::split(theirs);
+        let mut frames = tokio_util::codec::FramedRead::new(rd, gripper::wsg::WsgCodec::new());
+        let mut stops = Vec::new();
+        while let Ok(Some(Ok(f))) =
+            tokio::time::timeout(Duration::from_secs(10), frames.next()).await
+        {
+            let reply = match f.id {
+                id::STOP => {
+                    stops.push(Instant::now());
+                    if stops.len() == 1 {
+                        continue;
+                    }
+                    Reply::new(id::STOP, Status::Success, Vec::new())
+                }
+                id::LOOP => {
+                    tokio::time::sleep(ECHO).await;
+                    Reply::new(id::LOOP, Status::Success, f.payload)
+                }
+                _ => continue,
+            };
+            let mut out = bytes::BytesMut::new();
+            frame::encode(&reply.to_frame(), &mut out).unwrap();
+            if wr.write_all(&out).await.is_err() {
+                break;
+            }
+        }
+        stops
+    });
+    let client = Client::builder()
+        .query_timeout(QUERY)
+        .late_reply_grace(GRACE)
+        .attach(ours);
+    let (a, b, c) = tokio::join!(client.width_mm(), client.grip_state(), client.system_info());
+    assert!(a.is_err() && b.is_err() && c.is_err(), "{a:?} {b:?} {c:?}");
+    // The three ids are fenced, their barriers on and queued for the loop-back id.
+    tokio::time::sleep_until(t0 + QUERY + GRACE + Duration::from_millis(50)).await;
+    let called = Instant::now();
+    let short = Duration::from_millis(30);
+    assert!(short < RESEND_STOP_AFTER);
+    let stop = client.with_timeouts(short, short).stop().await;
+    assert!(stop.is_err(), "the dropped stop's call: {stop:?}");
+    let stops = device.await.unwrap();
+    assert!(
+        stops.len() >= 2,
+        "the lost stop was never sent again: {stops:?}"
+    );
+    let resent = stops[1] - called;
+    assert!(
+        resent <= RESEND_STOP_AFTER + 2 * ECHO + Duration::from_millis(50),
+        "the lost stop went out again {resent:?} after its call (its loop-back queued behind \
+         the other ids' barriers)"
+    );
+    drop(client);
+}

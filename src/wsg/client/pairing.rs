@@ -420,6 +420,15 @@ impl Pairing {
                 .submit(req.token, req.deadline, now, grace);
             return Submit::Send(req);
         }
+        // A loop-back that proves a stop lost goes ahead of the loop-backs queued for other
+        // ids (each may hold the loop-back id its query timeout + partial frame timeout +
+        // grace): a lost stop is sent again only at its echo (the explorer's
+        // wsg-serial:0xc592a5bd282c39eb: behind the barriers of four fenced ids, a stop went out
+        // again 12.5 s after its call).
+        let urgent = matches!(
+            self.internal.get(&req.token),
+            Some(Internal::Barrier { id, .. }) if is_stop(*id)
+        );
         let holds = self.holds_of(id);
         let st = self.ids.entry(id).or_default();
         if st.in_flight.is_none() && st.queue.is_empty() && !st.fenced {
@@ -427,7 +436,11 @@ impl Pairing {
             self.sending(id);
             return Submit::Send(req);
         }
-        st.queue.push_back(req);
+        if urgent {
+            st.queue.push_front(req);
+        } else {
+            st.queue.push_back(req);
+        }
         st.verify_soon(id, now, self.grace);
         Submit::Queued
     }

@@ -1580,6 +1580,34 @@ fn the_pairing_interprets_its_own_barriers() {
     assert!(p.internal.is_empty());
 }
 
+/// The explorer's `wsg-serial:0xc592a5bd282c39eb`: a stop's loop-back (its echo proves the
+/// stop lost, and only then is it sent again) goes ahead of the loop-backs queued for fenced
+/// ids, not behind them: there it waited 7 s, and the stop went out again 12.5 s after its
+/// call.
+#[test]
+fn a_lost_stops_barrier_goes_ahead_of_other_ids_barriers() {
+    let now = Instant::now();
+    let mut p = Pairing::new(Duration::from_millis(50));
+    p.set_ordered(true);
+    let barrier = |p: &mut Pairing, id: u8| p.request(Internal::Barrier { id, refused: 0 }, now);
+    let on_wire = barrier(&mut p, 0x43);
+    let echo = Reply::new(id::LOOP, Status::Success, on_wire.frame.payload.clone());
+    assert!(matches!(p.submit(on_wire, now), Submit::Send(_)));
+    for fenced in [0x40, 0x41, 0x44] {
+        let queued = barrier(&mut p, fenced);
+        assert!(matches!(p.submit(queued, now), Submit::Queued));
+    }
+    let stop = barrier(&mut p, id::STOP);
+    let stop_token = stop.token;
+    assert!(matches!(p.submit(stop, now), Submit::Queued));
+    assert_eq!(p.receive(echo, || now), None);
+    outputs(&mut p);
+    assert_eq!(
+        p.next(id::LOOP, |_| true, now).0.map(|r| r.token),
+        Some(stop_token)
+    );
+}
+
 /// Issue 30: a query of a streamed id is settled by the pairing's own barrier: the last
 /// E_SUCCESS frame of the id before the echo completes it (each frame went to the
 /// subscribers as it came).
