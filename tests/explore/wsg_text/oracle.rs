@@ -372,8 +372,20 @@ fn candidates(
             if !mine || e.at < c.start || e.at > c.end {
                 continue;
             }
-            let reply = evs.iter().skip(j + 1).find_map(|r| {
+            // Not a parse error (`ERR <name> 14|15`, sent at once) that answered a later
+            // request: the device answers a line damaged on the way under whatever name the
+            // damage left, and no accepted motion ends with one (`GRIPSTATE?` read as
+            // `GRIP\x13TATE?` while the call's GRIP ran: wsg-text:0x8c62f95219960af6, whose
+            // own `FIN GRIP` came later; the client counts such a line as damaged).
+            let mut answering = j;
+            let reply = evs.iter().enumerate().skip(j + 1).find_map(|(k, r)| {
+                if r.request.is_some() {
+                    answering = k;
+                }
                 let (l, moving) = r.reply?;
+                if answering != j && super::liveness::parse_error(l) {
+                    return None;
+                }
                 final_of(l, c.name, c.expect).map(|got| (r.at, l, moving, got))
             });
             if let Some((at, l, moving, got)) = reply {
