@@ -255,13 +255,7 @@ fn answers_a_damaged_request(
     sessions.iter().any(|s| {
         let evs = by_session.get(s).map_or(&[][..], Vec::as_slice);
         evs.iter().enumerate().any(|(j, e)| {
-            // Damaged: a control character, or a name that is no GCL command (`RELEACE()`).
-            let damaged = e.request.is_some_and(|r| {
-                r.chars().any(|ch| ch.is_control())
-                    || !super::liveness::NAMES
-                        .iter()
-                        .any(|n| n.eq_ignore_ascii_case(&request_name(r)))
-            });
+            let damaged = e.request.is_some_and(damaged_request);
             // Read by the device before the call's own request may have been written (the
             // reply then waits on the way, as it did): within a few seconds before the call.
             damaged
@@ -273,6 +267,18 @@ fn answers_a_damaged_request(
                     .any(|r| r.reply.is_some_and(|(l, _)| same_err(l, line)))
         })
     })
+}
+
+/// Whether the device read a command line no client writes: a control character, a name that
+/// is no GCL command (`RELEACE()`), or a name not followed by `(`, `?` or `=` (`GRIP[TATE?`, a
+/// `GRIPSTATE?` with one flipped bit: wsg-text:0xedbbc8a35fa7b2db).
+fn damaged_request(line: &str) -> bool {
+    let name = request_name(line);
+    line.chars().any(|ch| ch.is_control())
+        || !super::liveness::NAMES
+            .iter()
+            .any(|n| n.eq_ignore_ascii_case(&name))
+        || !matches!(line[name.len()..].chars().next(), Some('(' | '?' | '='))
 }
 
 /// Parse errors a device sent on one connection, each with when it sent it.
@@ -294,12 +300,7 @@ pub fn damaged_parse_errors(
     for r in &record.records {
         match &r.event {
             SimEvent::TextRequest { line } => {
-                let line = line.as_deref().unwrap_or("");
-                let bad = line.chars().any(|ch| ch.is_control())
-                    || !super::liveness::NAMES
-                        .iter()
-                        .any(|n| n.eq_ignore_ascii_case(&request_name(line)));
-                damaged.insert(r.session, bad);
+                damaged.insert(r.session, damaged_request(line.as_deref().unwrap_or("")));
             }
             SimEvent::TextReply { line, .. }
                 if damaged.get(&r.session) == Some(&true) && super::liveness::parse_error(line) =>
