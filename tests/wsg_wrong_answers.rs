@@ -362,3 +362,47 @@ async fn a_held_reply_never_goes_to_a_newer_request() {
         "the held reply of the first request went to the second"
     );
 }
+
+/// The explorer's `wsg-serial:0xee92ace7216a7a5d`: noise inserted after a reply's header made
+/// its checksum come out right, and the call returned status 7111, which the device never
+/// sent. Data comes only with E_SUCCESS (PROTOCOLS.md §1): a refusal that carries data is a
+/// damaged frame, dropped as one; the call times out, and the link goes on.
+#[tokio::test]
+async fn a_refusal_that_carries_data_is_damage_not_the_devices_status() {
+    let listener = TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let addr = listener.local_addr().unwrap();
+    tokio::spawn(async move {
+        let (socket, _) = listener.accept().await.unwrap();
+        let (read, mut write) = socket.into_split();
+        let mut requests = FramedRead::new(read, WsgCodec::new());
+        let mut widths = 0;
+        while let Some(Ok(request)) = requests.next().await {
+            let payload: Vec<u8> = match request.id {
+                // Status 0x1BC7 with four bytes of data, under a valid checksum.
+                id::WIDTH if widths == 0 => vec![0xC7, 0x1B, 0x27, 0xD3, 0x00, 0x00],
+                id::WIDTH => [&[0u8, 0][..], &12.5f32.to_le_bytes()[..]].concat(),
+                // The barrier that frees the timed-out id: its echo.
+                id::LOOP => [&[0u8, 0][..], &request.payload[..]].concat(),
+                _ => continue,
+            };
+            widths += usize::from(request.id == id::WIDTH);
+            let mut out = BytesMut::new();
+            frame::encode(&Frame::new(request.id, payload), &mut out).unwrap();
+            if write.write_all(&out).await.is_err() {
+                return;
+            }
+        }
+    });
+    let client = Client::builder()
+        .late_reply_grace(Duration::from_millis(50))
+        .connect_tcp(addr)
+        .await
+        .unwrap();
+    let short = client.with_timeouts(Duration::from_millis(200), Duration::from_millis(200));
+    let first = within("width", short.width_mm()).await;
+    assert!(
+        matches!(first, Err(Error::Timeout { command, .. }) if command == id::WIDTH),
+        "a status the device never sent: {first:?}"
+    );
+    assert_eq!(within("width again", client.width_mm()).await.unwrap(), 12.5);
+}

@@ -202,6 +202,12 @@ impl Shared {
 ///   "Die Auswertung obliegt dem Client"); its call ends in a timeout (or, should the device
 ///   answer a corrupted request with E_CHECKSUM_ERROR, which the manual does not specify,
 ///   [`Error::Device`] with that code);
+/// - a reply whose checksum passes but whose status is not E_SUCCESS while it carries data is
+///   dropped as damaged too (data comes only with E_SUCCESS, PROTOCOLS.md §1): a CRC16 lets
+///   about one damaged frame in 65,536 through, and noise inserted after a header was once read
+///   as status 7111. (Where the field may differ: a device that sent data with a refusal would
+///   see those calls time out.) Damage elsewhere in a frame that the checksum misses stays a
+///   residual risk of the wire;
 /// - a header longer than any reply of its command id (a corrupted length) is skipped at once;
 ///   one that is plausible but never completes is dropped
 ///   [`ClientBuilder::partial_frame_timeout`] after its first byte, however many bytes follow,

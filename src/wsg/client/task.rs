@@ -436,6 +436,16 @@ impl Task {
     async fn on_frame(&mut self, frame: Frame) -> io::Result<()> {
         let id = frame.id;
         match Reply::from_frame(frame) {
+            // Data comes only with E_SUCCESS (PROTOCOLS.md §1, the manual's frame): a refusal
+            // that carries data was damaged in a way its checksum did not catch (noise inserted
+            // after the header made the CRC come out right, and read as status 7111: the
+            // explorer's wsg-serial:0xee92ace7216a7a5d). Dropped as a damaged frame is, never
+            // reported as the device's status: its request times out, or is asked again.
+            Ok(reply) if reply.status != Status::Success && !reply.data.is_empty() => {
+                tracing::warn!(id, status = %reply.status, len = reply.data.len(),
+                    "WSG refusal with data (data comes only with E_SUCCESS): damaged, dropped");
+                self.pairing.on_damage();
+            }
             Ok(reply) => {
                 if let Some((token, reply)) = self.pairing.receive(reply, Instant::now) {
                     if reply.status == Status::Success {
