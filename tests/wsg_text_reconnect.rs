@@ -243,3 +243,135 @@ async fn a_restored_setting_answered_after_the_query_timeout_is_taken() {
     assert!(patient.set_verbose(true).await.unwrap());
     client.close().await.unwrap();
 }
+
+/// A pipe whose writes fail (a broken pipe) once `broken` is set, while what the far end wrote
+/// before can still be read: the cable pulled between a reply and the next write.
+struct Breaking {
+    pipe: DuplexStream,
+    broken: Arc<std::sync::atomic::AtomicBool>,
+}
+
+impl tokio::io::AsyncRead for Breaking {
+    fn poll_read(
+        mut self: std::pin::Pin<&mut Self>,
+        cx: &mut std::task::Context<'_>,
+        buf: &mut tokio::io::ReadBuf<'_>,
+    ) -> std::task::Poll<std::io::Result<()>> {
+        std::pin::Pin::new(&mut self.pipe).poll_read(cx, buf)
+    }
+}
+
+impl tokio::io::AsyncWrite for Breaking {
+    fn poll_write(
+        mut self: std::pin::Pin<&mut Self>,
+        cx: &mut std::task::Context<'_>,
+        buf: &[u8],
+    ) -> std::task::Poll<std::io::Result<usize>> {
+        if self.broken.load(Ordering::SeqCst) {
+            return std::task::Poll::Ready(Err(std::io::ErrorKind::BrokenPipe.into()));
+        }
+        std::pin::Pin::new(&mut self.pipe).poll_write(cx, buf)
+    }
+
+    fn poll_flush(
+        mut self: std::pin::Pin<&mut Self>,
+        cx: &mut std::task::Context<'_>,
+    ) -> std::task::Poll<std::io::Result<()>> {
+        std::pin::Pin::new(&mut self.pipe).poll_flush(cx)
+    }
+
+    fn poll_shutdown(
+        mut self: std::pin::Pin<&mut Self>,
+        cx: &mut std::task::Context<'_>,
+    ) -> std::task::Poll<std::io::Result<()>> {
+        std::pin::Pin::new(&mut self.pipe).poll_shutdown(cx)
+    }
+}
+
+/// `wsg-text:0x13452fa5a4e4eb73`: a reply frees two names at once (their calls' replies were
+/// lost in a damaged line), and their waiting calls are taken out to be written; the first
+/// write meets a broken pipe. Each call taken out is told the connection was lost: the second
+/// was dropped unanswered, and its caller read `Closed` though nobody closed the client.
+#[tokio::test(start_paused = true)]
+async fn calls_taken_out_to_be_written_when_the_link_breaks_are_told_it_was_lost() {
+    use tokio::io::{AsyncBufReadExt, AsyncWriteExt, BufReader};
+    let opened = Arc::new(AtomicUsize::new(0));
+    // Sent once the later calls wait behind their names.
+    let (queued_tx, queued_rx) = tokio::sync::oneshot::channel::<()>();
+    let queued_rx = Arc::new(std::sync::Mutex::new(Some(queued_rx)));
+    let open = {
+        let opened = opened.clone();
+        move || {
+            let (near, far) = tokio::io::duplex(4096);
+            let broken = Arc::new(std::sync::atomic::AtomicBool::new(false));
+            if opened.fetch_add(1, Ordering::SeqCst) > 0 {
+                // Later connections stay silent.
+                std::mem::forget(far);
+            } else {
+                let broken = broken.clone();
+                let queued = queued_rx
+                    .lock()
+                    .unwrap()
+                    .take()
+                    .expect("one first connection");
+                tokio::spawn(async move {
+                    let (read, mut write) = tokio::io::split(far);
+                    let mut lines = BufReader::new(read).lines();
+                    let mut got = Vec::new();
+                    for _ in 0..2 {
+                        got.push(lines.next_line().await.unwrap().unwrap());
+                    }
+                    got.sort();
+                    assert_eq!(got, ["POS?", "SPEED?"]);
+                    queued.await.unwrap();
+                    // Both replies lost in one damaged line; the client's probe draws an answer,
+                    // and the cable is pulled as it goes: the client reads it, its next write
+                    // fails.
+                    write.write_all(b"\xff\xfe\n").await.unwrap();
+                    assert_eq!(lines.next_line().await.unwrap().unwrap(), "GRIPSTATE?");
+                    broken.store(true, Ordering::SeqCst);
+                    write.write_all(b"GRIPSTATE=0\n").await.unwrap();
+                    std::future::pending::<()>().await;
+                });
+            }
+            std::future::ready(Ok(Breaking { pipe: near, broken }))
+        }
+    };
+    let config = ClientConfig {
+        query_timeout: Duration::from_secs(5),
+        ..reconnecting(None)
+    };
+    let client = Client::open_with(open, config).await.unwrap();
+    let call = |c: &Client, pos: bool| {
+        let c = c.clone();
+        tokio::spawn(async move {
+            if pos {
+                c.position_mm().await
+            } else {
+                c.speed_mm_per_s().await
+            }
+        })
+    };
+    let (a1, b1) = (call(&client, true), call(&client, false));
+    tokio::time::sleep(Duration::from_millis(1)).await;
+    // Queued behind their names.
+    let (a2, b2) = (call(&client, true), call(&client, false));
+    tokio::time::sleep(Duration::from_millis(1)).await;
+    queued_tx.send(()).unwrap();
+    for (what, first) in [("POS?", a1), ("SPEED?", b1)] {
+        let first = within(what, first).await.unwrap();
+        assert!(
+            matches!(first, Err(Error::MalformedReply { .. })),
+            "{what}: {first:?}"
+        );
+    }
+    for (what, second) in [("POS?", a2), ("SPEED?", b2)] {
+        let second = within(what, second).await.unwrap();
+        assert!(
+            matches!(second, Err(Error::ConnectionLost { .. })),
+            "{what} taken out to be written: {second:?}"
+        );
+    }
+    // A loss, not a close: the client goes on (reconnecting).
+    assert!(!client.is_closed());
+}

@@ -404,5 +404,8 @@ async fn a_refusal_that_carries_data_is_damage_not_the_devices_status() {
         matches!(first, Err(Error::Timeout { command, .. }) if command == id::WIDTH),
         "a status the device never sent: {first:?}"
     );
-    assert_eq!(within("width again", client.width_mm()).await.unwrap(), 12.5);
+    assert_eq!(
+        within("width again", client.width_mm()).await.unwrap(),
+        12.5
+    );
 }

@@ -305,8 +305,8 @@ async fn serve(
     // While the queue is full: the earliest deadline of a waiting request, when it leaves.
     let queue_timer = tokio::time::sleep_until(Instant::now());
     tokio::pin!(queue_timer);
-    // A request whose line could not be written: told why at the end.
-    let mut unsent = None;
+    // The requests whose line could not be written: told why at the end.
+    let mut unsent = Vec::new();
     // `BYE()` is on the wire (with its call's timeout; `bye_timer` is at its deadline):
     // nothing more is sent.
     let mut closing: Option<Duration> = None;
@@ -436,7 +436,12 @@ async fn serve(
                     continue;
                 }
                 Err(e) => {
-                    unsent = Some(request.waiter);
+                    // Every request taken out for this round, not only the one whose write
+                    // failed: dropped unanswered, a caller read `Closed` though nobody closed
+                    // the client (`wsg-text:0x13452fa5a4e4eb73`: an `AUTOSEND` freed for the
+                    // round behind a write that met a broken pipe).
+                    unsent.extend(request.waiter);
+                    unsent.extend(outgoing.drain(..).filter_map(|r| r.waiter));
                     break 'serve e;
                 }
             }
@@ -477,7 +482,7 @@ async fn serve(
         requests.close();
         stops.close();
     }
-    if let Some(waiter) = unsent.flatten() {
+    for waiter in unsent {
         let _ = waiter.send(Err(end.clone()));
     }
     book.drain(&end);
