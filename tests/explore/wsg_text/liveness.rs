@@ -326,15 +326,31 @@ fn timeout(
 /// motion that never ran from one that ran and ended: the call times out rather than take a
 /// refusal that may be another line's (`wsg-text:0x939e47e5d1d27846` after session 11's
 /// review: the second check's reply read as `GRIPSTATE96`).
+///
+/// So too when, after one unreadable line, the state reported was another motion's (a
+/// `GRIPSTATE=` of a moving state other than this motion's own, shared note §4.4): a motion
+/// already running says nothing of this one, and the client asks again until the deadline
+/// (`wsg-text:0x5148348896596cd1`: `RELEASE()` in doubt while `MOVE` ran, `GRIPSTATE=6`).
 fn refusal_in_doubt_tag(name: &str, r: &Line, log: &TapLog, deadline: Instant) -> &'static str {
-    let unreadable = log
-        .read
-        .lines
-        .iter()
-        .filter(|l| l.seq > r.seq && l.at < deadline && damaged(&l.text))
-        .count();
-    if MOTIONS.contains(&name) && parse_error(&r.text) && unreadable >= 2 {
-        " [a parse error in its name, then two lines that could not be read before its deadline]"
+    let after = || {
+        log.read
+            .lines
+            .iter()
+            .filter(|l| l.seq > r.seq && l.at < deadline)
+    };
+    let unreadable = after().filter(|l| damaged(&l.text)).count();
+    let own = match name {
+        "GRIP" => "1",
+        "RELEASE" => "5",
+        _ => "6",
+    };
+    let another_motion = after().any(|l| {
+        let state = l.text.strip_prefix("GRIPSTATE=");
+        state.is_some_and(|v| matches!(v, "1" | "5" | "6") && v != own)
+    });
+    let doubt = unreadable >= 2 || (unreadable >= 1 && another_motion);
+    if MOTIONS.contains(&name) && parse_error(&r.text) && doubt {
+        " [a parse error in its name, then lines that could not tell before its deadline]"
     } else {
         ""
     }
