@@ -286,7 +286,9 @@ fn check_client(
         let received = strict
             .then(|| first_request(record, t0, c.id, c.start, &ours))
             .flatten()
-            .filter(|&(i, at)| at < c.end || !next_calls_request(calls, c, record, t0, i, &ours))
+            .filter(|&(i, at)| {
+                at < c.end || !next_calls_request(calls, c, (record, &sent), t0, i, &ours)
+            })
             .map(|(_, at)| at);
         let not_before = match received {
             Some(at) => at,
@@ -580,17 +582,21 @@ fn answered(c: &CallRec) -> bool {
 /// was corrupted ended on its barrier's echo at the instant the next width query's request,
 /// rewritten to the stream's flags, reached the device, and took that query's reply in the
 /// matching; `wsg-serial:0x7cf70070d2357529`: the same with a subscription and a width query
-/// after it, two calls and one request after that instant.)
+/// after it, two calls and one request after that instant.) A later call can use only a
+/// request before the last frame fitting its answer (its answer is sent after its request): a
+/// request of the id at its very end after that (the client's own request turning the updates
+/// off) is not its own (`wsg-serial:0x9db67a1a2ae25add`: the later call was left unpaired, and
+/// the call whose request was corrupted went untagged).
 fn next_calls_request(
     calls: &[&CallRec],
     c: &CallRec,
-    record: &SimRecording,
+    (record, sent): (&SimRecording, &[Sent]),
     t0: Instant,
     i: usize,
     ours: &impl Fn(SessionId) -> bool,
 ) -> bool {
     let at = t0 + record.records[i].at;
-    let mut later: Vec<&CallRec> = calls
+    let later: Vec<&CallRec> = calls
         .iter()
         .copied()
         .filter(|b| {
@@ -602,7 +608,18 @@ fn next_calls_request(
                 && answered(b)
         })
         .collect();
-    later.sort_by_key(|b| b.end);
+    // Each later call, until the last frame fitting its answer (none: it claims no request).
+    let last_fit = |b: &CallRec| {
+        sent.iter()
+            .filter(|s| s.at >= b.start && s.at <= b.end && fits(b, s))
+            .map(|s| s.at)
+            .max()
+    };
+    let mut later: Vec<(&CallRec, Instant)> = later
+        .into_iter()
+        .filter_map(|b| Some((b, last_fit(b)?)))
+        .collect();
+    later.sort_by_key(|&(_, until)| until);
     // The other intact requests of the id from this client: earliest end first, each takes the
     // earliest one within its time (for intervals this finds an assignment if one exists).
     let mut others: Vec<Instant> = record
@@ -617,7 +634,7 @@ fn next_calls_request(
         .map(|(_, r)| t0 + r.at)
         .collect();
     later.iter().any(
-        |b| match others.iter().position(|&t| t >= b.start && t <= b.end) {
+        |&(b, until)| match others.iter().position(|&t| t >= b.start && t <= until) {
             Some(k) => {
                 others.remove(k);
                 false
