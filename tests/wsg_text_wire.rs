@@ -135,6 +135,28 @@ async fn an_ack_run_into_an_err_line_is_damage_not_swallowed() {
     );
 }
 
+/// The same with the swallowed reply's keyword damaged too (`JQCK HOME`: two flipped bits in
+/// one line, `wsg-text:0x485486c387f4d074`): HOME's `FIN` was refused as another motion's, and
+/// the healthy connection was given up when HOME was overdue.
+#[tokio::test]
+async fn an_ack_with_a_damaged_keyword_run_into_an_err_line_is_damage_too() {
+    let (g, mut fake) = Fake::pair(ClientConfig::default()).await;
+    let mover = spawn(&g, |g| async move { g.move_to(22.5, None).await });
+    assert_eq!(fake.read().await, "MOVE(22.5)");
+    let home = spawn(
+        &g,
+        |g| async move { g.home(HomingDirection::Default).await },
+    );
+    assert_eq!(fake.read().await, "HOME()");
+    fake.say("ERR MOVE 3 E_NOT_INITIALIZEDJQCK HOME\nFIN HOME\n")
+        .await;
+    within("HOME", home).await.unwrap().unwrap();
+    assert!(
+        !mover.is_finished(),
+        "MOVE ended by a line that could not be read"
+    );
+}
+
 /// A request damaged on the way is answered under whatever name the damage left: a flipped bit
 /// made `GRIPSTATE?` into `GRIP\x13TATE?`, answered `ERR GRIP 15`, and the program's `GRIP(…)`
 /// on the wire then took it while its own `ACK GRIP` followed (the explorer's

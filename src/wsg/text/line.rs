@@ -137,12 +137,25 @@ pub fn parse_reply(line: &str) -> Result<ReplyLine<'_>, Malformed> {
 /// came with no `ACK` before it (`wsg-text:0xea94665dbf03df00`). GCL's texts are status symbols
 /// (`E_CMD_ABORTED`): a `*` or `J` followed by a reply's start is damage, counted as a reply
 /// that could not be read.
+///
+/// The keyword may carry a flipped bit of its own (`ERR MOVE 3 E_NOT_INITIALIZEDJQCK HOME`:
+/// HOME's `ACK` swallowed, its `FIN` then refused as another motion's, and the connection given
+/// up: `wsg-text:0x485486c387f4d074`): three letters one byte from `ACK`, `FIN` or `ERR`, then
+/// a space.
 fn runs_into_another_reply(rest: &str) -> bool {
+    let near = |w: &[u8], k: &[u8]| {
+        w.iter()
+            .zip(k)
+            .filter(|(a, b)| !a.eq_ignore_ascii_case(b))
+            .count()
+            <= 1
+    };
     rest.match_indices(['*', 'J']).any(|(at, _)| {
         let next = &rest[at + 1..];
-        let keyword = ["ACK ", "FIN ", "ERR "].iter().any(|k| {
-            next.get(..k.len())
-                .is_some_and(|w| w.eq_ignore_ascii_case(k))
+        let keyword = ["ACK", "FIN", "ERR"].iter().any(|k| {
+            next.as_bytes()
+                .get(..4)
+                .is_some_and(|w| w[3] == b' ' && near(&w[..3], k.as_bytes()))
         });
         let value = next
             .strip_prefix('@')
@@ -300,6 +313,9 @@ mod tests {
             "ERR GRIP 4JERR MOVE 4",
             "ERR GRIP 19*POS=12.5",
             "ERR GRIP 19J@POS=12.5",
+            // The keyword damaged too (wsg-text:0x485486c387f4d074).
+            "ERR MOVE 3 E_NOT_INITIALIZEDJQCK HOME",
+            "ERR GRIP 19*FIM MOVE",
         ] {
             assert_eq!(parse_reply(damaged), Err(Malformed::Unknown), "{damaged}");
         }
