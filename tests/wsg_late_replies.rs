@@ -236,15 +236,20 @@ async fn stalled_finger_power_device() -> SocketAddr {
 /// call is answered by its own replies.
 #[tokio::test]
 async fn a_finger_power_final_reply_stalled_past_the_grace_never_answers_the_next_call() {
-    let addr = stalled_finger_power_device().await;
+    the_next_finger_power_call_gets_its_own_answer(stalled_finger_power_device().await, true).await;
+}
+
+/// A first finger power on to `addr` times out; the next finger power call (`on`) gets its own
+/// answer, the device's E_CMD_FAILED (each device below fails it), never the first's E_SUCCESS.
+async fn the_next_finger_power_call_gets_its_own_answer(addr: SocketAddr, on: bool) {
     let client = first_call_timed_out(addr, "first finger power on", |c| async move {
         c.set_finger_power(gripper::wsg::Finger::One, true).await
     })
     .await;
     let patient = client.with_timeouts(Duration::from_secs(5), Duration::from_secs(5));
     let second = within(
-        "second finger power on",
-        patient.set_finger_power(gripper::wsg::Finger::One, true),
+        "second finger power call",
+        patient.set_finger_power(gripper::wsg::Finger::One, on),
     )
     .await;
     assert!(
@@ -255,7 +260,7 @@ async fn a_finger_power_final_reply_stalled_past_the_grace_never_answers_the_nex
                 status: gripper::wsg::Status::CmdFailed
             })
         ),
-        "the stalled final reply of the first call answered the second: {second:?}"
+        "the first call's final reply answered the second: {second:?}"
     );
 }
 
@@ -321,25 +326,9 @@ async fn late_received_finger_power_device() -> SocketAddr {
 /// `FINGER_POWER_ON_DURATION` + grace after the acknowledgement.
 #[tokio::test]
 async fn a_finger_power_on_received_late_never_answers_the_next_call() {
-    let addr = late_received_finger_power_device().await;
-    let client = first_call_timed_out(addr, "first finger power on", |c| async move {
-        c.set_finger_power(gripper::wsg::Finger::One, true).await
-    })
-    .await;
-    let patient = client.with_timeouts(Duration::from_secs(5), Duration::from_secs(5));
-    let second = within(
-        "second finger power on",
-        patient.set_finger_power(gripper::wsg::Finger::One, false),
+    the_next_finger_power_call_gets_its_own_answer(
+        late_received_finger_power_device().await,
+        false,
     )
     .await;
-    assert!(
-        matches!(
-            second,
-            Err(gripper::wsg::Error::Device {
-                command: id::FINGER1_POWER,
-                status: gripper::wsg::Status::CmdFailed
-            })
-        ),
-        "the first call's final reply answered the second: {second:?}"
-    );
 }
