@@ -143,7 +143,7 @@ struct Slot<C> {
 /// command or to a line written before it shows it was another's; one to a line written after
 /// it shows it was this command's. A probe draws such a reply when none is due; and the call is
 /// not kept past its deadline for it: just before, it gets the line, as it would have without
-/// the doubt.
+/// the doubt (a motion asked whether it runs aside: [`Book::doubt_held_motion`]).
 #[derive(Debug)]
 struct Held {
     /// The call's answer if the line is its own (`Error::Device`, which carries the line).
@@ -499,13 +499,14 @@ impl<C: Caller> Book<C> {
     /// or it answered an earlier line and the line that could not be read after it was the
     /// motion's `ACK` (it runs). The commands written before it lost their reply either way.
     /// The gripper is asked at once (`GRIPSTATE?`, shared note §3.7); `Book::motion_state`
-    /// reads its answer: moving, the `ERR` was another's; over with no `FIN` and nothing
-    /// unreadable since, its `FIN` (which would have come first, in order) was never sent, and
-    /// the `ERR` was its own. Before, the motion was taken as acknowledged at once and its
-    /// call timed out with its own refusal in hand (`wsg-text:0x939e47e5d1d27846`: the
-    /// unreadable line was the probe's own reply, `GRI\x10STATE=6`). The call still gets the
-    /// held line just before its deadline if no answer comes. Whether `name` is such a
-    /// motion.
+    /// reads its answer: the motion's own moving state, the `ERR` was another's; over twice with
+    /// no `FIN` and nothing unreadable since, its `FIN` (which would have come first, in order)
+    /// was never sent, and the `ERR` was its own. Before, the motion was taken as acknowledged
+    /// at once and its call timed out with its own refusal in hand
+    /// (`wsg-text:0x939e47e5d1d27846`: the unreadable line was the probe's own reply,
+    /// `GRI\x10STATE=6`). Undecided just before the call's deadline, the held line is dropped
+    /// and the call times out: a refusal that may be another line's is never handed over
+    /// (`Book::release_due`). Whether `name` is such a motion.
     fn doubt_held_motion(
         &mut self,
         name: &'static str,
@@ -534,7 +535,7 @@ impl<C: Caller> Book<C> {
             .values()
             .filter(|s| s.seq > held_seq && s.seq < seq && Book::answered_at_once(s))
             .count() as u64;
-        if self.unreadable() - (held.damages - held.holds) > between {
+        if self.unreadable().saturating_sub(held.damages - held.holds) > between {
             return false;
         }
         tracing::warn!(%line, "wsg text: a parse error out of its place, and a line that could not be read after it: asking the gripper whether its motion runs");
@@ -568,7 +569,8 @@ impl<C: Caller> Book<C> {
     }
 
     /// The calls whose held `ERR` was not settled by `now`, just before their deadline, get it
-    /// (as they would have without the doubt).
+    /// (as they would have without the doubt); but not a motion asked whether it runs, which
+    /// may run: its held line is dropped.
     fn release_due(&mut self, now: Instant) {
         let due: Vec<&'static str> = self
             .on_wire

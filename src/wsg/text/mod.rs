@@ -82,9 +82,13 @@
 //! the gripper answers in order, so the next reply tells whose it was. GRIP's own `ACK`, or a
 //! reply to a line written before GRIP, shows it answered an earlier line (which then fails as
 //! one whose reply could not be read); a reply to a line written after GRIP shows it was GRIP's.
-//! When no such reply is due, the client writes a query of its own to draw one. Residual risk,
-//! inherent in GCL: a call whose deadline comes first gets the held `ERR` just before it, as
-//! it would have without the doubt; the `FIN` rule above then keeps the replies that follow
+//! When no such reply is due, the client writes a query of its own to draw one. If a line that
+//! could not be read came after a motion's held `ERR` (it may have been the motion's `ACK`),
+//! the client asks the gripper whether the motion runs: its own moving state says the `ERR` was
+//! another line's; twice no motion, with nothing unreadable since, says it was the motion's
+//! own; anything else leaves the call to time out rather than take a refusal that may be
+//! another line's. Residual risk, inherent in GCL: a call whose deadline comes first gets the
+//! held `ERR` just before it, as it would have without the doubt; the `FIN` rule above then keeps the replies that follow
 //! from shifting onto later calls of the name. (Where the field might differ: the codes are our
 //! reading of the binary table, §4.3; on a gripper that numbered otherwise the rule holds a
 //! refusal a moment, never hands it to another call.)
