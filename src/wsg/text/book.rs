@@ -133,6 +133,16 @@ struct Slot<C> {
     held: Option<Held>,
 }
 
+impl<C> Slot<C> {
+    /// A motion whose held `ERR` is in doubt, the gripper asked whether it runs
+    /// ([`Book::doubt_held_motion`]): the one way a held line sits on an acknowledged motion
+    /// (a line is held only for a command that waits for a reply due at once). Its line is
+    /// never handed over on time or at the connection's end: the motion may run.
+    fn in_doubt(&self) -> bool {
+        self.acked && self.held.is_some()
+    }
+}
+
 /// An `ERR <name> 14` or `15` (unknown command, format error: the gripper's answer to a line
 /// it could not parse) read while a command answered at once that was written before this one
 /// still waits for its reply. A request damaged on the way is answered under whatever name the
@@ -460,7 +470,7 @@ impl<C: Caller> Book<C> {
             .filter_map(|(&name, s)| {
                 // A motion's held line in doubt waits for the gripper's state instead
                 // (`Book::doubt_held_motion`).
-                let h = s.held.as_ref().filter(|_| !s.acked)?;
+                let h = s.held.as_ref().filter(|_| !s.in_doubt())?;
                 let verdict =
                     (name != key && s.seq < seq).then(|| !h.unreadable_since(damages, holds));
                 Some((name, s.seq, verdict))
@@ -583,7 +593,7 @@ impl<C: Caller> Book<C> {
             // may be running: its caller times out rather than get a refusal that may be
             // another line's (review, session 11); the motion is checked on as any overdue one.
             match self.on_wire.get_mut(name) {
-                Some(slot) if slot.acked => slot.held = None,
+                Some(slot) if slot.in_doubt() => slot.held = None,
                 _ => {
                     self.release_held(name);
                 }
@@ -772,7 +782,7 @@ impl<C: Caller> Book<C> {
             // neither (damaged, reserved, another motion's) is asked again.
             // Moving, or over after a line that could not be read (maybe its `FIN`): the
             // held line goes, and the motion is checked as any other.
-            if slot.held.is_some() {
+            if slot.in_doubt() {
                 let moving = state.is_some() && state == moving_state(name);
                 if over && unreadable == slot.unreadable_at_ack {
                     if slot.over_unconfirmed {
@@ -1001,7 +1011,8 @@ impl<C: Caller> Book<C> {
             // A held `ERR` came from the gripper: the call gets it, as it would have without
             // the doubt.
             // Not a motion's in doubt (`Book::doubt_held_motion`): it may run.
-            let held = slot.held.filter(|_| !slot.acked);
+            let in_doubt = slot.in_doubt();
+            let held = slot.held.filter(|_| !in_doubt);
             let error = held.map_or_else(|| reason.clone(), |h| h.error);
             self.complete(slot.caller, Err(error));
         }
